@@ -1,0 +1,29 @@
+# The two commands of the README are the contract: `make demo` and `make test` set up a fresh
+# machine (a project-local .venv) and run. Nothing installed by hand is assumed.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test bench clean docs
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check --upgrade pip
+	$(PY) -m pip install -q --disable-pip-version-check -e '.[test]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(PY) -m distctrl demo
+
+test: $(STAMP)
+	$(PY) -m pytest -q -p no:cacheprovider
+
+bench: $(STAMP)
+	$(PY) bench/bench_core.py
+
+docs: $(STAMP)
+	$(PY) -m distctrl.params.docgen > docs/parameters.md
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis

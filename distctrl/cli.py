@@ -1,0 +1,7 @@
+"""Command-line interface (click)."""
+import click
+
+
+@click.group()
+def main() -> None:
+    """distctrl: CNC distance control."""

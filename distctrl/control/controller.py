@@ -1,0 +1,651 @@
+"""The axis-specific distance controller: one ``update(inp, out)`` per GEO cycle.
+
+Pure: no clock, no I/O, no global state; the cycle time is a constructor parameter. Parameters
+(:class:`~distctrl.params.AxisParameters`), state (:class:`ControllerState`) and per-cycle
+input/output (:class:`~distctrl.control.cycle_io.CycleInput` / ``CycleOutput``) are separate types.
+The numbers are computed by the functions of :mod:`distctrl.control.law` (the only copy of the
+law); this module is the state machine around them (SPEC §7, §8).
+
+Order of one cycle:
+ 1. inputs are made safe (a non-finite value is replaced by the last finite one and flagged);
+ 2. the sensor pipeline gives the encoder reading ``s`` and the distance ``d = -s`` (SPEC §2);
+ 3. the queued commands are applied in order (state transitions, set values, tuning);
+ 4. monitoring in the running states (70329, 70330/70576, non-finite input);
+ 5. feedback, filter, error and PID (SPEC §3-§5); 6. slope limiter and bounds (SPEC §6);
+ 7. every output value is written into ``out``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..errors import ErrorEvent, ErrorId, ParameterError, make_event
+from ..params.axis import AxisParameters
+from ..params.table import BY_FIELD
+from . import law
+from .commands import WRITABLE_OBJECTS, Action, Command, ObjectWrite
+from .cycle_io import CycleInput, CycleOutput, Result
+from .filters import FilterConfig, design_coefficients
+from .kinds import FilterType, SensorSource
+from .states import (ERROR_CODE_BY_ID, MONITORED_STATES, CommandSource, HliState, InternalState, Mode,
+                     running_state)
+
+_INACTIVE, _ACTIVE, _FREEZE, _TURNING_OFF = HliState.INACTIVE, HliState.ACTIVE, HliState.FREEZE, \
+    HliState.TURNING_OFF
+_ACTIVE_CD, _ERROR, _DRY_CD, _DRY_SP = HliState.ACTIVE_CONST_DIST, HliState.ERROR, \
+    HliState.DRYRUN_CONST_DIST, HliState.DRYRUN_SETPOS
+_TRACKING = frozenset({_ACTIVE, _ACTIVE_CD})          # the offset follows the surface
+_FILTERING = MONITORED_STATES | {_FREEZE}              # the filter keeps running
+_WAIT_WINDOW_MIN = 1e-3                                # mm: WAIT window is max(tolerance, 1 µm)
+_LAND = 1e-9                                           # mm: "at the bound" / "offset run out"
+
+
+@dataclass
+class Tuning:
+    """The working values that NC blocks and CNC-object writes may change at run time."""
+
+    kp: float
+    i_tn: float          # s
+    d_tv: float          # s
+    v_max: float         # mm/s
+    a_max: float         # mm/s², 0 = axis acceleration
+    filter: FilterConfig
+
+    @staticmethod
+    def from_params(p: AxisParameters) -> "Tuning":
+        return Tuning(p.kp, p.i_tn, p.d_tv, p.v_max, p.a_max,
+                      FilterConfig(p.filter_type, p.n_cycles, p.smoothing_factor, p.kalman_sigma,
+                                   p.low_pass_filter_order, p.low_pass_filter_fg_f0))
+
+
+@dataclass
+class ControllerState:
+    """Everything the controller remembers between cycles (public, inspectable)."""
+
+    cycle: int = 0
+    hli_state: HliState = HliState.INACTIVE
+    error_code: InternalState = InternalState.IDLE     # which ERROR (6..12) while in ERROR
+    no_move_this_cycle: bool = False
+    mode: Mode = Mode.SET_POS
+    source: CommandSource = CommandSource.NC
+    programmed_set_pos: float | None = None            # given since the last reset / program end
+    programmed_set_dist: float | None = None
+    set_pos: float = 0.0                               # working values of the running select, mm
+    set_dist: float = 0.0
+    offset: float = 0.0                                # o, mm
+    velocity: float = 0.0                              # v of the last cycle, mm/s
+    integral: float = 0.0                              # PID I part, mm
+    m_prev: float = 0.0                                # last measurement part of e (D on measurement)
+    need_seed: bool = True                             # filter (re)starts from the next sample
+    filtered: float = 0.0                              # last filtered feedback
+    ref_shift: float = 0.0                             # REF referencing offset, mm
+    last_s: float = 0.0                                # last finite encoder reading s, mm
+    has_last_s: bool = False
+    s_delayed: float = 0.0                             # previous cycle's reading (no optimized scheduling)
+    last_p: float = 0.0
+    last_a: float = 0.0
+    last_var: float = 0.0
+    sensor_source: SensorSource = SensorSource.SECOND_ENCODER
+    sensor_var: str | None = None
+    vals: list = field(default_factory=lambda: [0.0] * 5)
+    pending: dict = field(default_factory=dict)        # CNC-object writes awaiting adoption
+    error: ErrorEvent | None = None                    # the error that put the controller in ERROR
+
+
+class AxisDistanceController:
+    """Axis-specific distance control of one axis.
+
+    >>> from distctrl.params import AxisParameters
+    >>> from distctrl.control import Command, Action, CycleInput, CycleOutput
+    >>> ctrl = AxisDistanceController(AxisParameters(enabled=True), cycle_time=0.001)
+    >>> inp, out = CycleInput(programmed_position=40.0, actual_position=40.0), CycleOutput()
+    >>> inp.commands.append(Command(Action.ON, set_pos=40.0))
+    >>> ctrl.update(inp, out), out.hli_state
+    (<Result.OK: 0>, 1)
+    """
+
+    def __init__(self, params: AxisParameters, cycle_time: float = 0.001):
+        if not (isinstance(cycle_time, (int, float)) and math.isfinite(cycle_time) and 1e-5 <= cycle_time <= 1.0):
+            raise ParameterError(f"cycle_time = {cycle_time!r} s out of range; allowed: 1e-05 <= value <= 1",
+                                 key="cycle_time", value=cycle_time, allowed="1e-05 <= value <= 1")
+        self.params = params
+        self.T = float(cycle_time)
+        self.tuning = Tuning.from_params(params)
+        self.state = ControllerState()
+        self._fc = design_coefficients(self.tuning.filter, self.T)   # validates fg against Nyquist
+        self._fs = [0.0] * law.FS_LEN
+        self._buf = [0.0] * law.MAX_N
+        self._derive()
+
+    # ------------------------------------------------------------------ derived constants
+    def _derive(self) -> None:
+        """Recompute the per-cycle constants after a tuning change (never per cycle)."""
+        p, t, T = self.params, self.tuning, self.T
+        self._a_base = t.a_max if t.a_max > 0 else p.axis_a_max
+        self._i_gain = T / t.i_tn if t.i_tn > 0 else 0.0
+        self._d_gain = t.d_tv / T
+        self._w_v = p.v_weight_down if p.v_weight_down > 0 else 1.0
+        self._w_a = p.a_weight_down if p.a_weight_down > 0 else 1.0
+        a_candidates = [self._a_base]
+        if p.use_adaptive_acceleration:
+            a_candidates.append(p.a_min)
+        # the smallest acceleration the limiter may ever use: braking to a bound with it is always
+        # feasible, so the bound never forces a velocity step
+        self._a_floor = min(a_candidates) * min(1.0, self._w_a)
+
+    # ------------------------------------------------------------------ public API
+    def update(self, inp: CycleInput, out: CycleOutput) -> Result:
+        """Run one GEO cycle: consume ``inp.commands``, compute, fill ``out``. Never raises on
+        cycle data; errors are returned as events in ``out.events``."""
+        st = self.state
+        p = self.params
+        T = self.T
+        st.cycle += 1
+        events: list[ErrorEvent] = []
+        st.no_move_this_cycle = False
+        absorbed = 0.0
+        line = inp.nc_line
+
+        # 1. inputs made safe
+        finite_inputs = True
+        prog = inp.programmed_position
+        if _finite(prog):
+            st.last_p = prog
+        else:
+            prog, finite_inputs = st.last_p, False
+        act = inp.actual_position
+        if _finite(act):
+            st.last_a = act
+        else:
+            act, finite_inputs = st.last_a, False
+
+        # 2. sensor pipeline: s now (mm); with optimized scheduling off the law sees last cycle's
+        s_now, sensor_ok = self._read_sensor(inp)
+        if p.optimized_scheduling:
+            s = s_now
+        else:
+            s, st.s_delayed = st.s_delayed, s_now
+        if not sensor_ok:
+            finite_inputs = False
+
+        # 3. commands
+        if inp.commands:
+            for cmd in inp.commands:
+                absorbed += self._apply(cmd, inp, events, s_now, sensor_ok)
+            inp.commands.clear()
+            # a REF or a source change acts on this cycle's reading
+            s_now, sensor_ok = self._read_sensor(inp)
+            if p.optimized_scheduling:
+                s = s_now
+            else:
+                st.s_delayed = s_now
+
+        state = st.hli_state
+        # PLC cyclic set values (re-read every cycle while PLC-commanded)
+        if st.source == CommandSource.PLC and state in MONITORED_STATES:
+            if st.mode == Mode.SET_POS and inp.cyclic_set_pos is not None and _finite(inp.cyclic_set_pos):
+                st.set_pos = inp.cyclic_set_pos
+            elif st.mode == Mode.CONST_DIST and inp.cyclic_set_dist is not None and _finite(inp.cyclic_set_dist):
+                st.set_dist = inp.cyclic_set_dist
+
+        # 4. monitoring (running states only; not in FREEZE: lifting Z while frozen is allowed)
+        if state in MONITORED_STATES:
+            if not finite_inputs:
+                self._raise(ErrorId.INPUT_NOT_FINITE, events, line)
+            else:
+                if st.has_last_s and abs(s - st.last_s) > p.max_act_value_change * T:
+                    self._raise(ErrorId.SENSOR_JUMP, events, line,
+                                f"|Δs| = {abs(s - st.last_s):.6g} mm in {T:g} s, limit "
+                                f"{p.max_act_value_change:g} mm/s")
+                elif s > p.max_pos - p.tolerance:
+                    self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line, f"s = {s:.6g} mm")
+                elif s < p.min_pos + p.tolerance:
+                    self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line, f"s = {s:.6g} mm")
+            state = st.hli_state
+        if sensor_ok:
+            st.last_s = s
+            st.has_last_s = True
+        else:
+            s = st.last_s
+
+        # 5. feedback, filter, error, PID
+        d = -s
+        surface = act - d
+        o = st.offset
+        mode = st.mode
+        both = mode == Mode.CONST_DIST and p.use_both_encoders
+        feedback = d if (mode == Mode.CONST_DIST and not both) else surface
+        if state in _FILTERING:
+            if st.need_seed:
+                law.filter_seed(self._fc, self._fs, self._buf, feedback)
+                st.need_seed = False
+                st.m_prev = self._measurement(feedback, mode, both)
+            filtered = law.filter_step(self._fc, self._fs, self._buf, feedback)
+        else:
+            filtered = feedback
+            st.need_seed = True
+        st.filtered = filtered
+
+        target_dev = 0.0
+        e = 0.0
+        u = 0.0
+        i_cand = st.integral
+        if state in MONITORED_STATES:
+            if mode == Mode.SET_POS:
+                target_dev = filtered - st.set_pos
+                e = target_dev - o
+                m = filtered
+            elif both:
+                target_dev = (prog + o - filtered) - st.set_dist
+                e = (filtered + st.set_dist - prog) - o
+                m = filtered
+            else:
+                target_dev = filtered - st.set_dist
+                e = st.set_dist - filtered
+                m = -filtered
+            u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
+            st.m_prev = m
+        elif state == _TURNING_OFF:
+            e = -o
+            u = -o
+
+        # 6. slope limiter and bounds
+        override = inp.override
+        if not (override > 0.0) or inp.feed_hold:      # also catches NaN
+            override = 0.0
+        elif override > 1.0:
+            override = 1.0
+        hold = override == 0.0 or state not in (_ACTIVE, _ACTIVE_CD, _TURNING_OFF)
+        v_lim = self.tuning.v_max * override
+        a_lim = self._a_base
+        if p.use_adaptive_acceleration and state in _TRACKING:
+            a_lim = law.adaptive_acceleration(abs(target_dev), p.a_min, self._a_base, p.dist_error_a_min,
+                                              p.dist_error_a_max)
+        if hold:
+            u_lim, e_lim = 0.0, 0.0                    # wanted step 0: decelerate and stay
+        else:
+            u_lim, e_lim = u, e
+        v, a_applied, v_applied = law.slope_limit(u_lim, e_lim, st.velocity, T, v_lim, a_lim,
+                                                  v_lim * self._w_v, a_lim * self._w_a)
+        lo, hi = -p.max_deviation, p.max_deviation
+        sw_active = p.check_sw_limit_switch
+        if sw_active:
+            lo = max(lo, p.sw_limit_min - prog)
+            hi = min(hi, p.sw_limit_max - prog)
+        v = law.bound_velocity(v, o, T, lo, hi, self._a_floor)
+        o_new = law.advance_offset(o, v, T, lo, hi)
+        # at a bound and wanting beyond it: 70331 (max_deviation) or the software limit
+        if not hold:
+            wanted = o + u_lim
+            if wanted > hi + _LAND and hi - o_new <= _LAND:
+                self._raise(ErrorId.MAX_DEVIATION if hi >= p.max_deviation - _LAND else ErrorId.SW_LIMIT,
+                            events, line, f"wanted offset {wanted:.6g} mm, limit {hi:.6g} mm")
+            elif wanted < lo - _LAND and o_new - lo <= _LAND:
+                self._raise(ErrorId.MAX_DEVIATION if lo <= -p.max_deviation + _LAND else ErrorId.SW_LIMIT,
+                            events, line, f"wanted offset {wanted:.6g} mm, limit {lo:.6g} mm")
+            state = st.hli_state
+        # integrator: keep the candidate only if the limiter did not clip in its direction
+        if state in _TRACKING and not hold:
+            clipped = u_lim - v * T
+            if abs(clipped) <= 1e-12 or (clipped > 0.0) != (e > 0.0):
+                st.integral = i_cand
+        v_real = (o_new - o) / T
+        st.velocity = v_real
+        st.offset = o_new
+        if state == _TURNING_OFF and abs(o_new) <= _LAND and abs(v_real) <= a_applied * T:
+            st.offset = o_new = 0.0
+            st.velocity = 0.0
+            self._to_inactive()
+            state = _INACTIVE
+
+        # 7. outputs
+        tol = p.tolerance if p.tolerance > _WAIT_WINDOW_MIN else _WAIT_WINDOW_MIN
+        out.offset = o_new
+        out.m_actual_offset = o_new
+        out.command_position = prog + o_new + absorbed
+        out.absorbed_offset = absorbed
+        out.set_pos = st.set_pos if state != _INACTIVE or st.programmed_set_pos is None else st.programmed_set_pos
+        out.set_distance = st.set_dist if state != _INACTIVE or st.programmed_set_dist is None \
+            else st.programmed_set_dist
+        out.target_deviation = target_dev
+        out.delta_deviation_pre_limiter = u
+        out.sloped_delta_deviation = v * T
+        out.delta_offset = o_new - o
+        out.offset_velocity = st.velocity
+        out.sensor_value = st.last_var if st.sensor_source == SensorSource.VARIABLE else s
+        out.feedback_value = feedback
+        out.filtered_feedback = filtered
+        out.hli_state = int(state)
+        out.state = int(self._internal_state(state))
+        t = self.tuning
+        out.kp, out.i_tn, out.d_tv = t.kp, t.i_tn, t.d_tv
+        out.smoothing_fact, out.kalman_sigma = t.filter.smoothing_factor, t.filter.kalman_sigma
+        out.n_cycles, out.filter_type = t.filter.n_cycles, t.filter.filter_type.name
+        out.v_max_int, out.a_max_int = v_applied, a_applied
+        out.v_max_param, out.a_max_param = t.v_max, t.a_max
+        out.surface_position = surface
+        out.measured_distance = d
+        out.command_source = int(st.source)
+        out.target_reached = state == _INACTIVE or (state in MONITORED_STATES and abs(e) <= tol)
+        out.sensor_valid = sensor_ok
+        out.cycle = st.cycle
+        out.vals = tuple(st.vals)
+        out.events = events
+        if not events:
+            return Result.OK
+        return Result.ERROR if any(ev.severity == "error" for ev in events) else Result.WARNING
+
+    def submit_hli(self, transition: int, position_mm: float = 0.0) -> Command:
+        """Convenience: the Command a PLC transition maps to (put it into ``inp.commands``)."""
+        return Command.from_hli(transition, position_mm)
+
+    @property
+    def hli_state(self) -> HliState:
+        return self.state.hli_state
+
+    # ------------------------------------------------------------------ sensor
+    def _read_sensor(self, inp: CycleInput) -> tuple[float, bool]:
+        """Encoder reading s (mm) from the configured source; (last s, False) when not finite."""
+        st, p = self.state, self.params
+        if st.sensor_source == SensorSource.VARIABLE:
+            d = inp.sensor_variable
+            if not _finite(d):
+                return st.last_s, False
+            st.last_var = d
+            s = -d + st.ref_shift                          # the PLC delivers mm: no ref_offset here
+            if p.sensor_mode_act_pos == 2:
+                s = p.min_pos + (s - p.min_pos) % (p.max_pos - p.min_pos)
+            return s, True
+        incr = inp.sensor_increments
+        if not _finite(incr) or abs(incr) > law.HUGE:
+            return st.last_s, False
+        s = law.encoder_reading(incr, p.sensor_mm_per_increment, p.sensor_sign_reversal,
+                                p.ref_offset + st.ref_shift, p.sensor_mode_act_pos == 2, p.min_pos, p.max_pos)
+        if not _finite(s):
+            return st.last_s, False
+        return s, True
+
+    @staticmethod
+    def _measurement(feedback: float, mode: Mode, both: bool) -> float:
+        return -feedback if (mode == Mode.CONST_DIST and not both) else feedback
+
+    # ------------------------------------------------------------------ errors
+    def _raise(self, error_id: int, events: list, line: int | None, detail: str = "") -> None:
+        """Record an error; severity 'error' puts the controller into ERROR (offset held)."""
+        st = self.state
+        ev = make_event(error_id, st.cycle, line, detail)
+        events.append(ev)
+        if ev.severity != "error":
+            return
+        if error_id == ErrorId.NOT_AVAILABLE:
+            return                                   # no distance control on this axis: nothing to hold
+        st.hli_state = _ERROR
+        st.error = ev
+        st.error_code = ERROR_CODE_BY_ID.get(int(error_id), InternalState.ERROR_OTHER)
+
+    def _internal_state(self, state: HliState) -> InternalState:
+        st = self.state
+        if st.no_move_this_cycle and state == _INACTIVE:
+            return InternalState.OFF_NO_MOVE
+        if state == _INACTIVE:
+            return InternalState.IDLE
+        if state in _TRACKING:
+            return InternalState.ACTIVE
+        if state == _FREEZE:
+            return InternalState.FREEZE
+        if state == _TURNING_OFF:
+            return InternalState.OFF
+        if state == _ERROR:
+            return st.error_code
+        return InternalState.DRYRUN
+
+    # ------------------------------------------------------------------ commands
+    def _apply(self, cmd, inp: CycleInput, events: list, s_now: float, sensor_ok: bool) -> float:
+        """Apply one command; returns the offset absorbed into the channel (mm)."""
+        st = self.state
+        line = getattr(cmd, "line", None)
+        if line is None:
+            line = inp.nc_line
+        if isinstance(cmd, ObjectWrite):
+            self._object_write(cmd, events, line)
+            return 0.0
+        if not isinstance(cmd, Command):
+            events.append(make_event(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, st.cycle, line,
+                                     f"not a command: {type(cmd).__name__}", severity="warning"))
+            return 0.0
+        a = cmd.action
+        if a in (Action.RESET, Action.AXIS_ERROR):
+            absorbed = self._absorb_to_inactive()
+            st.programmed_set_pos = st.programmed_set_dist = None
+            return absorbed
+        if a == Action.PROGRAM_END:
+            if st.hli_state != _INACTIVE:
+                self._raise(ErrorId.ACTIVE_AT_PROGRAM_END, events, line)
+            st.programmed_set_pos = st.programmed_set_dist = None
+            return 0.0
+        if a == Action.AXIS_RELEASE:
+            if st.hli_state != _INACTIVE:
+                self._raise(ErrorId.AXIS_RELEASED_WHILE_ACTIVE, events, line)
+            return 0.0
+        if not self.params.enabled:
+            self._raise(ErrorId.NOT_AVAILABLE, events, line)
+            return 0.0
+        problem = _check_command_values(cmd, self.T)
+        if problem:
+            self._raise(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, events, line, problem)
+            return 0.0
+        state = st.hli_state
+        if state == _ERROR and not (a == Action.OFF or a == Action.NONE):
+            self._raise(ErrorId.INVALID_TRANSITION, events, line,
+                        f"{a.name} in ERROR; ERROR is left only by OFF")
+            return 0.0
+        # values (given with any command)
+        if cmd.set_pos is not None:
+            st.programmed_set_pos = float(cmd.set_pos)
+            if state in MONITORED_STATES and st.mode == Mode.SET_POS:
+                st.set_pos = st.programmed_set_pos
+        if cmd.set_dist is not None:
+            st.programmed_set_dist = float(cmd.set_dist)
+            if state in MONITORED_STATES and st.mode == Mode.CONST_DIST:
+                st.set_dist = st.programmed_set_dist
+        for i, val in enumerate(cmd.vals[:5]):
+            if val is not None:
+                st.vals[i] = float(val)
+        if cmd.sensor_var is not None:
+            st.sensor_var = cmd.sensor_var
+        if cmd.sensor_source is not None:
+            new_source = SensorSource.SECOND_ENCODER if cmd.sensor_source == SensorSource.DEFAULT \
+                else SensorSource(cmd.sensor_source)
+            if new_source != st.sensor_source:
+                if state != _INACTIVE:
+                    self._raise(ErrorId.SENSOR_SOURCE_CHANGED, events, line,
+                                f"{st.sensor_source.name} -> {new_source.name}")
+                    return 0.0
+                st.sensor_source = new_source
+                st.has_last_s = False
+        self._nc_tuning(cmd)
+        # the action
+        if a == Action.NONE:
+            return 0.0
+        if a in (Action.ON, Action.DRYRUN):
+            self._select(Mode.CONST_DIST if cmd.const_dist else Mode.SET_POS, a == Action.DRYRUN, cmd, events, line)
+            return 0.0
+        if a == Action.FREEZE:
+            if state in MONITORED_STATES:
+                st.hli_state = _FREEZE
+            elif state != _FREEZE:
+                self._raise(ErrorId.INVALID_TRANSITION, events, line, f"FREEZE in {state.name}")
+            return 0.0
+        if a == Action.OFF:
+            if cmd.no_move:
+                if state != _INACTIVE:
+                    absorbed = self._absorb_to_inactive()
+                    st.no_move_this_cycle = True
+                    return absorbed
+                return 0.0
+            if state not in (_INACTIVE, _TURNING_OFF):
+                st.hli_state = _TURNING_OFF
+            return 0.0
+        if a == Action.CHECK_POS:
+            p = self.params
+            if not sensor_ok:
+                self._raise(ErrorId.INPUT_NOT_FINITE, events, line, "CHECK_POS")
+            elif s_now > p.max_pos - p.tolerance:
+                self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line, f"CHECK_POS: s = {s_now:.6g} mm")
+            elif s_now < p.min_pos + p.tolerance:
+                self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line, f"CHECK_POS: s = {s_now:.6g} mm")
+            return 0.0
+        if a == Action.REF:
+            if state != _INACTIVE:
+                self._raise(ErrorId.INVALID_TRANSITION, events, line, f"REF in {state.name}; only in INACTIVE")
+            elif not sensor_ok:
+                self._raise(ErrorId.INPUT_NOT_FINITE, events, line, "REF")
+            else:
+                ref = 0.0 if cmd.ref_position is None else float(cmd.ref_position)
+                # choose the referencing offset so that the reading equals ref now
+                st.ref_shift += ref - s_now
+                st.has_last_s = False
+            return 0.0
+        return 0.0
+
+    def _select(self, mode: Mode, dryrun: bool, cmd: Command, events: list, line: int | None) -> None:
+        st = self.state
+        state = st.hli_state
+        target = running_state(mode, dryrun)
+        if state == _TURNING_OFF:
+            self._raise(ErrorId.SELECT_WHILE_TURNING_OFF, events, line)
+            return
+        if state in MONITORED_STATES and state != target:
+            self._raise(ErrorId.INVALID_TRANSITION, events, line,
+                        f"{state.name} -> {target.name} only through FREEZE or INACTIVE")
+            return
+        if mode == Mode.SET_POS and st.programmed_set_pos is None:
+            self._raise(ErrorId.SELECT_WITHOUT_SET_VALUE, events, line, "SET_POS missing")
+            return
+        if mode == Mode.CONST_DIST and st.programmed_set_dist is None:
+            self._raise(ErrorId.SELECT_WITHOUT_SET_VALUE, events, line, "SET_DIST missing")
+            return
+        if mode == Mode.SET_POS:
+            st.set_pos = st.programmed_set_pos
+        else:
+            st.set_dist = st.programmed_set_dist
+        st.source = cmd.source
+        if state == target:
+            return                                   # re-select: new set value only
+        # INACTIVE -> running or FREEZE -> running: object writes are adopted now (safety rule)
+        self._adopt_pending()
+        if state == _INACTIVE or mode != st.mode:
+            st.need_seed = True                      # the feedback quantity starts (or changes)
+            st.integral = 0.0
+        st.mode = mode
+        st.hli_state = target
+
+    def _absorb_to_inactive(self) -> float:
+        """Deselect at once; the channel takes over the offset (the axis does not move)."""
+        st = self.state
+        absorbed = st.offset
+        st.offset = 0.0
+        st.velocity = 0.0
+        self._to_inactive()
+        return absorbed
+
+    def _to_inactive(self) -> None:
+        st = self.state
+        st.hli_state = _INACTIVE
+        st.error = None
+        st.error_code = InternalState.IDLE
+        st.integral = 0.0
+        st.need_seed = True
+
+    def _adopt_pending(self) -> None:
+        if not self.state.pending:
+            return
+        t = self.tuning
+        for name, value in self.state.pending.items():
+            setattr(t, name, value)
+        self.state.pending.clear()
+        self._derive()
+
+    def _object_write(self, w: ObjectWrite, events: list, line: int | None) -> None:
+        st = self.state
+        if w.name not in WRITABLE_OBJECTS:
+            events.append(make_event(ErrorId.OBJECT_READ_ONLY, st.cycle, line, w.name, severity="warning"))
+            return
+        problem = _check_object_value(w.name, w.value)
+        if problem:
+            events.append(make_event(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, st.cycle, line, problem,
+                                     severity="warning"))
+            return
+        st.pending[w.name] = float(w.value)
+
+    def _nc_tuning(self, cmd: Command) -> None:
+        """Tuning programmed in a DIST_CTRL block takes effect with the block (bumpless)."""
+        t = self.tuning
+        changed = False
+        for name in ("kp", "i_tn", "d_tv"):
+            value = getattr(cmd, name)
+            if value is not None:
+                setattr(t, name, float(value))
+                self.state.pending.pop(name, None)
+                changed = True
+        f = t.filter
+        nf = FilterConfig(
+            cmd.filter_type if cmd.filter_type is not None else f.filter_type,
+            int(cmd.n_cycles) if cmd.n_cycles is not None else f.n_cycles,
+            float(cmd.smooth_fact) if cmd.smooth_fact is not None else f.smoothing_factor,
+            float(cmd.kalman_sigma) if cmd.kalman_sigma is not None else f.kalman_sigma,
+            int(cmd.order) if cmd.order is not None else f.order,
+            float(cmd.fg_f0) if cmd.fg_f0 is not None else f.fg_f0)
+        if nf != f:
+            t.filter = nf
+            self._fc = design_coefficients(nf, self.T)
+            # bumpless: the new filter starts from the last filtered value
+            law.filter_seed(self._fc, self._fs, self._buf, self.state.filtered)
+            changed = True
+        if changed:
+            self._derive()
+
+
+def _finite(x) -> bool:
+    return x == x and -law.HUGE < x < law.HUGE
+
+
+_COMMAND_RANGES = (("kp", "kp"), ("i_tn", "i_tn"), ("d_tv", "d_tv"), ("n_cycles", "n_cycles"),
+                   ("order", "low_pass_filter_order"), ("smooth_fact", "smoothing_factor"),
+                   ("kalman_sigma", "kalman_sigma"), ("fg_f0", "low_pass_filter_fg_f0"))
+
+
+def _check_command_values(cmd: Command, T: float) -> str:
+    """'' when every value of the command is legal, else a message naming the first bad one."""
+    for attr, field_name in _COMMAND_RANGES:
+        value = getattr(cmd, attr)
+        if value is None:
+            continue
+        spec = BY_FIELD[field_name]
+        if not _finite(value) or not spec.check(value) or (spec.type != "REAL64" and int(value) != value):
+            return f"{attr.upper()}={value!r} ({spec.id}); allowed: {spec.range_text()}"
+    if cmd.fg_f0 is not None and cmd.fg_f0 >= 0.5 / T:
+        return f"FG_F0={cmd.fg_f0!r} Hz at or above Nyquist {0.5 / T:g} Hz"
+    if cmd.filter_type is not None and (not isinstance(cmd.filter_type, FilterType)
+                                        or cmd.filter_type == FilterType.PASS):
+        return f"FILTER_TYPE={cmd.filter_type!r} unknown"
+    for name in ("set_pos", "set_dist", "ref_position"):
+        value = getattr(cmd, name)
+        if value is not None and not _finite(value):
+            return f"{name.upper()}={value!r} is not a finite number"
+    for val in cmd.vals:
+        if val is not None and not _finite(val):
+            return f"VAL={val!r} is not a finite number"
+    return ""
+
+
+def _check_object_value(name: str, value: float) -> str:
+    if not _finite(value):
+        return f"{name} = {value!r} is not finite"
+    if name in ("kp", "i_tn", "d_tv"):
+        spec = BY_FIELD[name]
+        if not spec.check(value):
+            return f"{name} = {value!r} ({spec.id}); allowed: {spec.range_text()}"
+    elif value < 0:
+        return f"{name} = {value!r}; allowed: value >= 0"
+    return ""

@@ -1,0 +1,152 @@
+"""Sensor filters (SPEC §4, P-AXIS-00782): configuration, design and a small filter object.
+
+The per-sample law lives in :mod:`distctrl.control.law`; this module turns a configuration into
+the flat coefficient buffer the law uses (designing the Butterworth low-pass with scipy, once) and
+offers :class:`SensorFilter`, a filterpy-style object with public state for use on its own
+(workbench, tests, a user's own loop).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ParameterError
+from . import law
+from .kinds import FilterType
+
+
+@dataclass(frozen=True, slots=True)
+class FilterConfig:
+    """Filter type and its parameters (P-AXIS-00782, 00413, 00784, 00783, 00507, 00508)."""
+
+    filter_type: FilterType = FilterType.DEFAULT
+    n_cycles: int = 4                 # P-AXIS-00413, 0 <= n < 100
+    smoothing_factor: float = 0.7     # P-AXIS-00784, 0 < alpha <= 1
+    kalman_sigma: float = 4.0         # P-AXIS-00783, 1..10000
+    order: int = 4                    # P-AXIS-00507, 0..6
+    fg_f0: float = 25.0               # P-AXIS-00508, Hz
+
+    def check(self, cycle_time: float) -> None:
+        """Raise ParameterError unless the configuration is usable at this cycle time."""
+        if not isinstance(self.filter_type, FilterType) or self.filter_type == FilterType.PASS:
+            raise ParameterError(f"filter type {self.filter_type!r} not allowed", param_id="P-AXIS-00782")
+        if not (0 <= int(self.n_cycles) < law.MAX_N) or int(self.n_cycles) != self.n_cycles:
+            raise ParameterError(f"n_cycles = {self.n_cycles!r} out of range; allowed: integer 0 <= n < 100",
+                                 param_id="P-AXIS-00413", value=self.n_cycles, allowed="0 <= n < 100")
+        if not (0.0 < self.smoothing_factor <= 1.0):
+            raise ParameterError(f"smoothing_factor = {self.smoothing_factor!r} out of range; allowed: "
+                                 "0 < value <= 1", param_id="P-AXIS-00784", value=self.smoothing_factor,
+                                 allowed="0 < value <= 1")
+        if not (1.0 <= self.kalman_sigma <= 10000.0):
+            raise ParameterError(f"kalman_sigma = {self.kalman_sigma!r} out of range; allowed: "
+                                 "1 <= value <= 10000", param_id="P-AXIS-00783", value=self.kalman_sigma,
+                                 allowed="1 <= value <= 10000")
+        if not (0 <= int(self.order) <= 6) or int(self.order) != self.order:
+            raise ParameterError(f"low_pass_filter_order = {self.order!r} out of range; allowed: 0..6",
+                                 param_id="P-AXIS-00507", value=self.order, allowed="0..6")
+        if self.filter_type == FilterType.LOWPASS and self.order > 0:
+            nyquist = 0.5 / cycle_time
+            if not (0.0 < self.fg_f0 < nyquist):
+                raise ParameterError(
+                    f"low_pass_filter_fg_f0 = {self.fg_f0!r} Hz out of range for cycle time {cycle_time} s; "
+                    f"allowed: 0 < fg_f0 < {nyquist:g} Hz (Nyquist)", param_id="P-AXIS-00508",
+                    value=self.fg_f0, allowed=f"0 < value < {nyquist:g}")
+
+    @property
+    def effective_kind(self) -> int:
+        """The law's filter code after DEFAULT and the pass-through cases are resolved."""
+        ft = self.filter_type
+        if ft == FilterType.DEFAULT:
+            return law.MOVING_AVERAGE
+        if ft == FilterType.LOWPASS:
+            return law.LOWPASS if self.order > 0 else law.PASS
+        if self.n_cycles <= 1:
+            return law.PASS
+        if ft == FilterType.EXPO_MEAN and self.smoothing_factor >= 1.0:
+            return law.PASS
+        return int(ft)
+
+    @property
+    def effective_n(self) -> int:
+        return 4 if self.filter_type == FilterType.DEFAULT else int(self.n_cycles)
+
+    def label(self) -> str:
+        ft = self.filter_type
+        if ft == FilterType.LOWPASS:
+            return f"LOWPASS(order={self.order}, fg_f0={self.fg_f0:g} Hz)"
+        if ft == FilterType.DEFAULT:
+            return "DEFAULT(MOVING_AVERAGE n=4)"
+        extra = []
+        if ft in (FilterType.EXPO_MEAN, FilterType.KALMAN_EXPO):
+            extra.append(f"smoothing_factor={self.smoothing_factor:g}")
+        if ft in (FilterType.KALMAN_MA, FilterType.KALMAN_EXPO):
+            extra.append(f"kalman_sigma={self.kalman_sigma:g}")
+        return f"{ft.name}(n_cycles={self.n_cycles}{''.join(', ' + x for x in extra)})"
+
+
+def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
+    """The law's coefficient buffer ``fc`` for a configuration (designs the low-pass with scipy)."""
+    config.check(cycle_time)
+    fc = [0.0] * law.FC_LEN
+    kind = config.effective_kind
+    n = config.effective_n
+    alpha = float(config.smoothing_factor)
+    fc[law.FC_KIND] = float(kind)
+    fc[law.FC_N] = float(n)
+    fc[law.FC_ALPHA] = alpha
+    fc[law.FC_SIGMA] = float(config.kalman_sigma)
+    decay = (1.0 - alpha) ** n
+    fc[law.FC_DECAY_N] = decay
+    fc[law.FC_WSUM] = 1.0 - decay if kind in (law.EXPO_MEAN, law.KALMAN_EXPO) else 1.0
+    if kind == law.LOWPASS:
+        from scipy import signal
+
+        sos = signal.butter(int(config.order), float(config.fg_f0), btype="low", fs=1.0 / cycle_time,
+                            output="sos")
+        zi = signal.sosfilt_zi(sos)     # steady state for a unit input: seeding causes no jump
+        fc[law.FC_NSEC] = float(len(sos))
+        for s, row in enumerate(sos):
+            fc[law.FC_SOS + 6 * s: law.FC_SOS + 6 * s + 6] = [float(v) for v in row]
+            fc[law.FC_ZI + 2 * s] = float(zi[s, 0])
+            fc[law.FC_ZI + 2 * s + 1] = float(zi[s, 1])
+    return fc
+
+
+class SensorFilter:
+    """One configured sensor filter with public state (filterpy style).
+
+    >>> f = SensorFilter(FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=3), cycle_time=0.001)
+    >>> [f.step(x) for x in (3.0, 3.0, 6.0)]
+    [3.0, 3.0, 4.0]
+
+    The first sample seeds the history (no jump on activation). ``fc``, ``fs`` and ``buf`` are
+    the law's buffers; :meth:`apply` runs a whole signal through a fresh copy.
+    """
+
+    def __init__(self, config: FilterConfig, cycle_time: float = 0.001):
+        self.config = config
+        self.cycle_time = float(cycle_time)
+        self.fc = design_coefficients(config, self.cycle_time)
+        self.fs = [0.0] * law.FS_LEN
+        self.buf = [0.0] * law.MAX_N
+        self.seeded = False
+
+    def seed(self, x0: float) -> None:
+        law.filter_seed(self.fc, self.fs, self.buf, float(x0))
+        self.seeded = True
+
+    def step(self, x: float) -> float:
+        if not self.seeded:
+            self.seed(x)
+        return law.filter_step(self.fc, self.fs, self.buf, float(x))
+
+    @property
+    def last(self) -> float:
+        return self.fs[law.FS_LAST]
+
+    def apply(self, signal) -> np.ndarray:
+        """Filter a whole signal from a fresh start (seeded with its first sample)."""
+        fresh = SensorFilter(self.config, self.cycle_time)
+        return np.fromiter((fresh.step(x) for x in np.asarray(signal, dtype=float)), dtype=float,
+                           count=len(signal))

@@ -1,0 +1,273 @@
+"""The control law of distance control, as plain functions over floats and flat buffers.
+
+This module is the *only* copy of the law (SPEC §2-§6). The cycle core
+(:mod:`distctrl.control.controller`) calls these functions in plain CPython; the batch kernel
+(:mod:`distctrl.batch.kernel`) registers the very same functions with numba and compiles them.
+Therefore they obey numba's subset: scalars, ``math`` functions, and 1-D indexable buffers (a
+Python ``list`` in the scalar core, a ``numpy`` array in the kernel), no objects, no exceptions.
+
+Units: mm, s, Hz. ``T`` is the GEO cycle time in s.
+
+Filter buffers (see :func:`new_filter_buffers`):
+  ``fc`` coefficients: [kind, n, alpha, sigma, (1-alpha)^n, 1-(1-alpha)^n, n_sections, -,
+  sos (3 sections x b0 b1 b2 a0 a1 a2), zi for a unit input (3 sections x 2)]
+  ``fs`` state: [ring index, running sum, Kalman P, last output, zi (3 sections x 2)]
+  ``buf`` ring buffer of the last n inputs (averages) or estimates (Kalman), length MAX_N.
+"""
+from __future__ import annotations
+
+from math import floor, sqrt
+
+# filter kinds (FilterType values)
+PASS = 0
+MOVING_AVERAGE = 1
+EXPO_MEAN = 2
+LOWPASS = 3
+KALMAN_MA = 4
+KALMAN_EXPO = 5
+
+MAX_N = 100            # n_cycles < 100
+MAX_SECTIONS = 3       # order <= 6
+FC_KIND, FC_N, FC_ALPHA, FC_SIGMA, FC_DECAY_N, FC_WSUM, FC_NSEC = 0, 1, 2, 3, 4, 5, 6
+FC_SOS = 8
+FC_ZI = FC_SOS + 6 * MAX_SECTIONS
+FC_LEN = FC_ZI + 2 * MAX_SECTIONS
+FS_IDX, FS_TOTAL, FS_P, FS_LAST, FS_ZI = 0, 1, 2, 3, 4
+FS_LEN = FS_ZI + 2 * MAX_SECTIONS
+
+#: everything the scalar law ever lets through is clipped to this (mm); keeps inf/overflow out
+HUGE = 1e12
+
+
+# ----------------------------------------------------------------------------- sensor
+
+def encoder_reading(increments, mm_per_increment, sign_reversal, offset_mm, modulo, lo, hi):
+    """Encoder-2 reading s (mm) from raw increments (SPEC §2): scale, sign, shift, modulo."""
+    s = increments * mm_per_increment
+    if sign_reversal:
+        s = -s
+    s = s + offset_mm
+    if modulo:
+        span = hi - lo
+        s = lo + (s - lo) % span
+    return s
+
+
+# ----------------------------------------------------------------------------- filters
+
+def kalman_steady_p(sigma):
+    """Stationary error variance of the scalar Kalman filter with process variance 1."""
+    return (-1.0 + sqrt(1.0 + 4.0 * sigma)) / 2.0
+
+
+def _ring_sum(buf, n):
+    total = 0.0
+    for i in range(n):
+        total += buf[i]
+    return total
+
+
+def _ring_expo_sum(buf, n, idx, alpha):
+    """Sum of alpha(1-alpha)^k x_(newest-k) over the ring, newest at idx-1."""
+    total = 0.0
+    w = alpha
+    j = idx - 1
+    for _ in range(n):
+        if j < 0:
+            j += n
+        total += w * buf[j]
+        w *= 1.0 - alpha
+        j -= 1
+    return total
+
+
+def filter_seed(fc, fs, buf, x0):
+    """Start the filter from the sample x0: history filled with it, output x0 (no jump)."""
+    kind = int(fc[FC_KIND])
+    n = int(fc[FC_N])
+    for i in range(n):
+        buf[i] = x0
+    fs[FS_IDX] = 0.0
+    fs[FS_LAST] = x0
+    if kind == MOVING_AVERAGE or kind == KALMAN_MA:
+        fs[FS_TOTAL] = x0 * n
+    elif kind == EXPO_MEAN or kind == KALMAN_EXPO:
+        fs[FS_TOTAL] = x0 * fc[FC_WSUM]
+    else:
+        fs[FS_TOTAL] = 0.0
+    fs[FS_P] = kalman_steady_p(fc[FC_SIGMA])
+    nsec = int(fc[FC_NSEC])
+    for s in range(nsec):
+        fs[FS_ZI + 2 * s] = fc[FC_ZI + 2 * s] * x0
+        fs[FS_ZI + 2 * s + 1] = fc[FC_ZI + 2 * s + 1] * x0
+
+
+def _push(fc, fs, buf, kind, n, x):
+    """Put x into the ring of the last n values, updating the running (weighted) sum."""
+    idx = int(fs[FS_IDX])
+    old = buf[idx]
+    buf[idx] = x
+    if kind == MOVING_AVERAGE or kind == KALMAN_MA:
+        total = fs[FS_TOTAL] + x - old
+    else:
+        alpha = fc[FC_ALPHA]
+        total = alpha * x + (1.0 - alpha) * fs[FS_TOTAL] - alpha * fc[FC_DECAY_N] * old
+    idx += 1
+    if idx >= n:
+        idx = 0
+        # re-sum once per window so rounding of the running sum cannot accumulate
+        if kind == MOVING_AVERAGE or kind == KALMAN_MA:
+            total = _ring_sum(buf, n)
+        else:
+            total = _ring_expo_sum(buf, n, n, fc[FC_ALPHA])
+    fs[FS_IDX] = idx
+    fs[FS_TOTAL] = total
+
+
+def filter_step(fc, fs, buf, x):
+    """One sample through the configured filter (SPEC §4); returns the filtered value."""
+    kind = int(fc[FC_KIND])
+    n = int(fc[FC_N])
+    if kind == PASS:
+        y = x
+    elif kind == MOVING_AVERAGE:
+        _push(fc, fs, buf, kind, n, x)
+        y = fs[FS_TOTAL] / n
+    elif kind == EXPO_MEAN:
+        _push(fc, fs, buf, kind, n, x)
+        y = fs[FS_TOTAL] / fc[FC_WSUM]
+    elif kind == LOWPASS:
+        # cascaded second-order sections, direct form II transposed (as scipy.signal.sosfilt)
+        v = x
+        for s in range(int(fc[FC_NSEC])):
+            o = FC_SOS + 6 * s
+            z = FS_ZI + 2 * s
+            y = fc[o] * v + fs[z]
+            fs[z] = fc[o + 1] * v - fc[o + 4] * y + fs[z + 1]
+            fs[z + 1] = fc[o + 2] * v - fc[o + 5] * y
+            v = y
+        y = v
+    else:
+        # Kalman: the prediction is the (moving / exponential) mean of the last n estimates
+        if kind == KALMAN_MA:
+            pred = fs[FS_TOTAL] / n
+        else:
+            pred = fs[FS_TOTAL] / fc[FC_WSUM]
+        p_pred = fs[FS_P] + 1.0
+        gain = p_pred / (p_pred + fc[FC_SIGMA])
+        y = pred + gain * (x - pred)
+        fs[FS_P] = (1.0 - gain) * p_pred
+        _push(fc, fs, buf, kind, n, y)
+    fs[FS_LAST] = y
+    return y
+
+
+# ----------------------------------------------------------------------------- PID
+
+def pid_step(kp, t_over_tn, tv_over_t, integral, m_prev, e, m):
+    """Ideal-form PID on the offset step (SPEC §5).
+
+    ``e`` is the remaining error, ``m`` its measurement part (derivative on measurement: the
+    controller's own steps cause no kick). Returns (u, integral candidate); the caller keeps the
+    candidate only if the limiter did not clip in the integrator's direction (no wind-up).
+    """
+    i_new = integral + kp * t_over_tn * e
+    u = kp * e + i_new + kp * tv_over_t * (m - m_prev)
+    return u, i_new
+
+
+# ----------------------------------------------------------------------------- limiter
+
+def brake_velocity(remaining, a, T):
+    """Largest velocity (mm/s) from which the offset can still stop within ``remaining`` mm.
+
+    Exact for the discrete motion o += v*T with |dv| <= a*T per cycle: from v = a*T*(j+f) the
+    ladder v, v-aT, ..., f*aT covers exactly ``remaining``; following it lands on the target.
+    """
+    if remaining <= 0.0 or a <= 0.0:
+        return 0.0
+    a_t = a * T
+    q = remaining / (a_t * T)
+    k = sqrt(0.25 + 2.0 * q) - 0.5
+    j = floor(k)
+    f = (q - 0.5 * j * (j + 1.0)) / (j + 1.0)
+    if f < 0.0:
+        f = 0.0
+    elif f > 1.0:
+        f = 1.0
+    return a_t * (j + f)
+
+
+def adaptive_acceleration(deviation_abs, a_min, a_max, dev_a_min, dev_a_max):
+    """Fig. 31: a_min up to dist_error_a_min, a_max from dist_error_a_max, linear in between."""
+    if deviation_abs <= dev_a_min:
+        return a_min
+    if deviation_abs >= dev_a_max:
+        return a_max
+    return a_min + (a_max - a_min) * (deviation_abs - dev_a_min) / (dev_a_max - dev_a_min)
+
+
+def _clamp(x, lo, hi):
+    if x < lo:
+        return lo
+    if x > hi:
+        return hi
+    return x
+
+
+def _band(v_wanted, v_prev, v_lim, a_t):
+    """Clamp into |v| <= v_lim and |v - v_prev| <= a_t; if v_prev is above a lowered v_lim,
+    decelerate at the full rate rather than step (the acceleration bound always holds)."""
+    lo = v_prev - a_t
+    hi = v_prev + a_t
+    if lo < -v_lim:
+        lo = -v_lim
+    if hi > v_lim:
+        hi = v_lim
+    if lo > hi:
+        return v_prev - a_t if v_prev > 0.0 else v_prev + a_t
+    return _clamp(v_wanted, lo, hi)
+
+
+def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
+    """Slope limiter (SPEC §6). Returns (v, a_applied, v_lim_applied) in mm/s, mm/s², mm/s.
+
+    From the wanted step u: velocity u/T, braked to stop within the remaining error |e|, then
+    acceleration- and velocity-limited. A result towards the workpiece (v < 0) is computed with
+    the lowering limits instead.
+    """
+    vb = brake_velocity(abs(e), a_lim, T)
+    v = _band(_clamp(u / T, -vb, vb), v_prev, v_lim, a_lim * T)
+    if v < 0.0 and (v_lim_down != v_lim or a_lim_down != a_lim):
+        vb = brake_velocity(abs(e), a_lim_down, T)
+        v = _band(_clamp(u / T, -vb, vb), v_prev, v_lim_down, a_lim_down * T)
+        return v, a_lim_down, v_lim_down
+    return v, a_lim, v_lim
+
+
+def bound_velocity(v, o, T, lo, hi, a_floor):
+    """Keep the offset inside [lo, hi] (mm): brake towards a bound with the smallest acceleration
+    the limiter can use, so the bound is reached at rest and never crossed."""
+    v_hi = brake_velocity(hi - o, a_floor, T)
+    v_lo = -brake_velocity(o - lo, a_floor, T)
+    if v > v_hi:
+        v = v_hi
+    if v < v_lo:
+        v = v_lo
+    return v
+
+
+def advance_offset(o, v, T, lo, hi):
+    """o + v*T, kept inside [lo, hi] against rounding."""
+    o_new = o + v * T
+    if o_new > hi:
+        o_new = hi if o <= hi else o_new if v <= 0.0 else o
+    if o_new < lo:
+        o_new = lo if o >= lo else o_new if v >= 0.0 else o
+    return o_new
+
+
+#: the functions numba compiles for the batch kernel (registered by distctrl.batch.kernel)
+LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, _push,
+                 filter_step, pid_step, brake_velocity, adaptive_acceleration, _clamp, _band,
+                 slope_limit, bound_velocity, advance_offset)

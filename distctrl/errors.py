@@ -1,0 +1,99 @@
+"""Error catalogue and error types.
+
+Two kinds of error exist in distctrl, deliberately separate:
+
+* On the cycle path errors are *values*: an :class:`ErrorEvent` carrying the documented error ID
+  (seeds/000 ch. 11, SPEC §7), the cycle number and, for NC commands, the block's line. The core
+  never raises on bad cycle input.
+* At the edges (files, parsing, CLI, constructing parameter sets) errors are exceptions derived
+  from :class:`DistCtrlError`, each naming file, line, parameter ID, value and allowed range.
+
+Errors the documents do not number get IDs in the project range >= 900000 (SPEC §7); they are
+listed in :data:`CATALOGUE` and in docs/errors.md.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+
+class ErrorId(IntEnum):
+    """Error IDs raised by the axis-specific distance control (documented and project range)."""
+
+    SENSOR_JUMP = 70329            # actual value change of sensor signal greater than limit
+    SENSOR_RUN_OUT_MAX = 70330     # sensor completely run out (upper limit - tolerance)
+    MAX_DEVIATION = 70331          # excessive sensing deviation: |offset| would exceed max_deviation
+    ACTIVE_AT_PROGRAM_END = 70332  # warning: distance control still active at program end
+    AXIS_RELEASED_WHILE_ACTIVE = 70333
+    SELECT_WHILE_TURNING_OFF = 70334
+    SELECT_WITHOUT_SET_VALUE = 70335
+    NOT_AVAILABLE = 70336          # P-AXIS-00328 = 0 or function not available
+    SENSOR_RUN_OUT_MIN = 70576     # sensor below lower limit + tolerance
+    # --- project range (not numbered by the documents) ---
+    INPUT_NOT_FINITE = 900001      # a sensor or position input is NaN or infinite
+    SW_LIMIT = 900002              # offset would move the axis beyond a software limit (P-AXIS-00428 = 1)
+    INVALID_TRANSITION = 900003    # transition not permitted from the current state (seeds/000 Fig. 35)
+    SENSOR_SOURCE_CHANGED = 900004  # sensor source changed while active
+    COMMAND_VALUE_OUT_OF_RANGE = 900005  # a programmed/commanded value outside its documented range
+    OBJECT_READ_ONLY = 900006      # write to a CNC object that is not read/write
+
+
+#: ID -> (severity, short text). Severity "error" puts the controller into ERROR, "warning" does not.
+CATALOGUE: dict[int, tuple[str, str]] = {
+    70329: ("error", "Actual value change of sensor signal greater than limit (P-AXIS-00417)"),
+    70330: ("error", "Sensor completely run out: reading above max_pos - tolerance (P-AXIS-00419/00421)"),
+    70331: ("error", "Excessive sensing deviation: offset would exceed max_deviation (P-AXIS-00414)"),
+    70332: ("warning", "Distance control still active at program end"),
+    70333: ("error", "Distance control active for axis that is to be released from the channel"),
+    70334: ("error", "On repeat selection, deselection of distance control not yet complete"),
+    70335: ("error", "Distance control selected without programmed position (SET_POS / SET_DIST)"),
+    70336: ("error", "Function is not available (P-AXIS-00328 lr_param.distance_control_on = 0)"),
+    70576: ("error", "Sensor completely run out: reading below min_pos + tolerance (P-AXIS-00420/00421)"),
+    900001: ("error", "Sensor or position input is not a finite number"),
+    900002: ("error", "Distance-control offset would move the axis beyond its software limit (P-AXIS-00428)"),
+    900003: ("error", "Transition not permitted in the current distance-control state"),
+    900004: ("error", "Sensor source changed while distance control is active"),
+    900005: ("error", "Commanded value outside its documented range"),
+    900006: ("error", "CNC object is read-only"),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class ErrorEvent:
+    """One error or warning produced on the cycle path (a value, never raised)."""
+
+    id: int
+    cycle: int
+    line: int | None = None
+    message: str = ""
+    severity: str = "error"
+
+    def __str__(self) -> str:
+        where = f" (NC line {self.line})" if self.line is not None else ""
+        return f"{self.severity} {self.id} at cycle {self.cycle}{where}: {self.message}"
+
+
+def make_event(error_id: int, cycle: int, line: int | None, detail: str = "",
+               severity: str | None = None) -> ErrorEvent:
+    """An event for a catalogued ID; ``severity`` overrides the catalogue (e.g. a refused write)."""
+    default_severity, text = CATALOGUE[int(error_id)]
+    return ErrorEvent(int(error_id), cycle, line, f"{text}{': ' + detail if detail else ''}",
+                      severity or default_severity)
+
+
+class DistCtrlError(Exception):
+    """Base of every exception distctrl raises at its edges (files, parsing, CLI, construction)."""
+
+
+class ParameterError(DistCtrlError, ValueError):
+    """A parameter value, key or type is invalid. The message names where and what is allowed."""
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 key: str | None = None, param_id: str | None = None, value: object = None,
+                 allowed: str | None = None):
+        self.file, self.line, self.key, self.param_id = file, line, key, param_id
+        self.value, self.allowed = value, allowed
+        where = ""
+        if file is not None:
+            where = f"{file}:{line}: " if line is not None else f"{file}: "
+        super().__init__(where + message)

@@ -1,0 +1,172 @@
+"""AxisParameters: one axis's distance-control parameters in internal units (mm, s, Hz).
+
+Built from the table in :mod:`distctrl.params.table`; every construction is validated against the
+documented ranges, so an ``AxisParameters`` object is always a legal parameter set.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+from ..control.kinds import FilterType
+from ..errors import ParameterError
+from .table import AXIS_PARAMETERS, BY_FIELD, ParamSpec
+
+
+def _default(spec: ParamSpec):
+    if spec.type == "BOOLEAN":
+        return bool(spec.default)
+    if spec.type == "STRING":
+        return FilterType.parse(str(spec.default))
+    if spec.internal_unit in ("-", "increments", "0.1 µm") and spec.type in ("SGN32", "UNS32", "UNS16"):
+        return int(spec.default)
+    return float(spec.default) * spec.scale
+
+
+@dataclass(frozen=True)
+class AxisParameters:
+    """Distance-control parameters of one axis (internal units; see docs/parameters.md)."""
+
+    enabled: bool = _default(BY_FIELD["enabled"])
+    n_cycles: int = _default(BY_FIELD["n_cycles"])
+    max_deviation: float = _default(BY_FIELD["max_deviation"])              # mm
+    v_max: float = _default(BY_FIELD["v_max"])                              # mm/s
+    a_max: float = _default(BY_FIELD["a_max"])                              # mm/s², 0 = axis_a_max
+    max_act_value_change: float = _default(BY_FIELD["max_act_value_change"])  # mm/s
+    ref_offset: float = _default(BY_FIELD["ref_offset"])                    # mm
+    max_pos: float = _default(BY_FIELD["max_pos"])                          # mm
+    min_pos: float = _default(BY_FIELD["min_pos"])                          # mm
+    tolerance: float = _default(BY_FIELD["tolerance"])                      # mm
+    check_sw_limit_switch: bool = _default(BY_FIELD["check_sw_limit_switch"])
+    use_both_encoders: bool = _default(BY_FIELD["use_both_encoders"])
+    use_adaptive_acceleration: bool = _default(BY_FIELD["use_adaptive_acceleration"])
+    a_min: float = _default(BY_FIELD["a_min"])                              # mm/s²
+    dist_error_a_min: float = _default(BY_FIELD["dist_error_a_min"])        # mm
+    dist_error_a_max: float = _default(BY_FIELD["dist_error_a_max"])        # mm
+    low_pass_filter_order: int = _default(BY_FIELD["low_pass_filter_order"])
+    low_pass_filter_fg_f0: float = _default(BY_FIELD["low_pass_filter_fg_f0"])  # Hz
+    optimized_scheduling: bool = _default(BY_FIELD["optimized_scheduling"])
+    v_weight_down: float = _default(BY_FIELD["v_weight_down"])              # fraction, 0 = off
+    a_weight_down: float = _default(BY_FIELD["a_weight_down"])              # fraction, 0 = off
+    encoder_resolution_num: int = _default(BY_FIELD["encoder_resolution_num"])
+    encoder_resolution_denom: int = _default(BY_FIELD["encoder_resolution_denom"])
+    sensor_sign_reversal: bool = _default(BY_FIELD["sensor_sign_reversal"])
+    sensor_mode_act_pos: int = _default(BY_FIELD["sensor_mode_act_pos"])
+    kp: float = _default(BY_FIELD["kp"])
+    i_tn: float = _default(BY_FIELD["i_tn"])                                # s
+    d_tv: float = _default(BY_FIELD["d_tv"])                                # s
+    filter_type: FilterType = _default(BY_FIELD["filter_type"])
+    kalman_sigma: float = _default(BY_FIELD["kalman_sigma"])
+    smoothing_factor: float = _default(BY_FIELD["smoothing_factor"])
+    axis_a_max: float = _default(BY_FIELD["axis_a_max"])                    # mm/s²
+    sw_limit_max: float = _default(BY_FIELD["sw_limit_max"])                # mm
+    sw_limit_min: float = _default(BY_FIELD["sw_limit_min"])                # mm
+
+    def __post_init__(self) -> None:
+        if isinstance(self.filter_type, str):
+            object.__setattr__(self, "filter_type", FilterType.parse(self.filter_type))
+        for spec in AXIS_PARAMETERS:
+            check_internal(spec, getattr(self, spec.field))
+        if self.min_pos + self.tolerance >= self.max_pos - self.tolerance:
+            raise ParameterError(
+                f"sensor window is empty: min_pos + tolerance ({self.min_pos + self.tolerance:g} mm) must be "
+                f"below max_pos - tolerance ({self.max_pos - self.tolerance:g} mm)",
+                key="kenngr.distc.min_pos/max_pos/tolerance", param_id="P-AXIS-00419/00420/00421")
+        if self.sw_limit_min >= self.sw_limit_max:
+            raise ParameterError(
+                f"software limits: swe_neg ({self.sw_limit_min:g} mm) must be below swe_pos "
+                f"({self.sw_limit_max:g} mm)", param_id="P-AXIS-00177/00178")
+
+    # ------------------------------------------------------------------ derived values
+    @property
+    def a_max_effective(self) -> float:
+        """Acceleration limit of the offset (mm/s²): a_max, or the axis maximum when a_max = 0."""
+        return self.a_max if self.a_max > 0 else self.axis_a_max
+
+    @property
+    def sensor_mm_per_increment(self) -> float:
+        return self.encoder_resolution_denom / self.encoder_resolution_num * 1e-4
+
+    def replace(self, **changes) -> "AxisParameters":
+        """A copy with fields changed (internal units), validated."""
+        return dataclasses.replace(self, **changes)
+
+    def to_interface(self) -> dict[str, object]:
+        """Values in the list file's units, keyed by the list-file key."""
+        out: dict[str, object] = {}
+        for spec in AXIS_PARAMETERS:
+            out[spec.key] = to_interface_value(spec, getattr(self, spec.field))
+        return out
+
+    @classmethod
+    def from_interface(cls, values: dict[str, object]) -> "AxisParameters":
+        """Build from list-file keys and interface-unit values (already type-checked)."""
+        from .table import BY_KEY
+        fields = {}
+        for key, value in values.items():
+            spec = BY_KEY[key]
+            fields[spec.field] = to_internal_value(spec, value)
+        return cls(**fields)
+
+
+def to_internal_value(spec: ParamSpec, value):
+    if spec.type == "BOOLEAN":
+        return bool(value)
+    if spec.type == "STRING":
+        return FilterType.parse(str(value))
+    if spec.internal_unit in ("-", "increments", "0.1 µm") and spec.type in ("SGN32", "UNS32", "UNS16"):
+        return int(value)
+    return float(value) * spec.scale
+
+
+def to_interface_value(spec: ParamSpec, value):
+    if spec.type == "BOOLEAN":
+        return int(bool(value))
+    if spec.type == "STRING":
+        return value.name if isinstance(value, FilterType) else str(value)
+    if spec.type == "REAL64":
+        return float(value) / spec.scale
+    return int(round(float(value) / spec.scale))
+
+
+def check_internal(spec: ParamSpec, value) -> None:
+    """Raise ParameterError unless ``value`` (internal units) is legal for ``spec``."""
+    if spec.type == "STRING":
+        if not isinstance(value, FilterType) or value == FilterType.PASS:
+            raise ParameterError(f"{spec.id} {spec.key} = {value!r} is not allowed; allowed: {spec.range_text()}",
+                                 key=spec.key, param_id=spec.id, value=value, allowed=spec.range_text())
+        return
+    if isinstance(value, bool) and spec.type != "BOOLEAN":
+        raise ParameterError(f"{spec.id} {spec.key} = {value!r}: expected a number", key=spec.key,
+                             param_id=spec.id, value=value, allowed=spec.range_text())
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{spec.id} {spec.key} = {value!r}: expected a number", key=spec.key,
+                             param_id=spec.id, value=value, allowed=spec.range_text()) from None
+    if not math.isfinite(x):
+        raise ParameterError(f"{spec.id} {spec.key} = {value!r} is not finite; allowed: {spec.range_text()}",
+                             key=spec.key, param_id=spec.id, value=value, allowed=spec.range_text())
+    iv = x / spec.scale
+    # internal floats carry rounding from the scale: compare with a relative slack
+    slack = 1e-9 * max(1.0, abs(iv))
+    if spec.type == "BOOLEAN":
+        ok = iv in (0.0, 1.0)
+    elif spec.choices:
+        ok = iv in spec.choices
+    else:
+        ok = True
+        if spec.lo is not None:
+            ok = iv > spec.lo if spec.lo_open else iv >= spec.lo - slack
+        if spec.hi is not None:
+            ok = ok and (iv < spec.hi if spec.hi_open else iv <= spec.hi + slack)
+    if not ok:
+        raise ParameterError(
+            f"{spec.id} {spec.key} = {_show(iv)} {spec.unit if spec.unit != '-' else ''}".rstrip()
+            + f" is out of range; allowed: {spec.range_text()}",
+            key=spec.key, param_id=spec.id, value=iv, allowed=spec.range_text())
+
+
+def _show(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() else f"{x:g}"
