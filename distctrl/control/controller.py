@@ -87,7 +87,7 @@ class ControllerState:
     last_var: float = 0.0
     sensor_source: SensorSource = SensorSource.SECOND_ENCODER
     sensor_var: str | None = None
-    vals: list = field(default_factory=lambda: [0.0] * 5)
+    vals: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
     pending: dict = field(default_factory=dict)        # CNC-object writes awaiting adoption
     error: ErrorEvent | None = None                    # the error that put the controller in ERROR
 
@@ -124,8 +124,11 @@ class AxisDistanceController:
         self._a_base = t.a_max if t.a_max > 0 else p.axis_a_max
         self._i_gain = T / t.i_tn if t.i_tn > 0 else 0.0
         self._d_gain = t.d_tv / T
+        self._mm_per_incr = p.sensor_mm_per_increment
+        self._modulo = p.sensor_mode_act_pos == 2
         self._w_v = p.v_weight_down if p.v_weight_down > 0 else 1.0
         self._w_a = p.a_weight_down if p.a_weight_down > 0 else 1.0
+        self._tuning_stamp = object()      # identity token: outputs showing older tuning refresh
         a_candidates = [self._a_base]
         if p.use_adaptive_acceleration:
             a_candidates.append(p.a_min)
@@ -149,18 +152,25 @@ class AxisDistanceController:
         # 1. inputs made safe
         finite_inputs = True
         prog = inp.programmed_position
-        if _finite(prog):
+        if -_HUGE < prog < _HUGE:                      # False for NaN too
             st.last_p = prog
         else:
             prog, finite_inputs = st.last_p, False
         act = inp.actual_position
-        if _finite(act):
+        if -_HUGE < act < _HUGE:
             st.last_a = act
         else:
             act, finite_inputs = st.last_a, False
 
         # 2. sensor pipeline: s now (mm); with optimized scheduling off the law sees last cycle's
-        s_now, sensor_ok = self._read_sensor(inp)
+        incr = inp.sensor_increments
+        if st.sensor_source == SensorSource.SECOND_ENCODER and -law.HUGE < incr < law.HUGE:
+            # fast path of _read_sensor for the axis default source (same law function)
+            s_now = law.encoder_reading(incr, self._mm_per_incr, p.sensor_sign_reversal,
+                                        p.ref_offset + st.ref_shift, self._modulo, p.min_pos, p.max_pos)
+            sensor_ok = True
+        else:
+            s_now, sensor_ok = self._read_sensor(inp)
         if p.optimized_scheduling:
             s = s_now
         else:
@@ -315,21 +325,24 @@ class AxisDistanceController:
         out.sensor_value = st.last_var if st.sensor_source == SensorSource.VARIABLE else s
         out.feedback_value = feedback
         out.filtered_feedback = filtered
-        out.hli_state = int(state)
-        out.state = int(self._internal_state(state))
-        t = self.tuning
-        out.kp, out.i_tn, out.d_tv = t.kp, t.i_tn, t.d_tv
-        out.smoothing_fact, out.kalman_sigma = t.filter.smoothing_factor, t.filter.kalman_sigma
-        out.n_cycles, out.filter_type = t.filter.n_cycles, t.filter.filter_type.name
+        out.hli_state = _INT[state]
+        out.state = _INTERNAL_OF[state] if state != _ERROR and not st.no_move_this_cycle \
+            else int(self._internal_state(state))
         out.v_max_int, out.a_max_int = v_applied, a_applied
-        out.v_max_param, out.a_max_param = t.v_max, t.a_max
+        if out.tuning_stamp is not self._tuning_stamp:  # tuning outputs change rarely
+            t = self.tuning
+            out.kp, out.i_tn, out.d_tv = t.kp, t.i_tn, t.d_tv
+            out.smoothing_fact, out.kalman_sigma = t.filter.smoothing_factor, t.filter.kalman_sigma
+            out.n_cycles, out.filter_type = t.filter.n_cycles, t.filter.filter_type.name
+            out.v_max_param, out.a_max_param = t.v_max, t.a_max
+            out.tuning_stamp = self._tuning_stamp
         out.surface_position = surface
         out.measured_distance = d
         out.command_source = int(st.source)
         out.target_reached = state == _INACTIVE or (state in MONITORED_STATES and abs(e) <= tol)
         out.sensor_valid = sensor_ok
         out.cycle = st.cycle
-        out.vals = tuple(st.vals)
+        out.vals = st.vals
         out.events = events
         if not events:
             return Result.OK
@@ -448,9 +461,9 @@ class AxisDistanceController:
             st.programmed_set_dist = float(cmd.set_dist)
             if state in MONITORED_STATES and st.mode == Mode.CONST_DIST:
                 st.set_dist = st.programmed_set_dist
-        for i, val in enumerate(cmd.vals[:5]):
-            if val is not None:
-                st.vals[i] = float(val)
+        if any(val is not None for val in cmd.vals):
+            st.vals = tuple(float(new) if new is not None else old
+                            for old, new in zip(st.vals, tuple(cmd.vals[:5]) + (None,) * 5))
         if cmd.sensor_var is not None:
             st.sensor_var = cmd.sensor_var
         if cmd.sensor_source is not None:
@@ -606,6 +619,12 @@ class AxisDistanceController:
             self._derive()
 
 
+_HUGE = law.HUGE
+_INT = {s: int(s) for s in HliState}
+_INTERNAL_OF = {_INACTIVE: int(InternalState.IDLE), _ACTIVE: int(InternalState.ACTIVE),
+                _ACTIVE_CD: int(InternalState.ACTIVE), _FREEZE: int(InternalState.FREEZE),
+                _TURNING_OFF: int(InternalState.OFF), _DRY_CD: int(InternalState.DRYRUN),
+                _DRY_SP: int(InternalState.DRYRUN)}
 def _finite(x) -> bool:
     return x == x and -law.HUGE < x < law.HUGE
 

@@ -83,4 +83,5 @@ class CycleOutput:
     sensor_valid: bool = True            # False when this cycle's sensor input was not finite
     cycle: int = 0
     vals: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
+    tuning_stamp: object = None          # which tuning the tuning fields above show (internal)
     events: list[ErrorEvent] = field(default_factory=list)   # errors and warnings of this cycle

@@ -32,24 +32,24 @@ class FilterConfig:
         if not isinstance(self.filter_type, FilterType) or self.filter_type == FilterType.PASS:
             raise ParameterError(f"filter type {self.filter_type!r} not allowed", param_id="P-AXIS-00782")
         if not (0 <= int(self.n_cycles) < law.MAX_N) or int(self.n_cycles) != self.n_cycles:
-            raise ParameterError(f"n_cycles = {self.n_cycles!r} out of range; allowed: integer 0 <= n < 100",
+            raise ParameterError(f"P-AXIS-00413 n_cycles = {self.n_cycles!r} out of range; allowed: integer 0 <= n < 100",
                                  param_id="P-AXIS-00413", value=self.n_cycles, allowed="0 <= n < 100")
         if not (0.0 < self.smoothing_factor <= 1.0):
-            raise ParameterError(f"smoothing_factor = {self.smoothing_factor!r} out of range; allowed: "
+            raise ParameterError(f"P-AXIS-00784 smoothing_factor = {self.smoothing_factor!r} out of range; allowed: "
                                  "0 < value <= 1", param_id="P-AXIS-00784", value=self.smoothing_factor,
                                  allowed="0 < value <= 1")
         if not (1.0 <= self.kalman_sigma <= 10000.0):
-            raise ParameterError(f"kalman_sigma = {self.kalman_sigma!r} out of range; allowed: "
+            raise ParameterError(f"P-AXIS-00783 kalman_sigma = {self.kalman_sigma!r} out of range; allowed: "
                                  "1 <= value <= 10000", param_id="P-AXIS-00783", value=self.kalman_sigma,
                                  allowed="1 <= value <= 10000")
         if not (0 <= int(self.order) <= 6) or int(self.order) != self.order:
-            raise ParameterError(f"low_pass_filter_order = {self.order!r} out of range; allowed: 0..6",
+            raise ParameterError(f"P-AXIS-00507 low_pass_filter_order = {self.order!r} out of range; allowed: 0..6",
                                  param_id="P-AXIS-00507", value=self.order, allowed="0..6")
         if self.filter_type == FilterType.LOWPASS and self.order > 0:
             nyquist = 0.5 / cycle_time
             if not (0.0 < self.fg_f0 < nyquist):
                 raise ParameterError(
-                    f"low_pass_filter_fg_f0 = {self.fg_f0!r} Hz out of range for cycle time {cycle_time} s; "
+                    f"P-AXIS-00508 low_pass_filter_fg_f0 = {self.fg_f0!r} Hz out of range for cycle time {cycle_time} s; "
                     f"allowed: 0 < fg_f0 < {nyquist:g} Hz (Nyquist)", param_id="P-AXIS-00508",
                     value=self.fg_f0, allowed=f"0 < value < {nyquist:g}")
 

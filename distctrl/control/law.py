@@ -232,14 +232,16 @@ def _band(v_wanted, v_prev, v_lim, a_t):
 def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
     """Slope limiter (SPEC §6). Returns (v, a_applied, v_lim_applied) in mm/s, mm/s², mm/s.
 
-    From the wanted step u: velocity u/T, braked to stop within the remaining error |e|, then
-    acceleration- and velocity-limited. A result towards the workpiece (v < 0) is computed with
+    From the wanted step u: velocity u/T, braked so the offset can stop within the remaining
+    error, |v| <= sqrt(2 a |e|) (SPEC §6; deliberately not the discrete ladder of
+    :func:`brake_velocity`, which would forbid any one-step overshoot and so turn kp > 1 into
+    kp = 1), then acceleration- and velocity-limited. A result towards the workpiece (v < 0) is computed with
     the lowering limits instead.
     """
-    vb = brake_velocity(abs(e), a_lim, T)
+    vb = sqrt(2.0 * a_lim * abs(e))
     v = _band(_clamp(u / T, -vb, vb), v_prev, v_lim, a_lim * T)
     if v < 0.0 and (v_lim_down != v_lim or a_lim_down != a_lim):
-        vb = brake_velocity(abs(e), a_lim_down, T)
+        vb = sqrt(2.0 * a_lim_down * abs(e))
         v = _band(_clamp(u / T, -vb, vb), v_prev, v_lim_down, a_lim_down * T)
         return v, a_lim_down, v_lim_down
     return v, a_lim, v_lim
@@ -248,12 +250,14 @@ def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
 def bound_velocity(v, o, T, lo, hi, a_floor):
     """Keep the offset inside [lo, hi] (mm): brake towards a bound with the smallest acceleration
     the limiter can use, so the bound is reached at rest and never crossed."""
-    v_hi = brake_velocity(hi - o, a_floor, T)
-    v_lo = -brake_velocity(o - lo, a_floor, T)
-    if v > v_hi:
-        v = v_hi
-    if v < v_lo:
-        v = v_lo
+    if v > 0.0:
+        v_hi = brake_velocity(hi - o, a_floor, T)
+        if v > v_hi:
+            v = v_hi
+    elif v < 0.0:
+        v_lo = -brake_velocity(o - lo, a_floor, T)
+        if v < v_lo:
+            v = v_lo
     return v
 
 

@@ -70,12 +70,12 @@ class AxisParameters:
             check_internal(spec, getattr(self, spec.field))
         if self.min_pos + self.tolerance >= self.max_pos - self.tolerance:
             raise ParameterError(
-                f"sensor window is empty: min_pos + tolerance ({self.min_pos + self.tolerance:g} mm) must be "
+                f"P-AXIS-00419/00420/00421 sensor window is empty: min_pos + tolerance ({self.min_pos + self.tolerance:g} mm) must be "
                 f"below max_pos - tolerance ({self.max_pos - self.tolerance:g} mm)",
                 key="kenngr.distc.min_pos/max_pos/tolerance", param_id="P-AXIS-00419/00420/00421")
         if self.sw_limit_min >= self.sw_limit_max:
             raise ParameterError(
-                f"software limits: swe_neg ({self.sw_limit_min:g} mm) must be below swe_pos "
+                f"P-AXIS-00177/00178 software limits: swe_neg ({self.sw_limit_min:g} mm) must be below swe_pos "
                 f"({self.sw_limit_max:g} mm)", param_id="P-AXIS-00177/00178")
 
     # ------------------------------------------------------------------ derived values

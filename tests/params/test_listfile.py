@@ -1,0 +1,139 @@
+"""Parameter table and the kernel list format (seeds/000 §9)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from distctrl.control.kinds import FilterType
+from distctrl.errors import ParameterError
+from distctrl.params import AXIS_PARAMETERS, AxisParameters, format_list, load_list, parse_list_text
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_example_list_of_9_3_loads_with_its_values():
+    pl = load_list(ROOT / "examples" / "axis_z_9_3.lis")
+    p = pl.params
+    assert p.enabled is True
+    assert p.max_deviation == pytest.approx(2000.0)          # max_abweichung 20000000 x 0.1 µm
+    assert p.v_max == pytest.approx(50.0)                    # 50000 µm/s
+    assert p.a_max == 10000.0
+    assert p.max_act_value_change == pytest.approx(100000.0)  # max_istw_sprung, µm/s
+    assert p.max_pos == pytest.approx(150.0) and p.min_pos == pytest.approx(-150.0)
+    assert p.tolerance == pytest.approx(5.0)                 # toleranz
+    assert p.check_sw_limit_switch and p.optimized_scheduling and p.use_both_encoders
+    assert p.use_adaptive_acceleration is False              # commented out in the example
+    assert p.a_min == 1000.0
+    assert p.dist_error_a_min == pytest.approx(0.025) and p.dist_error_a_max == pytest.approx(0.05)
+    assert p.filter_type == FilterType.KALMAN_MA and p.n_cycles == 20
+    assert p.kalman_sigma == 1000.0                          # legacy key kenngr.distc.sigma
+    assert pl.warnings == []                                 # a_max twice, same value: no warning
+
+
+def test_every_documented_key_is_in_the_table():
+    ids = {s.id for s in AXIS_PARAMETERS}
+    for pid in ["P-AXIS-00328", "P-AXIS-00413", "P-AXIS-00414", "P-AXIS-00415", "P-AXIS-00416", "P-AXIS-00417",
+                "P-AXIS-00418", "P-AXIS-00419", "P-AXIS-00420", "P-AXIS-00421", "P-AXIS-00422", "P-AXIS-00423",
+                "P-AXIS-00424", "P-AXIS-00428", "P-AXIS-00500", "P-AXIS-00501", "P-AXIS-00502", "P-AXIS-00504",
+                "P-AXIS-00505", "P-AXIS-00507", "P-AXIS-00508", "P-AXIS-00509", "P-AXIS-00533", "P-AXIS-00534",
+                "P-AXIS-00230", "P-AXIS-00759", "P-AXIS-00764", "P-AXIS-00765", "P-AXIS-00782", "P-AXIS-00783",
+                "P-AXIS-00784", "P-AXIS-00008"]:
+        assert pid in ids
+
+
+def test_defaults_are_the_documented_ones():
+    p = AxisParameters()
+    assert (p.enabled, p.n_cycles, p.kp, p.i_tn, p.d_tv) == (False, 4, 1.0, 0.0, 0.0)
+    assert p.max_deviation == pytest.approx(5.0) and p.v_max == pytest.approx(5.0)
+    assert p.max_act_value_change == pytest.approx(5.0)
+    assert p.max_pos == pytest.approx(5.0) and p.min_pos == pytest.approx(-5.0)
+    assert p.a_min == 500 and p.low_pass_filter_order == 4 and p.low_pass_filter_fg_f0 == 25.0
+    assert p.kalman_sigma == 4.0 and p.smoothing_factor == 0.7 and p.filter_type == FilterType.DEFAULT
+
+
+def test_unknown_key_names_file_line_and_key(tmp_path):
+    f = tmp_path / "z.lis"
+    f.write_text("kenngr.distc.kp 0.5\nkenngr.distc.kpp 0.3 # typo\n")
+    with pytest.raises(ParameterError) as exc:
+        load_list(f)
+    msg = str(exc.value)
+    assert f"{f}:2:" in msg and "kenngr.distc.kpp" in msg
+    assert exc.value.line == 2
+
+
+@pytest.mark.parametrize("line, pid, allowed", [
+    ("kenngr.distc.kp 2.5", "P-AXIS-00759", "0 < value <= 2"),
+    ("kenngr.distc.kp 0", "P-AXIS-00759", "0 < value <= 2"),
+    ("kenngr.distc.n_cycles 100", "P-AXIS-00413", "0 <= value < 100"),
+    ("kenngr.distc.i_tn 50.5", "P-AXIS-00764", "0 <= value <= 50"),
+    ("kenngr.distc.d_tv -0.1", "P-AXIS-00765", "0 <= value <= 2"),
+    ("kenngr.distc.kalman_sigma 0.5", "P-AXIS-00783", "1 <= value <= 10000"),
+    ("kenngr.distc.smoothing_factor 0", "P-AXIS-00784", "0 < value <= 1"),
+    ("kenngr.distc.low_pass_filter_order 7", "P-AXIS-00507", "0 <= value <= 6"),
+    ("kenngr.distc.v_weight_down 2000", "P-AXIS-00533", "0 <= value < 2000"),
+    ("lr_hw[1].mode_act_pos 3", "P-AXIS-00424", "one of 0, 1, 2"),
+    ("kenngr.distc.filter_type KALMAN", "P-AXIS-00782", "MOVING_AVERAGE"),
+])
+def test_out_of_range_values_name_id_value_and_range(line, pid, allowed):
+    with pytest.raises(ParameterError) as exc:
+        parse_list_text("# header\n" + line + "  # comment\n", "axis.lis")
+    msg = str(exc.value)
+    assert msg.startswith("axis.lis:2:")
+    assert pid in msg and allowed in msg and line.split()[1] in msg
+
+
+@pytest.mark.parametrize("line", ["kenngr.distc.n_cycles 4.5", "kenngr.distc.v_max fast",
+                                  "lr_param.distance_control_on yes", "kenngr.distc.kp"])
+def test_bad_types_are_load_errors(line):
+    with pytest.raises(ParameterError, match="allowed"):
+        parse_list_text(line)
+
+
+def test_text_after_value_without_hash_is_rejected():
+    with pytest.raises(ParameterError, match="comments start with '#'"):
+        parse_list_text("lr_param.distance_control_on 1 Enables the distance control function")
+
+
+def test_duplicate_key_last_value_counts_with_warning():
+    pl = parse_list_text("kenngr.distc.kp 0.3\nkenngr.distc.kp 0.6\n", "a.lis")
+    assert pl.params.kp == 0.6
+    assert len(pl.warnings) == 1 and "a.lis:2" in pl.warnings[0]
+
+
+def test_aliases_of_the_documents_examples():
+    pl = parse_list_text("kenngr.distc.max_abweichung 1000\nkenngr.distc.toleranz 10\n"
+                         "kenngr.distc.max_istw_sprung 7000\nkenngr.distc.sigma 300\n"
+                         "kenngnr.distsc.kp 0.4\nkenngr.distc.check_switch_limit_switch 1\n")
+    p = pl.params
+    assert p.max_deviation == pytest.approx(0.1) and p.tolerance == pytest.approx(0.001)
+    assert p.max_act_value_change == pytest.approx(7.0) and p.kalman_sigma == 300
+    assert p.kp == 0.4 and p.check_sw_limit_switch
+
+
+def test_cross_parameter_check_names_the_parameters():
+    with pytest.raises(ParameterError, match="P-AXIS-00419/00420/00421"):
+        parse_list_text("kenngr.distc.max_pos 1000\nkenngr.distc.min_pos 0\nkenngr.distc.tolerance 600\n", "w.lis")
+
+
+def test_format_list_round_trips():
+    p = AxisParameters(enabled=True, kp=0.3, v_max=12.5, max_deviation=3.25, filter_type=FilterType.LOWPASS,
+                       low_pass_filter_fg_f0=33.3, v_weight_down=0.5)
+    again = parse_list_text(format_list(p)).params
+    assert again == p
+    assert parse_list_text(format_list(p, only_changed=True)).params == p
+
+
+def test_constructing_out_of_range_in_python_is_rejected():
+    with pytest.raises(ParameterError, match="P-AXIS-00759"):
+        AxisParameters(kp=2.1)
+    with pytest.raises(ParameterError, match="not finite"):
+        AxisParameters(v_max=float("nan"))
+
+
+def test_docs_parameters_md_is_generated_from_the_table():
+    generated = subprocess.run([sys.executable, "-m", "distctrl.params.docgen"], capture_output=True, text=True,
+                               check=True).stdout
+    assert (ROOT / "docs" / "parameters.md").read_text(encoding="utf-8") == generated
