@@ -528,7 +528,8 @@ class AxisDistanceController:
         if state == _TURNING_OFF:
             self._raise(ErrorId.SELECT_WHILE_TURNING_OFF, events, line)
             return
-        if state in MONITORED_STATES and state != target:
+        if state in _TRACKING and target in _TRACKING and state != target:
+            # seeds/000 §8.1: ACTIVE <-> ACTIVE_CONST_DIST only through FREEZE or INACTIVE
             self._raise(ErrorId.INVALID_TRANSITION, events, line,
                         f"{state.name} -> {target.name} only through FREEZE or INACTIVE")
             return
@@ -545,8 +546,10 @@ class AxisDistanceController:
         st.source = cmd.source
         if state == target:
             return                                   # re-select: new set value only
-        # INACTIVE -> running or FREEZE -> running: object writes are adopted now (safety rule)
-        self._adopt_pending()
+        # object writes are adopted when tracking starts from a standing offset (INACTIVE, FREEZE,
+        # and DRYRUN, which %DIST_5 leaves directly with ON CONST_DIST), never from a tracking state
+        if state not in _TRACKING:
+            self._adopt_pending()
         if state == _INACTIVE or mode != st.mode:
             st.need_seed = True                      # the feedback quantity starts (or changes)
             st.integral = 0.0

@@ -520,3 +520,15 @@ def test_cycle_time_is_validated():
         AxisDistanceController(params(), cycle_time=0.0)
     with pytest.raises(ParameterError, match="P-AXIS-00508"):
         AxisDistanceController(params(filter_type=FilterType.LOWPASS, low_pass_filter_fg_f0=600.0), 0.001)
+
+
+def test_dist_5_path_dryrun_directly_to_on_const_dist_adopting_pending_writes():
+    rig = Rig(params(), p=41.0, surface=40.0)
+    rig.cycle(Command(set_pos=40.0))
+    assert rig.cycle(Command(Action.DRYRUN)).hli_state == HliState.DRYRUN_SETPOS
+    out = rig.cycle(ObjectWrite("kp", 0.6))
+    assert out.kp == 1.0
+    out = rig.cycle(Command(ON, const_dist=True, set_dist=1.0))
+    assert out.hli_state == HliState.ACTIVE_CONST_DIST and out.kp == 0.6 and out.events == []
+    out = rig.cycle(Command(Action.DRYRUN, const_dist=True))          # active -> dry run: tracking stops
+    assert out.hli_state == HliState.DRYRUN_CONST_DIST

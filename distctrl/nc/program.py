@@ -1,0 +1,393 @@
+"""Data model of a parsed NC program (see docs/nc.md).
+
+The model is plain data: expressions stay unevaluated (:class:`Expr`) because V.E. variables
+only have values when the program runs. The interpreter evaluates them with a *lookup*, either a
+mapping or a callable from the full variable name (``"V.E.HEIGHT"``, ``"V.G.WZ_AKT.L"``) to a
+float. Lengths are mm, feeds mm/min, times s (SPEC §1).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Union
+
+from ..control.commands import Action, Command
+from ..control.kinds import FilterType, SensorSource
+from ..errors import DistCtrlError
+
+Lookup = Union[Callable[[str], float], Mapping[str, float]]
+
+#: deepest expression tree the parser accepts; keeps evaluation far from Python's recursion limit
+MAX_EXPR_DEPTH = 100
+
+
+class NcSyntaxError(DistCtrlError):
+    """An NC program is not valid: syntax, a DIST_CTRL rule or a value range.
+
+    ``line`` and ``column`` are 1-based physical positions (``None`` if unknown, e.g. for an
+    unreadable file). ``str()`` gives ``file:line:column: message``.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 column: int | None = None):
+        self.message, self.file, self.line, self.column = message, file, line, column
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = [self.file if self.file is not None else "<string>"]
+        if self.line is not None:
+            where.append(str(self.line))
+            if self.column is not None:
+                where.append(str(self.column))
+        return f"{':'.join(where)}: {self.message}"
+
+    def __str__(self) -> str:
+        return self._format()
+
+    def __reduce__(self):  # keyword-only __init__: make it survive pickling (process pools)
+        return (_rebuild_nc_error, (self.message, self.file, self.line, self.column))
+
+
+def _rebuild_nc_error(message, file, line, column) -> NcSyntaxError:
+    return NcSyntaxError(message, file=file, line=line, column=column)
+
+
+class ExprError(DistCtrlError):
+    """An expression cannot be evaluated: unknown variable, division by zero, non-finite value."""
+
+
+# ---------------------------------------------------------------- expressions
+
+class Expr:
+    """Base of the expression AST. Subclasses are frozen dataclasses."""
+
+    __slots__ = ()
+    depth: int
+
+    def evaluate(self, lookup: Lookup) -> float:
+        raise NotImplementedError
+
+    def variables(self) -> frozenset[str]:
+        """Names of the variables the expression reads."""
+        raise NotImplementedError
+
+    @property
+    def is_constant(self) -> bool:
+        return not self.variables()
+
+
+@dataclass(frozen=True, slots=True)
+class Num(Expr):
+    value: float
+    depth: int = field(default=1, init=False, repr=False, compare=False)
+
+    def evaluate(self, lookup: Lookup) -> float:
+        return self.value
+
+    def variables(self) -> frozenset[str]:
+        return frozenset()
+
+
+@dataclass(frozen=True, slots=True)
+class Var(Expr):
+    name: str   # full name: "V.E.HEIGHT" or "V.G.WZ_AKT.L"
+    depth: int = field(default=1, init=False, repr=False, compare=False)
+
+    def evaluate(self, lookup: Lookup) -> float:
+        try:
+            raw = lookup[self.name] if isinstance(lookup, Mapping) else lookup(self.name)
+        except LookupError:
+            raise ExprError(f"unknown variable {self.name}") from None
+        try:
+            value = float(raw)
+        except (TypeError, ValueError):
+            raise ExprError(f"variable {self.name} is not a number: {raw!r}") from None
+        if not math.isfinite(value):
+            raise ExprError(f"variable {self.name} is not finite: {value}")
+        return value
+
+    def variables(self) -> frozenset[str]:
+        return frozenset((self.name,))
+
+
+@dataclass(frozen=True, slots=True)
+class Neg(Expr):
+    operand: Expr
+    depth: int = field(default=0, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "depth", self.operand.depth + 1)
+
+    def evaluate(self, lookup: Lookup) -> float:
+        return -self.operand.evaluate(lookup)
+
+    def variables(self) -> frozenset[str]:
+        return self.operand.variables()
+
+
+_OPERATIONS: dict[str, Callable[[float, float], float]] = {
+    "+": lambda a, b: a + b,
+    "-": lambda a, b: a - b,
+    "*": lambda a, b: a * b,
+    "/": lambda a, b: a / b,
+}
+
+
+@dataclass(frozen=True, slots=True)
+class BinOp(Expr):
+    op: str   # one of + - * /
+    left: Expr
+    right: Expr
+    depth: int = field(default=0, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.op not in _OPERATIONS:
+            raise ValueError(f"unknown operator {self.op!r}")
+        object.__setattr__(self, "depth", max(self.left.depth, self.right.depth) + 1)
+
+    def evaluate(self, lookup: Lookup) -> float:
+        left, right = self.left.evaluate(lookup), self.right.evaluate(lookup)
+        try:
+            value = _OPERATIONS[self.op](left, right)
+        except ZeroDivisionError:
+            raise ExprError("division by zero") from None
+        if not math.isfinite(value):
+            raise ExprError(f"result of {left!r} {self.op} {right!r} is not finite")
+        return value
+
+    def variables(self) -> frozenset[str]:
+        return self.left.variables() | self.right.variables()
+
+
+def no_variables(name: str) -> float:
+    """Lookup for constant expressions: any variable is unknown."""
+    raise KeyError(name)
+
+
+# ---------------------------------------------------------------- DIST_CTRL keywords
+
+#: keywords without value; the first six select what the command does
+ACTION_KEYWORDS = ("ON", "OFF", "FREEZE", "DRYRUN", "CHECK_POS", "REF")
+FLAG_KEYWORDS = ACTION_KEYWORDS + ("NO_MOVE", "CONST_DIST")
+#: keywords with a numeric value (an expression)
+NUMBER_KEYWORDS = ("SET_POS", "SET_DIST", "VAL1", "VAL2", "VAL3", "VAL4", "VAL5", "KP", "I_TN", "D_TV",
+                   "N_CYCLES", "FG_F0", "ORDER", "SMOOTH_FACT", "KALMAN_SIGMA")
+#: keywords with a name value
+NAME_KEYWORDS = ("SENSOR_SOURCE", "SENSOR_VAR", "FILTER_TYPE")
+
+
+@dataclass(frozen=True, slots=True)
+class ValueRange:
+    """Documented range of a numeric DIST_CTRL value (seeds/000 §6)."""
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False     # True: low < value, False: low <= value
+    high_open: bool = False
+    integer: bool = False
+
+    def contains(self, value: float) -> bool:
+        if not math.isfinite(value):
+            return False
+        if self.integer and value != int(value):
+            return False
+        if self.low is not None and (value <= self.low if self.low_open else value < self.low):
+            return False
+        if self.high is not None and (value >= self.high if self.high_open else value > self.high):
+            return False
+        return True
+
+    def describe(self, keyword: str) -> str:
+        text = keyword
+        if self.low is not None:
+            text = f"{_fmt(self.low)} {'<' if self.low_open else '<='} {text}"
+        if self.high is not None:
+            text = f"{text} {'<' if self.high_open else '<='} {_fmt(self.high)}"
+        if self.low is None and self.high is None:
+            text = f"a finite number for {keyword}"
+        return f"an integer {text}" if self.integer else text
+
+
+def _fmt(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else repr(value)
+
+
+#: checked ranges; keywords not listed only need a finite value
+VALUE_RANGES: dict[str, ValueRange] = {
+    "KP": ValueRange(0.0, 2.0, low_open=True),
+    "I_TN": ValueRange(0.0, 50.0),
+    "D_TV": ValueRange(0.0, 2.0),
+    "N_CYCLES": ValueRange(0, 99, integer=True),
+    "ORDER": ValueRange(0, 6, integer=True),
+    "SMOOTH_FACT": ValueRange(0.0, 1.0, low_open=True),
+    "KALMAN_SIGMA": ValueRange(1.0, 10000.0),
+    "FG_F0": ValueRange(0.0, None),
+}
+
+
+def dist_ctrl_range_error(keyword: str, value: float) -> str | None:
+    """Check a numeric DIST_CTRL value; return ``None`` if valid, else a readable message.
+
+    The parser applies this to constant values; the interpreter applies it to evaluated
+    expressions (then reported as error 900005).
+    """
+    keyword = keyword.upper()
+    allowed = VALUE_RANGES.get(keyword, ValueRange())
+    if allowed.contains(value):
+        return None
+    return f"{keyword}={_fmt(value) if math.isfinite(value) else value} is out of range, " \
+           f"expected {allowed.describe(keyword)}"
+
+
+# ---------------------------------------------------------------- DIST_CTRL word
+
+DistCtrlValue = Union[Expr, FilterType, SensorSource, str, None]
+
+_FLOAT_FIELDS = {"SET_POS": "set_pos", "SET_DIST": "set_dist", "KP": "kp", "I_TN": "i_tn",
+                 "D_TV": "d_tv", "FG_F0": "fg_f0", "SMOOTH_FACT": "smooth_fact",
+                 "KALMAN_SIGMA": "kalman_sigma"}
+_INT_FIELDS = {"N_CYCLES": "n_cycles", "ORDER": "order"}
+
+
+@dataclass(frozen=True, slots=True)
+class DistCtrlArg:
+    """One keyword of a DIST_CTRL command.
+
+    ``value`` is ``None`` for flags (ON, NO_MOVE ...), an :class:`Expr` for numeric keywords,
+    a :class:`FilterType` / :class:`SensorSource` for FILTER_TYPE / SENSOR_SOURCE and the full
+    variable name (``"V.E.SENSOR"``) for SENSOR_VAR. ``line``/``column`` locate the keyword.
+    """
+
+    keyword: str
+    value: DistCtrlValue = None
+    line: int = 0
+    column: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class DistCtrlWord:
+    """``<axis>[DIST_CTRL ...]``: the axis and its keywords in source order (already validated)."""
+
+    axis: str
+    args: tuple[DistCtrlArg, ...] = ()
+    line: int = 0
+    column: int = 0
+
+    @property
+    def keywords(self) -> tuple[str, ...]:
+        return tuple(arg.keyword for arg in self.args)
+
+    def arg(self, keyword: str) -> DistCtrlArg | None:
+        for arg in self.args:
+            if arg.keyword == keyword:
+                return arg
+        return None
+
+    def has(self, keyword: str) -> bool:
+        return self.arg(keyword) is not None
+
+    @property
+    def action(self) -> Action:
+        """ON DRYRUN is DRYRUN (seeds/003 §6); no action keyword only sets values."""
+        if self.has("DRYRUN"):
+            return Action.DRYRUN
+        for keyword in ("ON", "OFF", "FREEZE", "CHECK_POS", "REF"):
+            if self.has(keyword):
+                return Action[keyword]
+        return Action.NONE
+
+    def to_command(self, lookup: Lookup = no_variables, line: int | None = None, *,
+                   file: str | None = None) -> Command:
+        """Evaluate the values and build the cycle core's :class:`Command`.
+
+        ``line`` is the NC line recorded in the command (pass the block's line; defaults to the
+        line of the axis letter). Unknown variables, division by zero and values out of range
+        raise :class:`NcSyntaxError` at the keyword's position.
+        """
+        action = self.action
+        fields: dict[str, object] = {}
+        vals: list[float | None] = [None] * 5
+        for arg in self.args:
+            if isinstance(arg.value, Expr):
+                value = self._evaluate(arg, lookup, file)
+                if arg.keyword.startswith("VAL"):
+                    vals[int(arg.keyword[3]) - 1] = value
+                elif arg.keyword in _INT_FIELDS:
+                    fields[_INT_FIELDS[arg.keyword]] = int(value)
+                else:
+                    fields[_FLOAT_FIELDS[arg.keyword]] = value
+            elif arg.keyword == "FILTER_TYPE":
+                fields["filter_type"] = arg.value
+            elif arg.keyword == "SENSOR_SOURCE":
+                fields["sensor_source"] = arg.value
+            elif arg.keyword == "SENSOR_VAR":
+                fields["sensor_var"] = arg.value
+        if action == Action.REF:
+            fields["ref_position"] = 0.0   # NC REF: the current reading is "sensor zero"
+        return Command(action=action, const_dist=self.has("CONST_DIST"), no_move=self.has("NO_MOVE"),
+                       vals=tuple(vals), line=self.line if line is None else line, **fields)
+
+    @staticmethod
+    def _evaluate(arg: DistCtrlArg, lookup: Lookup, file: str | None) -> float:
+        assert isinstance(arg.value, Expr)
+        try:
+            value = arg.value.evaluate(lookup)
+        except ExprError as exc:
+            raise NcSyntaxError(f"{arg.keyword}: {exc}", file=file, line=arg.line,
+                                column=arg.column) from None
+        problem = dist_ctrl_range_error(arg.keyword, value)
+        if problem:
+            raise NcSyntaxError(problem, file=file, line=arg.line, column=arg.column)
+        return value
+
+
+# ---------------------------------------------------------------- blocks and program
+
+@dataclass(frozen=True, slots=True)
+class Assignment:
+    """``V.E.NAME = expr``."""
+
+    var: str
+    value: Expr
+
+
+#: M functions that end the program
+PROGRAM_END_M_CODES = (2, 30)
+
+
+@dataclass(slots=True)
+class Block:
+    """One NC block. ``line`` is the physical line where it starts.
+
+    Execution order within a block (for the interpreter): assignments first, in source order;
+    then G codes, feed, axis values, DIST_CTRL commands, dwell, M functions.
+    """
+
+    line: int
+    number: int | None = None
+    g_codes: list[int] = field(default_factory=list)
+    feed: Expr | None = None                                 # mm/min
+    axes: dict[str, Expr] = field(default_factory=dict)      # axis letter -> target (mm or deg)
+    m_codes: list[int] = field(default_factory=list)
+    dwell: Expr | None = None                                # s (#TIME)
+    assignments: list[Assignment] = field(default_factory=list)
+    dist_ctrl: list[DistCtrlWord] = field(default_factory=list)
+
+    @property
+    def ends_program(self) -> bool:
+        return any(m in PROGRAM_END_M_CODES for m in self.m_codes)
+
+    @property
+    def is_empty(self) -> bool:
+        return not (self.g_codes or self.feed is not None or self.axes or self.m_codes
+                    or self.dwell is not None or self.assignments or self.dist_ctrl)
+
+
+@dataclass(slots=True)
+class Program:
+    """A parsed NC program. ``name`` is the ``%NAME`` header without ``%``; ``source`` the file."""
+
+    name: str | None = None
+    blocks: list[Block] = field(default_factory=list)
+    source: str | None = None
