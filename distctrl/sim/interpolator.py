@@ -1,0 +1,237 @@
+"""Channel path interpolation in the GEO cycle: G1 / G0 straight lines and ``#TIME`` dwell.
+
+Every block starts and ends at rest (no look-ahead). The path parameter ``s`` (mm along the
+straight line) follows an acceleration-limited (trapezoidal) velocity profile that is generated
+*online*, one cycle at a time, so the feed override can change at any moment:
+
+    v_k = max(min(V * override, v_{k-1} + A*T, v_brake(r_k)), v_{k-1} - A*T),   s_k = s_{k-1} + v_k*T
+
+* ``V``: the block's path velocity: ``F/60`` for G1 (F in mm/min), the rapid velocity for G0,
+  and never more than any axis allows (``V <= v_max_i / |u_i|``, ``u`` = unit direction).
+* ``A``: the path acceleration, ``min(a_max_i / |u_i|)`` - so each axis stays within its own
+  velocity and acceleration limits (G0 uses the rapid limits; the slowest axis dominates and all
+  axes arrive together because they move on one straight line).
+* ``v_brake(r)``: the largest velocity from which the *discrete* braking sequence
+  ``v, v - A*T, v - 2*A*T, ...`` still stops within the remaining distance ``r``. For
+  ``m = floor((sqrt(1 + 8 r / (A T^2)) - 1) / 2)`` it is ``r / (T (m + 1)) + A T m / 2``.
+  Braking against it lands exactly on the target, so the path never overshoots and no cycle needs
+  more than ``A`` of deceleration. The last cycle snaps to the exact target coordinates.
+
+An override of 0 (feed hold) makes ``V`` zero: the path decelerates at ``A`` and holds; raising the
+override again resumes. Override values above 1 are allowed but still capped by the axis limits.
+The override also scales G0 (one override input for the channel). Dwell time is not overridden.
+
+The continuous trapezoid takes ``L/V + V/A`` (``L >= V^2/A``) or ``2 sqrt(L/A)``; the discrete
+profile needs at most about one cycle more.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from distctrl.sim.config_errors import ConfigError, require_number
+
+__all__ = ["AxisLimits", "Interpolator", "trapezoid_time"]
+
+
+@dataclass(frozen=True)
+class AxisLimits:
+    """Limits of one axis: ``v_max`` (mm/s) and ``a_max`` (mm/s^2) for G1; ``v_rapid`` and
+    ``a_rapid`` for G0 (default: the same as for G1)."""
+
+    v_max: float
+    a_max: float
+    v_rapid: float | None = None
+    a_rapid: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("v_max", "a_max", "v_rapid", "a_rapid"):
+            value = getattr(self, name)
+            if value is not None or name in ("v_max", "a_max"):
+                require_number(value, f"AxisLimits.{name}", lo=0.0, lo_open=True)
+
+    @property
+    def rapid_velocity(self) -> float:
+        return self.v_max if self.v_rapid is None else self.v_rapid
+
+    @property
+    def rapid_acceleration(self) -> float:
+        return self.a_max if self.a_rapid is None else self.a_rapid
+
+
+def trapezoid_time(length: float, v_max: float, a_max: float) -> float:
+    """Closed-form duration (s) of a rest-to-rest trapezoidal move (continuous time)."""
+    if length <= 0.0:
+        return 0.0
+    if length >= v_max * v_max / a_max:
+        return length / v_max + v_max / a_max
+    return 2.0 * math.sqrt(length / a_max)
+
+
+def brake_velocity(remaining: float, dv: float, cycle_time: float) -> float:
+    """Largest velocity (mm/s) this cycle from which the path can still stop within ``remaining``
+    (mm) when the velocity may drop by ``dv`` (mm/s) per cycle. Solves
+    ``T * (v + sum_j max(v - j*dv, 0)) = remaining`` exactly (see module docstring)."""
+    if remaining <= 0.0:
+        return 0.0
+    q = remaining / (cycle_time * dv)
+    m = math.floor((math.sqrt(1.0 + 8.0 * q) - 1.0) * 0.5)
+    return remaining / (cycle_time * (m + 1)) + dv * m * 0.5
+
+
+class Interpolator:
+    """Programmed positions ``p`` of a channel's axes, one :meth:`step` per GEO cycle.
+
+    Public state: ``position`` (dict axis -> mm, programmed), ``path_velocity`` (mm/s),
+    ``path_length`` / ``path_position`` (mm, current block), ``feed_override`` (>= 0, settable any
+    time), ``block`` ("idle", "linear", "rapid", "dwell").
+    """
+
+    def __init__(self, cycle_time: float = 0.001, axes: dict[str, AxisLimits] | None = None,
+                 start: dict[str, float] | None = None):
+        self.cycle_time = require_number(cycle_time, "Interpolator.cycle_time", lo=0.0, lo_open=True)
+        if not axes:
+            raise ConfigError("Interpolator.axes", axes, "a non-empty dict axis name -> AxisLimits")
+        for name, lim in axes.items():
+            if not isinstance(lim, AxisLimits):
+                raise ConfigError(f"Interpolator.axes[{name!r}]", lim, "an AxisLimits instance")
+        self.axes: dict[str, AxisLimits] = dict(axes)
+        self.position: dict[str, float] = {name: 0.0 for name in axes}
+        if start:
+            self.set_position(start)
+        self.feed_override = 1.0
+        self.path_velocity = 0.0
+        self.path_length = 0.0
+        self.path_position = 0.0
+        self.block = "idle"
+        self._target: dict[str, float] = {}
+        # per moving axis: (name, start, delta, lower bound, upper bound) of the segment (mm)
+        self._moving: tuple[tuple[str, float, float, float, float], ...] = ()
+        self._v_block = 0.0      # path velocity cap of the block at 100 % override (mm/s)
+        self._v_axis_cap = 0.0   # path velocity the axes allow (caps override > 1)
+        self._dv = 0.0           # path velocity change per cycle, A*T (mm/s)
+        self._dwell_left = 0
+
+    # -- state --------------------------------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        """True when no block is running (the next block may be started)."""
+        return self.block == "idle"
+
+    def set_position(self, positions: dict[str, float]) -> None:
+        """Set programmed positions (mm) without motion, e.g. the start of a run; only when idle."""
+        if getattr(self, "block", "idle") != "idle":
+            raise RuntimeError("set_position while a block is running")
+        for name, value in positions.items():
+            if name not in self.axes:
+                raise ConfigError("set_position", name, "one of the axes " + ", ".join(self.axes),
+                                  "unknown axis")
+            self.position[name] = require_number(value, f"set_position[{name!r}]")
+
+    # -- blocks -------------------------------------------------------------------------------------
+    def start_linear(self, target: dict[str, float], feed_mm_min: float | None = None) -> None:
+        """Start a straight move to ``target`` (mm; missing axes stay): G1 at path feed
+        ``feed_mm_min`` (mm/min), or G0 rapid when ``feed_mm_min`` is None."""
+        if self.block != "idle":
+            raise RuntimeError(f"start_linear while a {self.block} block is running")
+        rapid = feed_mm_min is None
+        if not rapid:
+            feed = require_number(feed_mm_min, "start_linear.feed_mm_min", lo=0.0, lo_open=True) / 60.0
+        delta: dict[str, float] = {}
+        tgt: dict[str, float] = {}
+        for name, value in target.items():
+            if name not in self.axes:
+                raise ConfigError("start_linear.target", name, "one of the axes " + ", ".join(self.axes),
+                                  "unknown axis")
+            value = require_number(value, f"start_linear.target[{name!r}]")
+            d = value - self.position[name]
+            if d != 0.0:
+                delta[name] = d
+                tgt[name] = value
+        length = math.hypot(*delta.values())  # hypot: no underflow for tiny moves
+        if length == 0.0:
+            return  # nothing to do: the block is complete at once
+        v_axes = a_axes = math.inf
+        for name, d in delta.items():
+            lim = self.axes[name]
+            share = abs(d) / length  # |u_i|
+            if share == 0.0:
+                continue  # a move below float resolution relative to the others: no limit binds
+            v_i = lim.rapid_velocity if rapid else lim.v_max
+            a_i = lim.rapid_acceleration if rapid else lim.a_max
+            v_axes = min(v_axes, v_i / share)
+            a_axes = min(a_axes, a_i / share)
+        self._v_axis_cap = v_axes
+        self._v_block = v_axes if rapid else min(feed, v_axes)
+        self._dv = a_axes * self.cycle_time
+        self._target = tgt
+        self._moving = tuple((name, self.position[name], d, min(self.position[name], tgt[name]),
+                              max(self.position[name], tgt[name])) for name, d in delta.items())
+        self.path_length = length
+        self.path_position = 0.0
+        self.path_velocity = 0.0
+        self.block = "rapid" if rapid else "linear"
+
+    def start_dwell(self, seconds: float) -> None:
+        """``#TIME``: hold all positions for ``seconds`` (rounded up to whole cycles)."""
+        if self.block != "idle":
+            raise RuntimeError(f"start_dwell while a {self.block} block is running")
+        t = require_number(seconds, "start_dwell.seconds", lo=0.0)
+        n = math.ceil(t / self.cycle_time - 1e-9)
+        if n > 0:
+            self._dwell_left = n
+            self.block = "dwell"
+
+    # -- per cycle ----------------------------------------------------------------------------------
+    def step(self) -> dict[str, float]:
+        """Advance one cycle; return the programmed positions (a new dict, mm)."""
+        block = self.block
+        if block == "linear" or block == "rapid":
+            self._step_path()
+        elif block == "dwell":
+            self._dwell_left -= 1
+            if self._dwell_left <= 0:
+                self.block = "idle"
+        return dict(self.position)
+
+    def _step_path(self) -> None:
+        T = self.cycle_time
+        L = self.path_length
+        s = self.path_position
+        r = L - s
+        v0 = self.path_velocity
+        dv = self._dv
+        ov = self.feed_override
+        v_cap = self._v_block * ov if ov > 0.0 else 0.0
+        if v_cap > self._v_axis_cap:
+            v_cap = self._v_axis_cap
+        v = v0 + dv
+        if v_cap < v:
+            v = v_cap
+        # Braking only matters near the end: T*(v + v^2/dv) bounds the discrete stopping distance,
+        # so the exact (sqrt) solution is needed only below it.
+        if r < T * (v + v * v / dv):
+            vb = brake_velocity(r, dv, T)
+            if vb < v:
+                v = vb
+        if v < v0 - dv:  # an override drop: decelerate at A, never with a velocity step
+            v = v0 - dv
+        if v < 0.0:
+            v = 0.0
+        ds = v * T
+        pos = self.position
+        if ds >= r - 1e-12 * (L + 1.0):
+            # Last cycle: land exactly on the programmed coordinates.
+            pos.update(self._target)
+            self.path_position = L
+            self.path_velocity = r / T
+            self.block = "idle"
+            return
+        s += ds
+        self.path_position = s
+        self.path_velocity = v
+        f = s / L
+        for name, start, d, lo, hi in self._moving:
+            p = start + d * f
+            # Rounding must not carry a coordinate past its target.
+            pos[name] = lo if p < lo else (hi if p > hi else p)
