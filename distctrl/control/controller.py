@@ -89,6 +89,7 @@ class ControllerState:
     sensor_var: str | None = None
     vals: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
     pending: dict = field(default_factory=dict)        # CNC-object writes awaiting adoption
+    a_bound: float = 0.0                               # acceleration the position bounds brake with
     error: ErrorEvent | None = None                    # the error that put the controller in ERROR
 
 
@@ -115,14 +116,17 @@ class AxisDistanceController:
         self._fc = design_coefficients(self.tuning.filter, self.T)   # validates fg against Nyquist
         self._fs = [0.0] * law.FS_LEN
         self._buf = [0.0] * law.MAX_N
+        self._rebased = False
         self._derive()
+        self.state.a_bound = self._a_floor
 
     # ------------------------------------------------------------------ derived constants
     def _derive(self) -> None:
         """Recompute the per-cycle constants after a tuning change (never per cycle)."""
         p, t, T = self.params, self.tuning, self.T
         self._a_base = t.a_max if t.a_max > 0 else p.axis_a_max
-        self._i_gain = T / t.i_tn if t.i_tn > 0 else 0.0
+        # an integral time far below the cycle time is meaningless; bounding T/i_tn keeps it finite
+        self._i_gain = min(T / t.i_tn, _MAX_I_GAIN) if t.i_tn > 0 else 0.0
         self._d_gain = t.d_tv / T
         self._mm_per_incr = p.sensor_mm_per_increment
         self._modulo = p.sensor_mode_act_pos == 2
@@ -183,12 +187,13 @@ class AxisDistanceController:
             for cmd in inp.commands:
                 absorbed += self._apply(cmd, inp, events, s_now, sensor_ok)
             inp.commands.clear()
-            # a REF or a source change acts on this cycle's reading
-            s_now, sensor_ok = self._read_sensor(inp)
-            if p.optimized_scheduling:
-                s = s_now
-            else:
-                st.s_delayed = s_now
+            if self._rebased:
+                # REF or a sensor-source change: the reading has a new reference; use it at once (a
+                # delayed value of the old reference would look like a jump) and restart monitoring
+                self._rebased = False
+                s_now, sensor_ok = self._read_sensor(inp)
+                s = st.s_delayed = s_now
+                st.has_last_s = False
 
         state = st.hli_state
         # PLC cyclic set values (re-read every cycle while PLC-commanded)
@@ -255,6 +260,9 @@ class AxisDistanceController:
                 m = -filtered
             u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
             st.m_prev = m
+            if not -_HUGE < u < _HUGE or not -_HUGE < i_cand < _HUGE:   # never let inf/NaN through
+                u = 0.0 if u != u else max(-_HUGE, min(_HUGE, u))
+                i_cand = st.integral
         elif state == _TURNING_OFF:
             e = -o
             u = -o
@@ -282,7 +290,14 @@ class AxisDistanceController:
         if sw_active:
             lo = max(lo, p.sw_limit_min - prog)
             hi = min(hi, p.sw_limit_max - prog)
-        v = law.bound_velocity(v, o, T, lo, hi, self._a_floor)
+        # a lowered acceleration (object write adopted while the offset still moves) must not make
+        # the bounds brake harder than the motion allows: keep the old floor until at rest
+        a_bound = self._a_floor if st.velocity == 0.0 else max(self._a_floor, st.a_bound)
+        st.a_bound = a_bound
+        v_limited = v
+        v = law.bound_velocity(v, o, T, lo, hi, a_bound)
+        if v != v_limited and a_bound > a_applied:
+            a_applied = a_bound                        # report the deceleration actually allowed
         o_new = law.advance_offset(o, v, T, lo, hi)
         # at a bound and wanting beyond it: 70331 (max_deviation) or the software limit
         if not hold:
@@ -303,8 +318,9 @@ class AxisDistanceController:
         st.velocity = v_real
         st.offset = o_new
         if state == _TURNING_OFF and abs(o_new) <= _LAND and abs(v_real) <= a_applied * T:
+            # run out: INACTIVE with the offset exactly 0; the velocity of this last step is kept so
+            # that the next cycle (at rest, or a new select) continues within the acceleration bound
             st.offset = o_new = 0.0
-            st.velocity = 0.0
             self._to_inactive()
             state = _INACTIVE
 
@@ -476,6 +492,7 @@ class AxisDistanceController:
                     return 0.0
                 st.sensor_source = new_source
                 st.has_last_s = False
+                self._rebased = True
         self._nc_tuning(cmd)
         # the action
         if a == Action.NONE:
@@ -518,6 +535,7 @@ class AxisDistanceController:
                 # choose the referencing offset so that the reading equals ref now
                 st.ref_shift += ref - s_now
                 st.has_last_s = False
+                self._rebased = True
             return 0.0
         return 0.0
 
@@ -623,6 +641,7 @@ class AxisDistanceController:
 
 
 _HUGE = law.HUGE
+_MAX_I_GAIN = 1e6          # T / i_tn is bounded: i_tn below T*1e-6 acts as T*1e-6
 _INT = {s: int(s) for s in HliState}
 _INTERNAL_OF = {_INACTIVE: int(InternalState.IDLE), _ACTIVE: int(InternalState.ACTIVE),
                 _ACTIVE_CD: int(InternalState.ACTIVE), _FREEZE: int(InternalState.FREEZE),

@@ -7,6 +7,7 @@ offers :class:`SensorFilter`, a filterpy-style object with public state for use 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,9 +97,12 @@ def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
     fc[law.FC_N] = float(n)
     fc[law.FC_ALPHA] = alpha
     fc[law.FC_SIGMA] = float(config.kalman_sigma)
-    decay = (1.0 - alpha) ** n
+    # (1-alpha)^n and the weight sum 1-(1-alpha)^n via log1p/expm1: exact also for a tiny alpha,
+    # where the weights become uniform (the moving average) instead of a 0/0
+    log_decay = n * math.log1p(-alpha) if alpha < 1.0 else -math.inf
+    decay = math.exp(log_decay)
     fc[law.FC_DECAY_N] = decay
-    fc[law.FC_WSUM] = 1.0 - decay if kind in (law.EXPO_MEAN, law.KALMAN_EXPO) else 1.0
+    fc[law.FC_WSUM] = -math.expm1(log_decay) if kind in (law.EXPO_MEAN, law.KALMAN_EXPO) else 1.0
     if kind == law.LOWPASS:
         from scipy import signal
 

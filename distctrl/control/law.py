@@ -188,6 +188,10 @@ def brake_velocity(remaining, a, T):
         return 0.0
     a_t = a * T
     q = remaining / (a_t * T)
+    if q > 1e12:
+        # the ladder has more than ~1e6 rungs: the continuous limit is exact to 1e-6 relative,
+        # and floor() of a huge (or infinite) count would overflow
+        return sqrt(2.0 * a * remaining)
     k = sqrt(0.25 + 2.0 * q) - 0.5
     j = floor(k)
     f = (q - 0.5 * j * (j + 1.0)) / (j + 1.0)

@@ -1,0 +1,167 @@
+"""Executes a parsed NC program against a channel, one GEO cycle at a time.
+
+The interpreter knows nothing of the machine behind the channel; it only uses the small
+:class:`Channel` protocol (start a move, start a dwell, send a distance-control command to an axis,
+read and write variables). Blocks without motion or dwell complete in the cycle they are read, so a
+``Z[DIST_CTRL ON]`` followed by a move reaches the controller in the cycle the move starts.
+
+Runtime problems (an undefined variable, a value out of range once an expression is evaluated)
+stop the program with :class:`NcRuntimeError` recorded in :attr:`NcInterpreter.error` — a value,
+like every error on the cycle path.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+from ..control.commands import Action, Command
+from .program import ExprError, NcSyntaxError, Program
+
+#: a program that loops through this many blocks without motion in one cycle is stopped
+MAX_BLOCKS_PER_CYCLE = 10_000
+NC_RUNTIME_ERROR = 900010
+
+
+class Channel(Protocol):
+    """What the interpreter needs from the machine."""
+
+    positions: dict[str, float]          # programmed positions (mm), by axis name
+    variables: dict[str, float]          # "V.E.NAME" / "V.G.WZ_AKT.L" -> value
+
+    def start_linear(self, target: dict[str, float], feed_mm_min: float | None) -> None: ...
+
+    def start_dwell(self, seconds: float) -> None: ...
+
+    def motion_done(self) -> bool: ...
+
+    def dist_ctrl(self, axis: str, command: Command) -> None: ...
+
+
+@dataclass(frozen=True)
+class NcRuntimeError:
+    """A program stopped at run time (value, not exception)."""
+
+    id: int
+    line: int | None
+    message: str
+
+
+class NcInterpreter:
+    """Steps through ``program`` on ``channel``: call :meth:`tick` once per GEO cycle before the
+    interpolator runs. Modal state: G0/G1, G90/G91, F."""
+
+    def __init__(self, program: Program, channel: Channel, file: str | None = None):
+        self.program = program
+        self.channel = channel
+        self.file = file or program.source
+        self.index = 0                    # next block to read
+        self.line: int | None = None      # line of the block being executed
+        self.rapid = True                 # G0 until G1 is programmed
+        self.absolute = True              # G90
+        self.feed: float | None = None    # mm/min
+        self.ended = False                # M30/M2 reached or the last block done
+        self.aborted = False
+        self.error: NcRuntimeError | None = None
+        self.end_line: int | None = None
+        self._end_pending = False         # M30 in a block with motion: ends when the motion is done
+
+    @property
+    def running(self) -> bool:
+        return not (self.ended or self.aborted)
+
+    def abort(self, error: NcRuntimeError | None = None) -> None:
+        """Stop reading blocks (an error elsewhere, a reset)."""
+        if self.running:
+            self.aborted = True
+            if error is not None and self.error is None:
+                self.error = error
+
+    def tick(self) -> None:
+        """Read and start blocks until one takes time (motion, dwell) or the program ends."""
+        if not self.running:
+            return
+        ch = self.channel
+        if not ch.motion_done():
+            return
+        if self._end_pending:
+            self.ended = True
+            return
+        blocks = self.program.blocks
+        for _ in range(MAX_BLOCKS_PER_CYCLE):
+            if self.index >= len(blocks):
+                self.ended = True          # no M30: the program ends after its last block
+                return
+            block = blocks[self.index]
+            self.index += 1
+            self.line = block.line
+            try:
+                takes_time = self._execute(block)
+            except (ExprError, NcSyntaxError, ZeroDivisionError, OverflowError, ValueError) as exc:
+                msg = exc.message if isinstance(exc, NcSyntaxError) else str(exc)
+                self.abort(NcRuntimeError(NC_RUNTIME_ERROR, block.line, msg))
+                return
+            if not self.running:
+                return
+            if takes_time:
+                return
+        self.abort(NcRuntimeError(NC_RUNTIME_ERROR, self.line,
+                                  f"more than {MAX_BLOCKS_PER_CYCLE} blocks without motion in one cycle"))
+
+    # ------------------------------------------------------------------ one block
+    def _lookup(self, name: str) -> float:
+        try:
+            return float(self.channel.variables[name])
+        except KeyError:
+            raise ExprError(f"variable {name} is not defined") from None
+
+    def _execute(self, block) -> bool:
+        ch = self.channel
+        lookup = self._lookup
+        for a in block.assignments:
+            ch.variables[a.var] = a.value.evaluate(lookup)
+        for g in block.g_codes:
+            if g == 0:
+                self.rapid = True
+            elif g == 1:
+                self.rapid = False
+            elif g == 90:
+                self.absolute = True
+            elif g == 91:
+                self.absolute = False
+        if block.feed is not None:
+            f = block.feed.evaluate(lookup)
+            if not f > 0:
+                raise ValueError(f"F{f:g}: the feed must be > 0 mm/min")
+            self.feed = f
+        # distance-control commands reach the controllers before the block's own motion starts
+        for word in block.dist_ctrl:
+            ch.dist_ctrl(word.axis, word.to_command(lookup, block.line, file=self.file))
+        takes_time = False
+        if block.axes:
+            target = {}
+            for axis, expr in block.axes.items():
+                if axis not in ch.positions:
+                    raise ValueError(f"axis {axis} is not configured in this channel")
+                value = expr.evaluate(lookup)
+                target[axis] = value if self.absolute else ch.positions[axis] + value
+            if not self.rapid and self.feed is None:
+                raise ValueError("G1 without a feed: program F")
+            ch.start_linear(target, None if self.rapid else self.feed)
+            takes_time = True
+        if block.dwell is not None:
+            seconds = block.dwell.evaluate(lookup)
+            if not seconds >= 0:
+                raise ValueError(f"#TIME {seconds:g}: the dwell must be >= 0 s")
+            ch.start_dwell(seconds)
+            takes_time = True
+        if block.ends_program:
+            self.end_line = block.line
+            if takes_time:
+                self._end_pending = True
+            else:
+                self.ended = True
+        return takes_time
+
+
+def program_end_command(line: int | None) -> Command:
+    return Command(Action.PROGRAM_END, line=line)

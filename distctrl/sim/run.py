@@ -1,0 +1,226 @@
+"""Run a scenario end to end: ``distctrl.sim.run(scenario) -> RunResult``.
+
+The run lasts until the program has ended (M30, its last block, or an error) and the machine has
+settled for ``scenario.settle_time``, or until ``scenario.duration``. Every cycle is recorded in a
+trace (streamed to CSV when a path is given; kept in memory unless ``keep_trace=False``, so memory
+stays flat however long the program is). Tracking metrics are accumulated on the fly.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..control import HliState
+from ..nc.parser import parse_file, parse_program
+from .machine import DC_COLUMNS, Machine
+
+#: safety cap when a scenario has no duration: one hour of machine time
+MAX_RUN_SECONDS = 3600.0
+SETTLE_BAND_MM = 0.01           # settle_time: |distance error| within this band ...
+SETTLE_HOLD_S = 0.1             # ... for this long
+
+
+@dataclass
+class RunResult:
+    """What a run produced; can export its trace and plot itself (python-control style)."""
+
+    name: str
+    completed: bool                       # the program ran to its end without an error
+    aborted: bool
+    errors: list[dict]                    # {id, line, t, message} (controller errors and NC runtime errors)
+    warnings: list[dict]
+    final_state: str                      # HLI state name of the distance-controlled axis (or "n/a")
+    cycles: int
+    cycle_time: float
+    metrics: dict
+    trace: object = None                  # distctrl.trace.Trace when kept
+    trace_path: str | None = None
+    interrupted: bool = False
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        return 0 if self.completed else 2
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "completed": self.completed, "errors": self.errors,
+                "warnings": self.warnings, "final_state": self.final_state, "cycles": self.cycles,
+                "cycle_time": self.cycle_time, "metrics": self.metrics, "trace": self.trace_path,
+                "interrupted": self.interrupted}
+
+    def export_csv(self, path) -> None:
+        if self.trace is None:
+            raise ValueError("the trace was not kept (keep_trace=False); it was streamed to "
+                             f"{self.trace_path or 'nowhere'}")
+        self.trace.to_csv(path)
+
+    def plot(self, path=None, signals=None):
+        if self.trace is None:
+            raise ValueError("the trace was not kept (keep_trace=False)")
+        return self.trace.plot(path, signals=signals, title=self.name)
+
+
+def trace_columns(machine: Machine) -> tuple[list[str], dict[str, str]]:
+    cols, units = ["t", "line"], {"t": "s", "line": "-"}
+    for n in machine.axis_names:
+        for c in ("prog", "cmd", "act"):
+            cols.append(f"{n}.{c}")
+            units[f"{n}.{c}"] = "mm"
+    for n in machine.dc_axes:
+        for c in DC_COLUMNS:
+            cols.append(f"{n}.{c}")
+            units[f"{n}.{c}"] = "-" if c == "dc.state" else "mm"
+    cols += ["true.surface", "true.distance"]
+    units.update({"true.surface": "mm", "true.distance": "mm"})
+    return cols, units
+
+
+def load_program(scenario):
+    if scenario.program_text is not None and scenario.program_file is None:
+        return parse_program(scenario.program_text, file=f"{scenario.path or '<scenario>'}:program_text")
+    return parse_file(scenario.program_file)
+
+
+def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, progress: bool = False) -> RunResult:
+    """Run ``scenario`` (a Scenario, or a path to a TOML file). Invalid files raise DistCtrlError."""
+    from ..trace import TraceRecorder
+    from .scenario import Scenario, load_scenario
+
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    program = load_program(scenario)
+    machine = Machine(scenario, program)
+    T = scenario.cycle_time
+    columns, units = trace_columns(machine)
+    recorder = TraceRecorder(columns, units, csv_path=trace, keep=keep_trace,
+                             meta={"scenario": scenario.name, "cycle_time": T})
+    limit_s = scenario.duration if scenario.duration is not None else MAX_RUN_SECONDS
+    max_cycles = int(round(limit_s / T))
+    settle_cycles = max(1, int(round(scenario.settle_time / T)))
+    dc_axis = scenario.sensor.axis if scenario.sensor is not None and scenario.sensor.axis in machine.dc_axes \
+        else (machine.dc_axes[0] if machine.dc_axes else None)
+    metrics = _Metrics(SETTLE_BAND_MM, int(round(SETTLE_HOLD_S / T)), T)
+    bar = _Progress(max_cycles if scenario.duration is not None else None, T) if progress else None
+    interrupted = False
+    settled_for = 0
+    nc = machine.nc
+    append = recorder.append
+    names = machine.axis_names
+    drives, inputs, outputs = machine.drives, machine.inputs, machine.outputs
+    dc_outs = [outputs[n] for n in machine.dc_axes]
+    try:
+        for k in range(max_cycles):
+            machine.step()
+            row = [k * T, nc.line if nc is not None and nc.line is not None else -1]
+            for n in names:
+                inp = inputs[n]
+                row += (inp.programmed_position, outputs[n].command_position if n in machine.dc_axes
+                        else inp.programmed_position, drives[n].actual)
+            for o in dc_outs:
+                row += (o.hli_state, o.offset, o.sensor_value, o.feedback_value, o.filtered_feedback,
+                        o.target_deviation, o.delta_deviation_pre_limiter, o.sloped_delta_deviation,
+                        o.set_pos, o.set_distance)
+            row += (machine.true_surface, machine.true_distance)
+            append(tuple(row))
+            if dc_axis is not None:
+                o = outputs[dc_axis]
+                if o.hli_state in (1, 4):
+                    want = o.set_distance if o.hli_state == 4 else inputs[dc_axis].programmed_position - o.set_pos
+                    metrics.add(k * T, machine.true_distance - want)
+                else:
+                    metrics.gap()
+            if bar is not None and k % 2000 == 0:
+                bar.update(k)
+            if nc is None or not nc.running:
+                settled_for = settled_for + 1 if machine.settled() else 0
+                if settled_for >= settle_cycles:
+                    break
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        kept = recorder.close()
+        if bar is not None:
+            bar.close()
+    errors, warnings = [], []
+    for t, ev in machine.events:
+        item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
+        (warnings if ev.severity == "warning" else errors).append(item)
+    if nc is not None and nc.error is not None:
+        errors.append({"id": nc.error.id, "line": nc.error.line, "t": round(machine.cycle * T, 9),
+                       "message": nc.error.message})
+    program_done = nc is not None and nc.ended and not nc.aborted
+    final_state = HliState(outputs[dc_axis].hli_state).name if dc_axis is not None else "n/a"
+    notes = []
+    if nc is not None and nc.running:
+        notes.append(f"the program had not ended after {limit_s:g} s")
+    return RunResult(scenario.name or Path(str(scenario.path or "scenario")).stem, program_done and not errors,
+                     bool(errors) or (nc is not None and nc.aborted), errors, warnings, final_state,
+                     machine.cycle, T, metrics.result(), kept, str(trace) if trace else None, interrupted, notes)
+
+
+class _Metrics:
+    """Distance error while distance control tracks (ACTIVE / ACTIVE_CONST_DIST): RMS, max, and the
+    settle time: from the first tracking cycle until the error entered ±band and stayed there for
+    the hold time."""
+
+    def __init__(self, band: float, hold_cycles: int, T: float):
+        self.T = T
+        self.n = 0
+        self.sq = 0.0
+        self.max = 0.0
+        self.band, self.hold = band, hold_cycles
+        self.t_start = None
+        self.inside = 0
+        self.settle_time = None
+
+    def add(self, t: float, err: float) -> None:
+        if self.t_start is None:
+            self.t_start = t
+        if err == err:
+            self.n += 1
+            self.sq += err * err
+            a = abs(err)
+            if a > self.max:
+                self.max = a
+            if self.settle_time is None:
+                if a <= self.band:
+                    self.inside += 1
+                    if self.inside >= self.hold:
+                        self.settle_time = t - (self.hold - 1) * self.T - self.t_start
+                else:
+                    self.inside = 0
+
+    def gap(self) -> None:
+        self.inside = 0
+
+    def result(self) -> dict:
+        return {"distance_error_rms": math.sqrt(self.sq / self.n) if self.n else None,
+                "distance_error_max": self.max if self.n else None,
+                "settle_time": self.settle_time, "tracking_cycles": self.n,
+                "settle_band_mm": self.band, "settle_hold_s": SETTLE_HOLD_S}
+
+
+class _Progress:
+    """A rich progress bar on a terminal (nothing otherwise)."""
+
+    def __init__(self, total: int | None, T: float):
+        import sys
+
+        self.T = T
+        self.bar = None
+        if sys.stderr.isatty():
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.bar = Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.fields[t]:.2f} s"),
+                                TimeElapsedColumn(), transient=True)
+            self.bar.start()
+            self.task = self.bar.add_task("run", total=total, t=0.0)
+
+    def update(self, k: int) -> None:
+        if self.bar is not None:
+            self.bar.update(self.task, completed=k, t=k * self.T)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()

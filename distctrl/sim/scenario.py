@@ -1,0 +1,573 @@
+"""Scenarios: one simulated run described in a TOML file, loaded into typed, validated dataclasses.
+
+A scenario names the NC program, the axes (with their kernel parameter lists and drive data), the
+surface, the sensor, timed events (PLC commands, overrides, faults, ...) and the cycle time.
+docs/scenarios.md documents every key. Paths inside a scenario are relative to the scenario file
+(for :func:`scenario_from_dict` / :func:`scenario_from_text`: to ``base_dir``).
+
+Every key is validated. A problem raises :class:`ScenarioError` (a
+:class:`~distctrl.sim.config_errors.ConfigError`) whose message names the file, the key path
+(``axes.Z.kv``, ``events[2].plc.transition``), the value and what is allowed; unknown keys are
+errors that list the allowed keys. Errors in a parameter list are
+:class:`~distctrl.errors.ParameterError` with the list's own ``file:line`` (the scenario key is
+appended to the message). Both derive from :class:`~distctrl.errors.DistCtrlError`.
+
+Example::
+
+    sc = load_scenario("examples/laser.toml")
+    sc.axes["Z"].params.kp, sc.sensor.kind, [e.kind for e in sc.events]
+    sensor = sc.make_sensor()            # EncoderProbe / DistanceSensor as configured
+    drive = sc.axes["Z"].make_drive(sc.cycle_time)
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+from distctrl.control.states import HliTransition
+from distctrl.errors import ParameterError
+from distctrl.params.axis import AxisParameters
+from distctrl.params.listfile import load_list
+from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, require_int,
+                                        require_mapping, require_number)
+from distctrl.sim.drive import Drive
+from distctrl.sim.interpolator import AxisLimits
+from distctrl.sim.sensors import FAULT_KINDS, DistanceSensor, EncoderProbe, Fault, SensorBase
+from distctrl.sim.surface import Surface, surface_from_config
+
+__all__ = ["Scenario", "AxisConfig", "SensorConfig", "Event", "ScenarioError", "load_scenario",
+           "scenario_from_dict", "scenario_from_text", "AXIS_NAMES", "EVENT_KINDS", "TOP_LEVEL_KEYS",
+           "AXIS_KEYS", "SENSOR_KEYS", "SENSOR_KINDS"]
+
+#: axis names a scenario may configure (the order is the display order)
+AXIS_NAMES = ("X", "Y", "Z", "A", "B", "C")
+TOP_LEVEL_KEYS = ("name", "cycle_time", "program", "program_text", "duration", "settle_time", "seed",
+                  "variables", "tool", "axes", "surface", "sensor", "events")
+AXIS_KEYS = ("params", "start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "bus_delay_cycles",
+             "resolution")
+SENSOR_KINDS = ("encoder", "distance")
+SENSOR_KEYS = ("axis", "kind", "variable", "noise_std", "delay_cycles", "seed", "range_min", "range_max",
+               "characteristic", "resolution", "faults")
+#: sensor keys that only one kind accepts
+_SENSOR_KIND_ONLY = {"variable": "distance", "characteristic": "distance", "resolution": "distance",
+                     "range_min": "encoder"}
+#: event action -> (allowed keys, required keys)
+EVENT_KINDS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "plc": (("axis", "transition", "position"), ("axis", "transition")),
+    "override": (("axis", "value"), ("value",)),
+    "feed_hold": (("axis", "value"), ("axis",)),
+    "reset": ((), ()),
+    "axis_error": (("axis",), ("axis",)),
+    "sensor_fault": (("kind", "value", "duration", "duration_cycles", "rate"), ("kind",)),
+    "variable": (("name", "value"), ("name", "value")),
+    "plc_cyclic": (("axis", "position", "distance"), ("axis",)),
+}
+_FAULT_KEYS = ("kind", "start_time", "start_cycle", "duration", "duration_cycles", "value", "rate")
+
+CYCLE_TIME_MIN, CYCLE_TIME_MAX = 1e-4, 0.1
+OVERRIDE_AXIS_MAX = 1.0
+OVERRIDE_PATH_MAX = 1.27
+_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_TOML_LINE_RE = re.compile(r"at line (\d+)")
+
+
+# --- errors ------------------------------------------------------------------------------------------
+class ScenarioError(ConfigError):
+    """A :class:`ConfigError` in a scenario: the message starts with the file (and line if known).
+
+    ``key`` stays the bare key path (``axes.Z.kv``); ``file`` and ``line`` hold the location.
+    """
+
+    def __init__(self, file: str, key: str, value: object, allowed: str, problem: str = "invalid value",
+                 line: int | None = None):
+        super().__init__(key, value, allowed, problem)
+        self.file = file
+        self.line = line
+        where = file if line is None else f"{file}:{line}"
+        self.args = (f"{where}: {self.args[0]}",)
+
+    def rekeyed(self, key: str) -> "ScenarioError":
+        return ScenarioError(self.file, key, self.value, self.allowed, self.problem, self.line)
+
+
+def _rekey(exc: ConfigError, prefix: str, path: str) -> ConfigError:
+    """``Fault.value`` -> ``events[3].sensor_fault.value`` (other keys: under ``path``)."""
+    key = exc.key
+    if key.startswith(prefix + "."):
+        return exc.rekeyed(path + key[len(prefix):])
+    return exc.rekeyed(f"{path} ({key})")
+
+
+# --- result types ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class AxisConfig:
+    """One axis: its distance-control parameter list plus drive and interpolation data (mm, s)."""
+
+    name: str
+    params: AxisParameters
+    params_file: Path | None
+    start: float = 0.0                 # mm
+    kv: float = 40.0                   # 1/s
+    v_max: float = 500.0               # mm/s
+    a_max: float = 10000.0             # mm/s^2
+    v_rapid: float = 500.0             # mm/s
+    a_rapid: float = 10000.0           # mm/s^2
+    bus_delay_cycles: int = 1
+    resolution: float = 1e-4           # mm per motor encoder increment
+    params_warnings: tuple[str, ...] = ()  # warnings of the list loader (a key given twice, ...)
+
+    def limits(self) -> AxisLimits:
+        """The interpolator's limits of this axis."""
+        return AxisLimits(self.v_max, self.a_max, self.v_rapid, self.a_rapid)
+
+    def make_drive(self, cycle_time: float) -> Drive:
+        """A :class:`Drive` at rest at ``start``."""
+        return Drive(cycle_time, kv=self.kv, v_max=self.v_max, a_max=self.a_max,
+                     bus_delay_cycles=self.bus_delay_cycles, resolution=self.resolution,
+                     initial_position=self.start)
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """The height sensor: ``kind`` "encoder" (encoder-2 probe, increments) or "distance" (V.E. variable).
+
+    ``variable`` (distance sensor only, else ``None``) is the bare V.E. name, e.g. ``"SENSOR"``.
+    ``range_min`` is ``None`` for the distance sensor (its range starts at 0). ``faults`` are the
+    faults scheduled from ``sensor.faults`` (the ``sensor_fault`` events are separate).
+    """
+
+    axis: str
+    kind: str
+    variable: str | None = None
+    noise_std: float = 0.0                 # mm
+    delay_cycles: int = 0
+    seed: int = 0
+    range_min: float | None = -10.0        # mm
+    range_max: float = 10.0                # mm
+    characteristic: tuple[tuple[float, float], ...] | None = None
+    resolution: float = 0.0                # mm (distance sensor quantisation, 0 = none)
+    faults: tuple[Fault, ...] = ()
+
+    def make_sensor(self, cycle_time: float, params: AxisParameters | None = None) -> SensorBase:
+        """Build the sensor model. The probe takes its resolution, sign reversal and reference offset
+        from the axis parameters (P-AXIS-00422/00423/00230/00418), so the core's conversion inverts it."""
+        common = dict(noise_std=self.noise_std, delay_cycles=self.delay_cycles, seed=self.seed,
+                      faults=self.faults)
+        if self.kind == "encoder":
+            p = params or AxisParameters()
+            return EncoderProbe(cycle_time, range_min=self.range_min, range_max=self.range_max,
+                                resolution_num=p.encoder_resolution_num,
+                                resolution_denom=p.encoder_resolution_denom,
+                                sign_reversal=p.sensor_sign_reversal, ref_offset=p.ref_offset, **common)
+        return DistanceSensor(cycle_time, range_max=self.range_max, characteristic=self.characteristic,
+                              resolution=self.resolution, **common)
+
+
+@dataclass(frozen=True)
+class Event:
+    """A timed action at ``t`` seconds. ``kind`` is one of :data:`EVENT_KINDS`; ``data`` holds the
+    normalised values (see docs/scenarios.md); ``index`` is the event's position in the file."""
+
+    t: float
+    kind: str
+    data: dict = field(default_factory=dict)
+    index: int = 0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. ``events`` are sorted by ``t`` (stable: equal times keep file order)."""
+
+    path: Path | None
+    base_dir: Path
+    name: str
+    cycle_time: float
+    program_text: str
+    program_file: Path | None
+    duration: float | None
+    settle_time: float
+    seed: int
+    variables: dict[str, float]
+    tool_length: float
+    axes: dict[str, AxisConfig]
+    surface: Surface
+    surface_config: dict
+    sensor: SensorConfig | None
+    events: list[Event]
+
+    def make_sensor(self) -> SensorBase | None:
+        """The configured sensor model (``None`` without ``[sensor]``)."""
+        if self.sensor is None:
+            return None
+        return self.sensor.make_sensor(self.cycle_time, self.axes[self.sensor.axis].params)
+
+    def make_drives(self) -> dict[str, Drive]:
+        return {name: ax.make_drive(self.cycle_time) for name, ax in self.axes.items()}
+
+    def axis_limits(self) -> dict[str, AxisLimits]:
+        return {name: ax.limits() for name, ax in self.axes.items()}
+
+
+# --- small validators ---------------------------------------------------------------------------------
+def _string(value: object, key: str, what: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise ConfigError(key, value, what, "not a non-empty string:" if not isinstance(value, str)
+                          else "empty:")
+    return value
+
+
+def _var_name(value: object, key: str) -> str:
+    """A V.E. variable name; an optional ``V.E.`` prefix is dropped."""
+    allowed = "a V.E. variable name: letter or '_' then letters, digits, '_' (optional prefix 'V.E.')"
+    if isinstance(value, str):
+        name = value[4:] if value[:4].upper() == "V.E." else value
+        if _NAME_RE.match(name):
+            return name
+    raise ConfigError(key, value, allowed)
+
+
+def _bool(value: object, key: str) -> bool:
+    if not isinstance(value, bool):
+        raise ConfigError(key, value, "true or false", "not a boolean:")
+    return value
+
+
+def _axis_ref(value: object, key: str, axes: dict) -> str:
+    if not isinstance(value, str) or value not in axes:
+        raise ConfigError(key, value, "one of the configured axes " + ", ".join(repr(a) for a in axes))
+    return value
+
+
+def _file(value: object, key: str, base_dir: Path, what: str) -> Path:
+    text = _string(value, key, f"a path to {what} (relative to {str(base_dir)!r})")
+    path = Path(text)
+    full = path if path.is_absolute() else base_dir / path
+    if not full.is_file():
+        raise ConfigError(key, text, f"an existing {what} (relative paths: to {str(base_dir)!r})",
+                          f"file not found ({full}):")
+    return full
+
+
+def _transition(value: object, key: str) -> int:
+    names = [t.name for t in HliTransition]
+    lo, hi = min(HliTransition), max(HliTransition)
+    allowed = ("one of " + ", ".join(f"{t.name} ({int(t)})" for t in HliTransition)
+               + f": a name or a number {int(lo)}..{int(hi)}")
+    if isinstance(value, str):
+        if value.upper() in names:
+            return int(HliTransition[value.upper()])
+        raise ConfigError(key, value, allowed, "unknown transition")
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value \
+            or value in (math.inf, -math.inf) or int(value) != value:
+        raise ConfigError(key, value, allowed)
+    if not lo <= int(value) <= hi:
+        raise ConfigError(key, value, allowed, "out of range:")
+    return int(value)
+
+
+# --- sections -----------------------------------------------------------------------------------------
+def _axis_config(name: str, cfg: object, base_dir: Path, cycle_time: float) -> AxisConfig:
+    key = f"axes.{name}"
+    require_mapping(cfg, key, AXIS_KEYS)
+    assert isinstance(cfg, dict)
+    params, params_file, warnings = AxisParameters(), None, ()
+    if "params" in cfg:
+        params_file = _file(cfg["params"], f"{key}.params", base_dir, "axis parameter list (kernel format)")
+        try:
+            plist = load_list(params_file)
+        except ParameterError as exc:
+            exc.scenario_key = f"{key}.params"  # type: ignore[attr-defined]  # see _with_source
+            raise
+        params, warnings = plist.params, tuple(plist.warnings)
+    start = require_number(cfg.get("start", 0.0), f"{key}.start")
+    kv_max = 1.0 / cycle_time
+    kv_value = cfg.get("kv", 40.0)
+    kv_default = "" if "kv" in cfg else " (the default)"
+    try:
+        kv = require_number(kv_value, f"{key}.kv", lo=0.0, hi=kv_max, lo_open=True, hi_open=True)
+    except ConfigError as exc:
+        raise ConfigError(f"{key}.kv", kv_value,
+                          f"a number in (0, {kv_max:g}) 1/s: kv * cycle_time < 1 "
+                          f"(cycle_time = {cycle_time:g} s){kv_default}", exc.problem) from None
+    v_max = require_number(cfg.get("v_max", 500.0), f"{key}.v_max", lo=0.0, lo_open=True)
+    a_max = require_number(cfg.get("a_max", 10000.0), f"{key}.a_max", lo=0.0, lo_open=True)
+    v_rapid = require_number(cfg.get("v_rapid", v_max), f"{key}.v_rapid", lo=0.0, lo_open=True)
+    a_rapid = require_number(cfg.get("a_rapid", a_max), f"{key}.a_rapid", lo=0.0, lo_open=True)
+    bus = require_int(cfg.get("bus_delay_cycles", 1), f"{key}.bus_delay_cycles", lo=0)
+    resolution = require_number(cfg.get("resolution", 1e-4), f"{key}.resolution", lo=0.0)
+    return AxisConfig(name, params, params_file, start, kv, v_max, a_max, v_rapid, a_rapid, bus, resolution,
+                      warnings)
+
+
+def _fault(cfg: dict, key: str, *, start_time: float | None = None) -> Fault:
+    args = dict(cfg)
+    if start_time is not None:
+        args["start_time"] = start_time
+    if "kind" in args:
+        require_choice(args["kind"], f"{key}.kind", FAULT_KINDS)
+    try:
+        return Fault(**args)
+    except ConfigError as exc:
+        raise _rekey(exc, "Fault", key) from None
+
+
+def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_time: float) -> SensorConfig:
+    key = "sensor"
+    require_mapping(cfg, key, SENSOR_KEYS, required=("axis", "kind"))
+    assert isinstance(cfg, dict)
+    axis = _axis_ref(cfg["axis"], f"{key}.axis", axes)
+    kind = require_choice(cfg["kind"], f"{key}.kind", SENSOR_KINDS)
+    for k, only in _SENSOR_KIND_ONLY.items():
+        if k in cfg and kind != only:
+            raise ConfigError(f"{key}.{k}", cfg[k], f"{k!r} only with kind = {only!r}",
+                              f"not allowed for kind {kind!r}:")
+    noise_std = require_number(cfg.get("noise_std", 0.0), f"{key}.noise_std", lo=0.0)
+    delay = require_int(cfg.get("delay_cycles", 0), f"{key}.delay_cycles", lo=0)
+    sensor_seed = require_int(cfg.get("seed", seed), f"{key}.seed", lo=0)
+    variable = None
+    range_min: float | None = None
+    characteristic = None
+    resolution = 0.0
+    if kind == "encoder":
+        range_min = require_number(cfg.get("range_min", -10.0), f"{key}.range_min")
+        range_max = require_number(cfg.get("range_max", 10.0), f"{key}.range_max", lo=range_min, lo_open=True)
+    else:
+        variable = _var_name(cfg.get("variable", "SENSOR"), f"{key}.variable")
+        range_max = require_number(cfg.get("range_max", 10.0), f"{key}.range_max", lo=0.0, lo_open=True)
+        resolution = require_number(cfg.get("resolution", 0.0), f"{key}.resolution", lo=0.0)
+        if "characteristic" in cfg:
+            ch = cfg["characteristic"]
+            if not isinstance(ch, list):
+                raise ConfigError(f"{key}.characteristic", ch,
+                                  "a list of [true_mm, reported_mm] pairs, true_mm strictly increasing",
+                                  "not a list:")
+            try:
+                DistanceSensor(cycle_time, range_max=range_max, characteristic=ch)
+            except ConfigError as exc:
+                raise _rekey(exc, "DistanceSensor", key) from None
+            characteristic = tuple((float(a), float(b)) for a, b in ch)
+    faults = []
+    faults_cfg = cfg.get("faults", [])
+    if not isinstance(faults_cfg, list):
+        raise ConfigError(f"{key}.faults", faults_cfg, "a list of fault tables", "not a list:")
+    for n, fcfg in enumerate(faults_cfg):
+        fkey = f"{key}.faults[{n}]"
+        require_mapping(fcfg, fkey, _FAULT_KEYS, required=("kind",))
+        if "start_time" not in fcfg and "start_cycle" not in fcfg:
+            raise ConfigError(f"{fkey}.start_time", MISSING, "start_time (s) or start_cycle")
+        faults.append(_fault(fcfg, fkey))
+    sc = SensorConfig(axis, kind, variable, noise_std, delay, sensor_seed, range_min, range_max,
+                      characteristic, resolution, tuple(faults))
+    try:  # anything the models check beyond the keys above (combinations)
+        sc.make_sensor(cycle_time, axes[axis].params)
+    except ConfigError as exc:
+        raise _rekey(exc, "EncoderProbe" if kind == "encoder" else "DistanceSensor", key) from None
+    return sc
+
+
+def _event(n: int, cfg: object, axes: dict[str, AxisConfig], sensor: SensorConfig | None,
+           duration: float | None) -> Event:
+    key = f"events[{n}]"
+    actions = tuple(EVENT_KINDS)
+    require_mapping(cfg, key, ("t",) + actions, required=("t",))
+    assert isinstance(cfg, dict)
+    t_hi = duration
+    t = require_number(cfg["t"], f"{key}.t", lo=0.0, hi=t_hi)
+    given = [k for k in cfg if k != "t"]
+    if not given:
+        raise ConfigError(key, MISSING, "exactly one action key: " + ", ".join(actions))
+    if len(given) > 1:
+        raise ConfigError(key, given, "exactly one action key per event (one of " + ", ".join(actions)
+                          + "); use one [[events]] table per action", "more than one action:")
+    kind = given[0]
+    akey = f"{key}.{kind}"
+    keys, required = EVENT_KINDS[kind]
+    body = cfg[kind]
+    require_mapping(body, akey, keys, required)
+    assert isinstance(body, dict)
+    data: dict[str, Any]
+    if kind == "plc":
+        data = {"axis": _axis_ref(body["axis"], f"{akey}.axis", axes),
+                "transition": _transition(body["transition"], f"{akey}.transition"),
+                "position": require_number(body.get("position", 0.0), f"{akey}.position")}
+    elif kind == "override":
+        axis = body.get("axis")
+        if axis is not None:
+            axis = _axis_ref(axis, f"{akey}.axis", axes)
+        hi = OVERRIDE_AXIS_MAX if axis is not None else OVERRIDE_PATH_MAX
+        value = body["value"]
+        try:
+            value = require_number(value, f"{akey}.value", lo=0.0, hi=hi)
+        except ConfigError as exc:
+            what = "axis feed override" if axis is not None else "channel path override (no axis)"
+            raise ConfigError(f"{akey}.value", value, f"{what}: a number in [0, {hi:g}]",
+                              exc.problem) from None
+        data = {"axis": axis, "value": value}
+    elif kind == "feed_hold":
+        data = {"axis": _axis_ref(body["axis"], f"{akey}.axis", axes),
+                "value": _bool(body.get("value", True), f"{akey}.value")}
+    elif kind == "reset":
+        data = {}
+    elif kind == "axis_error":
+        data = {"axis": _axis_ref(body["axis"], f"{akey}.axis", axes)}
+    elif kind == "sensor_fault":
+        if sensor is None:
+            raise ConfigError(akey, body, "a sensor_fault event needs a [sensor] table", "no sensor for")
+        fault = _fault(body, akey, start_time=t)  # validates; Fault(**data) rebuilds it (start: t)
+        data = {k: (int(getattr(fault, k)) if k == "duration_cycles"
+                    else float(getattr(fault, k)) if k in ("value", "duration", "rate")
+                    else getattr(fault, k)) for k in keys if k in body}
+    elif kind == "variable":
+        data = {"name": _var_name(body["name"], f"{akey}.name"),
+                "value": require_number(body["value"], f"{akey}.value")}
+    else:  # plc_cyclic
+        axis = _axis_ref(body["axis"], f"{akey}.axis", axes)
+        has = [k for k in ("position", "distance") if k in body]
+        if len(has) != 1:
+            problem = "neither position nor distance in" if not has else "both position and distance in"
+            raise ConfigError(akey, body, "exactly one of 'position' (D_Position, mm) or 'distance' "
+                              "(D_Distance, mm) besides 'axis'", problem)
+        data = {"axis": axis, has[0]: require_number(body[has[0]], f"{akey}.{has[0]}")}
+    return Event(t, kind, data, n)
+
+
+def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
+    require_mapping(data, "scenario", TOP_LEVEL_KEYS)
+    assert isinstance(data, dict)
+    default_name = path.stem if path is not None else "scenario"
+    name = _string(data.get("name", default_name), "name", "a non-empty string")
+    cycle_time = require_number(data.get("cycle_time", 0.001), "cycle_time",
+                                lo=CYCLE_TIME_MIN, hi=CYCLE_TIME_MAX)
+
+    has_file, has_text = "program" in data, "program_text" in data
+    if has_file and has_text:
+        raise ConfigError("program_text", data["program_text"][:40] if isinstance(data["program_text"], str)
+                          else data["program_text"], "exactly one of 'program' (a file) or 'program_text'",
+                          "both 'program' and")
+    if not has_file and not has_text:
+        raise ConfigError("program", MISSING, "exactly one of 'program' (NC file, relative to the "
+                          "scenario) or 'program_text' (the NC program inline)")
+    if has_file:
+        program_file: Path | None = _file(data["program"], "program", base_dir, "NC program file")
+        try:
+            program_text = program_file.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            program_text = program_file.read_text(encoding="latin-1")
+        except OSError as exc:
+            raise ConfigError("program", data["program"], "a readable NC program file",
+                              f"cannot read ({exc.strerror}):") from None
+    else:
+        program_file = None
+        program_text = data["program_text"]
+        if not isinstance(program_text, str):
+            raise ConfigError("program_text", program_text, "the NC program as a string", "not a string:")
+
+    duration = None
+    if "duration" in data:
+        duration = require_number(data["duration"], "duration", lo=0.0, lo_open=True)
+    settle_time = require_number(data.get("settle_time", 0.5), "settle_time", lo=0.0)
+    seed = require_int(data.get("seed", 0), "seed", lo=0)
+
+    variables_cfg = data.get("variables", {})
+    if not isinstance(variables_cfg, dict):
+        raise ConfigError("variables", variables_cfg, "a table NAME = number", "not a table:")
+    variables: dict[str, float] = {}
+    for k, v in variables_cfg.items():
+        var = _var_name(k, f"variables.{k}")
+        variables[var] = require_number(v, f"variables.{k}")
+
+    tool_cfg = data.get("tool", {})
+    require_mapping(tool_cfg, "tool", ("length",))
+    tool_length = require_number(tool_cfg.get("length", 0.0), "tool.length")
+
+    if "axes" not in data:
+        raise ConfigError("axes", MISSING, "at least one axis table [axes.X] .. [axes.C]")
+    axes_cfg = data["axes"]
+    require_mapping(axes_cfg, "axes", AXIS_NAMES)
+    if not axes_cfg:
+        raise ConfigError("axes", axes_cfg, "at least one axis table [axes.X] .. [axes.C]", "empty:")
+    axes = {n: _axis_config(n, axes_cfg[n], base_dir, cycle_time) for n in AXIS_NAMES if n in axes_cfg}
+
+    surface_cfg = data.get("surface", {})
+    surface = surface_from_config(surface_cfg, base_dir, key="surface")
+
+    sensor = None
+    if "sensor" in data:
+        sensor = _sensor_config(data["sensor"], axes, seed, cycle_time)
+
+    events_cfg = data.get("events", [])
+    if not isinstance(events_cfg, list):
+        raise ConfigError("events", events_cfg, "a list of event tables ([[events]])", "not a list:")
+    events = [_event(n, e, axes, sensor, duration) for n, e in enumerate(events_cfg)]
+    events.sort(key=lambda e: e.t)  # stable
+
+    return Scenario(path, base_dir, name, cycle_time, program_text, program_file, duration, settle_time, seed,
+                    variables, tool_length, axes, surface, dict(surface_cfg), sensor, events)
+
+
+def _with_source(source: str, data: object, base_dir: Path, path: Path | None) -> Scenario:
+    try:
+        return _build(data, base_dir, path)
+    except ScenarioError:
+        raise
+    except ParameterError as exc:
+        # Keep the list's own "file:line: ..." message; say where in the scenario it came from.
+        key = getattr(exc, "scenario_key", None)
+        if key is not None:
+            exc.args = (f"{exc.args[0]} (parameter list of {key} in {source})",) + exc.args[1:]
+        raise
+    except ConfigError as exc:
+        key = exc.key
+        if key.startswith("scenario."):  # top-level keys are reported bare
+            key = key[len("scenario."):]
+        raise ScenarioError(source, key, exc.value, exc.allowed, exc.problem) from None
+
+
+# --- entry points -------------------------------------------------------------------------------------
+def scenario_from_dict(data: dict, base_dir: str | os.PathLike = ".", source: str = "<dict>") -> Scenario:
+    """Validate a scenario given as a plain dict (the parsed TOML). Paths are relative to ``base_dir``;
+    ``source`` names the origin in error messages."""
+    return _with_source(source, data, Path(base_dir), None)
+
+
+def _parse_toml(text: str, source: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        msg = str(exc)
+        m = _TOML_LINE_RE.search(msg)
+        raise ScenarioError(source, "toml", msg, "valid TOML (https://toml.io/en/v1.0.0)", "syntax error:",
+                            line=int(m.group(1)) if m else None) from None
+
+
+def scenario_from_text(toml_text: str, base_dir: str | os.PathLike = ".",
+                       source: str = "<string>") -> Scenario:
+    """Parse and validate scenario TOML text (paths relative to ``base_dir``)."""
+    return _with_source(source, _parse_toml(toml_text, source), Path(base_dir), None)
+
+
+def load_scenario(path: str | os.PathLike) -> Scenario:
+    """Load and validate a scenario file; relative paths inside are relative to its directory."""
+    p = Path(path)
+    source = str(p)
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise ScenarioError(source, "file", source, "a readable TOML scenario file",
+                            f"cannot read ({exc.strerror}):") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise ScenarioError(source, "file", raw[exc.start:exc.start + 8], "UTF-8 text (TOML)",
+                            "not UTF-8:", line=line) from None
+    return _with_source(source, _parse_toml(text, source), p.parent, p)
