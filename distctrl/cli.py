@@ -32,6 +32,58 @@ def params(list_file: str, show_all: bool) -> None:
 
 
 @main.command()
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("--trace", "trace_path", type=click.Path(dir_okay=False), help="Write the per-cycle trace to this CSV file.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object with the result instead of a summary.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Save a plot of the run (PNG or SVG).")
+def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None) -> None:
+    """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
+
+    Exit code 0 when the program ran to its end, 2 when an error aborted it, 1 for invalid input
+    files (the message names the file, line or key and what is allowed).
+    """
+    import json
+
+    from .sim.run import run as run_scenario
+
+    try:
+        result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None, progress=not as_json)
+    except DistCtrlError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(1)
+    if plot_path:
+        result.plot(plot_path)
+    if as_json:
+        click.echo(json.dumps(result.to_dict(), indent=2))
+    else:
+        _print_summary(result, trace_path, plot_path)
+    if result.interrupted:
+        sys.exit(130)
+    sys.exit(result.exit_code)
+
+
+def _print_summary(result, trace_path, plot_path) -> None:
+    m = result.metrics
+    status = "completed" if result.completed else "ABORTED by an error"
+    click.echo(f"{result.name}: {status} after {result.cycles} cycles ({result.cycles * result.cycle_time:.3f} s), "
+               f"distance control {result.final_state}")
+    if m.get("distance_error_rms") is not None:
+        settle = "not reached" if m["settle_time"] is None else f"{m['settle_time']:.3f} s"
+        click.echo(f"  distance error while tracking: RMS {m['distance_error_rms']:.4f} mm, "
+                   f"max {m['distance_error_max']:.4f} mm, settle time {settle}")
+    for e in result.errors:
+        click.echo(f"  error {e['id']} at t = {e['t']:.3f} s, line {e['line']}: {e['message']}")
+    for w in result.warnings:
+        click.echo(f"  warning {w['id']} at t = {w['t']:.3f} s, line {w['line']}: {w['message']}")
+    for n in result.notes:
+        click.echo(f"  note: {n}")
+    if trace_path:
+        click.echo(f"  trace: {trace_path}")
+    if plot_path:
+        click.echo(f"  plot: {plot_path}")
+
+
+@main.command()
 def demo() -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, with a summary table."""
     from .demo import main as run_demo

@@ -58,7 +58,7 @@ class Tuning:
                                    p.low_pass_filter_order, p.low_pass_filter_fg_f0))
 
 
-@dataclass
+@dataclass(slots=True)
 class ControllerState:
     """Everything the controller remembers between cycles (public, inspectable)."""
 
@@ -128,6 +128,11 @@ class AxisDistanceController:
         # an integral time far below the cycle time is meaningless; bounding T/i_tn keeps it finite
         self._i_gain = min(T / t.i_tn, _MAX_I_GAIN) if t.i_tn > 0 else 0.0
         self._d_gain = t.d_tv / T
+        # hot-path constants (the cycle reads these instead of the parameter object)
+        self._jump_limit = p.max_act_value_change * T           # mm per cycle (70329)
+        self._s_hi = p.max_pos - p.tolerance                    # 70330 above
+        self._s_lo = p.min_pos + p.tolerance                    # 70576 below
+        self._wait_tol = max(p.tolerance, _WAIT_WINDOW_MIN)
         self._mm_per_incr = p.sensor_mm_per_increment
         self._modulo = p.sensor_mode_act_pos == 2
         self._w_v = p.v_weight_down if p.v_weight_down > 0 else 1.0
@@ -168,7 +173,7 @@ class AxisDistanceController:
 
         # 2. sensor pipeline: s now (mm); with optimized scheduling off the law sees last cycle's
         incr = inp.sensor_increments
-        if st.sensor_source == SensorSource.SECOND_ENCODER and -law.HUGE < incr < law.HUGE:
+        if st.sensor_source is _ENCODER and -_HUGE < incr < _HUGE:
             # fast path of _read_sensor for the axis default source (same law function)
             s_now = law.encoder_reading(incr, self._mm_per_incr, p.sensor_sign_reversal,
                                         p.ref_offset + st.ref_shift, self._modulo, p.min_pos, p.max_pos)
@@ -197,26 +202,28 @@ class AxisDistanceController:
 
         state = st.hli_state
         # PLC cyclic set values (re-read every cycle while PLC-commanded)
-        if st.source == CommandSource.PLC and state in MONITORED_STATES:
-            if st.mode == Mode.SET_POS and inp.cyclic_set_pos is not None and _finite(inp.cyclic_set_pos):
+        running = state in MONITORED_STATES
+        if running and st.source is _PLC:
+            if st.mode is _SET_POS and inp.cyclic_set_pos is not None and _finite(inp.cyclic_set_pos):
                 st.set_pos = inp.cyclic_set_pos
-            elif st.mode == Mode.CONST_DIST and inp.cyclic_set_dist is not None and _finite(inp.cyclic_set_dist):
+            elif st.mode is _CONST_DIST and inp.cyclic_set_dist is not None and _finite(inp.cyclic_set_dist):
                 st.set_dist = inp.cyclic_set_dist
 
         # 4. monitoring (running states only; not in FREEZE: lifting Z while frozen is allowed)
-        if state in MONITORED_STATES:
+        if running:
             if not finite_inputs:
                 self._raise(ErrorId.INPUT_NOT_FINITE, events, line)
             else:
-                if st.has_last_s and abs(s - st.last_s) > p.max_act_value_change * T:
+                if st.has_last_s and abs(s - st.last_s) > self._jump_limit:
                     self._raise(ErrorId.SENSOR_JUMP, events, line,
                                 f"|Δs| = {abs(s - st.last_s):.6g} mm in {T:g} s, limit "
                                 f"{p.max_act_value_change:g} mm/s")
-                elif s > p.max_pos - p.tolerance:
+                elif s > self._s_hi:
                     self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line, f"s = {s:.6g} mm")
-                elif s < p.min_pos + p.tolerance:
+                elif s < self._s_lo:
                     self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line, f"s = {s:.6g} mm")
             state = st.hli_state
+            running = state in MONITORED_STATES
         if sensor_ok:
             st.last_s = s
             st.has_last_s = True
@@ -228,8 +235,8 @@ class AxisDistanceController:
         surface = act - d
         o = st.offset
         mode = st.mode
-        both = mode == Mode.CONST_DIST and p.use_both_encoders
-        feedback = d if (mode == Mode.CONST_DIST and not both) else surface
+        both = mode is _CONST_DIST and p.use_both_encoders
+        feedback = d if (mode is _CONST_DIST and not both) else surface
         if state in _FILTERING:
             if st.need_seed:
                 law.filter_seed(self._fc, self._fs, self._buf, feedback)
@@ -245,8 +252,8 @@ class AxisDistanceController:
         e = 0.0
         u = 0.0
         i_cand = st.integral
-        if state in MONITORED_STATES:
-            if mode == Mode.SET_POS:
+        if running:
+            if mode is _SET_POS:
                 target_dev = filtered - st.set_pos
                 e = target_dev - o
                 m = filtered
@@ -325,7 +332,7 @@ class AxisDistanceController:
             state = _INACTIVE
 
         # 7. outputs
-        tol = p.tolerance if p.tolerance > _WAIT_WINDOW_MIN else _WAIT_WINDOW_MIN
+        tol = self._wait_tol
         out.offset = o_new
         out.m_actual_offset = o_new
         out.command_position = prog + o_new + absorbed
@@ -338,7 +345,7 @@ class AxisDistanceController:
         out.sloped_delta_deviation = v * T
         out.delta_offset = o_new - o
         out.offset_velocity = st.velocity
-        out.sensor_value = st.last_var if st.sensor_source == SensorSource.VARIABLE else s
+        out.sensor_value = st.last_var if st.sensor_source is _VARIABLE else s
         out.feedback_value = feedback
         out.filtered_feedback = filtered
         out.hli_state = _INT[state]
@@ -448,7 +455,7 @@ class AxisDistanceController:
             st.programmed_set_pos = st.programmed_set_dist = None
             return absorbed
         if a == Action.PROGRAM_END:
-            if st.hli_state != _INACTIVE:
+            if st.hli_state not in (_INACTIVE, _TURNING_OFF):    # deselected and running out: not active
                 self._raise(ErrorId.ACTIVE_AT_PROGRAM_END, events, line)
             st.programmed_set_pos = st.programmed_set_dist = None
             return 0.0
@@ -561,7 +568,7 @@ class AxisDistanceController:
             st.set_pos = st.programmed_set_pos
         else:
             st.set_dist = st.programmed_set_dist
-        st.source = cmd.source
+        st.source = CommandSource(cmd.source)
         if state == target:
             return                                   # re-select: new set value only
         # object writes are adopted when tracking starts from a standing offset (INACTIVE, FREEZE,
@@ -641,6 +648,8 @@ class AxisDistanceController:
 
 
 _HUGE = law.HUGE
+_ENCODER, _VARIABLE, _PLC = SensorSource.SECOND_ENCODER, SensorSource.VARIABLE, CommandSource.PLC
+_SET_POS, _CONST_DIST = Mode.SET_POS, Mode.CONST_DIST
 _MAX_I_GAIN = 1e6          # T / i_tn is bounded: i_tn below T*1e-6 acts as T*1e-6
 _INT = {s: int(s) for s in HliState}
 _INTERNAL_OF = {_INACTIVE: int(InternalState.IDLE), _ACTIVE: int(InternalState.ACTIVE),

@@ -133,10 +133,12 @@ class NcInterpreter:
             if not f > 0:
                 raise ValueError(f"F{f:g}: the feed must be > 0 mm/min")
             self.feed = f
-        # distance-control commands reach the controllers before the block's own motion starts
+        # distance-control commands reach the controllers before the block's own motion starts; a
+        # DIST_CTRL block takes its GEO cycle, so the next block sees its effect (e.g. OFF NO_MOVE
+        # has handed the offset to the channel before the next move starts)
         for word in block.dist_ctrl:
             ch.dist_ctrl(word.axis, word.to_command(lookup, block.line, file=self.file))
-        takes_time = False
+        takes_time = bool(block.dist_ctrl)
         if block.axes:
             target = {}
             for axis, expr in block.axes.items():

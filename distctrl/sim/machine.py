@@ -25,6 +25,7 @@ from .interpolator import AxisLimits, Interpolator
 from .sensors import DistanceSensor, EncoderProbe, Fault
 
 _TRACKING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST))
+_VARIABLE = SensorSource.VARIABLE
 DC_COLUMNS = ("dc.state", "dc.offset", "dc.sensor", "dc.feedback", "dc.filtered", "dc.target_deviation",
               "dc.pre_limiter", "dc.sloped_delta", "dc.set_pos", "dc.set_dist")
 
@@ -75,6 +76,10 @@ class Machine:
                 self.sensor_variable = f"V.E.{sc.variable}"
                 self.variables.setdefault(self.sensor_variable, 0.0)
         self.nc = NcInterpreter(program, self, file=scenario.program_file) if program is not None else None
+        #: per axis, everything one cycle touches, resolved once (the loop runs 10^5 times a second)
+        self._axes = [(n, self.inputs[n], self.outputs[n], self.controllers[n], self.drives[n], n in self.dc_axes)
+                      for n in self.axis_names]
+        self._shift_any = False
         self._program_end_sent = False
         self._event_index = 0
         self.true_surface = 0.0
@@ -106,6 +111,7 @@ class Machine:
             self.interp.set_position({n: self.interp.position[n] + s for n, s in self.shift.items() if s})
             for n in self.shift:
                 self.shift[n] = 0.0
+            self._shift_any = False
 
     # ------------------------------------------------------------------ events
     def apply_event(self, ev) -> None:
@@ -191,36 +197,34 @@ class Machine:
                 self.inputs[sensor_axis].sensor_increments = value
             else:
                 self.variables[self.sensor_variable] = value
-        outputs = self.outputs
-        controllers = self.controllers
-        shift = self.shift
-        for name in self.axis_names:
-            inp = self.inputs[name]
-            p = prog[name] + shift[name]
-            a = drives[name].actual
-            if name in self.dc_axes or inp.commands:
-                out = outputs[name]
-                inp.programmed_position = p
-                inp.actual_position = a
+        shift = self.shift if self._shift_any else None
+        for name, inp, out, ctrl, drive, is_dc in self._axes:
+            p = prog[name]
+            if shift is not None:
+                p += shift[name]
+            inp.programmed_position = p
+            if is_dc or inp.commands:
+                inp.actual_position = drive.actual
                 inp.nc_line = line
-                if inp.commands or controllers[name].state.sensor_source == SensorSource.VARIABLE:
-                    var = controllers[name].state.sensor_var or self.sensor_variable
+                if inp.commands or ctrl.state.sensor_source is _VARIABLE:
+                    var = ctrl.state.sensor_var or self.sensor_variable
                     if var is not None:
                         if not var.startswith("V.E."):
                             var = "V.E." + var
                         inp.sensor_variable = self.variables.get(var, float("nan"))
-                controllers[name].update(inp, out)
+                ctrl.update(inp, out)
                 if out.events:
                     for ev in out.events:
                         self.events.append((t, ev))
                         if ev.severity == "error" and nc is not None and nc.running:
                             self.stop_program(None)
                 if out.absorbed_offset:
-                    shift[name] += out.absorbed_offset
-                setpoint = out.command_position
+                    self.shift[name] += out.absorbed_offset
+                    self._shift_any = True
+                drive.step(out.command_position)
             else:
-                setpoint = p
-            drives[name].step(setpoint)
+                out.command_position = p
+                drive.step(p)
         self.cycle = k + 1
 
     # ------------------------------------------------------------------ status

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from operator import attrgetter
 from pathlib import Path
 
 from ..control import HliState
@@ -106,21 +107,22 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     settled_for = 0
     nc = machine.nc
     append = recorder.append
-    names = machine.axis_names
-    drives, inputs, outputs = machine.drives, machine.inputs, machine.outputs
-    dc_outs = [outputs[n] for n in machine.dc_axes]
+    # the row is built from attrgetters resolved once: (prog, cmd, act) per axis, the dc objects
+    axis_rows = [(machine.inputs[n], machine.outputs[n], machine.drives[n]) for n in machine.axis_names]
+    dc_get = attrgetter("hli_state", "offset", "sensor_value", "feedback_value", "filtered_feedback",
+                        "target_deviation", "delta_deviation_pre_limiter", "sloped_delta_deviation",
+                        "set_pos", "set_distance")
+    dc_outs = [machine.outputs[n] for n in machine.dc_axes]
+    outputs, inputs = machine.outputs, machine.inputs
+    step = machine.step
     try:
         for k in range(max_cycles):
-            machine.step()
+            step()
             row = [k * T, nc.line if nc is not None and nc.line is not None else -1]
-            for n in names:
-                inp = inputs[n]
-                row += (inp.programmed_position, outputs[n].command_position if n in machine.dc_axes
-                        else inp.programmed_position, drives[n].actual)
+            for inp, out, drv in axis_rows:
+                row += (inp.programmed_position, out.command_position, drv.actual)
             for o in dc_outs:
-                row += (o.hli_state, o.offset, o.sensor_value, o.feedback_value, o.filtered_feedback,
-                        o.target_deviation, o.delta_deviation_pre_limiter, o.sloped_delta_deviation,
-                        o.set_pos, o.set_distance)
+                row += dc_get(o)
             row += (machine.true_surface, machine.true_distance)
             append(tuple(row))
             if dc_axis is not None:

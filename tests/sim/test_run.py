@@ -1,0 +1,185 @@
+"""End to end: NC program + virtual machine + distance control (issue 3 acceptance)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from distctrl.cli import main
+from distctrl.sim.run import run
+from distctrl.sim.scenario import scenario_from_dict
+from distctrl.trace import Trace
+
+ROOT = Path(__file__).resolve().parents[2]
+SCN = ROOT / "examples" / "scenarios"
+PROBE = str(SCN / "z_probe.lis")
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5])
+def test_each_dist_example_runs_to_its_end(n):
+    r = run(SCN / f"dist_{n}.toml")
+    assert r.completed and r.errors == [] and r.warnings == []
+    assert r.final_state == "INACTIVE"
+    tr = r.trace
+    assert tr["Z.dc.offset"][-1] == 0.0
+    states = set(np.unique(tr["Z.dc.state"]).astype(int))
+    assert 1 in states or 4 in states                       # it really tracked
+    if n != 4:                    # %DIST_4 lifts 10 mm at its CONST_DIST select: a large initial error
+        assert r.metrics["distance_error_rms"] < 0.25
+
+
+def test_dist_2_freeze_holds_the_offset_while_z_lifts():
+    tr = run(SCN / "dist_2.toml").trace
+    frozen = tr["Z.dc.state"] == 2
+    assert frozen.sum() > 100
+    offs = tr["Z.dc.offset"][frozen]
+    assert np.ptp(offs[20:]) == 0.0                          # after braking: constant
+    assert tr["Z.prog"][frozen].max() == pytest.approx(60.0)  # N40 G0 Z60 while frozen
+
+
+def test_dist_3_off_no_move_offset_taken_over_by_the_next_move():
+    tr = run(SCN / "dist_3.toml").trace
+    k = int(np.argmax((tr["Z.dc.state"][:-1] == 1) & (tr["Z.dc.state"][1:] == 0))) + 1
+    assert abs(tr["Z.cmd"][k] - tr["Z.cmd"][k - 1]) < 1e-3   # no jump at OFF NO_MOVE
+    assert tr["Z.act"][-1] == pytest.approx(100.0, abs=2e-4)  # ... and Z100 is reached exactly
+
+
+def base_scenario(program_text, *, events=(), surface=None, params=PROBE, start_z=40.0, duration=8.0, sensor=None):
+    data = {"name": "test", "program_text": program_text, "duration": duration,
+            "axes": {"X": {"v_max": 300.0, "a_max": 3000.0}, "Z": {"params": params, "start": start_z, "kv": 50.0}},
+            "surface": surface or {"base": start_z},
+            "sensor": sensor or {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0},
+            "events": list(events)}
+    return scenario_from_dict(data, base_dir=SCN)
+
+
+def at(trace: Trace, column: str, t: float) -> float:
+    return float(trace[column][int(round(t / 0.001))])
+
+
+def test_chapter_10_sequence_through_plc_events():
+    """seeds/000 ch. 10: reference the sensor to zero, set position 40 mm and ON (PLC), the surface
+    moves (a 1 mm step under the tool), FREEZE ignores a sensor change of -2 mm, re-activation
+    restores it, OFF cancels the offset."""
+    sc = base_scenario(
+        "N10 G90 G0 X0\nN20 #TIME 0.5\nN30 G1 X100 F6000\nN40 #TIME 2.5\nN999 M30\n",
+        surface={"base": 37.0, "features": [{"type": "step", "axis": "X", "at": 50.0, "height": 1.0}]},
+        events=[{"t": 0.1, "plc": {"axis": "Z", "transition": "REF", "position": 0.0}},
+                {"t": 0.2, "plc": {"axis": "Z", "transition": "ON", "position": 40.0}},
+                {"t": 1.8, "plc": {"axis": "Z", "transition": "FREEZE"}},
+                {"t": 2.0, "sensor_fault": {"kind": "jump", "value": -2.0}},
+                {"t": 2.5, "plc": {"axis": "Z", "transition": "ON", "position": 40.0}},
+                {"t": 3.2, "plc": {"axis": "Z", "transition": "OFF"}}])
+    r = run(sc)
+    tr = r.trace
+    assert r.completed and r.errors == []
+    assert at(tr, "Z.dc.sensor", 0.15) == pytest.approx(0.0, abs=1e-3)      # referenced: sensor zero
+    assert at(tr, "Z.dc.offset", 0.4) == pytest.approx(0.0, abs=2e-3)       # SET_POS = surface: no offset
+    assert at(tr, "Z.dc.offset", 1.7) == pytest.approx(1.0, abs=5e-3)       # followed the surface
+    assert at(tr, "Z.dc.sensor", 1.7) == pytest.approx(0.0, abs=5e-3)       # ... until the sensor reads 0
+    frozen = tr["Z.dc.state"] == 2
+    assert np.ptp(tr["Z.dc.offset"][frozen][50:]) == 0.0                     # the -2 mm change is ignored
+    assert at(tr, "Z.dc.sensor", 2.4) == pytest.approx(-2.0, abs=5e-3)
+    assert at(tr, "Z.dc.offset", 3.1) == pytest.approx(-1.0, abs=5e-3)      # re-activation restores it
+    assert tr["Z.dc.offset"][-1] == 0.0 and r.final_state == "INACTIVE"     # OFF cancels the offset
+    assert tr["Z.act"][-1] == pytest.approx(40.0, abs=2e-4)
+
+
+def test_const_dist_over_sine_and_obstacle_and_cli(tmp_path):
+    out_csv, out_png = tmp_path / "trace.csv", tmp_path / "run.png"
+    res = CliRunner().invoke(main, ["run", str(SCN / "const_dist_sheet.toml"), "--json", "--trace", str(out_csv),
+                                    "--plot", str(out_png)])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    assert data["completed"] and data["errors"] == [] and data["final_state"] == "INACTIVE"
+    m = data["metrics"]
+    assert m["distance_error_rms"] < 0.3 and m["distance_error_max"] < 3.0 and m["settle_time"] < 0.5
+    tr = Trace.from_csv(out_csv)
+    for col in ("t", "line", "X.prog", "X.cmd", "X.act", "Z.prog", "Z.cmd", "Z.act", "Z.dc.state", "Z.dc.offset",
+                "Z.dc.sensor", "Z.dc.feedback", "Z.dc.filtered", "Z.dc.target_deviation", "Z.dc.pre_limiter",
+                "Z.dc.sloped_delta", "Z.dc.set_pos", "Z.dc.set_dist", "true.surface", "true.distance"):
+        assert col in tr.columns
+    tracking = tr["Z.dc.state"] == 4
+    flat = tracking & (tr["X.act"] > 20) & (tr["X.act"] < 140)
+    assert np.abs(tr["true.distance"][flat] - 1.0).max() < 0.05              # 1 mm held over the waviness
+    assert out_png.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("program, error_id, line", [
+    ("N10 Z[DIST_CTRL ON]\nN20 M30\n", 70335, 1),                             # no SET_POS given
+    ("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 Z[DIST_CTRL SET_DIST=1]\nN30 Z[DIST_CTRL ON CONST_DIST]\nN40 M30\n",
+     900003, 3),                                                               # ACTIVE -> CONST directly
+    ("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X100 F6000\nN30 Z[DIST_CTRL OFF]\nN40 Z[DIST_CTRL ON]\nN50 M30\n",
+     70334, 4),                                                                # select while TURNING_OFF
+    ("N10 G0 Z46\nN15 #TIME 0.3\nN20 Z[DIST_CTRL CHECK_POS]\nN30 M30\n", 70576, 3),  # sensor below window
+    ("N10 G0 Z30\nN15 #TIME 0.3\nN20 Z[DIST_CTRL CHECK_POS]\nN30 M30\n", 70330, 3),  # sensor above window
+    ("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X100 F6000\nN30 M30\n", 70331, 2),  # step beyond max_deviation
+    ("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X100 F6000\nN30 M30\n", 70329, 2),  # step faster than allowed
+])
+def test_error_programs_abort_with_id_line_and_time(tmp_path, program, error_id, line):
+    lis = tmp_path / "z.lis"
+    lis.write_text((SCN / "z_probe.lis").read_text()
+                   + ("kenngr.distc.max_deviation 20000\n" if error_id == 70331 else "")
+                   + ("kenngr.distc.max_act_value_change 5000\n" if error_id == 70329 else "")
+                   + ("kenngr.distc.max_pos 50000\nkenngr.distc.min_pos -50000\n" if error_id in (70330, 70576) else ""))
+    surface = {"base": 40.0, "features": [{"type": "step", "axis": "X", "at": 50.0, "height": 3.0}]}
+    sc = base_scenario(program, params=str(lis), surface=surface)
+    r = run(sc)
+    assert not r.completed and r.exit_code == 2
+    first = r.errors[0]
+    assert first["id"] == error_id and first["line"] == line and first["t"] >= 0.0
+    assert r.final_state == "ERROR"
+
+
+def test_program_end_while_active_warns_70332_and_stays_active():
+    r = run(base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X50 F6000\nN30 M30\n"))
+    assert r.completed and [w["id"] for w in r.warnings] == [70332] and r.warnings[0]["line"] == 3
+    assert r.final_state == "ACTIVE"
+
+
+def test_disabled_axis_gives_70336(tmp_path):
+    lis = tmp_path / "z.lis"
+    lis.write_text("lr_param.distance_control_on 0\n")
+    r = run(base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 M30\n", params=str(lis)))
+    assert [e["id"] for e in r.errors] == [70336] and r.exit_code == 2
+
+
+def test_runtime_error_of_the_nc_program_has_line_and_stops():
+    r = run(base_scenario("N10 G1 X[V.E.UNDEFINED] F6000\nN20 M30\n"))
+    assert not r.completed and r.errors[0]["id"] == 900010 and r.errors[0]["line"] == 1
+    assert "V.E.UNDEFINED" in r.errors[0]["message"]
+
+
+def test_invalid_files_exit_1_with_the_place(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('program_text = "N10 Nxx Z[DIST_CTRL OFF]"\n[axes.Z]\n')
+    res = CliRunner().invoke(main, ["run", str(bad)])
+    assert res.exit_code == 1 and "1:" in res.output
+    bad.write_text('program = "missing.nc"\n[axes.Z]\n')
+    res = CliRunner().invoke(main, ["run", str(bad)])
+    assert res.exit_code == 1 and "program" in res.output
+
+
+def test_reset_event_deselects_and_absorbs():
+    sc = base_scenario("N10 Z[DIST_CTRL ON SET_POS=39]\nN20 G1 X100 F3000\nN30 M30\n",
+                       events=[{"t": 1.0, "reset": {}}])
+    r = run(sc)
+    tr = r.trace
+    k = int(round(1.0 / 0.001)) + 1
+    assert tr["Z.dc.state"][k + 1] == 0
+    assert abs(tr["Z.cmd"][k + 1] - tr["Z.cmd"][k - 1]) < 1e-3                # no jump
+    assert not r.completed
+
+
+def test_feed_hold_and_override_events_hold_the_offset():
+    sc = base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X100 F3000\nN30 #TIME 1\nN40 M30\n",
+                       surface={"base": 40.0, "features": [{"type": "ramp", "axis": "X", "start": 0.0, "end": 100.0,
+                                                             "height": 2.0}]},
+                       events=[{"t": 0.5, "override": {"axis": "Z", "value": 0.0}},
+                               {"t": 1.5, "override": {"axis": "Z", "value": 1.0}}])
+    tr = run(sc).trace
+    held = tr["Z.dc.offset"][int(0.7 / 0.001):int(1.5 / 0.001)]
+    assert np.ptp(held) == 0.0 and set(tr["Z.dc.state"][600:1500].astype(int)) == {1}
