@@ -318,9 +318,7 @@ class AxisDistanceController:
             state = st.hli_state
         # integrator: keep the candidate only if the limiter did not clip in its direction
         if state in _TRACKING and not hold:
-            clipped = u_lim - v * T
-            if abs(clipped) <= 1e-12 or (clipped > 0.0) != (e > 0.0):
-                st.integral = i_cand
+            st.integral = law.integrator_after_limiter(st.integral, i_cand, u_lim, v, e, T)
         v_real = (o_new - o) / T
         st.velocity = v_real
         st.offset = o_new
@@ -370,6 +368,13 @@ class AxisDistanceController:
         if not events:
             return Result.OK
         return Result.ERROR if any(ev.severity == "error" for ev in events) else Result.WARNING
+
+    def law_constants(self) -> dict:
+        """The derived constants the law runs with now (for the batch kernel, which must use the
+        very same numbers): gains, accelerations, weights, and the filter coefficient buffer."""
+        return {"T": self.T, "kp": self.tuning.kp, "v_max": self.tuning.v_max, "i_gain": self._i_gain,
+                "d_gain": self._d_gain, "a_base": self._a_base, "w_v": self._w_v, "w_a": self._w_a,
+                "a_floor": self._a_floor, "fc": list(self._fc)}
 
     def submit_hli(self, transition: int, position_mm: float = 0.0) -> Command:
         """Convenience: the Command a PLC transition maps to (put it into ``inp.commands``)."""

@@ -176,6 +176,15 @@ def pid_step(kp, t_over_tn, tv_over_t, integral, m_prev, e, m):
     return u, i_new
 
 
+def integrator_after_limiter(integral, i_candidate, u, v, e, T):
+    """Anti-windup (SPEC §5): keep the new integral unless the limiter clipped the wanted step u
+    in the direction the error pushes (then the integrator would wind up)."""
+    clipped = u - v * T
+    if abs(clipped) <= 1e-12 or (clipped > 0.0) != (e > 0.0):
+        return i_candidate
+    return integral
+
+
 # ----------------------------------------------------------------------------- limiter
 
 def brake_velocity(remaining, a, T):
@@ -277,5 +286,5 @@ def advance_offset(o, v, T, lo, hi):
 
 #: the functions numba compiles for the batch kernel (registered by distctrl.batch.kernel)
 LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, _push,
-                 filter_step, pid_step, brake_velocity, adaptive_acceleration, _clamp, _band,
+                 filter_step, pid_step, integrator_after_limiter, brake_velocity, adaptive_acceleration, _clamp, _band,
                  slope_limit, bound_velocity, advance_offset)
