@@ -21,6 +21,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) bench/bench_core.py
+	$(PY) bench/bench_run.py
 
 docs: $(STAMP)
 	$(PY) -m distctrl.params.docgen > docs/parameters.md

@@ -239,7 +239,11 @@ def _band(v_wanted, v_prev, v_lim, a_t):
         hi = v_lim
     if lo > hi:
         return v_prev - a_t if v_prev > 0.0 else v_prev + a_t
-    return _clamp(v_wanted, lo, hi)
+    if v_wanted < lo:
+        return lo
+    if v_wanted > hi:
+        return hi
+    return v_wanted
 
 
 def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
@@ -251,26 +255,36 @@ def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
     kp = 1), then acceleration- and velocity-limited. A result towards the workpiece (v < 0) is computed with
     the lowering limits instead.
     """
+    v_wanted = u / T
     vb = sqrt(2.0 * a_lim * abs(e))
-    v = _band(_clamp(u / T, -vb, vb), v_prev, v_lim, a_lim * T)
+    v = _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim, a_lim * T)
     if v < 0.0 and (v_lim_down != v_lim or a_lim_down != a_lim):
         vb = sqrt(2.0 * a_lim_down * abs(e))
-        v = _band(_clamp(u / T, -vb, vb), v_prev, v_lim_down, a_lim_down * T)
+        v = _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim_down,
+                  a_lim_down * T)
         return v, a_lim_down, v_lim_down
     return v, a_lim, v_lim
 
 
 def bound_velocity(v, o, T, lo, hi, a_floor):
     """Keep the offset inside [lo, hi] (mm): brake towards a bound with the smallest acceleration
-    the limiter can use, so the bound is reached at rest and never crossed."""
+    the limiter can use, so the bound is reached at rest and never crossed.
+
+    Far from a bound nothing is computed: the discrete stopping distance from v exceeds
+    v²/(2a) + vT/2 by at most aT²/8, so with at least that much room ``v`` stands (exactly the
+    result :func:`brake_velocity` would give)."""
     if v > 0.0:
-        v_hi = brake_velocity(hi - o, a_floor, T)
-        if v > v_hi:
-            v = v_hi
+        room = hi - o
+        if room < (v * v / (2.0 * a_floor) + 0.5 * v * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) + 1e-300:
+            v_hi = brake_velocity(room, a_floor, T)
+            if v > v_hi:
+                v = v_hi
     elif v < 0.0:
-        v_lo = -brake_velocity(o - lo, a_floor, T)
-        if v < v_lo:
-            v = v_lo
+        room = o - lo
+        if room < (v * v / (2.0 * a_floor) - 0.5 * v * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) + 1e-300:
+            v_lo = -brake_velocity(room, a_floor, T)
+            if v < v_lo:
+                v = v_lo
     return v
 
 

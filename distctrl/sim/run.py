@@ -94,7 +94,8 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     machine = Machine(scenario, program)
     T = scenario.cycle_time
     columns, units = trace_columns(machine)
-    recorder = TraceRecorder(columns, units, csv_path=trace, keep=keep_trace,
+    # 8192-row chunks: a chunk of buffered rows is ~6 MB of Python floats, the memory ceiling
+    recorder = TraceRecorder(columns, units, csv_path=trace, keep=keep_trace, chunk_rows=8192,
                              meta={"scenario": scenario.name, "cycle_time": T})
     limit_s = scenario.duration if scenario.duration is not None else MAX_RUN_SECONDS
     max_cycles = int(round(limit_s / T))

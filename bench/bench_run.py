@@ -1,0 +1,86 @@
+"""Benchmark: a 3-axis scenario with distance control on the virtual machine (issue 3).
+
+Target: >= 100 000 cycles/s at a 1 ms cycle including trace recording; memory flat in the
+program's length (trace streamed to CSV, not kept). Results are merged into bench/results.json
+and appended to bench/RESULTS.md by bench_core.py's conventions (own section).
+"""
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import sys
+import tempfile
+import time
+import tracemalloc
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from distctrl.sim.run import run  # noqa: E402
+from distctrl.sim.scenario import scenario_from_text  # noqa: E402
+
+SCENARIO = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"
+
+
+def scenario(seconds: float):
+    length = 100.0 * seconds                      # F6000 = 100 mm/s
+    text = SCENARIO.read_text().replace(
+        'program = "const_dist_sheet.nc"',
+        'program_text = """\nN10 G90 G0 X0 Y0 Z31\nN20 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\n'
+        f'N30 G1 X{length:g} Y{length / 10:g} F6000\nN40 Z[DIST_CTRL OFF]\nN60 M30\n"""').replace(
+        "duration = 10.0", f"duration = {seconds + 5:g}")
+    return scenario_from_text(text, base_dir=SCENARIO.parent, source="bench")
+
+
+def cycles_per_second(sc, **kw) -> tuple[float, int]:
+    t0 = time.perf_counter()
+    r = run(sc, **kw)
+    dt = time.perf_counter() - t0
+    assert r.completed, r.errors
+    return r.cycles / dt, r.cycles
+
+
+def peak_memory(sc, path) -> int:
+    tracemalloc.start()
+    run(sc, trace=path, keep_trace=False)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak
+
+
+def main() -> dict:
+    sc = scenario(60.0)
+    run(scenario(1.0))                                                   # warm-up (imports)
+    rates = sorted(cycles_per_second(sc)[0] for _ in range(3))
+    mem_rate, _ = cycles_per_second(sc)
+    with tempfile.TemporaryDirectory() as d:
+        csv_rate, n = cycles_per_second(sc, trace=os.path.join(d, "t.csv"), keep_trace=False)
+        short = peak_memory(scenario(10.0), os.path.join(d, "a.csv"))
+        long = peak_memory(scenario(60.0), os.path.join(d, "b.csv"))
+    res = {"run_cycles": n, "run_cycles_per_s_memory_trace_median": rates[1],
+           "run_cycles_per_s_csv_trace": csv_rate, "run_peak_bytes_10s": short, "run_peak_bytes_60s": long}
+    rows = [("3-axis scenario, trace kept in memory (median of 3)", rates[1], "cycles/s", ">= 100000",
+             "PASS" if rates[1] >= 100_000 else "FAIL"),
+            ("3-axis scenario, trace streamed to CSV", csv_rate, "cycles/s", "", "-"),
+            ("peak memory, 10 s program, CSV streamed", short / 1e6, "MB", "", "-"),
+            ("peak memory, 60 s program, CSV streamed", long / 1e6, "MB", "flat (< 1.5x the 10 s run)",
+             "PASS" if long < 1.5 * short else "FAIL")]
+    lines = ["", "## Scenario run (bench/bench_run.py)", "",
+             f"- scenario: examples/scenarios/const_dist_sheet.toml with a {n}-cycle program (X, Y, Z; "
+             "CONST_DIST, probe with noise, 3 surface features)", "",
+             "| measurement | value | unit | target | result |", "|---|---:|---|---:|---|"]
+    lines += [f"| {a} | {b:,.1f} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
+    for a, b, c, d, e in rows:
+        print(f"{a:<55} {b:>14,.1f} {c:<9} {d:<28} {e}")
+    results = ROOT / "bench" / "results.json"
+    data = json.loads(results.read_text()) if results.exists() else {}
+    data.update(res)
+    results.write_text(json.dumps(data, indent=2))
+    with open(ROOT / "bench" / "RESULTS.md", "a", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
+    return res
+
+
+if __name__ == "__main__":
+    main()
