@@ -17,7 +17,7 @@ import tracemalloc
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from distctrl.sim.run import run  # noqa: E402
+from distctrl.sim.runner import run  # noqa: E402
 from distctrl.sim.scenario import scenario_from_text  # noqa: E402
 
 SCENARIO = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"

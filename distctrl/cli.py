@@ -44,7 +44,7 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     """
     import json
 
-    from .sim.run import run as run_scenario
+    from .sim.runner import run as run_scenario
 
     try:
         result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None, progress=not as_json)

@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from distctrl.cli import main
-from distctrl.sim.run import run
+from distctrl.sim.runner import run
 from distctrl.sim.scenario import scenario_from_dict
 from distctrl.trace import Trace
 
