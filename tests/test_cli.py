@@ -24,11 +24,14 @@ def test_params_bad_file_exits_1_naming_line_and_range(tmp_path):
     assert f"{f}:2:" in res.output and "P-AXIS-00759" in res.output and "0 < value <= 2" in res.output
 
 
-def test_demo_runs_without_errors_and_tracks_the_sheet():
+def test_demo_runs_the_scenarios_and_writes_traces_and_plots(tmp_path):
     from distctrl.demo import main as demo
-    results = demo()
+    results = demo(tmp_path)
     assert len(results) == 3
     for r in results:
-        assert r.errors == []
-        assert r.distance_error_rms < 0.3              # dominated by the 2.8 mm obstacle edges
-    assert results[1].max_offset < results[0].max_offset   # both encoders: no overshoot
+        assert r.completed and r.errors == []
+    both, plain, setpos = results
+    assert both.metrics["distance_error_rms"] < plain.metrics["distance_error_rms"]   # P-AXIS-00500 helps
+    assert setpos.metrics["distance_error_rms"] < 0.05
+    for stem in ("sheet", "sheet_plain", "dist_1"):
+        assert (tmp_path / f"{stem}.csv").stat().st_size > 0 and (tmp_path / f"{stem}.png").stat().st_size > 10_000
