@@ -196,6 +196,8 @@ def brake_velocity(remaining, a, T):
     if remaining <= 0.0 or a <= 0.0:
         return 0.0
     a_t = a * T
+    if a_t * T <= 0.0:                      # subnormal acceleration: a*T*T underflows
+        return sqrt(2.0 * a * remaining)
     q = remaining / (a_t * T)
     if q > 1e12:
         # the ladder has more than ~1e6 rungs: the continuous limit is exact to 1e-6 relative,
@@ -258,12 +260,18 @@ def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
     v_wanted = u / T
     vb = sqrt(2.0 * a_lim * abs(e))
     v = _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim, a_lim * T)
-    if v < 0.0 and (v_lim_down != v_lim or a_lim_down != a_lim):
-        vb = sqrt(2.0 * a_lim_down * abs(e))
-        v = _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim_down,
-                  a_lim_down * T)
+    if v >= 0.0 or (v_lim_down == v_lim and a_lim_down == a_lim):
+        return v, a_lim, v_lim
+    vb = sqrt(2.0 * a_lim_down * abs(e))
+    v = _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim_down,
+              a_lim_down * T)
+    if v <= 0.0:
         return v, a_lim_down, v_lim_down
-    return v, a_lim, v_lim
+    # the lifting limits say "lower", the lowering limits say "lift": the velocity passes zero this
+    # cycle; stop there (reachable within the limits of the side it comes from) and go on next cycle
+    if v_prev < 0.0:
+        return 0.0, a_lim_down, v_lim_down
+    return 0.0, a_lim, v_lim
 
 
 def bound_velocity(v, o, T, lo, hi, a_floor):
@@ -273,6 +281,8 @@ def bound_velocity(v, o, T, lo, hi, a_floor):
     Far from a bound nothing is computed: the discrete stopping distance from v exceeds
     v²/(2a) + vT/2 by at most aT²/8, so with at least that much room ``v`` stands (exactly the
     result :func:`brake_velocity` would give)."""
+    if a_floor <= 0.0:                      # no deceleration possible at all: do not approach a bound
+        return 0.0 if (v > 0.0 and o < hi) or (v < 0.0 and o > lo) else v
     if v > 0.0:
         room = hi - o
         if room < (v * v / (2.0 * a_floor) + 0.5 * v * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) + 1e-300:
