@@ -15,6 +15,8 @@ The machine drives the core and never reaches into it: it only fills ``CycleInpu
 """
 from __future__ import annotations
 
+import math
+
 from ..control import (Action, AxisDistanceController, Command, CycleInput, CycleOutput, HliState,
                        SensorSource)
 from ..errors import ErrorEvent
@@ -80,6 +82,9 @@ class Machine:
         self._axes = [(n, self.inputs[n], self.outputs[n], self.controllers[n], self.drives[n], n in self.dc_axes)
                       for n in self.axis_names]
         self._shift_any = False
+        self._drive_x = self.drives.get("X")
+        self._drive_y = self.drives.get("Y")
+        self._next_event_t = scenario.events[0].t if scenario.events else math.inf
         self._program_end_sent = False
         self._event_index = 0
         self.true_surface = 0.0
@@ -166,26 +171,30 @@ class Machine:
         k = self.cycle
         T = self.T
         t = k * T
-        events = self.scenario.events
-        while self._event_index < len(events) and events[self._event_index].t <= t + 0.5 * T:
-            self.apply_event(events[self._event_index])
-            self._event_index += 1
+        if t + 0.5 * T >= self._next_event_t:
+            events = self.scenario.events
+            while self._event_index < len(events) and events[self._event_index].t <= t + 0.5 * T:
+                self.apply_event(events[self._event_index])
+                self._event_index += 1
+            self._next_event_t = events[self._event_index].t if self._event_index < len(events) else math.inf
         nc = self.nc
         line = None
+        interp = self.interp
         if nc is not None:
-            self._take_shift()
-            nc.tick()
+            if interp.block == "idle":                   # blocks are read only when the channel is idle
+                self._take_shift()
+                nc.tick()
+                if nc.ended and not self._program_end_sent:
+                    self._program_end_sent = True
+                    for inp in self.inputs.values():
+                        inp.commands.append(Command(Action.PROGRAM_END, line=nc.end_line))
             line = nc.line
-            if nc.ended and not self._program_end_sent:
-                self._program_end_sent = True
-                for inp in self.inputs.values():
-                    inp.commands.append(Command(Action.PROGRAM_END, line=nc.end_line))
-        self.interp.feed_override = self.channel_override
-        prog = self.interp.step()
+        interp.feed_override = self.channel_override
+        prog = interp.step()
         drives = self.drives
         # the real geometry under the tool: true mechanical positions, not the quantised encoder
-        x = drives["X"].position if "X" in drives else 0.0
-        y = drives["Y"].position if "Y" in drives else 0.0
+        x = self._drive_x.position if self._drive_x is not None else 0.0
+        y = self._drive_y.position if self._drive_y is not None else 0.0
         surface_z = self.surface.height(x, y)
         self.true_surface = surface_z
         sensor_axis = self.sensor_axis

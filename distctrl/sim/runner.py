@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from operator import attrgetter
 from pathlib import Path
 
 from ..control import HliState
@@ -77,6 +76,28 @@ def trace_columns(machine: Machine) -> tuple[list[str], dict[str, str]]:
     return cols, units
 
 
+def row_builder(machine: Machine):
+    """A function ``(t, line) -> tuple`` giving one trace row in the order of :func:`trace_columns`.
+
+    It is generated once per machine layout as a single tuple expression (the way
+    ``collections.namedtuple`` builds its code): the row is assembled 10^5 times a second, and one
+    expression avoids the intermediate lists and tuples of a generic loop."""
+    env = {"m": machine}
+    parts = ["t", "line"]
+    for j, n in enumerate(machine.axis_names):
+        env[f"i{j}"], env[f"o{j}"], env[f"d{j}"] = machine.inputs[n], machine.outputs[n], machine.drives[n]
+        parts += [f"i{j}.programmed_position", f"o{j}.command_position", f"d{j}.actual"]
+    for j, n in enumerate(machine.dc_axes):
+        env[f"c{j}"] = machine.outputs[n]
+        parts += [f"c{j}.{a}" for a in ("hli_state", "offset", "sensor_value", "feedback_value", "filtered_feedback",
+                                        "target_deviation", "delta_deviation_pre_limiter", "sloped_delta_deviation",
+                                        "set_pos", "set_distance")]
+    parts += ["m.true_surface", "m.true_distance"]
+    src = "def build_row(t, line):\n    return (" + ", ".join(parts) + ",)\n"
+    exec(compile(src, "<trace row builder>", "exec"), env)       # names only from the lists above
+    return env["build_row"]
+
+
 def load_program(scenario):
     if scenario.program_text is not None and scenario.program_file is None:
         return parse_program(scenario.program_text, file=f"{scenario.path or '<scenario>'}:program_text")
@@ -108,30 +129,23 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     settled_for = 0
     nc = machine.nc
     append = recorder.append
-    # the row is built from attrgetters resolved once: (prog, cmd, act) per axis, the dc objects
-    axis_rows = [(machine.inputs[n], machine.outputs[n], machine.drives[n]) for n in machine.axis_names]
-    dc_get = attrgetter("hli_state", "offset", "sensor_value", "feedback_value", "filtered_feedback",
-                        "target_deviation", "delta_deviation_pre_limiter", "sloped_delta_deviation",
-                        "set_pos", "set_distance")
-    dc_outs = [machine.outputs[n] for n in machine.dc_axes]
+    build_row = row_builder(machine)
     outputs, inputs = machine.outputs, machine.inputs
     step = machine.step
+    dc_out = outputs[dc_axis] if dc_axis is not None else None
+    dc_inp = inputs[dc_axis] if dc_axis is not None else None
+    add_metric = metrics.add
     try:
         for k in range(max_cycles):
             step()
-            row = [k * T, nc.line if nc is not None and nc.line is not None else -1]
-            for inp, out, drv in axis_rows:
-                row += (inp.programmed_position, out.command_position, drv.actual)
-            for o in dc_outs:
-                row += dc_get(o)
-            row += (machine.true_surface, machine.true_distance)
-            append(tuple(row))
-            if dc_axis is not None:
-                o = outputs[dc_axis]
-                if o.hli_state in (1, 4):
-                    want = o.set_distance if o.hli_state == 4 else inputs[dc_axis].programmed_position - o.set_pos
-                    metrics.add(k * T, machine.true_distance - want)
-                else:
+            append(build_row(k * T, nc.line if nc is not None and nc.line is not None else -1))
+            if dc_out is not None:
+                state = dc_out.hli_state
+                if state == 4:
+                    add_metric(k * T, machine.true_distance - dc_out.set_distance)
+                elif state == 1:
+                    add_metric(k * T, machine.true_distance - (dc_inp.programmed_position - dc_out.set_pos))
+                elif metrics.inside:
                     metrics.gap()
             if bar is not None and k % 2000 == 0:
                 bar.update(k)
