@@ -36,6 +36,10 @@ class Channel(Protocol):
 
     def dist_ctrl(self, axis: str, command: Command) -> None: ...
 
+    def dist_ctrl_done(self, axis: str, action: Action) -> bool:
+        """WAIT: has the axis's last DIST_CTRL command completed (SPEC §8)?"""
+        ...
+
 
 @dataclass(frozen=True)
 class NcRuntimeError:
@@ -64,6 +68,7 @@ class NcInterpreter:
         self.error: NcRuntimeError | None = None
         self.end_line: int | None = None
         self._end_pending = False         # M30 in a block with motion: ends when the motion is done
+        self._waits: list[tuple[str, Action]] = []   # DIST_CTRL WAIT commands the block waits for
 
     @property
     def running(self) -> bool:
@@ -83,6 +88,10 @@ class NcInterpreter:
         ch = self.channel
         if not ch.motion_done():
             return
+        if self._waits:
+            if not all(ch.dist_ctrl_done(axis, action) for axis, action in self._waits):
+                return
+            self._waits = []
         if self._end_pending:
             self.ended = True
             return
@@ -137,7 +146,10 @@ class NcInterpreter:
         # DIST_CTRL block takes its GEO cycle, so the next block sees its effect (e.g. OFF NO_MOVE
         # has handed the offset to the channel before the next move starts)
         for word in block.dist_ctrl:
-            ch.dist_ctrl(word.axis, word.to_command(lookup, block.line, file=self.file))
+            command = word.to_command(lookup, block.line, file=self.file)
+            ch.dist_ctrl(word.axis, command)
+            if word.wait:
+                self._waits.append((word.axis, command.action))
         takes_time = bool(block.dist_ctrl)
         if block.axes:
             target = {}

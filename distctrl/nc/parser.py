@@ -227,6 +227,9 @@ def _check_dist_ctrl_rules(args: list[DistCtrlArg]) -> None:
                      seen["CONST_DIST"])
     if "NO_MOVE" in seen and "OFF" not in seen:
         raise _error("NO_MOVE without OFF, expected 'OFF NO_MOVE'", seen["NO_MOVE"])
+    if "WAIT" in seen and not actions:
+        raise _error("WAIT without ON, DRYRUN, OFF, FREEZE, CHECK_POS or REF: WAIT waits for a command",
+                     seen["WAIT"])
 
 
 def _build_block(children: list) -> Block:
@@ -326,7 +329,7 @@ _GROUPS = (
 #: order of phrases in a message: terminals not listed come last
 _ORDER = ["$END", "_NL", "HEADER", "BLOCK_NUMBER", "G_CODE", "M_CODE", "FEED", "AXIS", "TIME", "DIST_CTRL",
           "EQUAL", "DC_FLAG", "STAR", "NUMBER", "VAR", "NAME", "LPAR", "LSQB", "PLUS", "MINUS", "RPAR", "RSQB"]
-_KEYWORD_LIST = ("ON, OFF, NO_MOVE, FREEZE, DRYRUN, CONST_DIST, CHECK_POS, REF, SET_POS=, SET_DIST=, "
+_KEYWORD_LIST = ("ON, OFF, NO_MOVE, FREEZE, DRYRUN, CONST_DIST, CHECK_POS, REF, WAIT, SET_POS=, SET_DIST=, "
                  "SENSOR_SOURCE=, SENSOR_VAR=, VAL1= .. VAL5=, KP=, I_TN=, D_TV=, FILTER_TYPE=, N_CYCLES=, "
                  "FG_F0=, ORDER=, SMOOTH_FACT=, KALMAN_SIGMA=")
 _WORD_AT = re.compile(r"[A-Za-z0-9_.%#]+")

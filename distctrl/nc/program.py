@@ -169,7 +169,7 @@ def no_variables(name: str) -> float:
 
 #: keywords without value; the first six select what the command does
 ACTION_KEYWORDS = ("ON", "OFF", "FREEZE", "DRYRUN", "CHECK_POS", "REF")
-FLAG_KEYWORDS = ACTION_KEYWORDS + ("NO_MOVE", "CONST_DIST")
+FLAG_KEYWORDS = ACTION_KEYWORDS + ("NO_MOVE", "CONST_DIST", "WAIT")
 #: keywords with a numeric value (an expression)
 NUMBER_KEYWORDS = ("SET_POS", "SET_DIST", "VAL1", "VAL2", "VAL3", "VAL4", "VAL5", "KP", "I_TN", "D_TV",
                    "N_CYCLES", "FG_F0", "ORDER", "SMOOTH_FACT", "KALMAN_SIGMA")
@@ -286,6 +286,12 @@ class DistCtrlWord:
 
     def has(self, keyword: str) -> bool:
         return self.arg(keyword) is not None
+
+    @property
+    def wait(self) -> bool:
+        """WAIT: the block completes only when the select has reached its target once, the OFF has
+        reached INACTIVE, the FREEZE has braked (SPEC §8; the 3D syntax's option, also accepted here)."""
+        return self.has("WAIT")
 
     @property
     def action(self) -> Action:

@@ -110,6 +110,23 @@ class Machine:
             raise ValueError(f"axis {axis} is not configured in this channel")
         self.inputs[axis].commands.append(command)
 
+    def dist_ctrl_done(self, axis: str, action: Action) -> bool:
+        """WAIT (SPEC §8): a select has reached its target once, OFF has reached INACTIVE, FREEZE has
+        braked; an ERROR also ends the wait (the error stops the program anyway)."""
+        out = self.outputs[axis]
+        state = out.hli_state
+        if state == int(HliState.ERROR):
+            return True
+        if action == Action.OFF:
+            return state == int(HliState.INACTIVE)
+        if action == Action.ON:
+            return state in _TRACKING and out.target_reached
+        if action == Action.DRYRUN:
+            return state in (int(HliState.DRYRUN_SETPOS), int(HliState.DRYRUN_CONST_DIST))
+        if action == Action.FREEZE:
+            return out.offset_velocity == 0.0
+        return True
+
     def _take_shift(self) -> None:
         """OFF NO_MOVE / reset: the channel takes the absorbed offset over as its position."""
         if any(self.shift.values()) and self.interp.done:

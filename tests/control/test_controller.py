@@ -532,3 +532,43 @@ def test_dist_5_path_dryrun_directly_to_on_const_dist_adopting_pending_writes():
     assert out.hli_state == HliState.ACTIVE_CONST_DIST and out.kp == 0.6 and out.events == []
     out = rig.cycle(Command(Action.DRYRUN, const_dist=True))          # active -> dry run: tracking stops
     assert out.hli_state == HliState.DRYRUN_CONST_DIST
+
+
+def test_integrator_does_not_wind_up_while_the_limiter_clips():
+    p = params(kp=0.5, i_tn=0.05, v_max=5.0, a_max=1000.0, filter_type=FilterType.MOVING_AVERAGE, n_cycles=1)
+    rig = Rig(p, p=40.0, surface=40.0)
+    rig.cycle(Command(ON, set_pos=40.0))
+    rig.surface = 42.0                                   # 2 mm at 5 mm/s: 0.4 s in the velocity limit
+    outs = [rig.cycle() for _ in range(2000)]
+    assert sum(1 for o in outs if abs(o.offset_velocity) >= 5.0 - 1e-9) > 300      # it really clipped
+    assert max(o.offset for o in outs) <= 2.0 + 0.01                                # no wind-up overshoot
+    assert outs[-1].offset == pytest.approx(2.0, abs=1e-6)
+    # the same law without the anti-windup rule would have integrated the clipped error:
+    wound = sum(0.5 * (0.001 / 0.05) * (2.0 - o.offset) for o in outs if abs(o.offset_velocity) >= 5.0 - 1e-9)
+    assert wound > 0.5
+
+
+def test_derivative_acts_on_the_measurement_not_on_a_set_value_change():
+    p = params(kp=0.5, d_tv=0.5, filter_type=FilterType.MOVING_AVERAGE, n_cycles=1)
+    rig = Rig(p, p=40.0, surface=40.0)
+    rig.cycle(Command(ON, set_pos=40.0))
+    rig.cycle(n=50)
+    out = rig.cycle(Command(ON, set_pos=39.0))           # re-select with a new set value: no kick
+    e = out.target_deviation - rig.history[-2].offset
+    assert out.delta_deviation_pre_limiter == pytest.approx(0.5 * e, abs=1e-12)
+    rig.cycle(Command(ON, set_pos=40.0))
+    rig.cycle(n=300)
+    o_before = rig.history[-1].offset
+    rig.surface = 40.01                                  # a measured change of 10 µm: D acts
+    out = rig.cycle()
+    e = out.target_deviation - o_before
+    assert out.delta_deviation_pre_limiter == pytest.approx(0.5 * e + 0.5 * (0.5 / 0.001) * 0.01, rel=1e-9)
+
+
+def test_a_max_zero_uses_the_axis_acceleration_p_axis_00008():
+    rig = Rig(params(a_max=0.0, axis_a_max=777.0), surface=40.0)
+    rig.cycle(Command(ON, set_pos=40.0))
+    rig.surface = 41.0
+    out = rig.cycle()
+    assert out.a_max_int == 777.0 and out.a_max_param == 0.0
+    assert abs(out.offset_velocity) <= 777.0 * 0.001 + 1e-12

@@ -183,3 +183,17 @@ def test_feed_hold_and_override_events_hold_the_offset():
     tr = run(sc).trace
     held = tr["Z.dc.offset"][int(0.7 / 0.001):int(1.5 / 0.001)]
     assert np.ptp(held) == 0.0 and set(tr["Z.dc.state"][600:1500].astype(int)) == {1}
+
+
+def test_wait_holds_the_next_block_until_the_select_reached_its_target_and_off_is_inactive():
+    program = ("N10 Z[DIST_CTRL WAIT ON SET_POS=38]\nN20 G1 X10 F6000\n"
+               "N30 Z[DIST_CTRL WAIT OFF]\nN40 G1 X20 F6000\nN50 M30\n")
+    tr = run(base_scenario(program)).trace            # surface 40 under SET_POS 38: offset +2 mm to run
+    line = tr["line"].astype(int)
+    start_move = int(next(i for i, v in enumerate(line) if v == 2))
+    assert abs(tr["Z.dc.offset"][start_move - 1] - 2.0) <= 0.02                  # target reached once first
+    assert tr["Z.dc.offset"][:start_move - 1].min() < 1.99                         # ... which took time
+    second_move = int(next(i for i, v in enumerate(line) if v == 4))
+    assert tr["Z.dc.state"][second_move - 1] == 0 and tr["Z.dc.offset"][second_move - 1] == 0.0
+    no_wait = run(base_scenario(program.replace("WAIT ", ""))).trace
+    assert int(next(i for i, v in enumerate(no_wait["line"].astype(int)) if v == 2)) < start_move
