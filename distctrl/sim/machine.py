@@ -162,6 +162,9 @@ class Machine:
         elif kind == "axis_error":
             self.inputs[data["axis"]].commands.append(Command(Action.AXIS_ERROR))
             self.stop_program(None)
+        elif kind == "axis_release":
+            # the channel hands the axis over (e.g. to another channel): 70333 if distance control is on
+            self.inputs[data["axis"]].commands.append(Command(Action.AXIS_RELEASE))
         elif kind == "sensor_fault":
             if self.sensor is not None:
                 fault_args = {k: v for k, v in data.items() if k != "kind"}

@@ -67,6 +67,7 @@ EVENT_KINDS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "feed_hold": (("axis", "value"), ("axis",)),
     "reset": ((), ()),
     "axis_error": (("axis",), ("axis",)),
+    "axis_release": (("axis",), ("axis",)),
     "sensor_fault": (("kind", "value", "duration", "duration_cycles", "rate"), ("kind",)),
     "variable": (("name", "value"), ("name", "value")),
     "plc_cyclic": (("axis", "position", "distance"), ("axis",)),
@@ -417,7 +418,7 @@ def _event(n: int, cfg: object, axes: dict[str, AxisConfig], sensor: SensorConfi
                 "value": _bool(body.get("value", True), f"{akey}.value")}
     elif kind == "reset":
         data = {}
-    elif kind == "axis_error":
+    elif kind in ("axis_error", "axis_release"):
         data = {"axis": _axis_ref(body["axis"], f"{akey}.axis", axes)}
     elif kind == "sensor_fault":
         if sensor is None:

@@ -197,3 +197,64 @@ def test_wait_holds_the_next_block_until_the_select_reached_its_target_and_off_i
     assert tr["Z.dc.state"][second_move - 1] == 0 and tr["Z.dc.offset"][second_move - 1] == 0.0
     no_wait = run(base_scenario(program.replace("WAIT ", ""))).trace
     assert int(next(i for i, v in enumerate(no_wait["line"].astype(int)) if v == 2)) < start_move
+
+
+def first_error(sc):
+    r = run(sc)
+    assert not r.completed and r.exit_code == 2
+    return r, r.errors[0]
+
+
+def test_70333_axis_released_while_active():
+    r, e = first_error(base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X100 F6000\nN30 M30\n",
+                                     events=[{"t": 0.5, "axis_release": {"axis": "Z"}}]))
+    assert e["id"] == 70333 and e["t"] == pytest.approx(0.5, abs=0.002) and e["line"] == 2
+
+
+def test_900001_nan_from_the_sensor_while_active():
+    r, e = first_error(base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X100 F6000\nN30 M30\n",
+                                     events=[{"t": 0.3, "sensor_fault": {"kind": "nan", "duration": 0.1}}]))
+    assert e["id"] == 900001
+    assert all(np.isfinite(r.trace["Z.cmd"])) and all(np.isfinite(r.trace["Z.dc.offset"]))
+
+
+def test_900004_sensor_source_changed_while_active():
+    r, e = first_error(base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE]\n"
+                                     "N30 M30\n"))
+    assert e["id"] == 900004 and e["line"] == 2
+
+
+def test_axis_error_event_deselects_and_stops_the_program():
+    r = run(base_scenario("N10 Z[DIST_CTRL ON SET_POS=39]\nN20 G1 X100 F3000\nN30 M30\n",
+                          events=[{"t": 0.8, "axis_error": {"axis": "Z"}}]))
+    assert not r.completed and r.final_state == "INACTIVE"
+    k = 801
+    assert abs(r.trace["Z.cmd"][k + 1] - r.trace["Z.cmd"][k - 1]) < 1e-3
+
+
+def test_capacitive_distance_sensor_through_a_variable():
+    program = ("N10 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.GAP]\n"
+               "N20 Z[DIST_CTRL ON CONST_DIST SET_DIST=1.5]\nN30 G1 X150 F6000\nN40 Z[DIST_CTRL OFF]\nN50 M30\n")
+    sc = base_scenario(program, start_z=41.0,
+                       surface={"base": 40.0, "features": [{"type": "sine", "axis": "X", "amplitude": 0.4,
+                                                             "wavelength": 60.0}]},
+                       sensor={"axis": "Z", "kind": "distance", "variable": "GAP", "range_max": 5.0,
+                               "noise_std": 0.001, "seed": 3})
+    r = run(sc)
+    assert r.completed and r.errors == []
+    tr = r.trace
+    tracking = (tr["Z.dc.state"] == 4) & (tr["t"] > 0.3)
+    # within the drive's following error on the sine's slope (about 4 mm/s / Kv 50 = 0.08 mm)
+    assert np.abs(tr["true.distance"][tracking] - 1.5).max() < 0.12
+    assert abs(np.mean(tr["true.distance"][tracking]) - 1.5) < 0.01
+    assert np.abs(tr["Z.dc.sensor"][tracking] - tr["true.distance"][tracking]).max() < 0.01   # the variable
+
+
+def test_plc_cyclic_distance_is_followed_every_cycle():
+    sc = base_scenario("N10 G1 X100 F3000\nN20 M30\n", start_z=41.0,
+                       events=[{"t": 0.1, "plc": {"axis": "Z", "transition": "ON_CONST_DIST", "position": 1.0}},
+                               {"t": 0.1, "plc_cyclic": {"axis": "Z", "distance": 1.0}},
+                               {"t": 1.0, "plc_cyclic": {"axis": "Z", "distance": 2.0}}])
+    tr = run(sc).trace
+    assert at(tr, "Z.dc.set_dist", 0.9) == 1.0 and at(tr, "Z.dc.set_dist", 1.1) == 2.0
+    assert at(tr, "true.distance", 1.8) == pytest.approx(2.0, abs=0.01)

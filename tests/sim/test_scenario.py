@@ -301,7 +301,7 @@ BAD = [
     ("surface feature", _replace("height = 2.8", 'height = "x"'), "surface.features[0].height",
      ["'x'", "finite number"]),
     ("unknown event action", _replace("plc = {", "plcx = {"), "events[0].plcx",
-     ["'plcx'", "plc, override, feed_hold, reset, axis_error, sensor_fault, variable, plc_cyclic"]),
+     ["'plcx'", "plc, override, feed_hold, reset, axis_error, axis_release, sensor_fault, variable, plc_cyclic"]),
     ("two actions in one event", _replace("t = 1.0\n", "t = 1.0\nreset = {}\n"), "events[0]",
      ["more than one action", "exactly one action key", "'reset'"]),
     ("no action", _append("[[events]]\nt = 2.0\n"), "events[2]", ["missing", "exactly one action key"]),
