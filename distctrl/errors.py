@@ -36,6 +36,7 @@ class ErrorId(IntEnum):
     SENSOR_SOURCE_CHANGED = 900004  # sensor source changed while active
     COMMAND_VALUE_OUT_OF_RANGE = 900005  # a programmed/commanded value outside its documented range
     OBJECT_READ_ONLY = 900006      # write to a CNC object that is not read/write
+    SOURCE_CONFLICT = 900007       # command from NC while the PLC owns distance control, or vice versa
 
 
 #: ID -> (severity, short text). Severity "error" puts the controller into ERROR, "warning" does not.
@@ -55,6 +56,7 @@ CATALOGUE: dict[int, tuple[str, str]] = {
     900004: ("error", "Sensor source changed while distance control is active"),
     900005: ("error", "Commanded value outside its documented range"),
     900006: ("error", "CNC object is read-only"),
+    900007: ("error", "Distance control is commanded by the other source (NC / PLC); command refused"),
 }
 
 

@@ -471,6 +471,15 @@ class AxisDistanceController:
         if not self.params.enabled:
             self._raise(ErrorId.NOT_AVAILABLE, events, line)
             return 0.0
+        if st.hli_state != _INACTIVE and CommandSource(cmd.source) != st.source:
+            # one active command source: whoever selected distance control owns it until INACTIVE
+            # (reset and axis errors above always act). An NC block is stopped (error), a PLC
+            # transition only refused (warning); the state does not change either way.
+            refused = CommandSource(cmd.source)
+            events.append(make_event(ErrorId.SOURCE_CONFLICT, st.cycle, line,
+                                     f"owned by {st.source.name}, {refused.name} {a.name} refused",
+                                     severity="error" if refused == CommandSource.NC else "warning"))
+            return 0.0
         problem = _check_command_values(cmd, self.T)
         if problem:
             self._raise(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, events, line, problem)

@@ -572,3 +572,21 @@ def test_a_max_zero_uses_the_axis_acceleration_p_axis_00008():
     out = rig.cycle()
     assert out.a_max_int == 777.0 and out.a_max_param == 0.0
     assert abs(out.offset_velocity) <= 777.0 * 0.001 + 1e-12
+
+
+def test_one_active_command_source_nc_and_plc():
+    from distctrl.control import CommandSource
+    rig = Rig(params(), surface=40.0)
+    out = rig.cycle(Command.from_hli(1, 40.0))                      # the PLC selects: it owns it
+    assert out.hli_state == HliState.ACTIVE and out.command_source == 1
+    out = rig.cycle(Command(Action.OFF, line=12))                   # an NC OFF is refused: error, no change
+    assert out.hli_state == HliState.ACTIVE and [(e.id, e.severity, e.line) for e in out.events] == \
+        [(900007, "error", 12)]
+    out = rig.cycle(Command.from_hli(0))                            # the owner switches it off
+    rig.run_until(lambda o: o.hli_state == HliState.INACTIVE)
+    out = rig.cycle(Command(ON, set_pos=40.0))                      # now NC selects and owns it
+    assert out.command_source == 0
+    out = rig.cycle(Command.from_hli(2))                            # a PLC FREEZE is only a warning
+    assert out.hli_state == HliState.ACTIVE and [(e.id, e.severity) for e in out.events] == [(900007, "warning")]
+    out = rig.cycle(Command(Action.RESET, source=CommandSource.PLC))  # reset always acts
+    assert out.hli_state == HliState.INACTIVE
