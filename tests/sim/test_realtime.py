@@ -1,0 +1,45 @@
+"""Soft real-time pacing of the cycle."""
+from __future__ import annotations
+
+import threading
+import time
+
+from distctrl.sim.realtime import RealTimeLoop
+
+
+def test_cycles_are_paced_to_wall_clock_and_jitter_is_reported():
+    n = []
+    loop = RealTimeLoop(lambda: n.append(1), cycle_time=0.002)
+    t0 = time.perf_counter()
+    stats = loop.run(max_cycles=200)
+    elapsed = time.perf_counter() - t0
+    assert len(n) == 200
+    assert 0.38 <= elapsed <= 0.6                     # 200 cycles of 2 ms, not as fast as possible
+    s = stats.summary()
+    assert s["cycles"] == 200 and s["lateness_median_us"] < 2000 and s["lateness_max_us"] >= s["lateness_p99_us"]
+
+
+def test_with_a_fake_clock_late_cycles_catch_up_and_a_long_stall_resyncs():
+    now = [0.0]
+    steps = []
+
+    def step():
+        steps.append(now[0])
+        if len(steps) == 3:
+            now[0] += 0.0035                          # this cycle overran by 3.5 cycles
+        if len(steps) == 6:
+            now[0] += 1.0                             # the process was stopped for 1 s
+
+    loop = RealTimeLoop(step, 0.001, clock=lambda: now[0], sleep=lambda d: now.__setitem__(0, now[0] + d))
+    stats = loop.run(max_cycles=10)
+    assert stats.resyncs == 1 and stats.late_over_one_cycle >= 2 and len(steps) == 10
+
+
+def test_background_thread_holds_the_lock_during_a_step_and_stops():
+    lock = threading.Lock()
+    inside = []
+    loop = RealTimeLoop(lambda: inside.append(lock.locked()), 0.001, lock=lock)
+    loop.start()
+    time.sleep(0.05)
+    loop.stop()
+    assert not loop.running and inside and all(inside) and loop.error is None
