@@ -258,3 +258,35 @@ def test_plc_cyclic_distance_is_followed_every_cycle():
     tr = run(sc).trace
     assert at(tr, "Z.dc.set_dist", 0.9) == 1.0 and at(tr, "Z.dc.set_dist", 1.1) == 2.0
     assert at(tr, "true.distance", 1.8) == pytest.approx(2.0, abs=0.01)
+
+
+def test_ve_variables_from_the_scenario_the_program_and_events():
+    sc = base_scenario("N10 V.E.X_END = V.E.X0 + 20\nN20 G1 X[V.E.X_END] F6000\nN30 #TIME 0.5\n"
+                       "N40 G1 X[V.E.LATE] F6000\nN50 M30\n",
+                       events=[{"t": 0.2, "variable": {"name": "LATE", "value": 7.5}}])
+    sc = scenario_from_dict({**_as_dict(sc), "variables": {"X0": 10.0}}, base_dir=SCN)
+    r = run(sc)
+    assert r.completed
+    tr = r.trace
+    assert at(tr, "X.prog", 0.5) == pytest.approx(30.0)          # 10 + 20 from the scenario's V.E.X0
+    assert tr["X.prog"][-1] == pytest.approx(7.5)                  # written by the event at t = 0.2 s
+
+
+def _as_dict(sc):
+    return {"name": "test", "program_text": sc.program_text, "duration": sc.duration,
+            "axes": {"X": {"v_max": 300.0, "a_max": 3000.0}, "Z": {"params": PROBE, "start": 40.0, "kv": 50.0}},
+            "surface": {"base": 40.0}, "sensor": {"axis": "Z", "kind": "encoder", "range_min": -20.0,
+                                                   "range_max": 20.0},
+            "events": [{"t": e.t, e.kind: dict(e.data)} for e in sc.events]}
+
+
+def test_feed_hold_event_on_the_axis_holds_the_offset():
+    sc = base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 G1 X100 F3000\nN30 M30\n",
+                       surface={"base": 40.0, "features": [{"type": "ramp", "axis": "X", "start": 0.0, "end": 100.0,
+                                                             "height": 2.0}]},
+                       events=[{"t": 0.5, "feed_hold": {"axis": "Z", "value": True}},
+                               {"t": 1.2, "feed_hold": {"axis": "Z", "value": False}}])
+    tr = run(sc).trace
+    held = tr["Z.dc.offset"][int(0.7 / 0.001):int(1.2 / 0.001)]
+    assert np.ptp(held) == 0.0
+    assert at(tr, "Z.dc.offset", 1.9) > held[0] + 0.5            # follows the ramp again afterwards
