@@ -626,7 +626,7 @@ class AxisDistanceController:
         if w.name not in WRITABLE_OBJECTS:
             events.append(make_event(ErrorId.OBJECT_READ_ONLY, st.cycle, line, w.name, severity="warning"))
             return
-        problem = _check_object_value(w.name, w.value)
+        problem = check_object_value(w.name, w.value)
         if problem:
             events.append(make_event(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, st.cycle, line, problem,
                                      severity="warning"))
@@ -703,7 +703,8 @@ def _check_command_values(cmd: Command, T: float) -> str:
     return ""
 
 
-def _check_object_value(name: str, value: float) -> str:
+def check_object_value(name: str, value: float) -> str:
+    """'' when ``value`` (internal units) may be written to the CNC object ``name``, else why not."""
     if not _finite(value):
         return f"{name} = {value!r} is not finite"
     if name in ("kp", "i_tn", "d_tv"):

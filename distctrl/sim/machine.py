@@ -22,6 +22,7 @@ from ..control import (Action, AxisDistanceController, Command, CycleInput, Cycl
 from ..errors import ErrorEvent
 from ..nc.interpreter import NcInterpreter
 from ..nc.program import Program
+from ..plc.hli import DistanceControlUnit
 from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
 from .sensors import DistanceSensor, EncoderProbe, Fault
@@ -35,7 +36,7 @@ DC_COLUMNS = ("dc.state", "dc.offset", "dc.sensor", "dc.feedback", "dc.filtered"
 class Machine:
     """A simulated channel built from a :class:`~distctrl.sim.scenario.Scenario`."""
 
-    def __init__(self, scenario, program: Program | None = None):
+    def __init__(self, scenario, program: Program | None = None, plc_program=None, publish_hli: bool | None = None):
         self.scenario = scenario
         T = self.T = scenario.cycle_time
         axes = scenario.axes
@@ -48,6 +49,14 @@ class Machine:
         self.inputs = {n: CycleInput(programmed_position=a.start, actual_position=self.drives[n].actual)
                        for n, a in axes.items()}
         self.outputs = {n: CycleOutput() for n in axes}
+        #: the HLI DistanceControl control unit of each axis (gpAx[i]^.lr_mc_control.distance_control)
+        self.hli = {n: DistanceControlUnit(axis_index=i + 1) for i, n in enumerate(axes)}
+        #: a PLC program: called every cycle before the CNC consumes the control units
+        self.plc_program = plc_program
+        #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
+        #: program, the ADS server); a batch run without readers publishes once at the end
+        self.publish_hli = plc_program is not None if publish_hli is None else publish_hli
+        self._plc_pending: list[tuple[str, int, float]] = []    # scenario PLC commands waiting for the semaphore
         #: axes whose controller runs every cycle (distance control enabled); others only on commands
         self.dc_axes = [n for n, a in axes.items() if a.params.enabled]
         self.surface = scenario.surface
@@ -79,8 +88,8 @@ class Machine:
                 self.variables.setdefault(self.sensor_variable, 0.0)
         self.nc = NcInterpreter(program, self, file=scenario.program_file) if program is not None else None
         #: per axis, everything one cycle touches, resolved once (the loop runs 10^5 times a second)
-        self._axes = [(n, self.inputs[n], self.outputs[n], self.controllers[n], self.drives[n], n in self.dc_axes)
-                      for n in self.axis_names]
+        self._axes = [(n, self.inputs[n], self.outputs[n], self.controllers[n], self.drives[n], n in self.dc_axes,
+                       self.hli[n]) for n in self.axis_names]
         self._shift_any = False
         self._drive_x = self.drives.get("X")
         self._drive_y = self.drives.get("Y")
@@ -139,14 +148,10 @@ class Machine:
     def apply_event(self, ev) -> None:
         kind, data = ev.kind, ev.data
         if kind == "plc":
-            cmd = Command.from_hli(data["transition"], float(data.get("position", 0.0)))
-            self.inputs[data["axis"]].commands.append(cmd)
+            # through the control unit, as a PLC does: command_w + semaphore (retried while busy)
+            self._plc_pending.append((data["axis"], data["transition"], float(data.get("position", 0.0))))
         elif kind == "plc_cyclic":
-            inp = self.inputs[data["axis"]]
-            if "position" in data:
-                inp.cyclic_set_pos = float(data["position"])
-            if "distance" in data:
-                inp.cyclic_set_dist = float(data["distance"])
+            self.hli[data["axis"]].plc_cyclic(data.get("position"), data.get("distance"))
         elif kind == "override":
             if data.get("axis"):
                 self.inputs[data["axis"]].override = float(data["value"])
@@ -197,6 +202,11 @@ class Machine:
                 self.apply_event(events[self._event_index])
                 self._event_index += 1
             self._next_event_t = events[self._event_index].t if self._event_index < len(events) else math.inf
+        if self._plc_pending:
+            self._plc_pending = [cmd for cmd in self._plc_pending
+                                 if not self.hli[cmd[0]].plc_command(cmd[1], cmd[2])]
+        if self.plc_program is not None:
+            self.plc_program(self, k)
         nc = self.nc
         line = None
         interp = self.interp
@@ -227,12 +237,14 @@ class Machine:
             else:
                 self.variables[self.sensor_variable] = value
         shift = self.shift if self._shift_any else None
-        for name, inp, out, ctrl, drive, is_dc in self._axes:
+        for name, inp, out, ctrl, drive, is_dc, unit in self._axes:
             p = prog[name]
             if shift is not None:
                 p += shift[name]
             inp.programmed_position = p
-            if is_dc or inp.commands:
+            if is_dc or inp.commands or unit.command_semaphore_rw:
+                if unit.command_semaphore_rw or unit.cyclic.valid_position or unit.cyclic.valid_distance:
+                    unit.prepare(inp)
                 inp.actual_position = drive.actual
                 inp.nc_line = line
                 if inp.commands or ctrl.state.sensor_source is _VARIABLE:
@@ -250,11 +262,18 @@ class Machine:
                 if out.absorbed_offset:
                     self.shift[name] += out.absorbed_offset
                     self._shift_any = True
+                if self.publish_hli:
+                    unit.publish(out)
                 drive.step(out.command_position)
             else:
                 out.command_position = p
                 drive.step(p)
         self.cycle = k + 1
+
+    def publish_all(self) -> None:
+        """Fill every control unit's ``state_r`` from the last cycle."""
+        for name in self.dc_axes:
+            self.hli[name].publish(self.outputs[name])
 
     # ------------------------------------------------------------------ status
     def settled(self) -> bool:

@@ -104,15 +104,20 @@ def load_program(scenario):
     return parse_file(scenario.program_file)
 
 
-def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, progress: bool = False) -> RunResult:
-    """Run ``scenario`` (a Scenario, or a path to a TOML file). Invalid files raise DistCtrlError."""
+def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, progress: bool = False,
+        plc_program=None) -> RunResult:
+    """Run ``scenario`` (a Scenario, or a path to a TOML file). Invalid files raise DistCtrlError.
+
+    ``plc_program(machine, cycle)``, if given, runs every cycle before the CNC reads the PLC
+    interface: it may write ``machine.hli[axis]`` (command_w + semaphore, cyclic values) and read
+    ``state_r``, as a PLC task does."""
     from ..trace import TraceRecorder
     from .scenario import Scenario, load_scenario
 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     program = load_program(scenario)
-    machine = Machine(scenario, program)
+    machine = Machine(scenario, program, plc_program=plc_program)
     T = scenario.cycle_time
     columns, units = trace_columns(machine)
     # 8192-row chunks: a chunk of buffered rows is ~6 MB of Python floats, the memory ceiling
@@ -157,6 +162,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         interrupted = True
     finally:
         kept = recorder.close()
+        machine.publish_all()
         if bar is not None:
             bar.close()
     errors, warnings = [], []

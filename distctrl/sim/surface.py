@@ -175,7 +175,8 @@ class Sine:
     def __init__(self, amplitude: float, wavelength: float, axis: str = "X", phase: float = 0.0):
         self.axis = _axis(axis, "Sine.axis")
         self.amplitude = require_number(amplitude, "Sine.amplitude", lo=0.0)
-        self.wavelength = require_number(wavelength, "Sine.wavelength", lo=0.0, lo_open=True)
+        # at least 1 nm: a shorter wavelength is no surface a sensor can follow, and 2*pi/lambda must stay finite
+        self.wavelength = require_number(wavelength, "Sine.wavelength", lo=1e-6)
         self.phase = require_number(phase, "Sine.phase")
         self._on_y = self.axis == "Y"
         self._k = _TWO_PI / self.wavelength  # wave number (rad/mm)

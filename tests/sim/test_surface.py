@@ -178,7 +178,7 @@ def _err(cfg, base_dir="."):
 
 def test_config_error_names_key_value_and_range():
     msg = _err({"features": [{"type": "flat"}, {"type": "sine", "amplitude": 1.0, "wavelength": -4.0}]})
-    assert "surface.features[1].wavelength" in msg and "-4.0" in msg and "(0, inf)" in msg
+    assert "surface.features[1].wavelength" in msg and "-4.0" in msg and "[1e-06, inf)" in msg
 
 
 F0 = "surface.features[0]"

@@ -1,0 +1,124 @@
+"""ADS symbols of the HLI control unit: names (ST paths), sizes, types, access, raw little-endian bytes."""
+from __future__ import annotations
+
+import struct
+
+import pytest
+
+from distctrl.control import Action, CommandSource, CycleOutput
+from distctrl.control.commands import Command
+from distctrl.plc import (ChannelDistanceStatus, DistanceControlUnit, SemaphoreBusyError, SymbolSpec,
+                          channel_status_symbols, hli_symbols)
+
+BASE = "gpAx[1].lr_mc_control.distance_control"
+CYC = "pAC[1].addr.McControlLr_Data.MCControl_DistanceControl.CyclicCommand"
+
+# name -> (size, PLC type, writable), from seeds/002 and seeds/000 §8.2
+EXPECTED = {
+    f"{BASE}.command_w": (8, "HLI_DISTANCE_CONTROL_COMMAND", True),
+    f"{BASE}.command_w.transition": (4, "UDINT", True),
+    f"{BASE}.command_w.position": (4, "DINT", True),
+    f"{BASE}.enable_w": (1, "BOOL", True),
+    f"{BASE}.command_semaphore_rw": (1, "BOOL", True),
+    f"{BASE}.state_r": (20, "HLI_DISTANCE_CONTROL_STATE", False),
+    f"{BASE}.state_r.actual_state": (4, "UDINT", False),
+    f"{BASE}.state_r.actual_position": (4, "DINT", False),
+    f"{BASE}.state_r.actual_offset": (4, "DINT", False),
+    f"{BASE}.state_r.command_source": (4, "UDINT", False),
+    f"{BASE}.state_r.actual_distance": (4, "DINT", False),
+    CYC: (8, "HLIDistanceControlCyclicCommand", True),
+    f"{CYC}.D_Position": (4, "DINT", True),
+    f"{CYC}.D_Distance": (4, "DINT", True),
+    f"{CYC}.valid_position": (1, "BOOL", True),
+    f"{CYC}.valid_distance": (1, "BOOL", True),
+}
+
+
+def ads_codes():
+    c = pytest.importorskip("pyads.constants")
+    return {"UDINT": c.ADST_UINT32, "DINT": c.ADST_INT32, "BOOL": c.ADST_BIT, "LREAL": c.ADST_REAL64,
+            "STRING": c.ADST_STRING}
+
+
+def test_every_field_has_a_symbol_with_the_documented_path_type_and_access():
+    syms = hli_symbols(1, DistanceControlUnit())
+    assert set(syms) == set(EXPECTED)
+    codes = ads_codes()
+    for name, (size, type_name, writable) in EXPECTED.items():
+        s = syms[name]
+        assert isinstance(s, SymbolSpec) and s.name == name
+        assert (s.size, s.type_name, s.writable) == (size, type_name, writable), name
+        assert s.access == ("read/write" if writable else "read")
+        assert s.ads_type == codes.get(type_name, 65), name             # structures: ADST_BIGTYPE
+        assert len(s.get()) == size and s.comment
+
+
+def test_axis_index_appears_in_the_paths():
+    syms = hli_symbols(3, DistanceControlUnit(3))
+    assert "gpAx[3].lr_mc_control.distance_control.command_w.transition" in syms
+    assert "pAC[3].addr.McControlLr_Data.MCControl_DistanceControl.CyclicCommand.D_Distance" in syms
+
+
+def test_plc_writes_through_symbols_and_the_cnc_consumes():
+    unit = DistanceControlUnit()
+    syms = hli_symbols(1, unit)
+    syms[f"{BASE}.command_w.transition"].set(struct.pack("<I", 4))
+    syms[f"{BASE}.command_w.position"].set(struct.pack("<i", 15000))
+    syms[f"{BASE}.enable_w"].set(b"\x01")
+    syms[f"{BASE}.command_semaphore_rw"].set(b"\x01")
+    assert syms[f"{BASE}.command_w"].get() == struct.pack("<Ii", 4, 15000)
+    with pytest.raises(SemaphoreBusyError):                           # locked until the CNC took it
+        syms[f"{BASE}.command_w.position"].set(struct.pack("<i", 1))
+    with pytest.raises(SemaphoreBusyError):
+        syms[f"{BASE}.command_w"].set(struct.pack("<Ii", 0, 0))
+    assert unit.consume() == Command(Action.ON, const_dist=True, set_dist=1.5, source=CommandSource.PLC)
+    assert syms[f"{BASE}.command_semaphore_rw"].get() == b"\x00"
+    syms[f"{BASE}.command_w"].set(struct.pack("<Ii", 3, -20000))     # whole structure
+    assert (unit.command_w.transition, unit.command_w.position) == (3, -20000)
+
+
+def test_state_r_symbols_are_read_only_and_little_endian():
+    unit = DistanceControlUnit()
+    syms = hli_symbols(1, unit)
+    unit.publish(CycleOutput(hli_state=1, surface_position=40.0, offset=0.2, command_source=1,
+                             measured_distance=-0.0001))
+    assert syms[f"{BASE}.state_r.actual_state"].get() == b"\x01\x00\x00\x00"
+    assert syms[f"{BASE}.state_r.actual_position"].get() == struct.pack("<i", 400000)
+    assert syms[f"{BASE}.state_r.actual_offset"].get() == struct.pack("<i", 2000)
+    assert syms[f"{BASE}.state_r.command_source"].get() == struct.pack("<I", 1)
+    assert syms[f"{BASE}.state_r.actual_distance"].get() == b"\xff\xff\xff\xff"
+    assert syms[f"{BASE}.state_r"].get() == struct.pack("<IiiIi", 1, 400000, 2000, 1, -1)
+    for name, s in syms.items():
+        if ".state_r" in name:
+            assert s.set is None
+
+
+def test_cyclic_symbols_mark_the_values_valid():
+    unit = DistanceControlUnit()
+    syms = hli_symbols(1, unit)
+    assert unit.cyclic_inputs() == (None, None)
+    syms[f"{CYC}.D_Distance"].set(struct.pack("<i", 12345))
+    assert unit.cyclic_inputs() == (None, pytest.approx(1.2345))
+    assert syms[f"{CYC}.valid_distance"].get() == b"\x01"
+    syms[f"{CYC}.valid_distance"].set(b"\x00")
+    assert unit.cyclic_inputs() == (None, None)
+    syms[CYC].set(struct.pack("<ii", -400000, 5000))
+    assert unit.cyclic_inputs() == (pytest.approx(-40.0), pytest.approx(0.5))
+    assert syms[f"{CYC}.D_Position"].get() == struct.pack("<i", -400000)
+
+
+def test_wrong_sizes_raise():
+    syms = hli_symbols(1, DistanceControlUnit())
+    for name, s in syms.items():
+        if s.set is not None:
+            with pytest.raises(ValueError):
+                s.set(b"\x00" * (s.size + 1))
+
+
+def test_channel_status_symbols():
+    status = ChannelDistanceStatus(virt_tool_length_r=1234567, inclination_r=-300000)
+    syms = channel_status_symbols(1, status)
+    assert set(syms) == {"gpCh[1].bahn_state.virt_tool_length_r", "gpCh[1].bahn_state.inclination_r"}
+    assert syms["gpCh[1].bahn_state.virt_tool_length_r"].get() == struct.pack("<i", 1234567)
+    assert syms["gpCh[1].bahn_state.inclination_r"].get() == struct.pack("<i", -300000)
+    assert all(s.set is None and s.type_name == "DINT" and s.size == 4 for s in syms.values())
