@@ -84,6 +84,48 @@ def _print_summary(result, trace_path, plot_path) -> None:
 
 
 @main.command()
+@click.argument("scenario", required=False, type=click.Path(dir_okay=False))
+@click.option("--axis", "axis_filter", help="Only this axis (name).")
+@click.option("--cycles", default=0, show_default=True, help="Run the scenario this many cycles first, so the values are live.")
+def objects(scenario: str | None, axis_filter: str | None, cycles: int) -> None:
+    """List the CNC objects of distance control like the object browser (seeds/000 §7.6).
+
+    With SCENARIO the axes (axis_id from 1 in X Y Z A B C order) and their parameter lists come from
+    it; without, one axis with default parameters. Index group 0x120300, offset (axis_id << 16) | 0x3xxx,
+    task GEO, ADS port 551.
+    """
+    from .control import AxisDistanceController, CycleOutput
+    from .objects.registry import AxisObjectContext, format_object_table, object_table
+
+    try:
+        if scenario is None:
+            from .params import AxisParameters
+
+            contexts = {1: AxisObjectContext(1, "Z", AxisDistanceController(AxisParameters()), CycleOutput())}
+        else:
+            from .sim.machine import Machine
+            from .sim.runner import load_program
+            from .sim.scenario import load_scenario
+
+            sc = load_scenario(scenario)
+            machine = Machine(sc, load_program(sc))
+            for _ in range(cycles):
+                machine.step()
+            contexts = {i + 1: AxisObjectContext(i + 1, n, machine.controllers[n], machine.outputs[n],
+                                                 sc.axes[n].resolution or 1e-4)
+                        for i, n in enumerate(machine.axis_names)}
+    except DistCtrlError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(1)
+    if axis_filter:
+        contexts = {k: c for k, c in contexts.items() if c.axis_name == axis_filter}
+        if not contexts:
+            click.echo(f"error: no axis {axis_filter!r}", err=True)
+            sys.exit(1)
+    click.echo(format_object_table(object_table(contexts)), nl=False)
+
+
+@main.command()
 def demo() -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, with a summary table."""
     from .demo import main as run_demo

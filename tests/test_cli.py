@@ -35,3 +35,21 @@ def test_demo_runs_the_scenarios_and_writes_traces_and_plots(tmp_path):
     assert setpos.metrics["distance_error_rms"] < 0.05
     for stem in ("sheet", "sheet_plain", "dist_1"):
         assert (tmp_path / f"{stem}.csv").stat().st_size > 0 and (tmp_path / f"{stem}.png").stat().st_size > 10_000
+
+
+def test_objects_lists_the_object_browser_table_for_a_scenario():
+    res = CliRunner().invoke(main, ["objects", str(ROOT / "examples" / "scenarios" / "dist_1.toml"), "--axis", "Z",
+                                    "--cycles", "300"])
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert lines[0].split()[:4] == ["Nr", "Gruppe", "Offset", "Bezeichner"]
+    kp = next(line for line in lines if "DIST_CTRL::kp " in line or line.split()[3] == "DIST_CTRL::kp")
+    assert "0x120300" in kp and "0x33106" in kp and "REAL64" in kp and "read/write" in kp
+    assert len([line for line in lines[2:] if line.strip()]) == 25
+
+
+def test_objects_without_scenario_and_unknown_axis():
+    res = CliRunner().invoke(main, ["objects"])
+    assert res.exit_code == 0 and "0x13106" in res.output
+    res = CliRunner().invoke(main, ["objects", "--axis", "Q"])
+    assert res.exit_code == 1
