@@ -22,6 +22,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) bench/bench_core.py
 	$(PY) bench/bench_run.py
+	$(PY) bench/bench_ads.py
 
 docs: $(STAMP)
 	$(PY) -m distctrl.params.docgen > docs/parameters.md

@@ -126,6 +126,45 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int) -> None:
 
 
 @main.command()
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on.")
+@click.option("--port", default=48898, show_default=True, help="AMS/TCP port.")
+@click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
+              help="Client address or network allowed to connect (like an ADS route); repeat for more.")
+@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
+@click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id: str, duration: float | None) -> None:
+    """Run SCENARIO.toml in real time and serve it over ADS (CNC objects on AMS port 551, the PLC
+    interface and V.E. variables by symbol name on port 851). Reports the cycle jitter at the end."""
+    import logging
+    import time
+
+    from .serve import ServedMachine
+    from .sim.scenario import load_scenario
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    try:
+        served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id)
+        served.start()
+    except (DistCtrlError, OSError, ValueError) as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(1)
+    click.echo(f"serving {served.scenario.name}: ADS {net_id} on {host}:{served.server.port}, "
+               f"allowed {', '.join(allowed)}; Ctrl-C stops")
+    try:
+        t_end = None if duration is None else time.monotonic() + duration
+        while t_end is None or time.monotonic() < t_end:
+            time.sleep(0.2)
+            if served.loop.error is not None:
+                raise served.loop.error
+    except KeyboardInterrupt:
+        pass
+    stats = served.stop()
+    click.echo("cycle jitter: " + ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
+                                           for k, v in stats.items()))
+
+
+@main.command()
 def demo() -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, with a summary table."""
     from .demo import main as run_demo

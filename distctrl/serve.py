@@ -1,0 +1,187 @@
+"""``distctrl serve``: the virtual machine paced to wall-clock time, reachable over ADS.
+
+Two ADS devices over one :class:`~distctrl.sim.machine.Machine` (the server and the cycle share one
+lock, so every request sees one consistent cycle):
+
+* AMS port 551 (GEO task): the CNC objects of distance control by index group 0x120300 and index
+  offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md). Writes to the read/write objects are queued
+  into the axis's controller and adopted on the next INACTIVE→active or FREEZE→active transition.
+* AMS port 851 (PLC): symbols by name — every field of each axis's HLI DistanceControl control unit
+  (``gpAx[i].lr_mc_control.distance_control.command_w.transition`` …, docs/plc.md) and the V.E.
+  variables (``V.E.NAME``, LREAL). ``state_r`` is read-only; ``command_w`` is locked while the
+  semaphore is TRUE (ADS 0x704). Symbols live in index group 0x4020 so that sum commands work.
+"""
+from __future__ import annotations
+
+import logging
+import struct
+import threading
+
+from .ads import AdsError, AdsServer, SymbolInfo
+from .ads.errors import (ADSERR_DEVICE_INVALIDACCESS, ADSERR_DEVICE_INVALIDDATA, ADSERR_DEVICE_INVALIDGRP,
+                         ADSERR_DEVICE_INVALIDOFFSET, ADSERR_DEVICE_INVALIDSIZE)
+from .ads.protocol import ADST_REAL64
+from .objects.registry import (INDEX_GROUP, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
+                               read_bytes, write_bytes)
+from .plc.hli import SemaphoreBusyError
+from .plc.symbols import hli_symbols
+
+log = logging.getLogger("distctrl.serve")
+
+CNC_PORT = 551
+PLC_PORT = 851
+PLC_SYMBOL_GROUP = 0x4020          # %M-like memory area for the PLC symbols
+ADS_RUN, DEVICE_OK = 5, 0
+
+
+class CncObjectDevice:
+    """AMS port 551: the axis CNC objects of the machine's axes (axis_id from 1 in scenario order)."""
+
+    name = "distctrl GEO"
+    version = (0, 1, 0)
+
+    def __init__(self, machine):
+        self.machine = machine
+        self.contexts = {i + 1: AxisObjectContext(i + 1, n, machine.controllers[n], machine.outputs[n],
+                                                  machine.scenario.axes[n].resolution or 1e-4)
+                         for i, n in enumerate(machine.axis_names)}
+
+    def _find(self, index_group: int, index_offset: int):
+        if index_group != INDEX_GROUP:
+            raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X}")
+        found = find_object(index_group, index_offset, self.contexts)
+        if found is None:
+            raise AdsError(ADSERR_DEVICE_INVALIDOFFSET, f"index offset 0x{index_offset:X}")
+        return found
+
+    def read(self, index_group: int, index_offset: int, length: int) -> bytes:
+        spec, ctx = self._find(index_group, index_offset)
+        if length != spec.length:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.length} bytes, {length} requested")
+        return read_bytes(spec, ctx)
+
+    def write(self, index_group: int, index_offset: int, data: bytes) -> None:
+        spec, ctx = self._find(index_group, index_offset)
+        try:
+            command = write_bytes(spec, ctx, data)
+        except ObjectAccessError as exc:
+            raise AdsError(ADSERR_DEVICE_INVALIDACCESS, str(exc)) from None
+        except ObjectValueError as exc:
+            code = ADSERR_DEVICE_INVALIDSIZE if len(data) != spec.length else ADSERR_DEVICE_INVALIDDATA
+            raise AdsError(code, str(exc)) from None
+        self.machine.inputs[ctx.axis_name].commands.append(command)    # adopted by the controller's rule
+
+    def symbols(self) -> dict:
+        return {}
+
+    def state(self) -> tuple[int, int]:
+        return ADS_RUN, DEVICE_OK
+
+
+class PlcDevice:
+    """AMS port 851: the HLI control units and the V.E. variables by symbol name."""
+
+    name = "distctrl PLC"
+    version = (0, 1, 0)
+
+    def __init__(self, machine):
+        self.machine = machine
+        self.specs: dict[str, object] = {}
+        for i, n in enumerate(machine.axis_names):
+            self.specs.update(hli_symbols(i + 1, machine.hli[n]))
+        for name in sorted(machine.variables):
+            if name.startswith("V.E."):
+                self.specs[name] = _variable_symbol(machine.variables, name)
+        self.infos: dict[str, SymbolInfo] = {}
+        self.by_offset: dict[int, object] = {}
+        offset = 0
+        for name, spec in self.specs.items():
+            self.infos[name] = SymbolInfo(name, PLC_SYMBOL_GROUP, offset, spec.size, spec.ads_type, spec.type_name,
+                                          spec.comment, read_only=spec.set is None)
+            self.by_offset[offset] = spec
+            offset += (spec.size + 7) // 8 * 8                  # 8-byte aligned, distinct addresses
+
+    def _spec(self, index_group: int, index_offset: int):
+        if index_group != PLC_SYMBOL_GROUP:
+            raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X}")
+        spec = self.by_offset.get(index_offset)
+        if spec is None:
+            raise AdsError(ADSERR_DEVICE_INVALIDOFFSET, f"index offset 0x{index_offset:X}")
+        return spec
+
+    def read(self, index_group: int, index_offset: int, length: int) -> bytes:
+        spec = self._spec(index_group, index_offset)
+        if length != spec.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.size} bytes")
+        return spec.get()
+
+    def write(self, index_group: int, index_offset: int, data: bytes) -> None:
+        spec = self._spec(index_group, index_offset)
+        if spec.set is None:
+            raise AdsError(ADSERR_DEVICE_INVALIDACCESS, f"{spec.name} is read-only")
+        if len(data) != spec.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.size} bytes")
+        try:
+            spec.set(bytes(data))
+        except SemaphoreBusyError as exc:
+            raise AdsError(ADSERR_DEVICE_INVALIDACCESS, str(exc)) from None
+        except ValueError as exc:
+            raise AdsError(ADSERR_DEVICE_INVALIDDATA, str(exc)) from None
+
+    def symbols(self) -> dict[str, SymbolInfo]:
+        return self.infos
+
+    def state(self) -> tuple[int, int]:
+        return ADS_RUN, DEVICE_OK
+
+
+def _variable_symbol(variables: dict, name: str):
+    from .plc.symbols import SymbolSpec
+
+    def get() -> bytes:
+        return struct.pack("<d", float(variables.get(name, 0.0)))
+
+    def set_(data: bytes) -> None:
+        value = struct.unpack("<d", data)[0]
+        if value != value or value in (float("inf"), float("-inf")):
+            raise ValueError(f"{name} = {value!r} is not a finite number")
+        variables[name] = value
+
+    return SymbolSpec(name, 8, ADST_REAL64, "LREAL", get, set_, "V.E. variable (mm or as the program uses it)")
+
+
+class ServedMachine:
+    """A machine stepped in real time in a background thread, with an ADS server over it."""
+
+    def __init__(self, scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
+                 net_id: str = "127.0.0.1.1.1"):
+        from .sim.machine import Machine
+        from .sim.realtime import RealTimeLoop
+        from .sim.runner import load_program
+
+        self.scenario = scenario
+        self.machine = Machine(scenario, load_program(scenario), publish_hli=True)
+        self.lock = threading.Lock()
+        self.cnc = CncObjectDevice(self.machine)
+        self.plc = PlcDevice(self.machine)
+        self.server = AdsServer({CNC_PORT: self.cnc, PLC_PORT: self.plc}, host=host, port=port, net_id=net_id,
+                                allowed=list(allowed), lock=self.lock)
+        self.loop = RealTimeLoop(self.machine.step, scenario.cycle_time, lock=self.lock)
+
+    def start(self) -> None:
+        self.server.start()
+        self.loop.start()
+        log.info("serving %s on %s:%d (AMS ports %d, %d)", self.scenario.name, self.server.host, self.server.port,
+                 CNC_PORT, PLC_PORT)
+
+    def stop(self) -> dict:
+        self.loop.stop()
+        self.server.stop()
+        return self.loop.stats.summary()
+
+    def __enter__(self):
+        self.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()

@@ -1,0 +1,144 @@
+"""Device notifications (AddDeviceNotification / DeleteDeviceNotification) over a raw socket."""
+from __future__ import annotations
+
+import socket
+import struct
+import time
+
+import pytest
+
+from distctrl.ads import AdsServer
+from distctrl.ads import errors as E
+from distctrl.ads import protocol as P
+
+from . import IG_DATA, MemoryDevice, RawClient
+
+SERVER_CYCLE, ON_CHANGE, CLIENT_CYCLE = 3, 4, 1
+
+
+@pytest.fixture(scope="module")
+def device():
+    return MemoryDevice()
+
+
+@pytest.fixture(scope="module")
+def server(device):
+    srv = AdsServer({851: device, 551: MemoryDevice("NC")}, port=0, max_notifications=4)
+    srv.start()
+    try:
+        yield srv
+    finally:
+        srv.stop()
+
+
+@pytest.fixture()
+def c(server):
+    with RawClient(server.port) as client:
+        yield client
+
+
+def u32(data: bytes) -> int:
+    return struct.unpack("<I", data)[0]
+
+
+def test_frame_format_and_first_sample(c):
+    r = c.add_notification(IG_DATA, 0, 4, ON_CHANGE, source_port=33000)
+    assert r.result == 0
+    handle = u32(r.data)
+    hdr, samples = c.recv_notification()
+    assert hdr.command == P.CMD_DEVICE_NOTIFICATION and hdr.state_flags == P.SF_ADS_COMMAND
+    assert P.format_net_id(hdr.target_net_id) == "127.0.0.1.1.2" and hdr.target_port == 33000
+    assert P.format_net_id(hdr.source_net_id) == "127.0.0.1.1.1" and hdr.source_port == 851
+    assert hdr.invoke_id == 0 and hdr.error_code == 0
+    [(ts, h, data)] = samples
+    assert h == handle and len(data) == 4
+    now_filetime = (time.time() + 11644473600) * 1e7
+    assert abs(ts - now_filetime) < 5 * 1e7
+
+
+def test_on_change_only_sends_changes(c, server):
+    c.write(IG_DATA, 48, struct.pack("<h", 7))
+    handle = u32(c.add_notification(IG_DATA, 48, 2, ON_CHANGE).data)
+    assert c.recv_notification()[1][0][1:] == (handle, struct.pack("<h", 7))
+    c.sock.settimeout(0.2)
+    with pytest.raises(TimeoutError):
+        c.recv_frame()                              # unchanged: nothing
+    c.sock.settimeout(5)
+    with RawClient(server.port) as other:
+        assert other.write(IG_DATA, 48, struct.pack("<h", 8)).result == 0
+    assert c.recv_notification()[1][0][1:] == (handle, struct.pack("<h", 8))
+    assert c.del_notification(handle).result == 0
+
+
+def test_cyclic_by_handle_and_delete(c):
+    h = c.handle("MAIN.value")
+    handle = u32(c.add_notification(P.ADSIGRP_SYM_VALBYHND, h, 8, SERVER_CYCLE, cycle_100ns=0).data)
+    t0 = time.monotonic()
+    for _ in range(5):
+        _, [(_, hh, data)] = c.recv_notification()
+        assert hh == handle and len(data) == 8
+    assert time.monotonic() - t0 < 2.0             # cycle 0 is raised to the 10 ms minimum
+    assert c.del_notification(handle).result == 0
+    assert c.del_notification(handle).result == E.ADSERR_DEVICE_NOTIFYHNDINVALID
+    c.notes.clear()
+    time.sleep(0.1)
+    c.sock.settimeout(0.05)                        # drain what was in flight, then silence
+    try:
+        while True:
+            c.recv_frame()
+    except TimeoutError:
+        pass
+    c.sock.settimeout(0.3)
+    with pytest.raises(TimeoutError):
+        c.recv_frame()
+
+
+def test_add_errors(c):
+    assert c.add_notification(IG_DATA, 0, 4, CLIENT_CYCLE).result == E.ADSERR_DEVICE_TRANSMODENOTSUPP
+    assert c.add_notification(IG_DATA, 0, 0).result == E.ADSERR_DEVICE_INVALIDSIZE
+    assert c.add_notification(IG_DATA, 0, 1 << 20).result == E.ADSERR_DEVICE_INVALIDWATCHSIZE
+    assert c.add_notification(0x1234, 0, 4).result == E.ADSERR_DEVICE_INVALIDGRP
+    assert c.add_notification(IG_DATA, 0, 2).result == E.ADSERR_DEVICE_INVALIDSIZE
+    r = c.call(P.request, P.CMD_ADD_DEVICE_NOTIFICATION, b"\0" * 10)
+    assert r.result == E.ADSERR_DEVICE_INVALIDSIZE and len(r.data) == 4
+    assert c.del_notification(12345).result == E.ADSERR_DEVICE_NOTIFYHNDINVALID
+
+
+def test_limit_and_port_scope(c):
+    handles = [u32(c.add_notification(IG_DATA, 0, 4).data) for _ in range(4)]
+    assert c.add_notification(IG_DATA, 0, 4).result == E.ADSERR_DEVICE_NOMOREHDLS
+    assert c.del_notification(handles[0], target_port=551).result == E.ADSERR_DEVICE_NOTIFYHNDINVALID
+    assert c.del_notification(handles[0]).result == 0
+    assert c.add_notification(IG_DATA, 0, 4).result == 0
+
+
+def test_closing_the_connection_ends_its_notifications(server):
+    base = len(server._tasks)
+    c = RawClient(server.port)
+    assert c.add_notification(IG_DATA, 0, 4, SERVER_CYCLE, cycle_100ns=100_000).result == 0
+    c.recv_notification()
+    c.close()
+    end = time.monotonic() + 3
+    while len(server._tasks) > base and time.monotonic() < end:
+        time.sleep(0.01)
+    assert len(server._tasks) == base
+
+
+def test_client_that_does_not_read_notifications(server):
+    """64 KiB cyclic samples to a client that never reads: the server's send backlog stays bounded
+    (samples are dropped) and other clients are served meanwhile."""
+    lazy = RawClient(server.port)
+    try:
+        lazy.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        for _ in range(4):   # a STRING(20) read with a 64 KiB buffer: 64 KiB samples, zero-padded
+            assert lazy.add_notification(IG_DATA, 20, 65536, SERVER_CYCLE).result == 0
+        with RawClient(server.port) as good:
+            t0, biggest = time.monotonic(), 0
+            while time.monotonic() - t0 < 0.6:
+                assert good.read(IG_DATA, 8, 8).result == 0
+                biggest = max([biggest] + [w.transport.get_write_buffer_size() for w in list(server._writers)])
+        assert 0 < biggest <= (1 << 20) + 4 * (65536 + 64)
+        _, samples = lazy.recv_notification()      # and it still gets samples once it reads
+        assert samples and len(samples[0][2]) == 65536
+    finally:
+        lazy.close()

@@ -1,0 +1,138 @@
+"""distctrl serve with the real pyads client on loopback (issue 4 acceptance)."""
+from __future__ import annotations
+
+import socket
+import time
+from pathlib import Path
+
+import pytest
+
+pyads = pytest.importorskip("pyads")
+
+from distctrl.serve import ServedMachine  # noqa: E402
+from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
+
+SCN = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
+IG = 0x120300
+UNIT = "gpAx[1].lr_mc_control.distance_control"
+
+
+def port_free(port: int) -> bool:
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+@pytest.fixture(scope="module")
+def served():
+    if not port_free(48898):
+        pytest.skip("TCP 48898 is in use on this machine (pyads always connects to 48898)")
+    sc = scenario_from_dict({
+        "name": "served Z", "program_text": "N10 #TIME 3600\nN20 M30\n",
+        "axes": {"Z": {"params": str(SCN / "z_probe.lis"), "start": 40.0, "kv": 50.0}},
+        "surface": {"base": 40.0},
+        "sensor": {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0},
+        "variables": {"GAIN": 2.5},
+        # the surface "moves": the probe reading drifts by 0.2 mm/s from t = 0.3 s on
+        "events": [{"t": 0.3, "sensor_fault": {"kind": "drift", "rate": 0.2}}]}, base_dir=SCN)
+    with ServedMachine(sc) as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def cnc(served):
+    conn = pyads.Connection("127.0.0.1.1.1", 551, "127.0.0.1")
+    conn.open()
+    yield conn
+    conn.close()
+
+
+@pytest.fixture(scope="module")
+def plc(served):
+    conn = pyads.Connection("127.0.0.1.1.1", 851, "127.0.0.1")
+    conn.open()
+    yield conn
+    conn.close()
+
+
+def wait_for(predicate, timeout=3.0):
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def command(plc, transition: int, position_01um: int = 0):
+    assert wait_for(lambda: not plc.read_by_name(f"{UNIT}.command_semaphore_rw", pyads.PLCTYPE_BOOL))
+    plc.write_by_name(f"{UNIT}.command_w.transition", transition, pyads.PLCTYPE_UDINT)
+    plc.write_by_name(f"{UNIT}.command_w.position", position_01um, pyads.PLCTYPE_DINT)
+    plc.write_by_name(f"{UNIT}.enable_w", True, pyads.PLCTYPE_BOOL)
+    plc.write_by_name(f"{UNIT}.command_semaphore_rw", True, pyads.PLCTYPE_BOOL)
+    assert wait_for(lambda: not plc.read_by_name(f"{UNIT}.command_semaphore_rw", pyads.PLCTYPE_BOOL))
+
+
+def state(plc) -> int:
+    return plc.read_by_name(f"{UNIT}.state_r.actual_state", pyads.PLCTYPE_UDINT)
+
+
+def test_read_kp_of_axis_1_as_lreal(cnc, served):
+    assert cnc.read_state()[0] == 5
+    assert cnc.read(IG, 0x13106, pyads.PLCTYPE_LREAL) == served.scenario.axes["Z"].params.kp
+
+
+def test_on_by_symbol_then_kp_write_adopted_on_freeze_to_active(cnc, plc):
+    command(plc, 1, 400000)                                         # ON, SET_POS 40 mm (0.1 µm)
+    assert wait_for(lambda: state(plc) == 1)
+    assert plc.read_by_name(f"{UNIT}.state_r.command_source", pyads.PLCTYPE_UDINT) == 1
+    old = cnc.read(IG, 0x13106, pyads.PLCTYPE_LREAL)
+    cnc.write(IG, 0x13106, 0.4, pyads.PLCTYPE_LREAL)
+    time.sleep(0.05)
+    assert cnc.read(IG, 0x13106, pyads.PLCTYPE_LREAL) == old        # not while ACTIVE
+    command(plc, 2)                                                 # FREEZE
+    assert wait_for(lambda: state(plc) == 2)
+    assert cnc.read(IG, 0x13106, pyads.PLCTYPE_LREAL) == old
+    command(plc, 1, 400000)                                         # FREEZE -> ACTIVE: adopted
+    assert wait_for(lambda: state(plc) == 1)
+    assert cnc.read(IG, 0x13106, pyads.PLCTYPE_LREAL) == 0.4
+
+
+def test_state_and_m_actual_offset_while_running(cnc, plc):
+    assert wait_for(lambda: state(plc) == 1) or (command(plc, 1, 400000) or wait_for(lambda: state(plc) == 1))
+    assert cnc.read(IG, 0x13105, pyads.PLCTYPE_UDINT) == 2           # DIST_CTRL::state ACTIVE
+    first = cnc.read(IG, 0x13100, pyads.PLCTYPE_LINT)               # m_actual_offset, 0.01 nm
+    time.sleep(0.3)
+    second = cnc.read(IG, 0x13100, pyads.PLCTYPE_LINT)
+    assert second != first                                          # follows the drifting surface
+    offset_01um = plc.read_by_name(f"{UNIT}.state_r.actual_offset", pyads.PLCTYPE_DINT)
+    assert abs(offset_01um * 1e4 - second) < 0.2e8                  # 0.1 µm vs 0.01 nm: same offset (±0.2 mm drift)
+
+
+def test_read_only_objects_and_state_r_refuse_writes(cnc, plc):
+    with pytest.raises(pyads.ADSError) as exc:
+        cnc.write(IG, 0x13105, 0, pyads.PLCTYPE_UDINT)              # DIST_CTRL::state
+    assert exc.value.err_code == 0x704
+    with pytest.raises(pyads.ADSError) as exc:
+        plc.write_by_name(f"{UNIT}.state_r.actual_state", 0, pyads.PLCTYPE_UDINT)
+    assert exc.value.err_code == 0x704
+    with pytest.raises(pyads.ADSError) as exc:
+        cnc.read(IG, 0x13999, pyads.PLCTYPE_LREAL)
+    assert exc.value.err_code == 0x703
+
+
+def test_ve_variables_by_name_and_a_sum_read(plc, served):
+    assert plc.read_by_name("V.E.GAIN", pyads.PLCTYPE_LREAL) == 2.5
+    plc.write_by_name("V.E.GAIN", 3.0, pyads.PLCTYPE_LREAL)
+    assert served.machine.variables["V.E.GAIN"] == 3.0
+    values = plc.read_list_by_name(["V.E.GAIN", f"{UNIT}.state_r.actual_state", f"{UNIT}.state_r.command_source"])
+    assert values["V.E.GAIN"] == 3.0 and values[f"{UNIT}.state_r.command_source"] == 1
+
+
+def test_the_cycle_kept_running_at_its_pace(served):
+    stats = served.loop.stats.summary()
+    assert stats["cycles"] > 200 and stats["resyncs"] == 0 and served.loop.error is None
