@@ -81,7 +81,10 @@ def asyncio_echo_rtt() -> float:
         srv = await asyncio.start_server(handle, "127.0.0.1", 0)
         box.append((srv.sockets[0].getsockname()[1], asyncio.get_running_loop(), srv))
         ready.set()
-        await srv.serve_forever()
+        try:
+            await srv.serve_forever()
+        except asyncio.CancelledError:
+            pass
 
     threading.Thread(target=lambda: asyncio.run(serve()), daemon=True).start()
     ready.wait()
