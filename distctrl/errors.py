@@ -37,6 +37,8 @@ class ErrorId(IntEnum):
     COMMAND_VALUE_OUT_OF_RANGE = 900005  # a programmed/commanded value outside its documented range
     OBJECT_READ_ONLY = 900006      # write to a CNC object that is not read/write
     SOURCE_CONFLICT = 900007       # command from NC while the PLC owns distance control, or vice versa
+    NC_RUNTIME = 900010            # NC program stopped at run time (undefined variable, value out of range)
+    KIN98_MAX_INCLINATION = 900020  # 3D: tool inclination above kinematic 98's HD4 (the program aborts)
 
 
 #: ID -> (severity, short text). Severity "error" puts the controller into ERROR, "warning" does not.
@@ -57,6 +59,8 @@ CATALOGUE: dict[int, tuple[str, str]] = {
     900005: ("error", "Commanded value outside its documented range"),
     900006: ("error", "CNC object is read-only"),
     900007: ("error", "Distance control is commanded by the other source (NC / PLC); command refused"),
+    900010: ("error", "NC program stopped at run time"),
+    900020: ("error", "Tool inclination exceeds the maximum angle of kinematic 98 (HD4, PARAM[3])"),
 }
 
 

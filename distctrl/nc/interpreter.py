@@ -15,11 +15,12 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from ..control.commands import Action, Command
+from ..errors import ErrorId
 from .program import ExprError, NcSyntaxError, Program
 
 #: a program that loops through this many blocks without motion in one cycle is stopped
 MAX_BLOCKS_PER_CYCLE = 10_000
-NC_RUNTIME_ERROR = 900010
+NC_RUNTIME_ERROR = int(ErrorId.NC_RUNTIME)    # 900010
 
 
 class Channel(Protocol):
