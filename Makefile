@@ -26,6 +26,8 @@ bench: $(STAMP)
 
 docs: $(STAMP)
 	$(PY) -m distctrl.params.docgen > docs/parameters.md
+	$(PY) -m distctrl.params.docgen --channel > docs/parameters-channel.md
+	$(PY) -m distctrl.objects.docgen > docs/objects.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis

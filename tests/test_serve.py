@@ -15,13 +15,16 @@ from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
 SCN = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
 IG = 0x120300
 UNIT = "gpAx[1].lr_mc_control.distance_control"
+# an address of our own: pyads' bundled AdsLib keeps one TCP connection per IP for the whole process,
+# and the one to 127.0.0.1 belongs to tests/ads (its server is gone when this module runs)
+HOST, NET_ID = "127.0.0.2", "127.0.0.2.1.1"
 
 
 def port_free(port: int) -> bool:
     with socket.socket() as s:
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
-            s.bind(("127.0.0.1", port))
+            s.bind((HOST, port))
         except OSError:
             return False
     return True
@@ -39,13 +42,13 @@ def served():
         "variables": {"GAIN": 2.5},
         # the surface "moves": the probe reading drifts by 0.2 mm/s from t = 0.3 s on
         "events": [{"t": 0.3, "sensor_fault": {"kind": "drift", "rate": 0.2}}]}, base_dir=SCN)
-    with ServedMachine(sc) as s:
+    with ServedMachine(sc, host=HOST, net_id=NET_ID) as s:
         yield s
 
 
 @pytest.fixture(scope="module")
 def cnc(served):
-    conn = pyads.Connection("127.0.0.1.1.1", 551, "127.0.0.1")
+    conn = pyads.Connection(NET_ID, 551, HOST)
     conn.open()
     yield conn
     conn.close()
@@ -53,7 +56,7 @@ def cnc(served):
 
 @pytest.fixture(scope="module")
 def plc(served):
-    conn = pyads.Connection("127.0.0.1.1.1", 851, "127.0.0.1")
+    conn = pyads.Connection(NET_ID, 851, HOST)
     conn.open()
     yield conn
     conn.close()

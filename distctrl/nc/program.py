@@ -1,4 +1,4 @@
-"""Data model of a parsed NC program (see docs/nc.md).
+"""Data model of a parsed NC program (see docs/nc.md and, for the 3D commands, docs/nc-3d.md).
 
 The model is plain data: expressions stay unevaluated (:class:`Expr`) because V.E. variables
 only have values when the program runs. The interpreter evaluates them with a *lookup*, either a
@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Union
 
 from ..control.commands import Action, Command
+from ..control.commands3d import Command3D, CompensationMode
 from ..control.kinds import FilterType, SensorSource
 from ..errors import DistCtrlError
 
@@ -223,6 +224,8 @@ VALUE_RANGES: dict[str, ValueRange] = {
     "SMOOTH_FACT": ValueRange(0.0, 1.0, low_open=True),
     "KALMAN_SIGMA": ValueRange(1.0, 10000.0),
     "FG_F0": ValueRange(0.0, None),
+    # 3D only: sin² blend of activation/deactivation, in interpolator cycles (seeds/000 §12.2)
+    "FILTER_TIME": ValueRange(0, None, integer=True),
 }
 
 
@@ -242,7 +245,7 @@ def dist_ctrl_range_error(keyword: str, value: float) -> str | None:
 
 # ---------------------------------------------------------------- DIST_CTRL word
 
-DistCtrlValue = Union[Expr, FilterType, SensorSource, str, None]
+DistCtrlValue = Union[Expr, FilterType, SensorSource, CompensationMode, str, None]
 
 _FLOAT_FIELDS = {"SET_POS": "set_pos", "SET_DIST": "set_dist", "KP": "kp", "I_TN": "i_tn",
                  "D_TV": "d_tv", "FG_F0": "fg_f0", "SMOOTH_FACT": "smooth_fact",
@@ -348,11 +351,160 @@ class DistCtrlWord:
         return value
 
 
+# ---------------------------------------------------------------- #DIST CTRL (3D distance control)
+
+#: the 3D command's keywords (seeds/000 §12.2, seeds/001); the actions are ACTION_KEYWORDS
+FLAG_KEYWORDS_3D = ACTION_KEYWORDS + ("NO_MOVE", "SURFACE", "CONST_DIST", "WAIT")
+NUMBER_KEYWORDS_3D = NUMBER_KEYWORDS + ("FILTER_TIME",)
+NAME_KEYWORDS_3D = NAME_KEYWORDS + ("MODE", "DIRECTION")
+#: keywords that may be written before the brackets: "#DIST CTRL [WAIT] <action> [...]"
+OUTSIDE_KEYWORDS_3D = ("WAIT",) + ACTION_KEYWORDS
+
+_INT_FIELDS_3D = {**_INT_FIELDS, "FILTER_TIME": "filter_time"}
+
+
+@dataclass(frozen=True, slots=True)
+class DistCtrl3DWord:
+    """``#DIST CTRL ...``: the 3D distance-control command, keywords in source order (validated).
+
+    ``args`` holds every keyword, those written before the brackets first; ``outside`` names the
+    keywords written before the brackets (``("WAIT", "OFF")`` for ``#DIST CTRL WAIT OFF``).
+    Values as in :class:`DistCtrlArg`; MODE is a :class:`CompensationMode`, DIRECTION the axis
+    letter, SENSOR_SOURCE the :class:`SensorSource` as written (DEFAULT stays DEFAULT here and
+    becomes VARIABLE in :meth:`to_command3d`). ``line``/``column`` locate ``#DIST``.
+    """
+
+    args: tuple[DistCtrlArg, ...] = ()
+    outside: tuple[str, ...] = ()
+    line: int = 0
+    column: int = 0
+
+    @property
+    def keywords(self) -> tuple[str, ...]:
+        return tuple(arg.keyword for arg in self.args)
+
+    def arg(self, keyword: str) -> DistCtrlArg | None:
+        for arg in self.args:
+            if arg.keyword == keyword:
+                return arg
+        return None
+
+    def has(self, keyword: str) -> bool:
+        return self.arg(keyword) is not None
+
+    @property
+    def wait(self) -> bool:
+        return self.has("WAIT")
+
+    @property
+    def action(self) -> Action:
+        """The action keyword (ON, DRYRUN, OFF, FREEZE, CHECK_POS, REF); none only sets values."""
+        for keyword in ACTION_KEYWORDS:
+            if self.has(keyword):
+                return Action[keyword]
+        return Action.NONE
+
+    def to_command3d(self, lookup: Lookup = no_variables, line: int | None = None, *,
+                     file: str | None = None) -> Command3D:
+        """Evaluate the values and build a :class:`~distctrl.control.commands3d.Command3D`.
+
+        ``line`` is the NC line recorded in the command (pass the block's line; defaults to the
+        line of ``#DIST``). Unknown variables, division by zero and values out of range raise
+        :class:`NcSyntaxError` at the keyword's position.
+        """
+        action = self.action
+        fields: dict[str, object] = {}
+        vals: list[float | None] = [None] * 5
+        for arg in self.args:
+            if isinstance(arg.value, Expr):
+                value = DistCtrlWord._evaluate(arg, lookup, file)
+                if arg.keyword.startswith("VAL"):
+                    vals[int(arg.keyword[3]) - 1] = value
+                elif arg.keyword in _INT_FIELDS_3D:
+                    fields[_INT_FIELDS_3D[arg.keyword]] = int(value)
+                else:
+                    fields[_FLOAT_FIELDS[arg.keyword]] = value
+            elif arg.keyword == "FILTER_TYPE":
+                fields["filter_type"] = arg.value
+            elif arg.keyword == "SENSOR_SOURCE":
+                # "If DEFAULT is selected as the sensor source, the CNC automatically sets to the
+                # VARIABLE sensor source internally" (seeds/000 §12.2)
+                fields["sensor_source"] = SensorSource.VARIABLE
+            elif arg.keyword == "SENSOR_VAR":
+                fields["sensor_var"] = arg.value
+            elif arg.keyword == "MODE":
+                fields["mode"] = arg.value
+            elif arg.keyword == "DIRECTION":
+                fields["direction"] = arg.value
+        if action == Action.REF:
+            fields["ref_position"] = 0.0   # as the axis command: the current reading is "sensor zero"
+        return Command3D(action=action, wait=self.wait, const_dist=self.has("CONST_DIST"),
+                         no_move=self.has("NO_MOVE"), vals=tuple(vals),
+                         line=self.line if line is None else line, **fields)
+
+
+# ---------------------------------------------------------------- kinematics commands
+
+#: kinds of :class:`KinematicsWord`
+KINEMATICS_KINDS = ("KIN", "TRAFO", "CS", "CHANNEL_INIT")
+#: kinematic 98 (minimum-distance monitoring) parameters V.G.KIN_STEP[i].ID[98].PARAM[j], j = 0..3:
+#: HD1 clamping-point offset (1e-4 mm), HD2 start angle, HD3 end angle, HD4 maximum angle (1e-4 °)
+KIN98_PARAM_COUNT = 4
+
+
+@dataclass(frozen=True, slots=True)
+class KinematicsWord:
+    """A kinematics command (its own block):
+
+    ============================  ======================================================
+    ``#KIN ID[9.98]``             ``kind="KIN"``, ``ids=(9, 98)`` (one ID per step)
+    ``#TRAFO ON`` / ``OFF``       ``kind="TRAFO"``, ``switch="ON"`` / ``"OFF"``
+    ``#TRAFO [9, 98]``            ``kind="TRAFO"``, ``switch="ON"``, ``ids=(9, 98)``
+    ``#CS ON [x, y, z, a, b, c]`` ``kind="CS"``, ``switch="ON"``, six ``values`` (mm, °)
+    ``#CS OFF``                   ``kind="CS"``, ``switch="OFF"``
+    ``#CHANNEL INIT``             ``kind="CHANNEL_INIT"``
+    ============================  ======================================================
+
+    ``#CS ON`` values: the offset vector x, y, z (mm) and the rotation angles a, b, c (°) about
+    X, Y, Z of the programming coordinate system; they stay expressions until run time.
+    """
+
+    kind: str
+    switch: str | None = None
+    ids: tuple[int, ...] = ()
+    values: tuple[Expr, ...] = ()
+    line: int = 0
+    column: int = 0
+
+    @property
+    def reinitialises_channel(self) -> bool:
+        """#CS, #TRAFO and #CHANNEL INIT re-initialise the channel position: error 51062 while
+        3D distance control is active (seeds/000 §12.4.5)."""
+        return self.kind in ("TRAFO", "CS", "CHANNEL_INIT")
+
+    def cs_frame(self, lookup: Lookup = no_variables, *, file: str | None = None) -> tuple[float, ...]:
+        """``#CS ON``: the six values evaluated (x, y, z in mm, a, b, c in degrees)."""
+        out = []
+        for expr in self.values:
+            try:
+                out.append(expr.evaluate(lookup))
+            except ExprError as exc:
+                raise NcSyntaxError(f"#CS: {exc}", file=file, line=self.line, column=self.column) from None
+        return tuple(out)
+
+
+def kin_param_var(step: int, kin_id: int, index: int) -> str:
+    """Name of a kinematic parameter variable: ``kin_param_var(1, 98, 2)`` ->
+    ``"V.G.KIN_STEP[1].ID[98].PARAM[2]"``."""
+    return f"V.G.KIN_STEP[{int(step)}].ID[{int(kin_id)}].PARAM[{int(index)}]"
+
+
 # ---------------------------------------------------------------- blocks and program
 
 @dataclass(frozen=True, slots=True)
 class Assignment:
-    """``V.E.NAME = expr``."""
+    """``V.E.NAME = expr``, ``V.G.WZ_AKT.L = expr`` (tool length, mm) or
+    ``V.G.KIN_STEP[i].ID[k].PARAM[j] = expr`` (kinematic parameter, 1e-4 mm / 1e-4 °)."""
 
     var: str
     value: Expr
@@ -368,6 +520,9 @@ class Block:
 
     Execution order within a block (for the interpreter): assignments first, in source order;
     then G codes, feed, axis values, DIST_CTRL commands, dwell, M functions.
+    ``dist_ctrl_3d`` (``#DIST CTRL``) and ``kinematics`` (``#KIN``, ``#TRAFO``, ``#CS``,
+    ``#CHANNEL INIT``) commands stand alone in their block, so such a block has exactly one of
+    them and nothing else.
     """
 
     line: int
@@ -379,6 +534,8 @@ class Block:
     dwell: Expr | None = None                                # s (#TIME)
     assignments: list[Assignment] = field(default_factory=list)
     dist_ctrl: list[DistCtrlWord] = field(default_factory=list)
+    dist_ctrl_3d: list[DistCtrl3DWord] = field(default_factory=list)
+    kinematics: list[KinematicsWord] = field(default_factory=list)
 
     @property
     def ends_program(self) -> bool:
@@ -387,7 +544,8 @@ class Block:
     @property
     def is_empty(self) -> bool:
         return not (self.g_codes or self.feed is not None or self.axes or self.m_codes
-                    or self.dwell is not None or self.assignments or self.dist_ctrl)
+                    or self.dwell is not None or self.assignments or self.dist_ctrl
+                    or self.dist_ctrl_3d or self.kinematics)
 
 
 @dataclass(slots=True)

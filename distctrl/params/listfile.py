@@ -3,14 +3,21 @@
 One ``key value`` pair per line; ``#`` starts a comment; blank lines are ignored. Keys are the
 documents' list keys (and the legacy/German aliases of their examples). Unknown keys, values of
 the wrong type and values outside the documented range are load errors naming the file, line,
-key, P-AXIS ID, the value and the allowed range. A key given twice: the last value counts (as in
-the kernel) and a warning is recorded, unless both values are equal.
+key, parameter ID (P-AXIS / P-CHAN), the value and the allowed range. A key given twice: the last
+value counts (as in the kernel) and a warning is recorded, unless both values are equal.
+
+The same reader serves every list kind: a :class:`ListFormat` says which table, which target
+dataclass and which value conversions to use. :data:`AXIS_LIST` (the default of
+:func:`parse_list_text` / :func:`load_list`) reads axis lists into ``AxisParameters``;
+``distctrl.params.channel.CHANNEL_LIST`` reads channel lists into ``ChannelParameters``.
 """
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, NamedTuple
 
 from ..control.kinds import FilterType
 from ..errors import ParameterError
@@ -23,11 +30,68 @@ _INT_RE = re.compile(r"^[+-]?\d+$")
 _FLOAT_RE = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
+class KeyProblem(NamedTuple):
+    """A known key written in a form the list kind does not allow (e.g. ``dist_ctrl[1].kp``)."""
+
+    message: str
+    allowed: str
+
+
+def _no_problem(key: str) -> tuple[str, KeyProblem | None]:
+    return canonical_key(key), None
+
+
+def _filter_type_name(spec: ParamSpec, text: str) -> object:
+    return FilterType.parse(text).name
+
+
+@dataclass(frozen=True)
+class ListFormat:
+    """One kind of parameter list: its table and how values become the target dataclass.
+
+    ``resolve_key`` maps a key as written to the table's key and may report a problem with the
+    form (an index that does not exist); ``parse_string`` turns a STRING value into its interface
+    value (raising ``ValueError`` for an unknown name); ``to_internal`` / ``to_interface`` convert
+    interface values (list units) to the target's fields and back. The target has a no-argument
+    constructor (the defaults) and ``replace(**fields)`` that validates.
+    """
+
+    name: str
+    specs: tuple[ParamSpec, ...]
+    target: type
+    to_internal: Callable[[ParamSpec, object], object]
+    to_interface: Callable[[ParamSpec, object], object]
+    parse_string: Callable[[ParamSpec, str], object] = _filter_type_name
+    resolve_key: Callable[[str], tuple[str, KeyProblem | None]] = _no_problem
+    ignored_keys: frozenset[str] = frozenset()
+    docs: str = "docs/parameters.md"
+    by_key: Mapping[str, ParamSpec] = field(default=None, repr=False)   # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.by_key is None:
+            table: dict[str, ParamSpec] = {}
+            for spec in self.specs:
+                table[spec.key] = spec
+                for alias in spec.aliases:
+                    table[alias] = spec
+            object.__setattr__(self, "by_key", table)
+
+    def spec_of_field(self, field_name: str) -> ParamSpec:
+        return next(s for s in self.specs if s.field == field_name)
+
+
+AXIS_LIST = ListFormat("axis", AXIS_PARAMETERS, AxisParameters, to_internal_value, to_interface_value,
+                       ignored_keys=IGNORED_KEYS, docs="docs/parameters.md", by_key=BY_KEY)
+
+
 @dataclass
 class ParameterList:
-    """A loaded list: the validated parameters plus where each value came from."""
+    """A loaded list: the validated parameters plus where each value came from.
 
-    params: AxisParameters
+    ``params`` is an ``AxisParameters`` for axis lists, a ``ChannelParameters`` for channel lists.
+    """
+
+    params: Any
     source: str
     lines: dict[str, int] = field(default_factory=dict)      # list key -> line of its (last) value
     warnings: list[str] = field(default_factory=list)
@@ -40,7 +104,8 @@ def canonical_key(key: str) -> str:
     return key
 
 
-def parse_value(spec: ParamSpec, text: str, *, file: str, line: int, key: str):
+def parse_value(spec: ParamSpec, text: str, *, file: str, line: int, key: str,
+                parse_string: Callable[[ParamSpec, str], object] = _filter_type_name):
     """Convert the list text of one value to the interface value, checking type and range."""
     def fail(why: str, value: object = text) -> ParameterError:
         return ParameterError(f"{key} ({spec.id}) = {text!r}: {why}; allowed: {spec.range_text()}",
@@ -49,7 +114,7 @@ def parse_value(spec: ParamSpec, text: str, *, file: str, line: int, key: str):
 
     if spec.type == "STRING":
         try:
-            value: object = FilterType.parse(text).name
+            value: object = parse_string(spec, text)
         except ValueError:
             raise fail("unknown name") from None
         return value
@@ -66,8 +131,13 @@ def parse_value(spec: ParamSpec, text: str, *, file: str, line: int, key: str):
     return value
 
 
-def parse_list_text(text: str, source: str = "<string>", base: AxisParameters | None = None) -> ParameterList:
-    """Parse list text into validated AxisParameters (unlisted keys keep ``base`` or the defaults)."""
+def parse_list_text(text: str, source: str = "<string>", base: Any = None, *,
+                    fmt: ListFormat = AXIS_LIST) -> ParameterList:
+    """Parse list text into validated parameters (unlisted keys keep ``base`` or the defaults).
+
+    ``fmt`` selects the list kind: :data:`AXIS_LIST` (default, ``AxisParameters``) or
+    ``distctrl.params.channel.CHANNEL_LIST`` (``ChannelParameters``).
+    """
     values: dict[str, object] = {}
     lines: dict[str, int] = {}
     warnings: list[str] = []
@@ -76,13 +146,17 @@ def parse_list_text(text: str, source: str = "<string>", base: AxisParameters | 
         if not body:
             continue
         parts = body.split()
-        key = canonical_key(parts[0])
-        if key in IGNORED_KEYS:
+        key, problem = fmt.resolve_key(parts[0])
+        if key in fmt.ignored_keys:
             continue
-        spec = BY_KEY.get(key)
+        spec = fmt.by_key.get(key)
         if spec is None:
-            raise ParameterError(f"unknown parameter key {parts[0]!r}", file=source, line=lineno, key=parts[0],
-                                 allowed="a key of docs/parameters.md")
+            raise ParameterError(f"unknown parameter key {parts[0]!r}", file=source, line=lineno,
+                                 key=parts[0], allowed=f"a key of {fmt.docs}")
+        if problem is not None:
+            raise ParameterError(f"{parts[0]} ({spec.id}): {problem.message}; allowed: {problem.allowed}",
+                                 file=source, line=lineno, key=parts[0], param_id=spec.id,
+                                 value=parts[1] if len(parts) > 1 else None, allowed=problem.allowed)
         if len(parts) < 2:
             raise ParameterError(f"{parts[0]} ({spec.id}): missing value; allowed: {spec.range_text()}",
                                  file=source, line=lineno, key=parts[0], param_id=spec.id,
@@ -91,7 +165,8 @@ def parse_list_text(text: str, source: str = "<string>", base: AxisParameters | 
             raise ParameterError(f"{parts[0]} ({spec.id}): unexpected text after the value: "
                                  f"{' '.join(parts[2:])!r} (comments start with '#')",
                                  file=source, line=lineno, key=parts[0], param_id=spec.id)
-        value = parse_value(spec, parts[1], file=source, line=lineno, key=parts[0])
+        value = parse_value(spec, parts[1], file=source, line=lineno, key=parts[0],
+                            parse_string=fmt.parse_string)
         if spec.field in values and values[spec.field] != value:
             warnings.append(f"{source}:{lineno}: {parts[0]} ({spec.id}) given again "
                             f"(line {lines[spec.key]}); the last value {parts[1]} counts")
@@ -99,10 +174,9 @@ def parse_list_text(text: str, source: str = "<string>", base: AxisParameters | 
         lines[spec.key] = lineno
     fields = {}
     for field_name, value in values.items():
-        spec = next(s for s in AXIS_PARAMETERS if s.field == field_name)
-        fields[field_name] = to_internal_value(spec, value)
+        fields[field_name] = fmt.to_internal(fmt.spec_of_field(field_name), value)
     try:
-        params = (base or AxisParameters()).replace(**fields)
+        params = (base if base is not None else fmt.target()).replace(**fields)
     except ParameterError as exc:
         line = None
         if exc.key:
@@ -112,8 +186,8 @@ def parse_list_text(text: str, source: str = "<string>", base: AxisParameters | 
     return ParameterList(params, source, lines, warnings)
 
 
-def load_list(path: str | Path, base: AxisParameters | None = None) -> ParameterList:
-    """Load an axis parameter list file (kernel format)."""
+def load_list(path: str | Path, base: Any = None, *, fmt: ListFormat = AXIS_LIST) -> ParameterList:
+    """Load a parameter list file (kernel format); an axis list unless ``fmt`` says otherwise."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
@@ -121,16 +195,17 @@ def load_list(path: str | Path, base: AxisParameters | None = None) -> Parameter
         text = p.read_text(encoding="latin-1")
     except OSError as exc:
         raise ParameterError(f"cannot read parameter list: {exc.strerror}", file=str(p)) from None
-    return parse_list_text(text, str(p), base)
+    return parse_list_text(text, str(p), base, fmt=fmt)
 
 
-def format_list(params: AxisParameters, *, only_changed: bool = False, comments: bool = True) -> str:
+def format_list(params: Any, *, only_changed: bool = False, comments: bool = True,
+                fmt: ListFormat = AXIS_LIST) -> str:
     """Write parameters in the kernel list format (loadable again by :func:`parse_list_text`)."""
-    default = AxisParameters().to_interface()
+    defaults = fmt.target()
     rows = []
-    for spec in AXIS_PARAMETERS:
-        value = to_interface_value(spec, getattr(params, spec.field))
-        if only_changed and value == default[spec.key]:
+    for spec in fmt.specs:
+        value = fmt.to_interface(spec, getattr(params, spec.field))
+        if only_changed and value == fmt.to_interface(spec, getattr(defaults, spec.field)):
             continue
         text = f"{value:.12g}" if isinstance(value, float) else str(value)
         rows.append(f"{spec.key:<44} {text:<14}" + (f" # {spec.id} [{spec.unit}] {spec.description}"
@@ -138,4 +213,5 @@ def format_list(params: AxisParameters, *, only_changed: bool = False, comments:
     return "\n".join(r.rstrip() for r in rows) + "\n"
 
 
-__all__ = ["ParameterList", "parse_list_text", "load_list", "format_list", "check_internal"]
+__all__ = ["ParameterList", "ListFormat", "KeyProblem", "AXIS_LIST", "parse_list_text", "load_list",
+           "format_list", "parse_value", "canonical_key", "check_internal"]

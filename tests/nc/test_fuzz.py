@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from distctrl.nc import NcSyntaxError, Program, parse_program
 
 EXAMPLE_DIR = Path(__file__).resolve().parents[2] / "examples"
-EXAMPLES = [path.read_text() for path in sorted(EXAMPLE_DIR.glob("dist_*.nc"))]
+EXAMPLES = [path.read_text() for path in sorted(EXAMPLE_DIR.glob("dist*.nc"))]
 #: characters that matter to the grammar, so mutations reach deep into it
 NC_ALPHABET = "NGXYZABCFM#TIME%[]()=+-*/.;\\\n 0123456789eE_VDISTCRLONFK"
 #: generous bound (inputs take milliseconds): catches runaway behaviour, not a busy CI machine

@@ -172,7 +172,7 @@ def test_assignments_with_expressions():
     ("X[(1+2]", 1, 7, "')'"),
     ("X[1/0]", 1, 1, "division by zero"),
     ("X1e999", 1, 2, "too large"),
-    ("V.G.WZ_AKT.L = 3", 1, 1, "read-only"),
+    ("V.G.WZ_AKT.L = -3", 1, 1, "expected a tool length >= 0 mm"),
     ("V.E.A 3", 1, 7, "expected '=' after V.E.A"),
     ("V.X.A=3", 1, 1, "got 'V.X.A'"),
     ("N10 X1 N20", 1, 8, "got 'N20'"),
