@@ -7,7 +7,8 @@ lock, so every request sees one consistent cycle):
   offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md). Writes to the read/write objects are queued
   into the axis's controller and adopted on the next INACTIVE→active or FREEZE→active transition.
 * AMS port 851 (PLC): symbols by name — every field of each axis's HLI DistanceControl control unit
-  (``gpAx[i].lr_mc_control.distance_control.command_w.transition`` …, docs/plc.md) and the V.E.
+  (``gpAx[i].lr_mc_control.distance_control.command_w.transition`` …, docs/plc.md), the channel's
+  3D status (``gpCh[1].bahn_state.virt_tool_length_r``, ``inclination_r``) and the V.E.
   variables (``V.E.NAME``, LREAL). ``state_r`` is read-only; ``command_w`` is locked while the
   semaphore is TRUE (ADS 0x704). Symbols live in index group 0x4020 so that sum commands work.
 """
@@ -24,7 +25,7 @@ from .ads.protocol import ADST_REAL64
 from .objects.registry import (INDEX_GROUP, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
                                read_bytes, write_bytes)
 from .plc.hli import SemaphoreBusyError
-from .plc.symbols import hli_symbols
+from .plc.symbols import channel_status_symbols, hli_symbols
 
 log = logging.getLogger("distctrl.serve")
 
@@ -89,6 +90,7 @@ class PlcDevice:
         self.specs: dict[str, object] = {}
         for i, n in enumerate(machine.axis_names):
             self.specs.update(hli_symbols(i + 1, machine.hli[n]))
+        self.specs.update(channel_status_symbols(1, machine.channel_status))
         for name in sorted(machine.variables):
             if name.startswith("V.E."):
                 self.specs[name] = _variable_symbol(machine.variables, name)

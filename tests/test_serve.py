@@ -136,6 +136,15 @@ def test_ve_variables_by_name_and_a_sum_read(plc, served):
     assert values["V.E.GAIN"] == 3.0 and values[f"{UNIT}.state_r.command_source"] == 1
 
 
+def test_channel_3d_status_symbols_are_served_read_only(plc):
+    names = {s.name for s in plc.get_all_symbols()}
+    for leaf in ("virt_tool_length_r", "inclination_r"):
+        name = next(n for n in names if n.endswith(f"bahn_state.{leaf}"))
+        assert plc.read_by_name(name, pyads.PLCTYPE_DINT) == 0
+        with pytest.raises(pyads.ADSError):
+            plc.write_by_name(name, 1, pyads.PLCTYPE_DINT)
+
+
 def test_the_cycle_kept_running_at_its_pace(served):
     stats = served.loop.stats.summary()
     assert stats["cycles"] > 200 and stats["resyncs"] == 0 and served.loop.error is None

@@ -22,7 +22,7 @@ from ..control import (Action, AxisDistanceController, Command, CycleInput, Cycl
 from ..errors import ErrorEvent
 from ..nc.interpreter import NcInterpreter
 from ..nc.program import Program
-from ..plc.hli import DistanceControlUnit
+from ..plc.hli import ChannelDistanceStatus, DistanceControlUnit
 from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
 from .sensors import DistanceSensor, EncoderProbe, Fault
@@ -51,6 +51,9 @@ class Machine:
         self.outputs = {n: CycleOutput() for n in axes}
         #: the HLI DistanceControl control unit of each axis (gpAx[i]^.lr_mc_control.distance_control)
         self.hli = {n: DistanceControlUnit(axis_index=i + 1) for i, n in enumerate(axes)}
+        #: the channel's 3D status (gpCh[1]^.bahn_state: virt_tool_length_r, inclination_r); filled by
+        #: the 3D distance control, 0 for the axis variant
+        self.channel_status = ChannelDistanceStatus()
         #: a PLC program: called every cycle before the CNC consumes the control units
         self.plc_program = plc_program
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
