@@ -28,6 +28,8 @@ docs: $(STAMP)
 	$(PY) -m distctrl.params.docgen > docs/parameters.md
 	$(PY) -m distctrl.params.docgen --channel > docs/parameters-channel.md
 	$(PY) -m distctrl.objects.docgen > docs/objects.md
+	$(PY) -m distctrl.objects.channel3d > docs/objects-3d.md
+	$(PY) -m distctrl.errors3d > docs/errors-3d.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis

@@ -165,6 +165,36 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
 
 
 @main.command()
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("--seconds", default=1.0, show_default=True, help="Run the scenario this long first.")
+@click.option("--axis", "axis_filter", help="Only this axis (name).")
+def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
+    """The diagnosis block of distance control (seeds/000 Fig. 56 layout) after running SCENARIO
+    for --seconds: parameters in use, state, set values, offset, sensor, filter, limits, last error."""
+    from .diag import format_diag_axis
+    from .sim.machine import Machine
+    from .sim.runner import load_program
+    from .sim.scenario import load_scenario
+
+    try:
+        sc = load_scenario(scenario)
+        machine = Machine(sc, load_program(sc))
+        for _ in range(int(round(seconds / sc.cycle_time))):
+            machine.step()
+    except DistCtrlError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(1)
+    axes = [n for n in machine.dc_axes if axis_filter in (None, n)]
+    if not axes:
+        click.echo(f"error: no distance-controlled axis {axis_filter or ''}".rstrip(), err=True)
+        sys.exit(1)
+    for n in axes:
+        events = [ev for _, ev in machine.events]
+        click.echo(format_diag_axis(machine.controllers[n], machine.outputs[n], n,
+                                    axis_index=machine.axis_names.index(n) + 1, events=events))
+
+
+@main.command()
 def demo() -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, with a summary table."""
     from .demo import main as run_demo

@@ -53,3 +53,11 @@ def test_objects_without_scenario_and_unknown_axis():
     assert res.exit_code == 0 and "0x13106" in res.output
     res = CliRunner().invoke(main, ["objects", "--axis", "Q"])
     assert res.exit_code == 1
+
+
+def test_diag_prints_the_fig_56_block_for_the_axis():
+    res = CliRunner().invoke(main, ["diag", str(ROOT / "examples" / "scenarios" / "dist_1.toml"), "--seconds", "1"])
+    assert res.exit_code == 0, res.output
+    for field in ("Distance Control:", "zstd: ACTIVE (2)", "sollw: 30.000000 [mm]", "Dist-Ctrl Interface:",
+                  "cmd_offset:"):
+        assert field in res.output

@@ -252,18 +252,22 @@ class AxisDistanceController:
         e = 0.0
         u = 0.0
         i_cand = st.integral
+        set_dist = st.set_dist
+        scale = inp.set_distance_scale
+        if scale != 1.0 and -_HUGE < scale < _HUGE:
+            set_dist = set_dist * scale                 # 3D: the orthogonal set distance (SPEC §11)
         if running:
             if mode is _SET_POS:
                 target_dev = filtered - st.set_pos
                 e = target_dev - o
                 m = filtered
             elif both:
-                target_dev = (prog + o - filtered) - st.set_dist
-                e = (filtered + st.set_dist - prog) - o
+                target_dev = (prog + o - filtered) - set_dist
+                e = (filtered + set_dist - prog) - o
                 m = filtered
             else:
-                target_dev = filtered - st.set_dist
-                e = st.set_dist - filtered
+                target_dev = filtered - set_dist
+                e = set_dist - filtered
                 m = -filtered
             u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
             st.m_prev = m
@@ -336,7 +340,7 @@ class AxisDistanceController:
         out.command_position = prog + o_new + absorbed
         out.absorbed_offset = absorbed
         out.set_pos = st.set_pos if state != _INACTIVE or st.programmed_set_pos is None else st.programmed_set_pos
-        out.set_distance = st.set_dist if state != _INACTIVE or st.programmed_set_dist is None \
+        out.set_distance = set_dist if state != _INACTIVE or st.programmed_set_dist is None \
             else st.programmed_set_dist
         out.target_deviation = target_dev
         out.delta_deviation_pre_limiter = u

@@ -34,6 +34,8 @@ class CycleInput:
     feed_hold: bool = False
     cyclic_set_pos: float | None = None   # PLC CyclicCommand.D_Position, mm (PLC-commanded only)
     cyclic_set_dist: float | None = None  # PLC CyclicCommand.D_Distance, mm (PLC-commanded only)
+    set_distance_scale: float = 1.0    # CONST_DIST: the set distance in use is SET_DIST x this (3D: cos θ,
+                                       # times the kinematic-98 extension: SPEC §11); 1 for the axis variant
     nc_line: int | None = None         # NC line being executed, for error reports
     commands: list = field(default_factory=list)
 

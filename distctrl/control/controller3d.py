@@ -1,0 +1,216 @@
+"""3D (channel-specific) distance control on the shared cycle core (seeds/000 ch. 12, SPEC §11).
+
+One law, not a copy: the channel controller owns an :class:`AxisDistanceController` and runs it on
+*orthogonal* quantities — the PLC supplies the orthogonal distance ``d`` of the tool clamping point
+(laser exit) from the surface (seeds/000 §12.3), the set distance in use is
+``SET_DIST · cos θ`` (times kinematic 98's extension Lv/L, SPEC §11), and the core's offset ``o`` is
+the orthogonal compensation wanted. This layer then superimposes it along the MODE's direction
+``e`` (ACS/MCS: machine Z, PCS: the programmed Z of an active #CS, ECS: the tool direction u):
+the motion ``δ·e`` with ``δ = o / e_z`` changes the orthogonal distance by exactly ``o``
+(SPEC §11: a compensation δ along the tool direction changes it by δ·cos θ). MODE=OFF computes the
+offset without superimposing it.
+
+Additional rules of the 3D variant: a_max must be > 0 (315001 at select); MODE may not change while
+active (51064); ECS needs kinematic 98 active; FILTER_TIME > 0 blends activation and deactivation
+with sin²(π/2·k/N); reset and program end keep the current offset as a static offset and sensor
+changes no longer act (seeds/000 §12.4.4). Errors of the core are reported with their 3D IDs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..errors import ErrorEvent
+from ..errors3d import event_to_3d, make_event_3d
+from ..params.channel import ChannelParameters
+from .commands import Action, Command
+from .commands3d import Command3D, CompensationMode
+from .controller import AxisDistanceController
+from .cycle_io import CycleInput, CycleOutput, Result
+from .kinds import SensorSource
+from .states import HliState
+
+_Z = (0.0, 0.0, 1.0)
+_RUNNING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST), int(HliState.DRYRUN_SETPOS),
+            int(HliState.DRYRUN_CONST_DIST), int(HliState.FREEZE), int(HliState.TURNING_OFF),
+            int(HliState.ERROR))
+#: |e_z| below this: the direction is (nearly) parallel to the surface, no orthogonal compensation
+_MIN_EZ = 1e-3
+
+
+@dataclass(slots=True)
+class Cycle3DInput:
+    """Per cycle, from the channel (mm, rad)."""
+
+    programmed_z: float = 0.0               # programmed height of the clamping point (machine Z), mm
+    actual_z: float = 0.0                   # actual height of the clamping point, mm
+    sensor_distance: float = 0.0            # the V.E. sensor variable: orthogonal distance, mm
+    tool_direction: tuple = _Z              # actual unit tool direction u (from the head's angles)
+    extension: float = 1.0                  # kinematic 98: virtual / real tool length (1 = none)
+    cs_z_axis: tuple = _Z                   # programmed Z of the active #CS, in machine coordinates
+    kin98_active: bool = False              # #KIN ID[..98] and #TRAFO ON
+    override: float = 1.0
+    feed_hold: bool = False
+    nc_line: int | None = None
+    commands: list = field(default_factory=list)   # Command3D values, consumed
+
+
+@dataclass(slots=True)
+class Cycle3DOutput:
+    """What the channel superimposes, and the values behind the 3D objects and status."""
+
+    core: CycleOutput = field(default_factory=CycleOutput)   # the law's values (orthogonal, mm)
+    mode: int = 0                           # CompensationMode
+    direction: tuple = _Z                   # unit compensation direction e
+    delta: float = 0.0                      # compensation along e, mm (weighted by FILTER_TIME)
+    compensation: tuple = (0.0, 0.0, 0.0)   # δ·e in machine coordinates, mm (0 for MODE=OFF)
+    inclination: float = 0.0                # θ, rad
+    orthogonal_set_distance: float = 0.0    # SET_DIST · cos θ · extension, mm
+    blend: float = 1.0                      # FILTER_TIME weight 0..1
+    static: bool = False                    # reset / program end: the offset is kept, sensor ignored
+    events: list = field(default_factory=list)
+
+
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+class ChannelDistanceController:
+    """The 3D distance control of one channel (one instance per channel, seeds/000 §12.8.1)."""
+
+    def __init__(self, params: ChannelParameters, cycle_time: float = 0.001):
+        self.params = params
+        self.core = AxisDistanceController(params.to_axis_parameters(), cycle_time)
+        self.T = cycle_time
+        self.mode = CompensationMode.OFF
+        self.direction_axis = "Z"
+        self.filter_time = 0
+        self.blend_k = 0                    # cycles into the current blend
+        self.blending_in = False
+        self.static = False                 # reset / program end: offset kept, no sensor changes
+        self.static_delta = 0.0
+        self._kin98_active = False
+        self._last_delta = 0.0                # the compensation superimposed in the last cycle, mm
+        self._core_in = CycleInput()
+        self._core_in.commands = []
+        # the 3D variant's default sensor source is the V.E. variable (SPEC §2)
+        self._core_in.commands.append(Command(sensor_source=SensorSource.VARIABLE))
+
+    def update(self, inp: Cycle3DInput, out: Cycle3DOutput) -> Result:
+        core_in = self._core_in
+        events: list[ErrorEvent] = []
+        cycle = self.core.state.cycle + 1
+        for cmd in inp.commands:
+            self._apply(cmd, events, cycle)
+        inp.commands.clear()
+        u = inp.tool_direction
+        cos_theta = max(-1.0, min(1.0, u[2]))
+        theta = math.acos(cos_theta)
+        scale = cos_theta * inp.extension
+        core_in.programmed_position = inp.programmed_z
+        if self.mode == CompensationMode.OFF:
+            # computed, not superimposed: the law sees the plant as if its offset were applied, so
+            # the computed offset is the one that would be needed (and an open loop cannot run away)
+            o_prev = out.core.offset
+            core_in.actual_position = inp.actual_z + o_prev
+            core_in.sensor_variable = inp.sensor_distance + o_prev
+        else:
+            core_in.actual_position = inp.actual_z
+            core_in.sensor_variable = inp.sensor_distance
+        core_in.set_distance_scale = scale
+        core_in.override = inp.override
+        core_in.feed_hold = inp.feed_hold
+        core_in.nc_line = inp.nc_line
+        if self.static:
+            core_in.override = 0.0                       # sensor changes no longer act: hold
+        result = self.core.update(core_in, out.core)
+        for ev in out.core.events:
+            events.append(event_to_3d(ev))
+        state = out.core.hli_state
+        # the compensation direction of the MODE
+        mode = self.mode
+        if mode == CompensationMode.ECS:
+            e = u
+        elif mode == CompensationMode.PCS:
+            e = inp.cs_z_axis
+        else:
+            e = _Z                                       # ACS / MCS (DIRECTION=Z); OFF: computed only
+        e_z = _dot(e, _Z)
+        o = out.core.offset
+        delta = o / e_z if abs(e_z) >= _MIN_EZ else 0.0
+        # FILTER_TIME: sin² blend of activation (deactivation runs out within the limits)
+        w = 1.0
+        if self.filter_time > 0 and self.blending_in:
+            self.blend_k += 1
+            w = math.sin(0.5 * math.pi * min(1.0, self.blend_k / self.filter_time)) ** 2
+            if self.blend_k >= self.filter_time:
+                self.blending_in = False
+        if state == int(HliState.INACTIVE) and not self.static:
+            w = 1.0
+            self.blending_in = False
+        delta *= w
+        if self.static:
+            delta = self.static_delta
+        self._last_delta = delta
+        out.mode = int(mode)
+        out.direction = tuple(e)
+        out.delta = delta
+        out.compensation = (0.0, 0.0, 0.0) if mode == CompensationMode.OFF else \
+            (delta * e[0], delta * e[1], delta * e[2])
+        out.inclination = theta
+        out.orthogonal_set_distance = out.core.set_distance
+        out.blend = w
+        out.static = self.static
+        out.events = events
+        if any(ev.severity == "error" for ev in events):
+            return Result.ERROR
+        return Result.WARNING if events else result
+
+    # ------------------------------------------------------------------ commands
+    def _apply(self, cmd: Command3D, events: list, cycle: int) -> None:
+        core_cmds = self._core_in.commands
+        running = self.core.state.hli_state != HliState.INACTIVE
+        if cmd.action in (Action.RESET, Action.PROGRAM_END):
+            # seeds/000 §12.4.4: the offset stays as a static offset, sensor changes no longer act
+            if running and not self.static:
+                self.static = True
+                self.static_delta = self._current_delta()
+            core_cmds.append(Command(cmd.action, line=cmd.line))
+            return
+        if cmd.mode is not None and cmd.mode != self.mode:
+            if running:
+                events.append(make_event_3d(51064, cycle, cmd.line, f"{self.mode.name} -> {cmd.mode.name}"))
+                return
+            self.mode = cmd.mode
+        if cmd.direction is not None:
+            if cmd.direction != "Z":
+                events.append(make_event_3d(310015, cycle, cmd.line,
+                                            f"DIRECTION={cmd.direction}: only Z is supported"))
+                return
+            self.direction_axis = cmd.direction
+        if cmd.filter_time is not None:
+            self.filter_time = int(cmd.filter_time)
+        if cmd.action in (Action.ON, Action.DRYRUN):
+            if self.params.a_max <= 0:
+                events.append(make_event_3d(315001, cycle, cmd.line,
+                                            "dist_ctrl[0].a_max (P-CHAN-00803) must be > 0"))
+                return
+            if self.mode == CompensationMode.ECS and not self._kin98_active:
+                events.append(make_event_3d(310015, cycle, cmd.line,
+                                            "MODE=ECS needs kinematic 98 active (#KIN ID[98], #TRAFO ON)"))
+                return
+            if not running:
+                self.static = False
+                self.blend_k = 0
+                self.blending_in = self.filter_time > 0
+        if cmd.action == Action.OFF:
+            self.static = False
+        core_cmds.append(cmd.core_command())
+
+    def set_kinematics(self, kin98_active: bool) -> None:
+        """The channel tells whether kinematic 98 is active (#KIN ID[..98] with #TRAFO ON)."""
+        self._kin98_active = bool(kin98_active)
+
+    def _current_delta(self) -> float:
+        return self._last_delta
+

@@ -1,0 +1,130 @@
+"""3D distance control on the shared core: MODE geometry, inclination, the 3D rules."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from distctrl.control import Action
+from distctrl.control.commands3d import Command3D, CompensationMode
+from distctrl.control.controller3d import ChannelDistanceController, Cycle3DInput, Cycle3DOutput
+from distctrl.params.channel import ChannelParameters
+
+M = CompensationMode
+
+
+def params(**kw) -> ChannelParameters:
+    base = dict(fct_3d_dist_ctrl=True, kp=0.5, v_max=100.0, a_max=20000.0, max_act_value_change=1e6, max_pos=50.0,
+                min_pos=-50.0, max_deviation=20.0)
+    base.update(kw)
+    return ChannelParameters(**base)
+
+
+class Loop:
+    """Clamping point above a horizontal surface; the compensation moves it by δ·e (ideal axes)."""
+
+    def __init__(self, p, *, z=41.0, surface=40.0, theta_deg=0.0, kin98=True, cs_tilt_deg=0.0):
+        self.ctrl = ChannelDistanceController(p, 0.001)
+        self.ctrl.set_kinematics(kin98)
+        self.z_prog, self.surface = z, surface
+        t = math.radians(theta_deg)
+        self.u = (0.0, -math.sin(t), math.cos(t))          # CA head, C = 0: u = (0, -sin A, cos A)
+        c = math.radians(cs_tilt_deg)
+        self.cs_z = (0.0, -math.sin(c), math.cos(c))
+        self.comp = (0.0, 0.0, 0.0)
+        self.out = Cycle3DOutput()
+
+    def cycle(self, *commands, n=1):
+        for k in range(n):
+            z = self.z_prog + self.comp[2]
+            inp = Cycle3DInput(programmed_z=self.z_prog, actual_z=z, sensor_distance=z - self.surface,
+                               tool_direction=self.u, cs_z_axis=self.cs_z, kin98_active=True,
+                               commands=list(commands) if k == 0 else [])
+            self.result = self.ctrl.update(inp, self.out)
+            self.comp = self.out.compensation
+        return self.out
+
+
+def test_acs_z_behaves_like_the_axis_variant():
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.ACS, direction="Z"))
+    out = lp.cycle(n=600)
+    assert out.delta == pytest.approx(0.5, abs=1e-6) and out.compensation == pytest.approx((0, 0, 0.5), abs=1e-6)
+    assert out.core.hli_state == 4
+
+
+@pytest.mark.parametrize("mode", [M.ECS, M.MCS, M.PCS])
+def test_orthogonal_set_distance_shrinks_with_inclination_in_every_mode(mode):
+    lp = Loop(params(), z=41.0, surface=40.0, theta_deg=30.0, cs_tilt_deg=30.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=2.0, mode=mode))
+    out = lp.cycle(n=1500)
+    z = lp.z_prog + lp.comp[2]
+    assert z - lp.surface == pytest.approx(2.0 * math.cos(math.radians(30)), abs=1e-6)   # SET_DIST·cos θ
+    assert out.orthogonal_set_distance == pytest.approx(2.0 * math.cos(math.radians(30)))
+    assert out.inclination == pytest.approx(math.radians(30))
+    o = out.core.offset
+    if mode == M.MCS:
+        assert out.compensation[:2] == (0.0, 0.0) and out.delta == pytest.approx(o)       # XY projection kept
+    else:
+        assert out.delta == pytest.approx(o / math.cos(math.radians(30)))               # δ·cos θ = o
+        direction = lp.u if mode == M.ECS else lp.cs_z
+        assert out.compensation == pytest.approx(tuple(out.delta * c for c in direction))
+
+
+def test_kinematic_98_extension_scales_the_set_distance():
+    lp = Loop(params(), z=41.0, surface=40.0, theta_deg=40.0)
+    inp_ext = 1.2
+    lp.ctrl.update(Cycle3DInput(programmed_z=41.0, actual_z=41.0, sensor_distance=1.0, tool_direction=lp.u,
+                                extension=inp_ext, commands=[Command3D(Action.ON, const_dist=True, set_dist=1.0,
+                                                                       mode=M.ECS)]), lp.out)
+    assert lp.out.orthogonal_set_distance == pytest.approx(math.cos(math.radians(40)) * 1.2)
+
+
+def test_mode_off_computes_but_does_not_superimpose():
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5))         # MODE default OFF
+    out = lp.cycle(n=800)
+    assert out.compensation == (0.0, 0.0, 0.0) and out.core.offset == pytest.approx(0.5, abs=1e-6)
+
+
+def test_mode_change_while_active_is_51064_and_a_max_zero_is_315001():
+    lp = Loop(params())
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS))
+    out = lp.cycle(Command3D(mode=M.ECS, line=40))
+    assert [(e.id, e.line) for e in out.events] == [(51064, 40)] and lp.ctrl.mode == M.MCS
+    lp2 = Loop(params(a_max=0.0))
+    out = lp2.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS, line=7))
+    assert [e.id for e in out.events] == [315001] and out.core.hli_state == 0
+
+
+def test_ecs_needs_kinematic_98():
+    lp = Loop(params(), kin98=False)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.ECS, line=3))
+    assert out.events and out.events[0].line == 3 and out.core.hli_state == 0
+
+
+def test_core_errors_carry_their_3d_ids():
+    lp = Loop(params(max_deviation=0.2))
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=2.0, mode=M.MCS))      # wants +1 mm
+    ids = {e.id for _ in range(2000) for e in lp.cycle().events}
+    assert 310017 in ids                                                          # 70331 in 3D
+
+
+def test_filter_time_blends_activation_with_sin2():
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS, filter_time=100))
+    weights = [lp.cycle().blend for _ in range(120)]
+    assert weights[0] == pytest.approx(math.sin(math.pi / 2 * 2 / 100) ** 2)
+    assert weights[48] == pytest.approx(0.5, abs=0.03) and weights[-1] == 1.0
+    assert all(b >= a for a, b in zip(weights, weights[1:]))
+
+
+def test_reset_and_program_end_keep_the_offset_static_and_ignore_the_sensor():
+    for action in (Action.RESET, Action.PROGRAM_END):
+        lp = Loop(params(), z=41.0, surface=40.0)
+        lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+        before = lp.cycle(n=500).delta
+        out = lp.cycle(Command3D(action))
+        lp.surface = 39.0                                   # sensor changes no longer act
+        after = [lp.cycle().delta for _ in range(200)]
+        assert out.static and all(d == pytest.approx(before, abs=1e-9) for d in after)
