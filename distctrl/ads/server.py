@@ -10,6 +10,13 @@ Threading: :meth:`AdsServer.start` runs an asyncio loop in a daemon thread. All 
 happen in that thread; if a ``lock`` was given, each request (a whole sum command included) is
 executed while holding it, so it sees the data of one complete simulation cycle.
 
+Transport: each connection is a low-level :class:`asyncio.BufferedProtocol` (no stream coroutine
+per connection): the socket is read into a fixed per-connection buffer, every complete frame is
+answered synchronously in ``buffer_updated`` and the answer is written straight to the transport
+(one send call in the usual case). Flow control: while more than 64 KiB of answers wait to be
+sent to a client (it does not read), the server neither parses further frames of that client nor
+reads from its socket, until the backlog has drained to 16 KiB.
+
 Robustness: a frame whose length is impossible (shorter than an AMS header, longer than
 ``max_frame``, or disagreeing with the AMS header's data length) closes only that connection;
 frames split over several TCP segments are reassembled; unknown command ids are answered with
@@ -48,6 +55,7 @@ from .protocol import (
     ADSIGRP_SYM_VALBYHND,
     ADSIGRP_SYM_VALBYNAME,
     ADSIGRP_SYM_VERSION,
+    AMS_HEADER,
     AMS_HEADER_SIZE,
     AMS_TCP_HEADER,
     AMS_TCP_HEADER_SIZE,
@@ -69,6 +77,7 @@ from .protocol import (
     READ_WRITE_REQ,
     RESULT_RES,
     SF_ADS_COMMAND,
+    SF_RESPONSE,
     STRING_TYPES,
     SUM_REQ,
     SUM_RW_REQ,
@@ -101,6 +110,23 @@ _SYMBOL_GROUPS = frozenset({
 })
 
 _CLOSE = object()  # sentinel: close this connection
+
+#: a response's AMS/TCP header and AMS header, packed at once
+_RESPONSE_HEAD = struct.Struct("<HI6sH6sHHHIII")
+_pack_response_head = _RESPONSE_HEAD.pack
+_unpack_ams_header = AMS_HEADER.unpack_from
+_unpack_tcp_header = AMS_TCP_HEADER.unpack_from
+_pack_read_res = READ_RES.pack
+_unpack_read_req = READ_REQ.unpack_from
+_READ_REQ_END = AMS_HEADER_SIZE + READ_REQ.size
+_MIN_AMS_FRAME = AMS_TCP_HEADER_SIZE + AMS_HEADER_SIZE
+_RESPONSE_FLAGS = SF_RESPONSE | SF_ADS_COMMAND
+#: per-connection output backlog (bytes handed to the transport but not yet sent) above which the
+#: server stops reading and answering that client, and below which it resumes
+_WRITE_HIGH = 64 * 1024
+_WRITE_LOW = 16 * 1024
+#: bytes read from a socket at once (into a fixed per-connection buffer)
+_RECV_CHUNK = 64 * 1024
 
 
 #: ADS transmission modes the server can serve (server cycle / server on change, and the "2"
@@ -135,7 +161,7 @@ class _Connection:
     __slots__ = ("_next_handle", "_next_notification", "frames", "handles", "max_handles",
                  "notifications", "notifier", "peer", "wake", "writer")
 
-    def __init__(self, peer: str, max_handles: int, writer: asyncio.StreamWriter | None = None) -> None:
+    def __init__(self, peer: str, max_handles: int, writer: _AdsProtocol | None = None) -> None:
         self.peer = peer
         self.writer = writer
         self.handles: dict[int, tuple[int, SymbolInfo]] = {}
@@ -174,6 +200,192 @@ class _Connection:
     def release(self, ams_port: int, handle: int) -> None:
         self.symbol(ams_port, handle)
         del self.handles[handle]
+
+
+class _AdsProtocol(asyncio.BufferedProtocol):
+    """One client connection on the event loop: AMS/TCP framing, answers and flow control.
+
+    The socket is read into a fixed per-connection buffer (``recv_into``). A plain ``Protocol``
+    gets a fresh ``bytes`` of up to 256 KiB per read, which glibc serves with mmap/mremap/munmap
+    (until some other free has raised its mmap threshold): about 14 µs per request here.
+    Complete frames are answered synchronously and in order from :meth:`buffer_updated`; the
+    usual case (a read holding exactly one request) bypasses the reassembly buffer. When the
+    transport's unsent backlog exceeds ``_WRITE_HIGH`` (the client does not read),
+    :meth:`pause_writing` stops both parsing and reading until :meth:`resume_writing`, so per
+    connection at most one partial frame plus one read chunk of input and ``_WRITE_HIGH`` plus one
+    answer of output are held (notification samples have their own bound, ``_NOTIFY_BACKLOG``).
+    The object also serves as the connection's ``writer`` (``write`` and ``transport``).
+    """
+
+    __slots__ = ("buf", "closing", "conn", "paused", "reason", "rx", "rxview", "server", "transport")
+
+    def __init__(self, server: AdsServer) -> None:
+        self.server = server
+        self.transport: asyncio.Transport | None = None
+        self.conn: _Connection | None = None
+        self.rx = self.rxview = None           # one read lands here (allocated once accepted)
+        self.buf = bytearray()                 # reassembly of frames split over reads
+        self.paused = False       # output backlog above the high-water mark: not reading/answering
+        self.closing = False      # closed or closing: ignore further input
+        self.reason = "closed by peer"
+
+    # --- asyncio callbacks ---------------------------------------------------------------------
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+        srv = self.server
+        peername = transport.get_extra_info("peername")
+        ip = str(peername[0]) if peername else "?"
+        if not srv.is_allowed(ip):
+            srv.refused += 1
+            srv.log.warning("refused %s", ip)
+            self.closing = True
+            transport.abort()
+            return
+        if srv.connections >= srv.max_connections:
+            srv.refused += 1
+            srv.log.warning("refused %s (more than %d connections)", ip, srv.max_connections)
+            self.closing = True
+            transport.abort()
+            return
+        transport.set_write_buffer_limits(_WRITE_HIGH, _WRITE_LOW)  # type: ignore[attr-defined]
+        self.rx = bytearray(_RECV_CHUNK)   # never resized: the transport may still hold a view of it
+        self.rxview = memoryview(self.rx)
+        srv._writers.add(self)
+        srv.connections += 1
+        srv.accepted += 1
+        self.conn = _Connection(f"{ip}:{peername[1]}" if peername else ip, srv.max_handles, self)
+        srv.log.info("connection from %s", self.conn.peer)
+
+    def get_buffer(self, sizehint: int) -> memoryview:
+        return self.rxview  # type: ignore[return-value]
+
+    def buffer_updated(self, nbytes: int) -> None:
+        if self.closing:
+            return
+        buf = self.buf
+        if not buf and not self.paused and nbytes >= _MIN_AMS_FRAME:
+            # fast path: the read is exactly one AMS frame (a client waiting for each answer)
+            reserved, length = _unpack_tcp_header(self.rx)  # type: ignore[arg-type]
+            if reserved == 0 and length == nbytes - AMS_TCP_HEADER_SIZE and length <= self.server.max_frame:
+                srv, conn = self.server, self.conn
+                srv.frames += 1
+                conn.frames += 1  # type: ignore[union-attr]
+                body = bytes(self.rxview[AMS_TCP_HEADER_SIZE:nbytes])
+                try:
+                    out = srv._handle_ams(conn, body)  # type: ignore[arg-type]
+                    if out is _CLOSE:
+                        self.close("malformed frame")
+                    elif out:
+                        self.transport.write(out)  # type: ignore[union-attr, arg-type]
+                except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
+                    self._internal_error()
+                return
+        buf += self.rxview[:nbytes]
+        self._process()
+
+    def eof_received(self) -> bool | None:
+        if self.buf and not self.closing:
+            self.reason = "peer closed mid-frame"
+        return None   # the transport closes itself (after sending what is pending)
+
+    def pause_writing(self) -> None:
+        self.paused = True
+        if not self.closing:
+            self.transport.pause_reading()  # type: ignore[union-attr]
+
+    def resume_writing(self) -> None:
+        self.paused = False
+        if self.closing:
+            return
+        self._process()   # frames received before the pause
+        if not self.paused and not self.closing:
+            self.transport.resume_reading()  # type: ignore[union-attr]
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        conn, srv = self.conn, self.server
+        if conn is None:          # refused
+            return
+        self.conn = None
+        if exc is not None and not self.closing:
+            self.reason = f"connection error: {exc}"
+        self.closing = True
+        self.buf = bytearray()
+        if conn.notifier is not None:
+            conn.notifier.cancel()
+            srv._tasks.discard(conn.notifier)
+        conn.notifications.clear()
+        conn.writer = None
+        srv.connections -= 1
+        srv._writers.discard(self)
+        srv.log.info("connection %s closed (%s, %d frames)", conn.peer, self.reason, conn.frames)
+
+    # --- framing -------------------------------------------------------------------------------
+    def _process(self) -> None:
+        """Answer the complete frames in the buffer (until paused or closed); check each AMS/TCP
+        header as soon as it is complete."""
+        buf, srv = self.buf, self.server
+        max_frame = srv.max_frame
+        pos, size = 0, len(buf)
+        try:
+            while size - pos >= AMS_TCP_HEADER_SIZE and not self.paused and not self.closing:
+                reserved, length = _unpack_tcp_header(buf, pos)
+                if length > max_frame:
+                    self._bad_frame(f"frame length {length} exceeds max_frame {max_frame}")
+                    return
+                if reserved == 0 and length < AMS_HEADER_SIZE:
+                    self._bad_frame(f"frame length {length} shorter than an AMS header")
+                    return
+                end = pos + AMS_TCP_HEADER_SIZE + length
+                if end > size:
+                    break
+                body = bytes(buf[pos + AMS_TCP_HEADER_SIZE:end])
+                pos = end
+                srv.frames += 1
+                self.conn.frames += 1  # type: ignore[union-attr]
+                if reserved == 0:
+                    out = srv._handle_ams(self.conn, body)  # type: ignore[arg-type]
+                else:
+                    out = srv._handle_tcp_command(self.conn, reserved, body)  # type: ignore[arg-type]
+                if out is _CLOSE:
+                    self.close("malformed frame")
+                elif out:
+                    self.transport.write(out)  # type: ignore[union-attr, arg-type]
+        except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
+            self._internal_error()
+        finally:
+            if self.closing:
+                buf.clear()
+            elif pos:
+                del buf[:pos]
+
+    def _bad_frame(self, reason: str) -> None:
+        self.server.log.warning("%s: %s; closing", self.conn.peer, reason)  # type: ignore[union-attr]
+        self.close(reason)
+
+    def _internal_error(self) -> None:
+        peer = self.conn.peer if self.conn is not None else "?"
+        self.server.log.exception("%s: unexpected error in the connection handler", peer)
+        self.close("internal error")
+
+    # --- output / closing ----------------------------------------------------------------------
+    def write(self, data: bytes) -> None:
+        """Send ``data`` (notification frames) unless the connection is closing."""
+        if not self.closing:
+            self.transport.write(data)  # type: ignore[union-attr]
+
+    def close(self, reason: str) -> None:
+        """Close after sending what is pending (like ``StreamWriter.close``)."""
+        if not self.closing:
+            self.closing = True
+            self.reason = reason
+            self.transport.close()  # type: ignore[union-attr]
+
+    def abort(self, reason: str) -> None:
+        """Close at once, dropping what is pending."""
+        if not self.closing:
+            self.reason = reason
+        self.closing = True
+        self.transport.abort()  # type: ignore[union-attr]
 
 
 class AdsServer:
@@ -240,7 +452,7 @@ class AdsServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._server: asyncio.AbstractServer | None = None
-        self._writers: set[asyncio.StreamWriter] = set()
+        self._writers: set[_AdsProtocol] = set()
         self._tasks: set[asyncio.Task] = set()
         self._next_dynamic_port = 32768
 
@@ -301,7 +513,8 @@ class AdsServer:
         loop.run_forever()
 
     async def _open(self) -> None:
-        self._server = await asyncio.start_server(self._serve, self.host, self.port, backlog=128)
+        loop = asyncio.get_running_loop()
+        self._server = await loop.create_server(lambda: _AdsProtocol(self), self.host, self.port, backlog=128)
         self.port = self._server.sockets[0].getsockname()[1]
 
     async def _close(self) -> None:
@@ -309,7 +522,8 @@ class AdsServer:
             self._server.close()
         for w in list(self._writers):
             with contextlib.suppress(Exception):
-                w.transport.abort()
+                w.abort("server stopping")
+        await asyncio.sleep(0)   # let the aborted connections run connection_lost
         tasks = [t for t in self._tasks if not t.done()]
         for t in tasks:
             t.cancel()
@@ -332,83 +546,6 @@ class AdsServer:
             addr = addr.ipv4_mapped
         return any(addr.version == net.version and addr in net for net in self.allowed)
 
-    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        peername = writer.get_extra_info("peername")
-        ip = str(peername[0]) if peername else "?"
-        if not self.is_allowed(ip):
-            self.refused += 1
-            self.log.warning("refused %s", ip)
-            writer.transport.abort()
-            return
-        if self.connections >= self.max_connections:
-            self.refused += 1
-            self.log.warning("refused %s (more than %d connections)", ip, self.max_connections)
-            writer.transport.abort()
-            return
-        task = asyncio.current_task()
-        if task is not None:
-            self._tasks.add(task)
-        self._writers.add(writer)
-        self.connections += 1
-        self.accepted += 1
-        conn = _Connection(f"{ip}:{peername[1]}" if peername else ip, self.max_handles, writer)
-        self.log.info("connection from %s", conn.peer)
-        reason = "closed by peer"
-        try:
-            while True:
-                try:
-                    head = await reader.readexactly(AMS_TCP_HEADER_SIZE)
-                except asyncio.IncompleteReadError as e:
-                    if e.partial:
-                        reason = "peer closed mid-frame"
-                    break
-                reserved, length = AMS_TCP_HEADER.unpack(head)
-                if length > self.max_frame:
-                    reason = f"frame length {length} exceeds max_frame {self.max_frame}"
-                    self.log.warning("%s: %s; closing", conn.peer, reason)
-                    break
-                if reserved == 0 and length < AMS_HEADER_SIZE:
-                    reason = f"frame length {length} shorter than an AMS header"
-                    self.log.warning("%s: %s; closing", conn.peer, reason)
-                    break
-                try:
-                    body = await reader.readexactly(length)
-                except asyncio.IncompleteReadError:
-                    reason = "peer closed mid-frame"
-                    break
-                self.frames += 1
-                conn.frames += 1
-                if reserved == 0:
-                    out = self._handle_ams(conn, body)
-                else:
-                    out = self._handle_tcp_command(conn, reserved, body)
-                if out is _CLOSE:
-                    reason = "malformed frame"
-                    break
-                if out:
-                    writer.write(out)
-                    await writer.drain()
-        except (ConnectionError, OSError) as e:
-            reason = f"connection error: {e}"
-        except asyncio.CancelledError:
-            reason = "server stopping"
-            raise
-        except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
-            reason = "internal error"
-            self.log.exception("%s: unexpected error in the connection handler", conn.peer)
-        finally:
-            if conn.notifier is not None:
-                conn.notifier.cancel()
-                self._tasks.discard(conn.notifier)
-            conn.notifications.clear()
-            self.connections -= 1
-            self._writers.discard(writer)
-            if task is not None:
-                self._tasks.discard(task)
-            with contextlib.suppress(Exception):
-                writer.close()
-            self.log.info("connection %s closed (%s, %d frames)", conn.peer, reason, conn.frames)
-
     def _handle_tcp_command(self, conn: _Connection, reserved: int, body: bytes) -> bytes | None:
         """AMS/TCP frames that are not AMS packets (router-client commands)."""
         if reserved == AMS_TCP_PORT_CONNECT:
@@ -424,44 +561,58 @@ class AdsServer:
     # AMS packets
     # ------------------------------------------------------------------------------------------
     def _handle_ams(self, conn: _Connection, body: bytes) -> bytes | None | object:
-        hdr = AmsHeader.unpack(body)
-        if hdr.length != len(body) - AMS_HEADER_SIZE:
-            self.log.warning("%s: AMS data length %d disagrees with frame length %d; closing",
-                             conn.peer, hdr.length, len(body) - AMS_HEADER_SIZE)
-            return _CLOSE
-        if hdr.is_response or hdr.command == CMD_DEVICE_NOTIFICATION:
-            return None  # nothing we asked for / needs no answer
-        if self.check_net_id and hdr.target_net_id != self._net_id:
-            self.log.debug("%s: target NetId %s is not ours (%s)", conn.peer,
-                           format_net_id(hdr.target_net_id), self.net_id)
-            return frame(hdr.response(0, E.ERR_TARGETMACHINENOTFOUND))
-        device = self.devices.get(hdr.target_port)
-        if device is None:
-            return frame(hdr.response(0, E.ERR_TARGETPORTNOTFOUND))
-        data = self._execute(conn, hdr, device, memoryview(body)[AMS_HEADER_SIZE:])
-        return frame(hdr.response(len(data)), data)
+        """Answer one AMS packet (``body``: AMS header and data, as ``bytes``): the complete
+        response frame, None (no answer) or ``_CLOSE``.
 
-    def _execute(self, conn: _Connection, hdr: AmsHeader, dev: AdsDevice, p: memoryview) -> bytes:
-        """Run one ADS command; always returns the response payload (errors included)."""
-        cmd = hdr.command
+        The header is kept as the plain tuple of :data:`~distctrl.ads.protocol.AMS_HEADER` fields
+        (no :class:`AmsHeader` object per request) and the response's AMS/TCP and AMS headers are
+        packed by one struct call."""
+        hdr = _unpack_ams_header(body)
+        (target_net_id, target_port, source_net_id, source_port, cmd, flags, length, _err,
+         invoke_id) = hdr
+        if length != len(body) - AMS_HEADER_SIZE:
+            self.log.warning("%s: AMS data length %d disagrees with frame length %d; closing",
+                             conn.peer, length, len(body) - AMS_HEADER_SIZE)
+            return _CLOSE
+        if flags & SF_RESPONSE or cmd == CMD_DEVICE_NOTIFICATION:
+            return None  # nothing we asked for / needs no answer
+        flags |= _RESPONSE_FLAGS
+        if self.check_net_id and target_net_id != self._net_id:
+            self.log.debug("%s: target NetId %s is not ours (%s)", conn.peer,
+                           format_net_id(target_net_id), self.net_id)
+            return _pack_response_head(0, AMS_HEADER_SIZE, source_net_id, source_port, target_net_id,
+                                       target_port, cmd, flags, 0, E.ERR_TARGETMACHINENOTFOUND, invoke_id)
+        device = self.devices.get(target_port)
+        if device is None:
+            return _pack_response_head(0, AMS_HEADER_SIZE, source_net_id, source_port, target_net_id,
+                                       target_port, cmd, flags, 0, E.ERR_TARGETPORTNOTFOUND, invoke_id)
+        data = self._execute(conn, hdr, device, body)
+        n = len(data)
+        return _pack_response_head(0, AMS_HEADER_SIZE + n, source_net_id, source_port, target_net_id,
+                                   target_port, cmd, flags, n, 0, invoke_id) + data
+
+    def _execute(self, conn: _Connection, hdr: tuple, dev: AdsDevice, body: bytes) -> bytes:
+        """Run one ADS command (``hdr``: the unpacked AMS header fields, ``body``: AMS header and
+        data); always returns the response payload (errors included)."""
         try:
             lock = self.lock
             if lock is None:
-                return self._command(conn, hdr, dev, p)
-            if not lock.acquire(timeout=self.lock_timeout):
+                return self._command(conn, hdr, dev, body)
+            if not lock.acquire(True, self.lock_timeout):
                 self.log.warning("%s: lock not free within %.3g s; answered 0x708 (busy)",
                                  conn.peer, self.lock_timeout)
                 raise AdsError(E.ADSERR_DEVICE_BUSY, "simulation lock not available")
             try:
-                return self._command(conn, hdr, dev, p)
+                return self._command(conn, hdr, dev, body)
             finally:
                 lock.release()
         except AdsError as e:
             code = e.code
         except Exception:
             self.log.exception("%s: device %r failed on command %d (answered 0x700)", conn.peer,
-                               getattr(dev, "name", hdr.target_port), cmd)
+                               getattr(dev, "name", hdr[1]), hdr[4])
             code = E.ADSERR_DEVICE_ERROR
+        cmd = hdr[4]
         if cmd in (CMD_READ, CMD_READ_WRITE):
             return READ_RES.pack(code, 0)
         if cmd == CMD_READ_STATE:
@@ -472,15 +623,17 @@ class AdsServer:
             return ADD_NOTIFICATION_RES.pack(code, 0)
         return RESULT_RES.pack(code)
 
-    def _command(self, conn: _Connection, hdr: AmsHeader, dev: AdsDevice, p: memoryview) -> bytes:
-        cmd, ams_port = hdr.command, hdr.target_port
-        if cmd == CMD_READ:
-            if len(p) < READ_REQ.size:
+    def _command(self, conn: _Connection, hdr: tuple, dev: AdsDevice, body: bytes) -> bytes:
+        cmd, ams_port = hdr[4], hdr[1]
+        if cmd == CMD_READ:   # the hot path: no memoryview, no method call for the length check
+            if len(body) < _READ_REQ_END:
                 raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short Read request")
-            ig, io, length = READ_REQ.unpack_from(p)
-            self._check_length(length)
+            ig, io, length = _unpack_read_req(body, AMS_HEADER_SIZE)
+            if length > self.max_frame:
+                self._check_length(length)
             data = self._read(conn, ams_port, dev, ig, io, length)
-            return READ_RES.pack(0, len(data)) + data
+            return _pack_read_res(0, len(data)) + data
+        p = memoryview(body)[AMS_HEADER_SIZE:]
         if cmd == CMD_WRITE:
             if len(p) < WRITE_REQ.size:
                 raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short Write request")
@@ -518,7 +671,7 @@ class AdsServer:
             fn(ads_state, dev_state, bytes(p[WRITE_CONTROL_REQ.size:WRITE_CONTROL_REQ.size + length]))
             return RESULT_RES.pack(0)
         if cmd == CMD_ADD_DEVICE_NOTIFICATION:
-            return ADD_NOTIFICATION_RES.pack(0, self._add_notification(conn, hdr, dev, p))
+            return ADD_NOTIFICATION_RES.pack(0, self._add_notification(conn, AmsHeader._make(hdr), dev, p))
         if cmd == CMD_DEL_DEVICE_NOTIFICATION:
             if len(p) < DEL_NOTIFICATION_REQ.size:
                 raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short DeleteDeviceNotification request")
@@ -640,9 +793,9 @@ class AdsServer:
     # services (shared by the plain commands and the sum commands)
     # ------------------------------------------------------------------------------------------
     def _read(self, conn: _Connection, ams_port: int, dev: AdsDevice, ig: int, io: int, length: int) -> bytes:
-        if ig == ADSIGRP_SYM_VALBYHND:
-            return self._sym_read(dev, conn.symbol(ams_port, io), length)
-        if ig in _SYMBOL_GROUPS:
+        if ig in _SYMBOL_GROUPS:   # (one test on the hot path: a device's own index group)
+            if ig == ADSIGRP_SYM_VALBYHND:
+                return self._sym_read(dev, conn.symbol(ams_port, io), length)
             if ig == ADSIGRP_SYM_UPLOADINFO2:
                 syms = self._symbols(dev)
                 total = sum(len(encode_symbol_entry(s)) for s in syms.values())
