@@ -268,14 +268,11 @@ class DistCtrlArg:
     column: int = 0
 
 
-@dataclass(frozen=True, slots=True)
-class DistCtrlWord:
-    """``<axis>[DIST_CTRL ...]``: the axis and its keywords in source order (already validated)."""
+class _KeywordCommand:
+    """Keyword access shared by the axis ``DIST_CTRL`` word and the 3D ``#DIST CTRL`` word."""
 
-    axis: str
-    args: tuple[DistCtrlArg, ...] = ()
-    line: int = 0
-    column: int = 0
+    __slots__ = ()
+    args: tuple  # tuple[DistCtrlArg, ...], declared by the dataclasses
 
     @property
     def keywords(self) -> tuple[str, ...]:
@@ -293,8 +290,20 @@ class DistCtrlWord:
     @property
     def wait(self) -> bool:
         """WAIT: the block completes only when the select has reached its target once, the OFF has
-        reached INACTIVE, the FREEZE has braked (SPEC §8; the 3D syntax's option, also accepted here)."""
+        reached INACTIVE, the FREEZE has braked (SPEC §8; the 3D syntax's option, also accepted in
+        the axis command)."""
         return self.has("WAIT")
+
+
+@dataclass(frozen=True, slots=True)
+class DistCtrlWord(_KeywordCommand):
+    """``<axis>[DIST_CTRL ...]``: the axis and its keywords in source order (already validated)."""
+
+    axis: str
+    args: tuple[DistCtrlArg, ...] = ()
+    line: int = 0
+    column: int = 0
+
 
     @property
     def action(self) -> Action:
@@ -364,7 +373,7 @@ _INT_FIELDS_3D = {**_INT_FIELDS, "FILTER_TIME": "filter_time"}
 
 
 @dataclass(frozen=True, slots=True)
-class DistCtrl3DWord:
+class DistCtrl3DWord(_KeywordCommand):
     """``#DIST CTRL ...``: the 3D distance-control command, keywords in source order (validated).
 
     ``args`` holds every keyword, those written before the brackets first; ``outside`` names the
@@ -379,22 +388,6 @@ class DistCtrl3DWord:
     line: int = 0
     column: int = 0
 
-    @property
-    def keywords(self) -> tuple[str, ...]:
-        return tuple(arg.keyword for arg in self.args)
-
-    def arg(self, keyword: str) -> DistCtrlArg | None:
-        for arg in self.args:
-            if arg.keyword == keyword:
-                return arg
-        return None
-
-    def has(self, keyword: str) -> bool:
-        return self.arg(keyword) is not None
-
-    @property
-    def wait(self) -> bool:
-        return self.has("WAIT")
 
     @property
     def action(self) -> Action:

@@ -41,7 +41,7 @@ from ..control.commands import ObjectWrite
 from ..control.controller import check_object_value
 from ..errors import ErrorEvent, ErrorId
 from .registry import (ADS_PORT, COLUMNS, READ, READ_WRITE, STRING_LENGTH, TASK, ObjectAccessError, ObjectSpec,
-                       ObjectValueError, decode, encode, format_object_table, format_value, read_value)
+                       ObjectValueError, decode, encode, format_object_table, format_value, object_row, read_value)
 from .units import (INT32_MAX, INT32_MIN, PER_MM_01UM, UM_PER_MM, mm_to_increments, mm_to_nm001,
                     round_saturate)
 
@@ -498,22 +498,11 @@ def object_table_3d(contexts: Mapping[int, Channel3DObjectContext] | Iterable[Ch
     :data:`~distctrl.objects.registry.COLUMNS` plus ``Kanal`` (the channel id); format with
     :func:`~distctrl.objects.registry.format_object_table`."""
     ctxs = contexts.values() if isinstance(contexts, Mapping) else contexts
-    rows, nr = [], 0
+    rows = []
     for ctx in sorted(ctxs, key=lambda c: c.channel_id):
         for spec in CHANNEL3D_OBJECTS:
-            nr += 1
-            rows.append({
-                "Nr": nr,
-                "Gruppe": f"0x{ctx.index_group:X}",
-                "Offset": f"0x{spec.low_offset:X}",
-                "Bezeichner": spec.name,
-                "Datentyp": spec.type,
-                "Länge": spec.length,
-                "Einheit": spec.unit,
-                "Wert": format_value(spec, read_value(spec, ctx)),
-                "Zugriff": spec.access,
-                "Kanal": ctx.channel_id,
-            })
+            rows.append(object_row(len(rows) + 1, ctx.index_group, spec.low_offset, spec, read_value(spec, ctx),
+                                   Kanal=ctx.channel_id))
     return rows
 
 

@@ -489,23 +489,20 @@ def object_table(contexts: Mapping[int, AxisObjectContext] | Iterable[AxisObject
     the axis name."""
     ctxs = contexts.values() if isinstance(contexts, Mapping) else contexts
     rows = []
-    nr = 0
     for ctx in sorted(ctxs, key=lambda c: c.axis_id):
         for spec in AXIS_OBJECTS:
-            nr += 1
-            rows.append({
-                "Nr": nr,
-                "Gruppe": f"0x{spec.index_group:X}",
-                "Offset": f"0x{index_offset(ctx.axis_id, spec):X}",
-                "Bezeichner": spec.name,
-                "Datentyp": spec.type,
-                "Länge": spec.length,
-                "Einheit": spec.unit,
-                "Wert": format_value(spec, read_value(spec, ctx)),
-                "Zugriff": spec.access,
-                "Achse": ctx.axis_name,
-            })
+            rows.append(object_row(len(rows) + 1, spec.index_group, index_offset(ctx.axis_id, spec), spec,
+                                   read_value(spec, ctx), Achse=ctx.axis_name))
     return rows
+
+
+def object_row(nr: int, index_group: int, index_offset_: int, spec: ObjectSpec, value, **extra) -> dict:
+    """One object-browser row (the columns of seeds/000 §7.6), shared by the axis and 3D tables."""
+    row = {"Nr": nr, "Gruppe": f"0x{index_group:X}", "Offset": f"0x{index_offset_:X}", "Bezeichner": spec.name,
+           "Datentyp": spec.type, "Länge": spec.length, "Einheit": spec.unit, "Wert": format_value(spec, value),
+           "Zugriff": spec.access}
+    row.update(extra)
+    return row
 
 
 def format_object_table(rows: list[dict], columns: tuple[str, ...] = COLUMNS) -> str:
