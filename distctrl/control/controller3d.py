@@ -8,7 +8,9 @@ the orthogonal compensation wanted. This layer then superimposes it along the MO
 ``e`` (ACS/MCS: machine Z, PCS: the programmed Z of an active #CS, ECS: the tool direction u):
 the motion ``δ·e`` with ``δ = o / e_z`` changes the orthogonal distance by exactly ``o``
 (SPEC §11: a compensation δ along the tool direction changes it by δ·cos θ). MODE=OFF computes the
-offset without superimposing it.
+offset without superimposing it. "Orthogonal" refers to the workpiece normal ``Cycle3DInput.normal``:
+machine Z by default; a channel whose workpiece is inclined (robot example §12.4.3.3, programmed in a
+#CS) passes the #CS's Z, and θ in ``SET_DIST·cos θ`` and ``δ = o / e_z`` are then taken against it.
 
 Additional rules of the 3D variant: a_max must be > 0 (315001 at select); MODE may not change while
 active (51064); ECS needs kinematic 98 active; FILTER_TIME > 0 blends activation and deactivation
@@ -48,6 +50,9 @@ class Cycle3DInput:
     tool_direction: tuple = _Z              # actual unit tool direction u (from the head's angles)
     extension: float = 1.0                  # kinematic 98: virtual / real tool length (1 = none)
     cs_z_axis: tuple = _Z                   # programmed Z of the active #CS, in machine coordinates
+    normal: tuple = _Z                      # unit workpiece normal the set distance and the orthogonal
+                                            # compensation refer to (machine Z; an inclined workpiece's
+                                            # normal, e.g. the #CS's Z in the robot example §12.4.3.3)
     kin98_active: bool = False              # #KIN ID[..98] and #TRAFO ON
     override: float = 1.0
     feed_hold: bool = False
@@ -104,8 +109,11 @@ class ChannelDistanceController:
             self._apply(cmd, events, cycle)
         inp.commands.clear()
         u = inp.tool_direction
-        cos_theta = max(-1.0, min(1.0, u[2]))
-        theta = math.acos(cos_theta)
+        n = inp.normal
+        # θ for the set distance: the tool's angle to the workpiece normal (= the inclination for a
+        # horizontal workpiece, n = machine Z: exactly u[2])
+        cos_theta = max(-1.0, min(1.0, _dot(u, n)))
+        theta = math.acos(max(-1.0, min(1.0, u[2])))          # the inclination (against machine Z)
         scale = cos_theta * inp.extension
         core_in.programmed_position = inp.programmed_z
         if self.mode == CompensationMode.OFF:
@@ -135,7 +143,7 @@ class ChannelDistanceController:
             e = inp.cs_z_axis
         else:
             e = _Z                                       # ACS / MCS (DIRECTION=Z); OFF: computed only
-        e_z = _dot(e, _Z)
+        e_z = _dot(e, n)                                 # δ along e changes it by δ·e_z
         o = out.core.offset
         delta = o / e_z if abs(e_z) >= _MIN_EZ else 0.0
         # FILTER_TIME: sin² blend of activation (deactivation runs out within the limits)

@@ -8,6 +8,16 @@ read and write variables). Blocks without motion or dwell complete in the cycle 
 Runtime problems (an undefined variable, a value out of range once an expression is evaluated)
 stop the program with :class:`NcRuntimeError` recorded in :attr:`NcInterpreter.error` — a value,
 like every error on the cycle path.
+
+3D distance control and kinematics (seeds/000 ch. 12, docs/run-3d.md): a ``#DIST CTRL`` block
+hands its :class:`~distctrl.control.commands3d.Command3D` to the channel (``dist_ctrl_3d``) and
+takes its GEO cycle; with WAIT the next block waits for ``dist_ctrl_3d_done``. A channel without
+FCT_3D_DIST_CTRL (``has_dist_ctrl_3d`` false) stops the program with 20209 ("Unknown Nc-command").
+``#KIN``/``#TRAFO``/``#CS``/``#CHANNEL INIT`` go to ``channel.kinematics(word, lookup, line)``; a
+channel method that refuses a block raises :class:`NcAbort` (e.g. 51062, 900020), which stops the
+program with that ID and the block's line. After a block's assignments the channel is told which
+variables were written (``variables_assigned``), so it can re-read the tool length and the
+kinematic parameters.
 """
 from __future__ import annotations
 
@@ -15,12 +25,24 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from ..control.commands import Action, Command
+from ..control.commands3d import Command3D
 from ..errors import ErrorId
 from .program import ExprError, NcSyntaxError, Program
 
 #: a program that loops through this many blocks without motion in one cycle is stopped
 MAX_BLOCKS_PER_CYCLE = 10_000
 NC_RUNTIME_ERROR = int(ErrorId.NC_RUNTIME)    # 900010
+#: seeds/000 §12.7 notice: #DIST CTRL without FCT_3D_DIST_CTRL (P-CHAN-00500): "Unknown Nc-command"
+UNKNOWN_NC_COMMAND = 20209
+
+
+class NcAbort(Exception):
+    """Raised by a channel method to refuse a block: the program stops with ``id`` and the block's line."""
+
+    def __init__(self, error_id: int, message: str):
+        super().__init__(message)
+        self.id = int(error_id)
+        self.message = message
 
 
 class Channel(Protocol):
@@ -40,6 +62,13 @@ class Channel(Protocol):
     def dist_ctrl_done(self, axis: str, action: Action) -> bool:
         """WAIT: has the axis's last DIST_CTRL command completed (SPEC §8)?"""
         ...
+
+    # optional (3D distance control and kinematics; see the module docstring):
+    # has_dist_ctrl_3d: bool
+    # def dist_ctrl_3d(self, command: Command3D) -> None
+    # def dist_ctrl_3d_done(self, action: Action) -> bool
+    # def kinematics(self, word, lookup, line) -> None
+    # def variables_assigned(self, names: list[str]) -> None
 
 
 @dataclass(frozen=True)
@@ -70,6 +99,7 @@ class NcInterpreter:
         self.end_line: int | None = None
         self._end_pending = False         # M30 in a block with motion: ends when the motion is done
         self._waits: list[tuple[str, Action]] = []   # DIST_CTRL WAIT commands the block waits for
+        self._waits_3d: list[Action] = []            # #DIST CTRL WAIT commands the block waits for
 
     @property
     def running(self) -> bool:
@@ -93,6 +123,10 @@ class NcInterpreter:
             if not all(ch.dist_ctrl_done(axis, action) for axis, action in self._waits):
                 return
             self._waits = []
+        if self._waits_3d:
+            if not all(ch.dist_ctrl_3d_done(action) for action in self._waits_3d):
+                return
+            self._waits_3d = []
         if self._end_pending:
             self.ended = True
             return
@@ -106,6 +140,9 @@ class NcInterpreter:
             self.line = block.line
             try:
                 takes_time = self._execute(block)
+            except NcAbort as exc:
+                self.abort(NcRuntimeError(exc.id, block.line, exc.message))
+                return
             except (ExprError, NcSyntaxError, ZeroDivisionError, OverflowError, ValueError) as exc:
                 msg = exc.message if isinstance(exc, NcSyntaxError) else str(exc)
                 self.abort(NcRuntimeError(NC_RUNTIME_ERROR, block.line, msg))
@@ -129,6 +166,10 @@ class NcInterpreter:
         lookup = self._lookup
         for a in block.assignments:
             ch.variables[a.var] = a.value.evaluate(lookup)
+        if block.assignments:
+            hook = getattr(ch, "variables_assigned", None)
+            if hook is not None:
+                hook([a.var for a in block.assignments])
         for g in block.g_codes:
             if g == 0:
                 self.rapid = True
@@ -152,6 +193,22 @@ class NcInterpreter:
             if word.wait:
                 self._waits.append((word.axis, command.action))
         takes_time = bool(block.dist_ctrl)
+        if block.dist_ctrl_3d:
+            if not getattr(ch, "has_dist_ctrl_3d", False):
+                raise NcAbort(UNKNOWN_NC_COMMAND, "Unknown Nc-command: #DIST CTRL needs 3D distance control "
+                              "(P-CHAN-00500 configuration.decoder.function FCT_3D_DIST_CTRL)")
+            for word in block.dist_ctrl_3d:
+                command3d: Command3D = word.to_command3d(lookup, block.line, file=self.file)
+                ch.dist_ctrl_3d(command3d)
+                if command3d.wait:
+                    self._waits_3d.append(command3d.action)
+            takes_time = True          # like DIST_CTRL: the command takes its GEO cycle
+        for word in block.kinematics:
+            method = getattr(ch, "kinematics", None)
+            if method is None:
+                raise ValueError(f"#{word.kind.replace('_', ' ')}: this channel has no kinematics")
+            method(word, lookup, block.line)
+            takes_time = True          # the channel position is re-initialised in this cycle
         if block.axes:
             target = {}
             for axis, expr in block.axes.items():

@@ -13,12 +13,14 @@ from pathlib import Path
 
 from ..control import HliState
 from ..nc.parser import parse_file, parse_program
-from .machine import DC_COLUMNS, Machine
+from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
 
 #: safety cap when a scenario has no duration: one hour of machine time
 MAX_RUN_SECONDS = 3600.0
 SETTLE_BAND_MM = 0.01           # settle_time: |distance error| within this band ...
 SETTLE_HOLD_S = 0.1             # ... for this long
+#: default plot signals of a 3D run (one panel per unit)
+PLOT_3D = ("dc3d.offset", "dc3d.delta", "dc3d.comp_x", "dc3d.comp_y", "dc3d.comp_z", "dc3d.inclination")
 
 
 @dataclass
@@ -58,6 +60,8 @@ class RunResult:
     def plot(self, path=None, signals=None):
         if self.trace is None:
             raise ValueError("the trace was not kept (keep_trace=False)")
+        if signals is None and "dc3d.offset" in self.trace.columns:
+            signals = list(PLOT_3D)          # 3D: offset and compensation (mm), inclination (deg)
         return self.trace.plot(path, signals=signals, title=self.name)
 
 
@@ -73,6 +77,14 @@ def trace_columns(machine: Machine) -> tuple[list[str], dict[str, str]]:
             units[f"{n}.{c}"] = "-" if c == "dc.state" else "mm"
     cols += ["true.surface", "true.distance"]
     units.update({"true.surface": "mm", "true.distance": "mm"})
+    if getattr(machine, "ch3d", None) is not None:
+        for c, (unit, _) in DC3D_COLUMNS.items():
+            cols.append(c)
+            units[c] = unit
+    for n in machine.axis_names:
+        if n in ("A", "B", "C"):
+            for c in ("prog", "cmd", "act"):
+                units[f"{n}.{c}"] = "deg"
     return cols, units
 
 
@@ -84,15 +96,21 @@ def row_builder(machine: Machine):
     expression avoids the intermediate lists and tuples of a generic loop."""
     env = {"m": machine}
     parts = ["t", "line"]
+    kinematic = getattr(machine, "kinematic_path", False)
     for j, n in enumerate(machine.axis_names):
         env[f"i{j}"], env[f"o{j}"], env[f"d{j}"] = machine.inputs[n], machine.outputs[n], machine.drives[n]
-        parts += [f"i{j}.programmed_position", f"o{j}.command_position", f"d{j}.actual"]
+        # with kinematics the axis's CycleInput holds the machine setpoint; the NC's value is kept apart
+        prog = f"m.prog_values[{j}]" if kinematic else f"i{j}.programmed_position"
+        parts += [prog, f"o{j}.command_position", f"d{j}.actual"]
     for j, n in enumerate(machine.dc_axes):
         env[f"c{j}"] = machine.outputs[n]
         parts += [f"c{j}.{a}" for a in ("hli_state", "offset", "sensor_value", "feedback_value", "filtered_feedback",
                                         "target_deviation", "delta_deviation_pre_limiter", "sloped_delta_deviation",
                                         "set_pos", "set_distance")]
     parts += ["m.true_surface", "m.true_distance"]
+    if getattr(machine, "ch3d", None) is not None:
+        env["q"] = machine.out3d
+        parts += [expr for _, expr in DC3D_COLUMNS.values()]
     src = "def build_row(t, line):\n    return (" + ", ".join(parts) + ",)\n"
     exec(compile(src, "<trace row builder>", "exec"), env)       # names only from the lists above
     return env["build_row"]
@@ -140,11 +158,23 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     dc_out = outputs[dc_axis] if dc_axis is not None else None
     dc_inp = inputs[dc_axis] if dc_axis is not None else None
     add_metric = metrics.add
+    out3d = machine.out3d if machine.ch3d is not None else None
+    in3d = machine.in3d
     try:
         for k in range(max_cycles):
             step()
             append(build_row(k * T, nc.line if nc is not None and nc.line is not None else -1))
-            if dc_out is not None:
+            if out3d is not None:
+                # 3D: the orthogonal distance of the clamping point; wanted = SET_DIST·cos θ·Lv/L in
+                # CONST_DIST, the programmed clamping-point height above SET_POS in SURFACE mode
+                state = out3d.core.hli_state
+                if state == 4:
+                    add_metric(k * T, machine.true_distance_orth - out3d.orthogonal_set_distance)
+                elif state == 1:
+                    add_metric(k * T, machine.true_distance - (in3d.programmed_z - out3d.core.set_pos))
+                elif metrics.inside:
+                    metrics.gap()
+            elif dc_out is not None:
                 state = dc_out.hli_state
                 if state == 4:
                     add_metric(k * T, machine.true_distance - dc_out.set_distance)
@@ -173,8 +203,11 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         errors.append({"id": nc.error.id, "line": nc.error.line, "t": round(machine.cycle * T, 9),
                        "message": nc.error.message})
     program_done = nc is not None and nc.ended and not nc.aborted
-    final_state = HliState(outputs[dc_axis].hli_state).name if dc_axis is not None else "n/a"
-    notes = []
+    if out3d is not None:
+        final_state = HliState(out3d.core.hli_state).name
+    else:
+        final_state = HliState(outputs[dc_axis].hli_state).name if dc_axis is not None else "n/a"
+    notes = list(machine.notes)
     if nc is not None and nc.running:
         notes.append(f"the program had not ended after {limit_s:g} s")
     return RunResult(scenario.name or Path(str(scenario.path or "scenario")).stem, program_done and not errors,

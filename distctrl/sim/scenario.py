@@ -36,6 +36,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 from distctrl.control.states import HliTransition
 from distctrl.errors import ParameterError
 from distctrl.params.axis import AxisParameters
+from distctrl.params.channel import ChannelParameters, load_channel_list
 from distctrl.params.listfile import load_list
 from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, require_int,
                                         require_mapping, require_number)
@@ -46,20 +47,30 @@ from distctrl.sim.surface import Surface, surface_from_config
 
 __all__ = ["Scenario", "AxisConfig", "SensorConfig", "Event", "ScenarioError", "load_scenario",
            "scenario_from_dict", "scenario_from_text", "AXIS_NAMES", "EVENT_KINDS", "TOP_LEVEL_KEYS",
-           "AXIS_KEYS", "SENSOR_KEYS", "SENSOR_KINDS"]
+           "AXIS_KEYS", "SENSOR_KEYS", "SENSOR_KINDS", "SENSOR_MODES", "CHANNEL_KEYS", "KINEMATICS"]
 
 #: axis names a scenario may configure (the order is the display order)
 AXIS_NAMES = ("X", "Y", "Z", "A", "B", "C")
 TOP_LEVEL_KEYS = ("name", "cycle_time", "program", "program_text", "duration", "settle_time", "seed",
-                  "variables", "tool", "axes", "surface", "sensor", "events")
+                  "variables", "tool", "axes", "channel", "surface", "sensor", "events")
 AXIS_KEYS = ("params", "start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "bus_delay_cycles",
-             "resolution")
+             "resolution", "feedforward")
 SENSOR_KINDS = ("encoder", "distance")
-SENSOR_KEYS = ("axis", "kind", "variable", "noise_std", "delay_cycles", "seed", "range_min", "range_max",
-               "characteristic", "resolution", "faults")
+#: what the sensor measures: "axis" - the height of the sensor axis above the surface (vertical, the
+#: axis variant); "orthogonal_clamping_point" - the orthogonal distance of the tool clamping point
+#: from the surface (3D distance control, seeds/000 §12.3)
+SENSOR_MODES = ("axis", "orthogonal_clamping_point")
+SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", "seed", "range_min",
+               "range_max", "characteristic", "resolution", "faults")
 #: sensor keys that only one kind accepts
 _SENSOR_KIND_ONLY = {"variable": "distance", "characteristic": "distance", "resolution": "distance",
                      "range_min": "encoder"}
+#: [channel]: the kernel channel list (3D distance control) and the head kinematics
+CHANNEL_KEYS = ("params", "kinematics")
+#: head kinematics a channel may have: "CA" (5-axis CA head, kinematic ID 9) or "none"
+KINEMATICS = ("CA", "none")
+#: the axes the CA head needs
+CA_AXES = ("X", "Y", "Z", "A", "C")
 #: event action -> (allowed keys, required keys)
 EVENT_KINDS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "plc": (("axis", "transition", "position"), ("axis", "transition")),
@@ -125,6 +136,7 @@ class AxisConfig:
     bus_delay_cycles: int = 1
     resolution: float = 1e-4           # mm per motor encoder increment
     params_warnings: tuple[str, ...] = ()  # warnings of the list loader (a key given twice, ...)
+    feedforward: float = 0.0           # drive velocity feed-forward 0..1
 
     def limits(self) -> AxisLimits:
         """The interpolator's limits of this axis."""
@@ -134,7 +146,7 @@ class AxisConfig:
         """A :class:`Drive` at rest at ``start``."""
         return Drive(cycle_time, kv=self.kv, v_max=self.v_max, a_max=self.a_max,
                      bus_delay_cycles=self.bus_delay_cycles, resolution=self.resolution,
-                     initial_position=self.start)
+                     initial_position=self.start, velocity_feedforward=self.feedforward)
 
 
 @dataclass(frozen=True)
@@ -144,9 +156,12 @@ class SensorConfig:
     ``variable`` (distance sensor only, else ``None``) is the bare V.E. name, e.g. ``"SENSOR"``.
     ``range_min`` is ``None`` for the distance sensor (its range starts at 0). ``faults`` are the
     faults scheduled from ``sensor.faults`` (the ``sensor_fault`` events are separate).
+    ``mode`` (:data:`SENSOR_MODES`): ``"axis"`` measures the sensor axis's height above the surface;
+    ``"orthogonal_clamping_point"`` (distance sensor of a channel with 3D distance control) the
+    orthogonal distance of the tool clamping point; ``axis`` is then optional (``None``) and unused.
     """
 
-    axis: str
+    axis: str | None
     kind: str
     variable: str | None = None
     noise_std: float = 0.0                 # mm
@@ -157,6 +172,12 @@ class SensorConfig:
     characteristic: tuple[tuple[float, float], ...] | None = None
     resolution: float = 0.0                # mm (distance sensor quantisation, 0 = none)
     faults: tuple[Fault, ...] = ()
+    mode: str = "axis"
+
+    @property
+    def orthogonal(self) -> bool:
+        """The sensor reports the orthogonal distance of the tool clamping point (3D)."""
+        return self.mode == "orthogonal_clamping_point"
 
     def make_sensor(self, cycle_time: float, params: AxisParameters | None = None) -> SensorBase:
         """Build the sensor model. The probe takes its resolution, sign reversal and reference offset
@@ -204,12 +225,24 @@ class Scenario:
     surface_config: dict
     sensor: SensorConfig | None
     events: list[Event]
+    #: ``[channel] params``: the channel's 3D distance-control parameters (None: no channel list)
+    channel_params: ChannelParameters | None = None
+    channel_params_file: Path | None = None
+    channel_params_warnings: tuple[str, ...] = ()
+    #: ``[channel] kinematics``: "CA" (the 5-axis CA head) or None
+    kinematics: str | None = None
+
+    @property
+    def has_3d(self) -> bool:
+        """The channel has 3D distance control (P-CHAN-00500 FCT_3D_DIST_CTRL in its list)."""
+        return self.channel_params is not None and self.channel_params.fct_3d_dist_ctrl
 
     def make_sensor(self) -> SensorBase | None:
         """The configured sensor model (``None`` without ``[sensor]``)."""
         if self.sensor is None:
             return None
-        return self.sensor.make_sensor(self.cycle_time, self.axes[self.sensor.axis].params)
+        axis = self.sensor.axis
+        return self.sensor.make_sensor(self.cycle_time, self.axes[axis].params if axis is not None else None)
 
     def make_drives(self) -> dict[str, Drive]:
         return {name: ax.make_drive(self.cycle_time) for name, ax in self.axes.items()}
@@ -305,8 +338,9 @@ def _axis_config(name: str, cfg: object, base_dir: Path, cycle_time: float) -> A
     a_rapid = require_number(cfg.get("a_rapid", a_max), f"{key}.a_rapid", lo=0.0, lo_open=True)
     bus = require_int(cfg.get("bus_delay_cycles", 1), f"{key}.bus_delay_cycles", lo=0)
     resolution = require_number(cfg.get("resolution", 1e-4), f"{key}.resolution", lo=0.0)
+    feedforward = require_number(cfg.get("feedforward", 0.0), f"{key}.feedforward", lo=0.0, hi=1.0)
     return AxisConfig(name, params, params_file, start, kv, v_max, a_max, v_rapid, a_rapid, bus, resolution,
-                      warnings)
+                      warnings, feedforward)
 
 
 def _fault(cfg: dict, key: str, *, start_time: float | None = None) -> Fault:
@@ -321,12 +355,28 @@ def _fault(cfg: dict, key: str, *, start_time: float | None = None) -> Fault:
         raise _rekey(exc, "Fault", key) from None
 
 
-def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_time: float) -> SensorConfig:
+def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_time: float,
+                   has_3d: bool = False) -> SensorConfig:
     key = "sensor"
-    require_mapping(cfg, key, SENSOR_KEYS, required=("axis", "kind"))
+    require_mapping(cfg, key, SENSOR_KEYS, required=("kind",))
     assert isinstance(cfg, dict)
-    axis = _axis_ref(cfg["axis"], f"{key}.axis", axes)
     kind = require_choice(cfg["kind"], f"{key}.kind", SENSOR_KINDS)
+    default_mode = "orthogonal_clamping_point" if has_3d and kind == "distance" else "axis"
+    mode = require_choice(cfg.get("mode", default_mode), f"{key}.mode", SENSOR_MODES)
+    if mode == "orthogonal_clamping_point":
+        if kind != "distance":
+            raise ConfigError(f"{key}.mode", mode, "'orthogonal_clamping_point' only with kind = 'distance' "
+                              "(the 3D sensor writes a V.E. variable)", "not allowed for kind 'encoder':")
+        if not has_3d:
+            raise ConfigError(f"{key}.mode", mode, "'orthogonal_clamping_point' only in a channel with 3D "
+                              "distance control ([channel] params with configuration.decoder.function "
+                              "FCT_3D_DIST_CTRL); otherwise 'axis'", "no 3D distance control for")
+        axis = _axis_ref(cfg["axis"], f"{key}.axis", axes) if "axis" in cfg else None
+    else:
+        if "axis" not in cfg:
+            raise ConfigError(f"{key}.axis", MISSING, "one of the configured axes " + ", ".join(
+                repr(a) for a in axes) + " (mode 'axis': the sensor measures this axis's height)")
+        axis = _axis_ref(cfg["axis"], f"{key}.axis", axes)
     for k, only in _SENSOR_KIND_ONLY.items():
         if k in cfg and kind != only:
             raise ConfigError(f"{key}.{k}", cfg[k], f"{k!r} only with kind = {only!r}",
@@ -367,12 +417,41 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
             raise ConfigError(f"{fkey}.start_time", MISSING, "start_time (s) or start_cycle")
         faults.append(_fault(fcfg, fkey))
     sc = SensorConfig(axis, kind, variable, noise_std, delay, sensor_seed, range_min, range_max,
-                      characteristic, resolution, tuple(faults))
+                      characteristic, resolution, tuple(faults), mode)
     try:  # anything the models check beyond the keys above (combinations)
-        sc.make_sensor(cycle_time, axes[axis].params)
+        sc.make_sensor(cycle_time, axes[axis].params if axis is not None else None)
     except ConfigError as exc:
         raise _rekey(exc, "EncoderProbe" if kind == "encoder" else "DistanceSensor", key) from None
     return sc
+
+
+def _channel_config(cfg: object, axes: dict[str, AxisConfig], base_dir: Path
+                    ) -> tuple[ChannelParameters | None, Path | None, tuple[str, ...], str | None]:
+    """``[channel]``: (channel parameters, their file, loader warnings, kinematics or None)."""
+    key = "channel"
+    require_mapping(cfg, key, CHANNEL_KEYS)
+    assert isinstance(cfg, dict)
+    params, params_file, warnings = None, None, ()
+    if "params" in cfg:
+        params_file = _file(cfg["params"], f"{key}.params", base_dir,
+                            "channel parameter list (kernel format)")
+        try:
+            plist = load_channel_list(params_file)
+        except ParameterError as exc:
+            exc.scenario_key = f"{key}.params"  # type: ignore[attr-defined]  # see _with_source
+            raise
+        params, warnings = plist.params, tuple(plist.warnings)
+    missing = [a for a in CA_AXES if a not in axes]
+    if "kinematics" in cfg:
+        value = cfg["kinematics"]
+        kin = require_choice(value.upper() if isinstance(value, str) and value.upper() == "CA" else value,
+                             f"{key}.kinematics", KINEMATICS)
+        if kin == "CA" and missing:
+            raise ConfigError(f"{key}.kinematics", value, "'CA' only with the axes X, Y, Z, A and C "
+                              f"configured (missing: {', '.join(missing)}); or 'none'", "axes missing for")
+    else:
+        kin = "CA" if not missing else "none"
+    return params, params_file, warnings, (None if kin == "none" else kin)
 
 
 def _event(n: int, cfg: object, axes: dict[str, AxisConfig], sensor: SensorConfig | None,
@@ -501,9 +580,17 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
     surface_cfg = data.get("surface", {})
     surface = surface_from_config(surface_cfg, base_dir, key="surface")
 
+    channel_params, channel_file, channel_warnings, kinematics = None, None, (), None
+    if "channel" in data:
+        channel_params, channel_file, channel_warnings, kinematics = _channel_config(data["channel"], axes,
+                                                                                     base_dir)
+    elif all(a in axes for a in CA_AXES):
+        kinematics = "CA"
+    has_3d = channel_params is not None and channel_params.fct_3d_dist_ctrl
+
     sensor = None
     if "sensor" in data:
-        sensor = _sensor_config(data["sensor"], axes, seed, cycle_time)
+        sensor = _sensor_config(data["sensor"], axes, seed, cycle_time, has_3d)
 
     events_cfg = data.get("events", [])
     if not isinstance(events_cfg, list):
@@ -512,7 +599,8 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
     events.sort(key=lambda e: e.t)  # stable
 
     return Scenario(path, base_dir, name, cycle_time, program_text, program_file, duration, settle_time, seed,
-                    variables, tool_length, axes, surface, dict(surface_cfg), sensor, events)
+                    variables, tool_length, axes, surface, dict(surface_cfg), sensor, events, channel_params,
+                    channel_file, channel_warnings, kinematics)
 
 
 def _with_source(source: str, data: object, base_dir: Path, path: Path | None) -> Scenario:
