@@ -184,7 +184,14 @@ def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
     except DistCtrlError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)
+    if machine.ch3d is not None and axis_filter is None:
+        from .diag import format_diag_3d
+
+        click.echo(format_diag_3d(machine.channel3d_values(), sc.channel_params, channel=1,
+                                  events=[ev for _, ev in machine.events]))
     axes = [n for n in machine.dc_axes if axis_filter in (None, n)]
+    if not axes and machine.ch3d is not None:
+        return
     if not axes:
         click.echo(f"error: no distance-controlled axis {axis_filter or ''}".rstrip(), err=True)
         sys.exit(1)

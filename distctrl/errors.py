@@ -39,6 +39,7 @@ class ErrorId(IntEnum):
     SOURCE_CONFLICT = 900007       # command from NC while the PLC owns distance control, or vice versa
     NC_RUNTIME = 900010            # NC program stopped at run time (undefined variable, value out of range)
     KIN98_MAX_INCLINATION = 900020  # 3D: tool inclination above kinematic 98's HD4 (the program aborts)
+    MODE_OFF_SELECTED = 900023     # 3D warning: select with MODE=OFF, the offset is computed, not superimposed
 
 
 #: ID -> (severity, short text). Severity "error" puts the controller into ERROR, "warning" does not.
@@ -61,6 +62,7 @@ CATALOGUE: dict[int, tuple[str, str]] = {
     900007: ("error", "Distance control is commanded by the other source (NC / PLC); command refused"),
     900010: ("error", "NC program stopped at run time"),
     900020: ("error", "Tool inclination exceeds the maximum angle of kinematic 98 (HD4, PARAM[3])"),
+    900023: ("warning", "3D distance control selected with MODE=OFF: the offset is computed, not superimposed"),
 }
 
 

@@ -4,7 +4,8 @@ Two ADS devices over one :class:`~distctrl.sim.machine.Machine` (the server and 
 lock, so every request sees one consistent cycle):
 
 * AMS port 551 (GEO task): the CNC objects of distance control by index group 0x120300 and index
-  offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md). Writes to the read/write objects are queued
+  offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md); with 3D distance control also the channel's
+  3D objects, index group 0x121301 (docs/objects-3d.md; read only over ADS for now). Writes to the read/write objects are queued
   into the axis's controller and adopted on the next INACTIVE→active or FREEZE→active transition.
 * AMS port 851 (PLC): symbols by name — every field of each axis's HLI DistanceControl control unit
   (``gpAx[i].lr_mc_control.distance_control.command_w.transition`` …, docs/plc.md), the channel's
@@ -24,6 +25,8 @@ from .ads.errors import (ADSERR_DEVICE_INVALIDACCESS, ADSERR_DEVICE_INVALIDDATA,
 from .ads.protocol import ADST_REAL64
 from .objects.registry import (INDEX_GROUP, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
                                read_bytes, write_bytes)
+from .objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
+from .objects.channel3d import read_bytes as read_bytes_3d
 from .plc.hli import SemaphoreBusyError
 from .plc.symbols import channel_status_symbols, hli_symbols
 
@@ -48,6 +51,13 @@ class CncObjectDevice:
                          for i, n in enumerate(machine.axis_names)}
 
     def _find(self, index_group: int, index_offset: int):
+        if self.machine.ch3d is not None and index_group == INDEX_GROUP_3D_BASE | 1:
+            # the channel's 3D objects (index group 0x121300 | channel, SPEC §10), values of this cycle
+            ctx = Channel3DObjectContext(1, self.machine.channel3d_values())
+            found = find_object_3d(index_group, index_offset, {1: ctx})
+            if found is None:
+                raise AdsError(ADSERR_DEVICE_INVALIDOFFSET, f"index offset 0x{index_offset:X}")
+            return found
         if index_group != INDEX_GROUP:
             raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X}")
         found = find_object(index_group, index_offset, self.contexts)
@@ -59,10 +69,13 @@ class CncObjectDevice:
         spec, ctx = self._find(index_group, index_offset)
         if length != spec.length:
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.length} bytes, {length} requested")
-        return read_bytes(spec, ctx)
+        return read_bytes_3d(spec, ctx) if isinstance(ctx, Channel3DObjectContext) else read_bytes(spec, ctx)
 
     def write(self, index_group: int, index_offset: int, data: bytes) -> None:
         spec, ctx = self._find(index_group, index_offset)
+        if isinstance(ctx, Channel3DObjectContext):
+            raise AdsError(ADSERR_DEVICE_INVALIDACCESS, f"{spec.name}: writing the 3D objects over ADS is not "
+                                                        "supported yet; program the values with #DIST CTRL")
         try:
             command = write_bytes(spec, ctx, data)
         except ObjectAccessError as exc:

@@ -61,3 +61,9 @@ def test_diag_prints_the_fig_56_block_for_the_axis():
     for field in ("Distance Control:", "zstd: ACTIVE (2)", "sollw: 30.000000 [mm]", "Dist-Ctrl Interface:",
                   "cmd_offset:"):
         assert field in res.output
+
+
+def test_diag_prints_the_3d_block_for_a_3d_channel():
+    res = CliRunner().invoke(main, ["diag", str(ROOT / "examples" / "scenarios" / "app_30_60.toml"), "--seconds", "1"])
+    assert res.exit_code == 0, res.output
+    assert "DiagData 3D distance control" in res.output and "FCT_3D_DIST_CTRL" in res.output

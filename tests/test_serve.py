@@ -148,3 +148,26 @@ def test_channel_3d_status_symbols_are_served_read_only(plc):
 def test_the_cycle_kept_running_at_its_pace(served):
     stats = served.loop.stats.summary()
     assert stats["cycles"] > 200 and stats["resyncs"] == 0 and served.loop.error is None
+
+
+def test_3d_objects_are_readable_on_the_cnc_port_without_network():
+    import struct
+
+    from distctrl.ads import AdsError
+    from distctrl.serve import CncObjectDevice
+    from distctrl.sim.machine import Machine
+    from distctrl.sim.runner import load_program
+    from distctrl.sim.scenario import load_scenario
+
+    sc = load_scenario(SCN / "app_30_60.toml")
+    machine = Machine(sc, load_program(sc))
+    for _ in range(1500):
+        machine.step()
+    device = CncObjectDevice(machine)
+    values = machine.channel3d_values()
+    m_actual = struct.unpack("<q", device.read(0x121301, 0x3100, 8))[0]      # DIST_CTRL::m_actual_offset
+    assert m_actual == round(values.m_actual_offset * 1e8)
+    state = struct.unpack("<I", device.read(0x121301, 0x3105, 4))[0]
+    assert state in (0, 2, 3, 4, 15)
+    with pytest.raises(AdsError):
+        device.write(0x121301, 0x3106, struct.pack("<d", 0.5))

@@ -211,6 +211,9 @@ class ChannelDistanceController:
                 self.static = False
                 self.blend_k = 0
                 self.blending_in = self.filter_time > 0
+            if self.mode == CompensationMode.OFF:
+                # SPEC §12: MODE=OFF (the default) is kept, but the user is told nothing moves
+                events.append(make_event_3d(900023, cycle, cmd.line))
         if cmd.action == Action.OFF:
             self.static = False
         core_cmds.append(cmd.core_command())

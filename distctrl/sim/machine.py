@@ -253,9 +253,6 @@ class Machine:
             raise NcAbort(20209, "Unknown Nc-command: #DIST CTRL needs FCT_3D_DIST_CTRL (P-CHAN-00500)")
         if command.is_select:
             mode = command.mode if command.mode is not None else ch.mode
-            if mode == CompensationMode.OFF:
-                self.notes.append(f"line {command.line}: #DIST CTRL select with MODE=OFF: the offset is "
-                                  "computed but not superimposed (SPEC §12)")
             if ch.core.state.hli_state == HliState.INACTIVE:
                 var = command.sensor_var or ch.core.state.sensor_var or self.sensor_variable
                 value = self.variables.get(self._var_name(var)) if var else None
@@ -792,6 +789,23 @@ class Machine:
                 out.command_position = p
                 drive.step(p)
         self.cycle = k + 1
+
+    def channel3d_values(self):
+        """The channel's 3D distance-control values for the 3D CNC objects and the diagnosis block
+        (docs/objects-3d.md, docs/diag.md); None without 3D distance control."""
+        if self.ch3d is None:
+            return None
+        from ..objects.channel3d import Channel3DValues
+
+        o3 = self.out3d
+        ch = self.ch3d
+        return Channel3DValues.from_cycle_output(
+            o3.core, offset=o3.delta, m_actual_offset=o3.core.offset, cmd_offset=o3.core.offset,
+            compensation_x=o3.compensation[0], compensation_y=o3.compensation[1], compensation_z=o3.compensation[2],
+            inclination_rad=o3.inclination, compensation_mode=int(ch.mode), direction=ch.direction_axis,
+            orthogonal_set_distance=o3.orthogonal_set_distance, blend_active=0.0 < o3.blend < 1.0,
+            filter_time=ch.filter_time, tool_length=self.tool_length, virtual_tool_length=self.virt_tool_length,
+            hli_state=o3.core.hli_state, events=list(o3.events))
 
     def publish_all(self) -> None:
         """Fill every control unit's ``state_r`` from the last cycle."""

@@ -128,3 +128,11 @@ def test_reset_and_program_end_keep_the_offset_static_and_ignore_the_sensor():
         lp.surface = 39.0                                   # sensor changes no longer act
         after = [lp.cycle().delta for _ in range(200)]
         assert out.static and all(d == pytest.approx(before, abs=1e-9) for d in after)
+
+
+def test_select_with_mode_off_warns_900023():
+    lp = Loop(params())
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, line=30))
+    assert [(e.id, e.severity, e.line) for e in out.events] == [(900023, "warning", 30)]
+    out = Loop(params()).cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS))
+    assert out.events == []

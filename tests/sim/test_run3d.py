@@ -233,7 +233,7 @@ def test_application_example_without_superposition_shows_the_original_path():
     sc = with_program(SCN / "app_10_31.toml", lambda t: t.replace("MODE=MCS", "MODE=OFF"))
     r = run(sc)
     assert r.completed and r.errors == []
-    assert any("MODE=OFF" in note for note in r.notes)
+    assert [w["id"] for w in r.warnings] == [900023]                 # SPEC §12: warn on ON with MODE=OFF
     tr = r.trace
     assert np.all(vec(tr, "dc3d") == 0.0)
     for angle in range(0, 100, 10):
