@@ -5,7 +5,7 @@ lock, so every request sees one consistent cycle):
 
 * AMS port 551 (GEO task): the CNC objects of distance control by index group 0x120300 and index
   offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md); with 3D distance control also the channel's
-  3D objects, index group 0x121301 (docs/objects-3d.md; read only over ADS for now). Writes to the read/write objects are queued
+  3D objects, index group 0x121301 (docs/objects-3d.md), writes adopted like the axis objects. Writes to the read/write objects are queued
   into the axis's controller and adopted on the next INACTIVE→active or FREEZE→active transition.
 * AMS port 851 (PLC): symbols by name — every field of each axis's HLI DistanceControl control unit
   (``gpAx[i].lr_mc_control.distance_control.command_w.transition`` …, docs/plc.md), the channel's
@@ -27,6 +27,7 @@ from .objects.registry import (INDEX_GROUP, AxisObjectContext, ObjectAccessError
                                read_bytes, write_bytes)
 from .objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
 from .objects.channel3d import read_bytes as read_bytes_3d
+from .objects.channel3d import write_bytes as write_bytes_3d
 from .plc.hli import SemaphoreBusyError
 from .plc.symbols import channel_status_symbols, hli_symbols
 
@@ -73,10 +74,11 @@ class CncObjectDevice:
 
     def write(self, index_group: int, index_offset: int, data: bytes) -> None:
         spec, ctx = self._find(index_group, index_offset)
-        if isinstance(ctx, Channel3DObjectContext):
-            raise AdsError(ADSERR_DEVICE_INVALIDACCESS, f"{spec.name}: writing the 3D objects over ADS is not "
-                                                        "supported yet; program the values with #DIST CTRL")
         try:
+            if isinstance(ctx, Channel3DObjectContext):
+                command = write_bytes_3d(spec, ctx, data)
+                self.machine.in3d.commands.append(command)      # adopted by the shared core's rule
+                return
             command = write_bytes(spec, ctx, data)
         except ObjectAccessError as exc:
             raise AdsError(ADSERR_DEVICE_INVALIDACCESS, str(exc)) from None

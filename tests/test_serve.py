@@ -170,4 +170,8 @@ def test_3d_objects_are_readable_on_the_cnc_port_without_network():
     state = struct.unpack("<I", device.read(0x121301, 0x3105, 4))[0]
     assert state in (0, 2, 3, 4, 15)
     with pytest.raises(AdsError):
-        device.write(0x121301, 0x3106, struct.pack("<d", 0.5))
+        device.write(0x121301, 0x3105, struct.pack("<I", 0))                   # state: read-only
+    device.write(0x121301, 0x3106, struct.pack("<d", 0.5))                      # kp: read/write, queued
+    for _ in range(3):
+        machine.step()
+    assert machine.ch3d.core.state.pending.get("kp") == 0.5 or machine.ch3d.core.tuning.kp == 0.5

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from ..errors import ErrorEvent
 from ..errors3d import event_to_3d, make_event_3d
 from ..params.channel import ChannelParameters
-from .commands import Action, Command
+from .commands import Action, Command, ObjectWrite
 from .commands3d import Command3D, CompensationMode
 from .controller import AxisDistanceController
 from .cycle_io import CycleInput, CycleOutput, Result
@@ -99,7 +99,8 @@ class ChannelDistanceController:
         self._core_in = CycleInput()
         self._core_in.commands = []
         # the 3D variant's default sensor source is the V.E. variable (SPEC §2)
-        self._core_in.commands.append(Command(sensor_source=SensorSource.VARIABLE))
+        if params.fct_3d_dist_ctrl:
+            self._core_in.commands.append(Command(sensor_source=SensorSource.VARIABLE))
 
     def update(self, inp: Cycle3DInput, out: Cycle3DOutput) -> Result:
         core_in = self._core_in
@@ -175,9 +176,20 @@ class ChannelDistanceController:
         return Result.WARNING if events else result
 
     # ------------------------------------------------------------------ commands
-    def _apply(self, cmd: Command3D, events: list, cycle: int) -> None:
+    def _apply(self, cmd, events: list, cycle: int) -> None:
         core_cmds = self._core_in.commands
         running = self.core.state.hli_state != HliState.INACTIVE
+        if isinstance(cmd, ObjectWrite):
+            core_cmds.append(cmd)               # a 3D CNC-object write: the shared core's adoption rule
+            return
+        if not self.params.fct_3d_dist_ctrl:
+            events.append(make_event_3d(51061, cycle, cmd.line,
+                                        "configuration.decoder.function FCT_3D_DIST_CTRL (P-CHAN-00500) is not set"))
+            return
+        if running and cmd.sensor_var is not None and cmd.sensor_var != self.core.state.sensor_var:
+            events.append(make_event_3d(310028, cycle, cmd.line,
+                                        f"SENSOR_VAR {self.core.state.sensor_var} -> {cmd.sensor_var}"))
+            return
         if cmd.action in (Action.RESET, Action.PROGRAM_END):
             # seeds/000 §12.4.4: the offset stays as a static offset, sensor changes no longer act
             if running and not self.static:

@@ -505,6 +505,8 @@ class Machine:
         elif kind == "axis_release":
             # the channel hands the axis over (e.g. to another channel): 70333 if distance control is on
             self.inputs[data["axis"]].commands.append(Command(Action.AXIS_RELEASE))
+            if self.ch3d is not None:                   # an axis of the channel's 3D distance control
+                self.in3d.commands.append(Command3D(Action.AXIS_RELEASE))
         elif kind == "sensor_fault":
             if self.sensor is not None:
                 fault_args = {k: v for k, v in data.items() if k != "kind"}

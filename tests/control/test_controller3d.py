@@ -136,3 +136,16 @@ def test_select_with_mode_off_warns_900023():
     assert [(e.id, e.severity, e.line) for e in out.events] == [(900023, "warning", 30)]
     out = Loop(params()).cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS))
     assert out.events == []
+
+
+def test_without_fct_3d_dist_ctrl_every_command_is_51061():
+    lp = Loop(params(fct_3d_dist_ctrl=False))
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS, line=5))
+    assert [(e.id, e.line) for e in out.events] == [(51061, 5)] and out.core.hli_state == 0
+
+
+def test_sensor_variable_change_while_active_is_310028():
+    lp = Loop(params())
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS, sensor_var="V.E.SENSOR"))
+    out = lp.cycle(Command3D(sensor_var="V.E.OTHER", line=9))
+    assert [(e.id, e.line) for e in out.events] == [(310028, 9)]
