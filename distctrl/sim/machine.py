@@ -531,11 +531,10 @@ class Machine:
         self.channel_override = 0.0
 
     # ------------------------------------------------------------------ one cycle
-    def _step_axes(self) -> None:
-        """One GEO cycle of the axis variant (no kinematics, no 3D distance control)."""
-        k = self.cycle
+    def _cycle_start(self, k: int, t: float):
+        """The start of every cycle (both variants): due scenario events, PLC commands waiting for
+        the semaphore, the PLC program, and NC blocks while the channel is idle. Returns the NC line."""
         T = self.T
-        t = k * T
         if t + 0.5 * T >= self._next_event_t:
             events = self.scenario.events
             while self._event_index < len(events) and events[self._event_index].t <= t + 0.5 * T:
@@ -548,17 +547,33 @@ class Machine:
         if self.plc_program is not None:
             self.plc_program(self, k)
         nc = self.nc
-        line = None
+        if nc is None:
+            return None
+        if self.interp.block == "idle":                  # blocks are read only when the channel is idle
+            self._take_shift()
+            if self.kinematic_path:
+                self._take_shift3d()
+            nc.tick()
+            if nc.ended and not self._program_end_sent:
+                self._program_end_sent = True
+                for inp in self.inputs.values():
+                    inp.commands.append(Command(Action.PROGRAM_END, line=nc.end_line))
+                if self.ch3d is not None:
+                    self.in3d.commands.append(Command3D(Action.PROGRAM_END, line=nc.end_line))
+        return nc.line
+
+    def _step_axes(self) -> None:
+        """One GEO cycle of the axis variant (no kinematics, no 3D distance control)."""
+        k = self.cycle
+        T = self.T
+        t = k * T
+        nc = self.nc
         interp = self.interp
-        if nc is not None:
-            if interp.block == "idle":                   # blocks are read only when the channel is idle
-                self._take_shift()
-                nc.tick()
-                if nc.ended and not self._program_end_sent:
-                    self._program_end_sent = True
-                    for inp in self.inputs.values():
-                        inp.commands.append(Command(Action.PROGRAM_END, line=nc.end_line))
-            line = nc.line
+        if (t + 0.5 * T >= self._next_event_t or self._plc_pending or self.plc_program is not None
+                or (nc is not None and interp.block == "idle")):
+            line = self._cycle_start(k, t)
+        else:                                            # the common cycle: a block is running, nothing due
+            line = nc.line if nc is not None else None
         interp.feed_override = self.channel_override
         prog = interp.step()
         drives = self.drives
@@ -615,33 +630,14 @@ class Machine:
         k = self.cycle
         T = self.T
         t = k * T
-        if t + 0.5 * T >= self._next_event_t:
-            events = self.scenario.events
-            while self._event_index < len(events) and events[self._event_index].t <= t + 0.5 * T:
-                self.apply_event(events[self._event_index])
-                self._event_index += 1
-            self._next_event_t = events[self._event_index].t if self._event_index < len(events) else math.inf
-        if self._plc_pending:
-            self._plc_pending = [cmd for cmd in self._plc_pending
-                                 if not self.hli[cmd[0]].plc_command(cmd[1], cmd[2])]
-        if self.plc_program is not None:
-            self.plc_program(self, k)
         nc = self.nc
-        line = None
         interp = self.interp
+        if (t + 0.5 * T >= self._next_event_t or self._plc_pending or self.plc_program is not None
+                or (nc is not None and interp.block == "idle")):
+            line = self._cycle_start(k, t)
+        else:                                            # the common cycle: a block is running, nothing due
+            line = nc.line if nc is not None else None
         ch3d = self.ch3d
-        if nc is not None:
-            if interp.block == "idle":
-                self._take_shift()
-                self._take_shift3d()
-                nc.tick()
-                if nc.ended and not self._program_end_sent:
-                    self._program_end_sent = True
-                    for inp in self.inputs.values():
-                        inp.commands.append(Command(Action.PROGRAM_END, line=nc.end_line))
-                    if ch3d is not None:
-                        self.in3d.commands.append(Command3D(Action.PROGRAM_END, line=nc.end_line))
-            line = nc.line
         interp.feed_override = self.channel_override
         prog = interp.step()
         # programmed TCP in machine coordinates (#CS frame), plus a taken-over 3D offset
