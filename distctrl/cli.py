@@ -36,7 +36,9 @@ def params(list_file: str, show_all: bool) -> None:
 @click.option("--trace", "trace_path", type=click.Path(dir_okay=False), help="Write the per-cycle trace to this CSV file.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object with the result instead of a summary.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Save a plot of the run (PNG or SVG).")
-def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None) -> None:
+@click.option("--report", "report_dir", type=click.Path(file_okay=False),
+              help="Write a self-contained HTML report (plots embedded) into this folder.")
+def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None, report_dir: str | None) -> None:
     """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
 
     Exit code 0 when the program ran to its end, 2 when an error aborted it, 1 for invalid input
@@ -47,12 +49,19 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     from .sim.runner import run as run_scenario
 
     try:
-        result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None, progress=not as_json)
+        result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None or report_dir is not None,
+                              progress=not as_json)
     except DistCtrlError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)
     if plot_path:
         result.plot(plot_path)
+    if report_dir:
+        from .workbench.report import write_report
+
+        page = write_report(result, scenario, report_dir)
+        if not as_json:
+            click.echo(f"  report: {page}")
     if as_json:
         click.echo(json.dumps(result.to_dict(), indent=2))
     else:
@@ -208,6 +217,17 @@ def demo() -> None:
 
     run_demo()
 
+
+def _register_workbench() -> None:
+    """The commissioning workbench's commands live in distctrl/workbench/."""
+    from .workbench.filters_cli import filters
+    from .workbench.plot_cli import plot
+
+    main.add_command(filters)
+    main.add_command(plot)
+
+
+_register_workbench()
 
 if __name__ == "__main__":
     main()

@@ -40,11 +40,14 @@ def main(out_dir: str | Path = "out/demo") -> list:
     cases = [("CONST_DIST 1 mm, both encoders", "sheet", load_scenario(EXAMPLES / "const_dist_sheet.toml")),
              ("CONST_DIST 1 mm, plain", "sheet_plain", _plain_const_dist()),
              ("SET_POS 30 mm (%DIST_1)", "dist_1", load_scenario(EXAMPLES / "dist_1.toml"))]
+    from .workbench.report import write_report
+
     results = []
     for label, stem, sc in cases:
         console.print(f"running {label} ...")
         r = run(sc, trace=out / f"{stem}.csv", progress=True)
         r.plot(out / f"{stem}.png")
+        write_report(r, sc, out / f"{stem}_report")
         results.append((label, stem, r))
     table = Table(title="distctrl demo — distance control on the virtual machine")
     for col in ("run", "cycles", "completed", "distance error RMS [mm]", "max |error| [mm]", "settle [s]",
@@ -58,5 +61,5 @@ def main(out_dir: str | Path = "out/demo") -> list:
                       f"{m['distance_error_max']:.3f}", settle, events)
     console.print(table)
     console.print("The max error is the 2.8 mm obstacle edge itself (a vertical step under a moving head). "
-                  f"Traces and plots: {out}/")
+                  f"Traces, plots and HTML reports: {out}/ (open {out}/sheet_report/index.html)")
     return [r for _, _, r in results]

@@ -90,7 +90,7 @@ def state_segments(state: np.ndarray) -> list[tuple[int, int, int]]:
     return out
 
 
-def _envelope(x: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray]:
+def envelope(x: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray]:
     """x, y thinned to about max_points points keeping each bucket's min and max (peaks stay visible)."""
     n = y.size
     if n <= max_points:
@@ -157,7 +157,7 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
     axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (name, sigs) in zip(axes, groups):
         for s in sigs:
-            xs, ys = _envelope(x, trace[s], MAX_POINTS)
+            xs, ys = envelope(x, trace[s], MAX_POINTS)
             ax.plot(xs, ys, label=s, linewidth=1.0,
                     linestyle="--" if s.endswith((".prog", ".dc.target_deviation")) else "-")
         ax.set_ylabel(_ylabel(trace, name, sigs))
@@ -210,3 +210,6 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
         path.parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=110)
     return fig
+
+
+_envelope = envelope   # the former private name, still used by code written against it
