@@ -222,9 +222,11 @@ def _register_workbench() -> None:
     """The commissioning workbench's commands live in distctrl/workbench/."""
     from .workbench.filters_cli import filters
     from .workbench.plot_cli import plot
+    from .workbench.step_cli import step
 
     main.add_command(filters)
     main.add_command(plot)
+    main.add_command(step)
 
 
 _register_workbench()

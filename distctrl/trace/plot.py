@@ -210,6 +210,3 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
         path.parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=110)
     return fig
-
-
-_envelope = envelope   # the former private name, still used by code written against it

@@ -7,7 +7,7 @@ import pytest
 pytest.importorskip("matplotlib")
 
 from distctrl.trace import HLI_STATE_NAMES, Trace  # noqa: E402
-from distctrl.trace.plot import _envelope, default_groups, state_segments  # noqa: E402
+from distctrl.trace.plot import envelope, default_groups, state_segments  # noqa: E402
 
 COLS = ["t", "line", "Z.prog", "Z.cmd", "Z.act", "Z.dc.state", "Z.dc.offset", "Z.dc.filtered",
         "Z.dc.target_deviation", "X.act", "true.surface", "true.distance"]
@@ -115,7 +115,7 @@ def test_envelope_keeps_peaks():
     y = np.zeros_like(x)
     y[123_457] = 5.0
     y[987_654] = -3.0
-    xs, ys = _envelope(x, y, 10_000)
+    xs, ys = envelope(x, y, 10_000)
     assert xs.size <= 10_100 and ys.max() == 5.0 and ys.min() == -3.0
     assert np.all(np.diff(xs) >= 0)
 

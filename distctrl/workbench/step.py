@@ -1,0 +1,869 @@
+"""Step-response workbench: the documents' controller-tuning method on the virtual machine.
+
+seeds/000 ch. 3 tunes distance control step by step: first a P controller (I and D off) starting at
+``K_p = 0.2``; observe the response of the control loop to a *defined change in distance* and raise
+``K_p`` until there is a recognisable but rapidly decaying oscillation; then the I part (start
+``T_n = 5`` s, reduce it) only against a permanent control deviation; then the D part (start
+``T_v = 0.01`` s) to damp oscillations. This module makes that experiment repeatable:
+
+* :func:`parse_settings` turns ``--kp 0.2,0.5,1 --i-tn 0 --d-tv 0,0.01`` into the cartesian product
+  of :class:`StepSetting`;
+* :func:`step_scenario` builds the run: a Z axis with a probe (or the Z axis, parameter list and
+  sensor of a given scenario) holding the set distance, and at ``t_step`` the sensor sees the
+  surface rise by ``step_mm`` (a sensor ``jump`` fault, see below);
+* :func:`measure` reads rise time, overshoot, settling time, steady-state error and the number of
+  oscillation swings from the offset response ``<axis>.dc.offset``;
+* :func:`run_steps`, :func:`format_table`, :func:`hints` and :func:`plot_steps` run a sweep and
+  present it (``distctrl step``, docs/workbench-step.md).
+
+Why a sensor ``jump`` and not a step in the surface: the jump happens exactly at ``t_step`` (a step
+feature needs an X motion and is crossed when the interpolator gets there), and the controller
+cannot tell the two apart -- it sees the same change of its measurement -- so the *offset* response
+is the same. The difference is the true distance: a real surface step also changes the true
+distance (it drops by the step and recovers as the offset lifts the axis), the fault does not (the
+true distance *grows* by the step while the offset follows the fake reading). The metrics therefore
+use the offset, never ``true.distance``.
+
+Errors are :class:`StepError` (a ``DistCtrlError``) whose messages say what is allowed.
+"""
+from __future__ import annotations
+
+import dataclasses
+import io
+import itertools
+import math
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterable, NamedTuple, Sequence
+
+import numpy as np
+
+from ..errors import DistCtrlError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+    from ..sim.scenario import Scenario
+    from ..trace import Trace
+
+__all__ = [
+    "StepError", "StepSettingError", "StepSetting", "StepMetrics", "StepResult",
+    "KP_RANGE", "I_TN_RANGE", "D_TV_RANGE", "MODES", "BAND", "RECOGNISABLE_PCT", "RAPID_CROSSINGS",
+    "LARGE_PCT", "DEFAULT_AXIS_LIST", "DEFAULT_AXIS", "DEFAULT_SENSOR", "parse_settings", "step_scenario",
+    "measure", "run_steps", "format_table", "hints", "plot_steps", "check_plot_path",
+]
+
+# ------------------------------------------------------------------------------------------------------
+# constants
+# ------------------------------------------------------------------------------------------------------
+#: the documented ranges (P-AXIS-00759/00764/00765, NC KP / I_TN / D_TV): (lo, hi, lo_open)
+KP_RANGE = (0.0, 2.0, True)
+I_TN_RANGE = (0.0, 50.0, False)
+D_TV_RANGE = (0.0, 2.0, False)
+#: distance-control modes the step can be run in
+MODES = ("CONST_DIST", "SET_POS")
+#: settling band: +-2 % of the step
+BAND = 0.02
+#: an overshoot from this size (% of the step) on is "recognisable"
+RECOGNISABLE_PCT = 2.0
+#: "rapidly decaying": settled, with at most this many zero crossings after the first peak (2 periods)
+RAPID_CROSSINGS = 4
+#: above this overshoot (% of the step) it is called large, however fast it decays
+LARGE_PCT = 40.0
+#: longest run one setting may ask for (s of machine time)
+MAX_DURATION = 60.0
+#: the step may use at most this share of the sensor's measuring range
+_RANGE_SHARE = 0.8
+
+#: The default virtual machine's Z axis (kernel list format, docs/workbench-step.md): a high-dynamic
+#: laser-head Z axis. Plain CONST_DIST (P-AXIS-00500 = 0): the measured distance answers the offset
+#: only through the drive, so this is the loop that can oscillate (SPEC §3). v_max / a_max of
+#: distance control are high enough that a 1 mm step is not only a slope-limiter ramp.
+DEFAULT_AXIS_LIST = """\
+# distctrl step: default Z axis with a probe on encoder 2
+lr_param.distance_control_on        1
+kenngr.distc.max_deviation          100000    # [0.1 um] 10 mm
+kenngr.distc.v_max                  500000    # [um/s] 500 mm/s
+kenngr.distc.a_max                  50000     # [mm/s^2]
+kenngr.distc.max_act_value_change   100000000 # [um/s] 100 m/s: the step itself is a jump of the reading
+kenngr.distc.max_pos                100000    # [0.1 um] +10 mm
+kenngr.distc.min_pos                -100000   # [0.1 um] -10 mm
+kenngr.distc.optimized_scheduling   1
+kenngr.distc.mode_dist_use_both_encoder 0
+kenngr.distc.filter_type            MOVING_AVERAGE
+kenngr.distc.n_cycles               1
+kenngr.distc.kp                     0.2
+kenngr.distc.i_tn                   0
+kenngr.distc.d_tv                   0
+"""
+#: drive data of the default Z axis (scenario keys, mm, s): a stiff direct drive (kv 500 1/s, time
+#: constant 2 ms) with 50 % velocity feed-forward and one cycle of fieldbus delay
+DEFAULT_AXIS: dict[str, Any] = {"kv": 500.0, "v_max": 1000.0, "a_max": 100000.0, "bus_delay_cycles": 1,
+                                "feedforward": 0.5, "resolution": 1e-4}
+#: the default probe (scenario ``[sensor]`` keys)
+DEFAULT_SENSOR: dict[str, Any] = {"kind": "encoder", "range_min": -10.0, "range_max": 10.0,
+                                  "noise_std": 0.0, "delay_cycles": 0}
+
+
+# ------------------------------------------------------------------------------------------------------
+# errors
+# ------------------------------------------------------------------------------------------------------
+class StepError(DistCtrlError, ValueError):
+    """Bad input to the step workbench (setting, scenario, step, mode, times, plot path)."""
+
+
+class StepSettingError(StepError):
+    """A KP / I_TN / D_TV value or list that cannot be parsed or is out of its documented range."""
+
+
+# ------------------------------------------------------------------------------------------------------
+# settings
+# ------------------------------------------------------------------------------------------------------
+def _range_text(name: str, rng: tuple[float, float, bool], unit: str) -> str:
+    lo, hi, lo_open = rng
+    return f"{lo:g} {'<' if lo_open else '<='} {name} <= {hi:g}{unit}"
+
+
+def _check(name: str, value: object, rng: tuple[float, float, bool], unit: str = "") -> float:
+    allowed = _range_text(name, rng, unit)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise StepSettingError(f"{name} = {value!r} is not a number; allowed: {allowed}")
+    v = float(value)
+    lo, hi, lo_open = rng
+    if not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
+        raise StepSettingError(f"{name} = {value!r} is out of range; allowed: {allowed}")
+    return v
+
+
+@dataclass(frozen=True)
+class StepSetting:
+    """One controller setting: ``kp`` (P-AXIS-00759), ``i_tn`` (s, 0 = no I part), ``d_tv`` (s, 0 = no D)."""
+
+    kp: float
+    i_tn: float = 0.0
+    d_tv: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "kp", _check("KP", self.kp, KP_RANGE))
+        object.__setattr__(self, "i_tn", _check("I_TN", self.i_tn, I_TN_RANGE, " s"))
+        object.__setattr__(self, "d_tv", _check("D_TV", self.d_tv, D_TV_RANGE, " s"))
+
+    @property
+    def label(self) -> str:
+        """``KP=0.5 I_TN=0 D_TV=0.01``"""
+        return f"KP={self.kp:g} I_TN={self.i_tn:g} D_TV={self.d_tv:g}"
+
+    @property
+    def kind(self) -> str:
+        """``P``, ``PI``, ``PD`` or ``PID``."""
+        return "P" + ("I" if self.i_tn > 0 else "") + ("D" if self.d_tv > 0 else "")
+
+    def nc_words(self) -> str:
+        """The DIST_CTRL words: ``KP=0.5 I_TN=0 D_TV=0.01``."""
+        return f"KP={_nc(self.kp)} I_TN={_nc(self.i_tn)} D_TV={_nc(self.d_tv)}"
+
+    def __str__(self) -> str:
+        return self.label
+
+
+def _nc(x: float) -> str:
+    """A number as an NC value: 12 significant digits, no exponent (``1``, ``0.5``, ``0.0001``)."""
+    text = f"{x:.12g}"
+    if "e" in text:
+        text = f"{x:.15f}".rstrip("0").rstrip(".")
+    return text
+
+
+def _values(name: str, spec: object, rng: tuple[float, float, bool], unit: str) -> list[float]:
+    allowed = _range_text(name, rng, unit)
+    if isinstance(spec, str):
+        parts = [p.strip() for p in spec.replace(";", ",").split(",")]
+        if not spec.strip() or any(p == "" for p in parts):
+            raise StepSettingError(f"{name} list {spec!r}: empty value; allowed: comma-separated numbers, "
+                                   f"each {allowed} (e.g. '0.2,0.5,1')")
+        values: list[object] = []
+        for p in parts:
+            try:
+                values.append(float(p))
+            except ValueError:
+                raise StepSettingError(f"{name} list {spec!r}: {p!r} is not a number; allowed: "
+                                       f"comma-separated numbers, each {allowed}") from None
+    elif isinstance(spec, (int, float)) and not isinstance(spec, bool):
+        values = [spec]
+    else:
+        try:
+            values = list(spec)  # type: ignore[arg-type]
+        except TypeError:
+            raise StepSettingError(f"{name} = {spec!r}: expected a number, a list of numbers or a "
+                                   f"comma-separated string; allowed: each {allowed}") from None
+        if not values:
+            raise StepSettingError(f"{name}: empty list; allowed: at least one value, each {allowed}")
+    out: list[float] = []
+    for v in values:
+        x = _check(name, v, rng, unit)
+        if x not in out:
+            out.append(x)
+    return out
+
+
+def parse_settings(kp: object = "0.2,0.5,1", i_tn: object = "0", d_tv: object = "0") -> list[StepSetting]:
+    """The cartesian product of the KP, I_TN and D_TV lists (KP outermost, D_TV innermost).
+
+    Each argument is a comma-separated string (``"0.2,0.5,1"``), a number or a sequence of numbers;
+    repeated values are dropped. Ranges (the documented ones): ``0 < KP <= 2``, ``0 <= I_TN <= 50`` s,
+    ``0 <= D_TV <= 2`` s; anything else raises :class:`StepSettingError`.
+    """
+    kps = _values("KP", kp, KP_RANGE, "")
+    tns = _values("I_TN", i_tn, I_TN_RANGE, " s")
+    tvs = _values("D_TV", d_tv, D_TV_RANGE, " s")
+    return [StepSetting(a, b, c) for a, b, c in itertools.product(kps, tns, tvs)]
+
+
+# ------------------------------------------------------------------------------------------------------
+# the scenario
+# ------------------------------------------------------------------------------------------------------
+def _number(name: str, value: object, *, lo: float | None = None, hi: float | None = None,
+            lo_open: bool = False, nonzero: bool = False, allowed: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
+        raise StepError(f"{name} = {value!r} is not a finite number; allowed: {allowed}")
+    v = float(value)
+    bad = (lo is not None and (v <= lo if lo_open else v < lo)) or (hi is not None and v > hi) \
+        or (nonzero and v == 0.0)
+    if bad:
+        raise StepError(f"{name} = {value!r} is out of range; allowed: {allowed}")
+    return v
+
+
+def _step_axis(base: "Scenario") -> str:
+    sensor = base.sensor
+    if sensor is not None and sensor.axis is not None and sensor.axis in base.axes:
+        return sensor.axis
+    if "Z" in base.axes:
+        return "Z"
+    raise StepError(f"scenario {base.name!r}: no Z axis and no sensor axis; allowed: a scenario with an "
+                    f"[axes.Z] table (or a [sensor] axis) whose parameter list enables distance control")
+
+
+def _sensor_dict(base: "Scenario", axis: str) -> dict[str, Any]:
+    sc = base.sensor
+    if sc is None:
+        return dict(DEFAULT_SENSOR, axis=axis)
+    out: dict[str, Any] = {"axis": axis, "kind": sc.kind, "noise_std": sc.noise_std,
+                           "delay_cycles": sc.delay_cycles, "seed": sc.seed, "range_max": sc.range_max}
+    if sc.kind == "encoder":
+        out["range_min"] = sc.range_min
+    else:
+        out["variable"] = sc.variable
+        out["resolution"] = sc.resolution
+        if sc.characteristic is not None:
+            out["characteristic"] = [list(p) for p in sc.characteristic]
+    return out
+
+
+def _check_travel(sensor: dict, params, set_dist: float, step_mm: float, ramp_mm: float) -> None:
+    """The reading ``s`` (= -d) starts at ``-set_dist`` and ends ``step_mm + ramp_mm`` higher: both must lie
+    inside the sensor's range and the monitoring window (P-AXIS-00419/00420/00421), with 20 % to
+    spare for the transient; the offset's end value inside 80 % of max_deviation (P-AXIS-00414)."""
+    if sensor["kind"] == "encoder":
+        lo, hi = float(sensor.get("range_min", -10.0)), float(sensor.get("range_max", 10.0))
+    else:
+        lo, hi = -float(sensor.get("range_max", 10.0)), 0.0
+    lo, hi = max(lo, params.min_pos + params.tolerance), min(hi, params.max_pos - params.tolerance)
+    s0 = -set_dist
+    if not lo < s0 < hi:
+        raise StepError(f"set_dist = {set_dist:g} mm: the reading s = -{set_dist:g} mm is outside the sensor "
+                        f"window ({-hi:g} mm < distance < {-lo:g} mm by its range and P-AXIS-00419..00421); "
+                        f"allowed: a set distance inside it")
+    room_up, room_down = _RANGE_SHARE * (hi - s0), _RANGE_SHARE * (s0 - lo)
+    room_up = min(room_up, _RANGE_SHARE * params.max_deviation)
+    room_down = min(room_down, _RANGE_SHARE * params.max_deviation)
+    allowed = (f"-{room_down:.3g} mm <= step <= {room_up:.3g} mm (80 % of the sensor window around "
+               f"SET_DIST = {set_dist:g} mm and of max_deviation = {params.max_deviation:g} mm)")
+    if not -room_down <= step_mm <= room_up:
+        raise StepError(f"step = {step_mm:g} mm is out of range; allowed: {allowed}")
+    end = step_mm + ramp_mm
+    if not -room_down <= end <= room_up:
+        raise StepError(f"step + ramp reach {end:.3g} mm by the end of the run; allowed: {allowed} "
+                        f"(lower the ramp or the duration)")
+
+
+def step_scenario(base: "Scenario | str | os.PathLike | None", setting: StepSetting, step_mm: float = 1.0,
+                  mode: str = "CONST_DIST", t_step: float = 0.5, duration: float = 2.0, *,
+                  set_dist: float = 1.0, ramp_mm_s: float = 0.0) -> "Scenario":
+    """The scenario of one step-response run.
+
+    The axis (Z, or ``base``'s sensor axis) starts ``set_dist`` mm above a flat surface at 0 and
+    distance control is selected at once with the setting's parameters::
+
+        Z[DIST_CTRL ON CONST_DIST SET_DIST=1 KP=0.5 I_TN=0 D_TV=0.01]     (mode CONST_DIST)
+        Z[DIST_CTRL ON SET_POS=0 KP=0.5 I_TN=0 D_TV=0.01]                 (mode SET_POS)
+
+    then the program dwells until ``duration``. At ``t_step`` a sensor ``jump`` fault of ``step_mm``
+    (signed so that the sensor reports the surface ``step_mm`` higher) starts and stays: the offset
+    has to rise by ``step_mm``. With ``ramp_mm_s`` a ``drift`` fault starting at the same time makes
+    the reported surface keep rising at that rate (a ramp: a P controller keeps a constant control
+    deviation, the I part removes it).
+
+    Without ``base`` the axis is the default virtual machine (:data:`DEFAULT_AXIS_LIST`,
+    :data:`DEFAULT_AXIS`, :data:`DEFAULT_SENSOR`). With ``base`` (a :class:`Scenario` or a TOML path)
+    the axis keeps its parameter list, drive data and sensor (kind, noise, dead time, range), the
+    cycle time and seed; its program, surface, other axes and events are not used. The list must
+    enable distance control (P-AXIS-00328); KP / I_TN / D_TV come from ``setting``.
+    """
+    from ..params.listfile import parse_list_text
+    from ..sim.scenario import Scenario, load_scenario, scenario_from_dict
+
+    if not isinstance(setting, StepSetting):
+        raise StepError(f"setting = {setting!r}; allowed: a StepSetting (see parse_settings)")
+    mode_u = mode.upper() if isinstance(mode, str) else mode
+    if mode_u not in MODES:
+        raise StepError(f"mode = {mode!r}; allowed: one of {', '.join(MODES)}")
+    duration = _number("duration", duration, lo=0.0, lo_open=True, hi=MAX_DURATION,
+                       allowed=f"0 < duration <= {MAX_DURATION:g} s")
+    t_step = _number("t_step", t_step, lo=0.0, lo_open=True, hi=duration,
+                     allowed=f"0 < t_step < duration ({duration:g} s)")
+    if t_step >= duration:
+        raise StepError(f"t_step = {t_step!r} is out of range; allowed: 0 < t_step < duration "
+                        f"({duration:g} s)")
+    set_dist = _number("set_dist", set_dist, lo=0.0, lo_open=True, allowed="a distance > 0 mm")
+    ramp_mm_s = _number("ramp_mm_s", ramp_mm_s, allowed="a finite rate in mm/s (0: no ramp)")
+
+    if base is not None and not isinstance(base, Scenario):
+        base = load_scenario(base)
+    if base is None:
+        axis = "Z"
+        params = parse_list_text(DEFAULT_AXIS_LIST, "<distctrl step default Z axis>").params
+        params_file = None
+        axis_cfg: dict[str, Any] = dict(DEFAULT_AXIS)
+        sensor: dict[str, Any] = dict(DEFAULT_SENSOR, axis=axis)
+        cycle_time, seed, variables = 0.001, 0, {}
+        source = "<distctrl step>"
+    else:
+        axis = _step_axis(base)
+        ax = base.axes[axis]
+        if not ax.params.enabled:
+            raise StepError(f"scenario {base.name!r}: axis {axis} has no distance control "
+                            f"(lr_param.distance_control_on = 0 in its parameter list); allowed: an axis "
+                            f"whose list enables distance control (P-AXIS-00328 = 1)")
+        params, params_file = ax.params, ax.params_file
+        axis_cfg = {"kv": ax.kv, "v_max": ax.v_max, "a_max": ax.a_max, "v_rapid": ax.v_rapid,
+                    "a_rapid": ax.a_rapid, "bus_delay_cycles": ax.bus_delay_cycles,
+                    "resolution": ax.resolution, "feedforward": ax.feedforward}
+        sensor = _sensor_dict(base, axis)
+        cycle_time, seed, variables = base.cycle_time, base.seed, dict(base.variables)
+        source = f"step on {base.path or base.name}"
+
+    step_mm = _number("step", step_mm, nonzero=True, allowed="a step != 0 in mm (> 0: the surface rises)")
+    _check_travel(sensor, params, set_dist, step_mm, ramp_mm_s * (duration - t_step))
+    jump_rate = abs(step_mm) / cycle_time
+    if jump_rate > params.max_act_value_change:
+        raise StepError(f"step = {step_mm:g} mm: the reading jumps by it in one cycle ({jump_rate:g} mm/s), "
+                        f"more than the axis list's max_act_value_change (P-AXIS-00417) "
+                        f"{params.max_act_value_change:g} mm/s allows (the run would stop with error 70329); "
+                        f"allowed: |step| <= {params.max_act_value_change * cycle_time:.4g} mm, or raise "
+                        f"P-AXIS-00417 in the list")
+
+    # the probe reports s = surface - z (a rising surface raises it), a distance sensor d = z - surface
+    sign = 1.0 if sensor["kind"] == "encoder" else -1.0
+    words = f"SET_DIST={_nc(set_dist)}" if mode_u == "CONST_DIST" else "SET_POS=0"
+    source_words = ""
+    if sensor["kind"] == "distance":
+        source_words = f" SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.{sensor['variable']}"
+    select = "ON CONST_DIST" if mode_u == "CONST_DIST" else "ON"
+    program = (f"%STEP\n"
+               f"; distctrl step: {setting.label}, step {step_mm:g} mm at {t_step:g} s ({mode_u})\n"
+               f"N10 {axis}[DIST_CTRL {select} {words} {setting.nc_words()}{source_words}]\n"
+               f"N20 #TIME {_nc(duration)}\n"
+               f"N30 M30\n")
+    events: list[dict] = [{"t": t_step, "sensor_fault": {"kind": "jump", "value": sign * step_mm}}]
+    if ramp_mm_s:
+        events.append({"t": t_step, "sensor_fault": {"kind": "drift", "rate": sign * ramp_mm_s}})
+    data = {"name": f"step {setting.label}", "cycle_time": cycle_time, "program_text": program,
+            "duration": duration, "settle_time": 0.0, "seed": seed, "variables": variables,
+            "axes": {axis: dict(axis_cfg, start=set_dist)}, "surface": {"base": 0.0},
+            "sensor": sensor, "events": events}
+    sc = scenario_from_dict(data, base_dir=".", source=source)
+    ax_cfg = dataclasses.replace(sc.axes[axis], params=params, params_file=params_file)
+    return dataclasses.replace(sc, axes={axis: ax_cfg})
+
+
+# ------------------------------------------------------------------------------------------------------
+# metrics
+# ------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class StepMetrics:
+    """Step-response metrics of the offset response ``y(t) = o(t) - o(t_step-)`` (mm, s).
+
+    * ``rise_time_s``: from 10 % to 90 % of the step (linear interpolation between cycles); ``None``
+      when 90 % is never reached;
+    * ``overshoot_mm`` / ``overshoot_pct``: the largest excursion beyond the reference (the step, plus
+      the ramp if any), >= 0;
+    * ``settling_time_s``: from the step until the response enters +-2 % of the reference and stays
+      there to the end of the run; ``None`` (not settled) unless it stays inside for at least the
+      last 10 % of the run after the step (so a limit cycle is not "settled" by chance);
+    * ``steady_state_error_mm``: the permanent control deviation, averaged over the last 10 % of the
+      run after the step, positive when the offset is short of the reference (in the direction of
+      the step). From a distance-control trace it is the controller's own remaining error ``e``
+      (SPEC §3: ``SET_DIST - filtered distance`` in CONST_DIST, ``filtered surface - SET_POS -
+      offset`` in SET_POS), which is what the I part integrates; it equals ``reference - response``
+      once the axis has settled on a step, but not on a ramp, where the offset runs ahead of the
+      axis by the drive's following error. Without those columns: ``reference - response``;
+    * ``oscillation``: zero crossings of the error (response - reference) after the first peak, a
+      crossing counted once the error reaches beyond +-1 % of the step on the other side (2 crossings
+      = 1 period); 0 without overshoot;
+    * ``peak_time_s``: time of the largest excursion beyond the reference (``None`` without one).
+    """
+
+    step_mm: float
+    rise_time_s: float | None
+    overshoot_mm: float
+    overshoot_pct: float
+    settling_time_s: float | None
+    steady_state_error_mm: float
+    oscillation: int
+    peak_time_s: float | None = None
+
+    @property
+    def settled(self) -> bool:
+        return self.settling_time_s is not None
+
+    @property
+    def periods(self) -> int:
+        """Oscillation periods after the first peak (two zero crossings each, rounded up)."""
+        return (self.oscillation + 1) // 2
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["settled"] = self.settled
+        return d
+
+
+def _first_crossing(tt: np.ndarray, y: np.ndarray, level: float) -> float | None:
+    """The first time ``y`` reaches ``level`` from below (linear interpolation), None if never."""
+    idx = np.flatnonzero(y >= level)
+    if idx.size == 0:
+        return None
+    k = int(idx[0])
+    if k == 0:
+        return float(tt[0])
+    y0, y1 = float(y[k - 1]), float(y[k])
+    frac = (level - y0) / (y1 - y0) if y1 != y0 else 1.0
+    return float(tt[k - 1] + frac * (tt[k] - tt[k - 1]))
+
+
+def _trace_of(result: Any) -> "Trace":
+    trace = getattr(result, "trace", result)
+    if trace is None or not hasattr(trace, "columns"):
+        raise StepError("measure: no trace; allowed: a RunResult with its trace kept, or a Trace")
+    return trace
+
+
+def _offset_column(trace: "Trace", column: str | None) -> str:
+    if column is not None:
+        if column not in trace:
+            raise StepError(f"measure: no column {column!r} in the trace; allowed: one of "
+                            f"{', '.join(c for c in trace.columns if c.endswith('offset')) or 'its columns'}")
+        return column
+    for c in trace.columns:
+        if c.endswith(".dc.offset"):
+            return c
+    raise StepError("measure: the trace has no '<axis>.dc.offset' column; allowed: a trace of a run with "
+                    "distance control, or name the column")
+
+
+def _control_error(trace: "Trace", col: str) -> np.ndarray | None:
+    """The controller's remaining error ``e`` per cycle (SPEC §3), NaN where it is not tracking:
+    ``-target_deviation`` in ACTIVE_CONST_DIST (4), ``target_deviation - offset`` in ACTIVE (1,
+    SET_POS; the offset before the cycle's update, i.e. the previous row's). None when the trace
+    lacks the columns (e.g. a synthetic trace)."""
+    if not col.endswith(".dc.offset"):
+        return None
+    ax = col[:-len(".dc.offset")]
+    state_col, td_col = f"{ax}.dc.state", f"{ax}.dc.target_deviation"
+    if state_col not in trace or td_col not in trace:
+        return None
+    state = np.asarray(trace[state_col])
+    td = np.asarray(trace[td_col], dtype=np.float64)
+    o = np.asarray(trace[col], dtype=np.float64)
+    o_prev = np.concatenate((o[:1], o[:-1]))   # the row holds the offset after this cycle's update
+    return np.where(state == 4, -td, np.where(state == 1, td - o_prev, np.nan))
+
+
+def measure(result: Any, t_step: float, step_mm: float, *, ramp_mm_s: float = 0.0, column: str | None = None,
+            band: float = BAND) -> StepMetrics:
+    """Step-response metrics (:class:`StepMetrics`) of a run (``RunResult``) or a :class:`Trace`.
+
+    The response is the offset column (default: the first ``<axis>.dc.offset``) relative to its value
+    just before ``t_step`` (the mean of up to 10 samples before it); the reference is ``step_mm``
+    (plus ``ramp_mm_s`` times the time since the step). ``band`` is the settling band as a fraction of
+    the step (0.02 = +-2 %).
+    """
+    trace = _trace_of(result)
+    col = _offset_column(trace, column)
+    step_mm = _number("step", step_mm, nonzero=True, allowed="a step != 0 in mm")
+    t_step = _number("t_step", t_step, allowed="the time of the step in s")
+    band = _number("band", band, lo=0.0, lo_open=True, hi=1.0, allowed="0 < band <= 1 (fraction of the step)")
+    t = np.asarray(trace.t, dtype=np.float64)
+    y_all = np.asarray(trace[col], dtype=np.float64)
+    if t.size < 3:
+        raise StepError(f"measure: the trace has {t.size} samples; allowed: a trace covering the step")
+    T = float(np.median(np.diff(t)))
+    pre = t < t_step - 0.5 * T
+    n_pre = int(np.count_nonzero(pre))
+    if n_pre == 0 or t.size - n_pre < 2:
+        raise StepError(f"measure: t_step = {t_step:g} s is outside the trace ({t[0]:g} .. {t[-1]:g} s); "
+                        f"allowed: a time with samples before and after it")
+    baseline = float(np.mean(y_all[max(0, n_pre - 10):n_pre]))
+    tt = t[n_pre:] - t_step
+    yn = (y_all[n_pre:] - baseline) / step_mm
+    rn = 1.0 + ramp_mm_s * tt / step_mm
+    err = yn - rn
+    finite = np.isfinite(err)
+    if not finite.all():  # a run that failed (NaN offsets are never written, but be safe)
+        err = np.where(finite, err, np.inf)
+        yn = np.where(finite, yn, 0.0)
+
+    t10, t90 = _first_crossing(tt, yn, 0.1), _first_crossing(tt, yn, 0.9)
+    rise = t90 - t10 if t10 is not None and t90 is not None else None
+
+    peak = float(np.max(err))
+    overshoot = peak if peak > 0 and math.isfinite(peak) else 0.0
+    peak_time = float(tt[int(np.argmax(err))]) if overshoot > 0 else None
+
+    n_final = max(1, err.size // 10)
+    outside = np.flatnonzero(~(np.abs(err) <= band))
+    if outside.size == 0:
+        settling: float | None = 0.0
+    elif outside[-1] >= err.size - n_final:   # must stay inside for (at least) the final 10 %
+        settling = None
+    else:
+        k = int(outside[-1])
+        e0, e1 = abs(float(err[k])), abs(float(err[k + 1]))
+        frac = (e0 - band) / (e0 - e1) if math.isfinite(e0) and e0 != e1 else 1.0
+        settling = float(tt[k] + min(max(frac, 0.0), 1.0) * (tt[k + 1] - tt[k]))
+
+    sse = -float(np.mean(err[-n_final:])) * abs(step_mm)
+    e_ctrl = _control_error(trace, col)
+    if e_ctrl is not None:
+        tail = e_ctrl[-n_final:]
+        if np.isfinite(tail).all():
+            sse = float(np.mean(tail)) * (1.0 if step_mm > 0 else -1.0)
+
+    hysteresis = band / 2.0
+    signs = np.sign(err[np.abs(err) > hysteresis])
+    above = np.flatnonzero(signs > 0)
+    oscillation = int(np.count_nonzero(signs[above[0] + 1:] != signs[above[0]:-1])) if above.size else 0
+
+    return StepMetrics(step_mm=step_mm, rise_time_s=rise, overshoot_mm=overshoot * abs(step_mm),
+                       overshoot_pct=overshoot * 100.0, settling_time_s=settling, steady_state_error_mm=sse,
+                       oscillation=oscillation, peak_time_s=peak_time)
+
+
+# ------------------------------------------------------------------------------------------------------
+# running a sweep
+# ------------------------------------------------------------------------------------------------------
+class StepResult(NamedTuple):
+    """One setting's run: unpacks as ``(setting, metrics, trace)``. ``trace.meta`` holds ``step``
+    (t_step, step_mm, ramp_mm_s, mode, column), ``errors`` and ``warnings`` of the run."""
+
+    setting: StepSetting
+    metrics: StepMetrics
+    trace: "Trace"
+
+
+class _Bar:
+    """A rich progress bar over the settings, on a terminal only."""
+
+    def __init__(self, total: int, enabled: bool | None):
+        self.bar = None
+        if enabled is None:
+            enabled = sys.stderr.isatty()
+        if enabled and total > 0:
+            from rich.console import Console
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.bar = Progress(TextColumn("step responses"), BarColumn(), MofNCompleteColumn(),
+                                TextColumn("{task.fields[label]}"), TimeElapsedColumn(), transient=True,
+                                console=Console(stderr=True))
+            self.bar.start()
+            self.task = self.bar.add_task("step", total=total, label="")
+
+    def update(self, done: int, label: str) -> None:
+        if self.bar is not None:
+            self.bar.update(self.task, completed=done, label=label)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+
+
+def run_steps(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLike | None" = None, *,
+              step_mm: float = 1.0, mode: str = "CONST_DIST", t_step: float = 0.5, duration: float = 2.0,
+              set_dist: float = 1.0, ramp_mm_s: float = 0.0,
+              progress: bool | None = None) -> list[StepResult]:
+    """Run the step response of every setting (same machine, same step) and measure it.
+
+    All scenarios are built (and validated) before the first run, so bad input fails at once.
+    ``progress``: a rich progress bar on stderr; ``None`` (default) shows it when stderr is a terminal.
+    """
+    from ..sim.runner import run
+    from ..sim.scenario import Scenario, load_scenario
+
+    settings = list(settings)
+    if not settings:
+        raise StepSettingError("no settings; allowed: at least one StepSetting (see parse_settings)")
+    if base is not None and not isinstance(base, Scenario):
+        base = load_scenario(base)
+    scenarios = [step_scenario(base, s, step_mm, mode, t_step, duration, set_dist=set_dist,
+                               ramp_mm_s=ramp_mm_s) for s in settings]
+    out: list[StepResult] = []
+    bar = _Bar(len(settings), progress)
+    try:
+        for n, (setting, sc) in enumerate(zip(settings, scenarios)):
+            bar.update(n, setting.label)
+            res = run(sc)
+            trace = res.trace
+            col = _offset_column(trace, None)
+            trace.meta.update({"step": {"t_step": float(t_step), "step_mm": float(step_mm),
+                                        "ramp_mm_s": float(ramp_mm_s), "mode": mode.upper(), "column": col,
+                                        "setting": setting.label},
+                               "errors": list(res.errors), "warnings": list(res.warnings)})
+            out.append(StepResult(setting, measure(trace, t_step, step_mm, ramp_mm_s=ramp_mm_s, column=col),
+                                  trace))
+        bar.update(len(settings), "")
+    finally:
+        bar.close()
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------
+# presentation
+# ------------------------------------------------------------------------------------------------------
+TABLE_COLUMNS = ("setting", "rise 10-90 % [ms]", "overshoot [%]", "overshoot [mm]", "settling ±2 % [ms]",
+                 "steady-state error [mm]", "oscillation")
+
+
+def _ms(v: float | None, missing: str = "-") -> str:
+    return missing if v is None or not math.isfinite(v) else f"{v * 1e3:.1f}"
+
+
+def _row(r: StepResult) -> tuple[str, ...]:
+    m = r.metrics
+    errors = r.trace.meta.get("errors") if hasattr(r.trace, "meta") else None
+    label = r.setting.label + (" (error " + ", ".join(str(e["id"]) for e in errors) + ")" if errors else "")
+    return (label, _ms(m.rise_time_s), f"{m.overshoot_pct:.1f}", f"{m.overshoot_mm:.4f}",
+            _ms(m.settling_time_s, "not settled"), _signed(m.steady_state_error_mm), str(m.oscillation))
+
+
+def _signed(v: float) -> str:
+    """``+0.0250``; values that round to zero print as ``+0.0000`` (no ``-0.0000``)."""
+    return f"{0.0 if abs(v) < 5e-5 else v:+.4f}"
+
+
+def format_table(results: Sequence[StepResult], title: str | None = None, plain: bool = False) -> str:
+    """The metrics of every setting as a text table (rich, no colour; ``plain=True``: fixed-width ASCII)."""
+    rows = [_row(r) for r in results]
+    if plain:
+        widths = [max([len(h)] + [len(row[i]) for row in rows]) for i, h in enumerate(TABLE_COLUMNS)]
+
+        def line(cells: Sequence[str]) -> str:
+            return "  ".join(c.ljust(w) if i == 0 else c.rjust(w)
+                             for i, (c, w) in enumerate(zip(cells, widths)))
+        out = ([title] if title else []) + [line(TABLE_COLUMNS), "  ".join("-" * w for w in widths)]
+        out += [line(row) for row in rows]
+        return "\n".join(s.rstrip() for s in out) + "\n"
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left")
+    table.add_column(TABLE_COLUMNS[0], no_wrap=True)
+    for h in TABLE_COLUMNS[1:]:
+        table.add_column(h, justify="right", no_wrap=True)
+    for row in rows:
+        table.add_row(*row)
+    width = sum(max([len(h)] + [len(r[i]) for r in rows]) for i, h in enumerate(TABLE_COLUMNS)) \
+        + 3 * len(TABLE_COLUMNS) + 4
+    buf = io.StringIO()
+    Console(file=buf, width=max(width, len(title or "") + 2, 60), color_system=None, force_terminal=False,
+            highlight=False, emoji=False, markup=False).print(table)
+    return "\n".join(s.rstrip() for s in buf.getvalue().splitlines()) + "\n"
+
+
+def _decay_text(m: StepMetrics) -> str:
+    if m.oscillation == 0:
+        return "decaying without a further swing"
+    return f"decaying in {m.periods} period{'s' if m.periods != 1 else ''}"
+
+
+def _classify(m: StepMetrics) -> str:
+    """``oscillating`` (more than 2 periods after the first peak, settled or not), ``deviation`` (a
+    steady-state error beyond the band), ``slow`` (not settled, without those), ``damped`` (no
+    recognisable overshoot), ``large`` (overshoot above 40 %) or ``good`` (a recognisable overshoot
+    up to 40 %, rapidly decaying)."""
+    if m.oscillation > RAPID_CROSSINGS:
+        return "oscillating"
+    if abs(m.steady_state_error_mm) > BAND * abs(m.step_mm):
+        return "deviation"
+    if not m.settled:
+        return "slow"
+    if m.overshoot_pct < RECOGNISABLE_PCT:
+        return "damped"
+    if m.overshoot_pct > LARGE_PCT:
+        return "large"
+    return "good"
+
+
+def _overshoot_text(m: StepMetrics) -> str:
+    if m.overshoot_pct < RECOGNISABLE_PCT:
+        return f"no recognisable overshoot ({m.overshoot_pct:.1f} %), rise time {_ms(m.rise_time_s)} ms"
+    return f"overshoot {m.overshoot_pct:.0f} % {_decay_text(m)}"
+
+
+def hints(results: Sequence[StepResult]) -> list[str]:
+    """Short factual hints along the documents' method (seeds/000 ch. 3), one per setting plus a summary.
+
+    Step 1 (P only): a setting without a recognisable overshoot (< 2 %) is slow but safe (raise KP);
+    one with a recognisable overshoot (2 ... 40 %) that decays within 2 periods is what the method
+    looks for; a larger overshoot, more swings or no settling: lower KP or add D. Step 2 (I): only
+    for a permanent control deviation. Step 4 (D): the overshoot with and without D_TV at the same
+    KP / I_TN is compared.
+    """
+    out: list[str] = []
+    for r in results:
+        s, m = r.setting, r.metrics
+        errors = r.trace.meta.get("errors") if hasattr(r.trace, "meta") else None
+        head = f"{s.label}: "
+        if errors:
+            ids = ", ".join(str(e["id"]) for e in errors)
+            out.append(head + f"the run stopped with error {ids} — the loop is unstable or a limit was hit: "
+                              f"lower KP")
+            continue
+        kind = _classify(m)
+        if kind == "oscillating":
+            remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+            state = ("not settled within ±{:.0f} % by the end of the run".format(BAND * 100) if not m.settled
+                     else f"settled after {_ms(m.settling_time_s)} ms")
+            text = (f"overshoot {m.overshoot_pct:.0f} %, {m.oscillation} zero crossings after the first "
+                    f"peak, {state} — more oscillation than 'rapidly decaying': {remedy}")
+        elif kind == "deviation":
+            text = (f"{_overshoot_text(m)}; steady-state error {m.steady_state_error_mm:+.4f} mm — a "
+                    f"permanent control deviation: " + ("add I (T_n from 5 s, then reduce it; method step 2)"
+                                              if s.i_tn == 0 else "reduce I_TN"))
+        elif kind == "slow":
+            text = (f"{_overshoot_text(m)}; not settled within ±{BAND * 100:.0f} % by the end of the run "
+                    f"without oscillating: a slow approach (a longer run shows more)")
+        elif kind == "large":
+            remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+            text = f"{_overshoot_text(m)} — a large overshoot (above {LARGE_PCT:.0f} %): {remedy}"
+        elif kind == "damped":
+            text = (f"{_overshoot_text(m)} — well damped"
+                    + (": KP may be raised (method step 1)" if s.kind == "P" else ""))
+        else:
+            text = (f"{_overshoot_text(m)} — recognisable but rapidly decaying"
+                    + (": a good P setting" if s.kind == "P" else ""))
+        out.append(head + text)
+    # D: the same KP and I_TN with and without D_TV
+    by_pi: dict[tuple[float, float], list[StepResult]] = {}
+    for r in results:
+        by_pi.setdefault((r.setting.kp, r.setting.i_tn), []).append(r)
+    for (kp, tn), group in by_pi.items():
+        without = [r for r in group if r.setting.d_tv == 0]
+        if not without:
+            continue
+        m0 = without[0].metrics
+        for r in group:
+            if r.setting.d_tv == 0 or m0.overshoot_pct < RECOGNISABLE_PCT:
+                continue
+            m1 = r.metrics
+            verb = "reduces" if m1.overshoot_pct < m0.overshoot_pct else "does not reduce"
+            settle = "" if m1.settled or not m0.settled else "; and it no longer settles: lower D_TV"
+            out.append(f"KP={kp:g} I_TN={tn:g}: D_TV={r.setting.d_tv:g} {verb} the overshoot "
+                       f"({m0.overshoot_pct:.0f} % -> {m1.overshoot_pct:.0f} %, oscillation "
+                       f"{m0.oscillation} -> {m1.oscillation} zero crossings){settle}")
+    # summary for the P part: the largest KP with a recognisable but rapidly decaying overshoot
+    p_only = [r for r in results if r.setting.kind == "P" and not (r.trace.meta.get("errors")
+                                                                  if hasattr(r.trace, "meta") else None)]
+    good = [r for r in p_only if _classify(r.metrics) == "good"]
+    if good:
+        best = max(good, key=lambda r: r.setting.kp)
+        out.append(f"suggested P setting: KP={best.setting.kp:g} (the largest tested KP whose overshoot is "
+                   f"recognisable but rapidly decaying)")
+    elif p_only and all(_classify(r.metrics) == "damped" for r in p_only):
+        top = max(r.setting.kp for r in p_only)
+        out.append(f"no tested KP overshoots recognisably: try KP above {top:g}")
+    elif p_only and all(_classify(r.metrics) == "oscillating" for r in p_only):
+        out.append(f"every tested KP oscillates too much: try KP below {min(r.setting.kp for r in p_only):g}")
+    return out
+
+
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def check_plot_path(path: str | os.PathLike) -> Path:
+    p = Path(path)
+    if p.suffix.lower() not in PLOT_SUFFIXES:
+        raise StepError(f"plot file {str(p)!r}: suffix {p.suffix or '(none)'!r} not supported; allowed: "
+                        f"{', '.join(PLOT_SUFFIXES)}")
+    return p
+
+
+def plot_steps(results: Sequence[StepResult], path: str | os.PathLike | None = None,
+               title: str | None = None) -> "Figure":
+    """The offset responses overlaid: x ``t − t_step [s]``, y ``offset response [mm]``, one line per
+    setting (labelled ``KP=.. I_TN=.. D_TV=..``), the step level (plus ramp) and the ±2 % band dashed.
+
+    Returns the Figure (Agg canvas, no pyplot); with ``path`` it is saved too, the format by suffix
+    (.png, .svg, .pdf).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from ..trace.plot import MAX_POINTS, envelope
+
+    if not results:
+        raise StepError("plot_steps: no results; allowed: the list run_steps returns")
+    if path is not None:
+        path = check_plot_path(path)
+    fig = Figure(figsize=(10.0, 5.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots(1, 1)
+    info0 = results[0].trace.meta.get("step", {})
+    step_mm = float(info0.get("step_mm", results[0].metrics.step_mm))
+    ramp = float(info0.get("ramp_mm_s", 0.0))
+    t_end = 0.0
+    for n, r in enumerate(results):
+        info = r.trace.meta.get("step", {})
+        t_step = float(info.get("t_step", 0.0))
+        col = info.get("column") or _offset_column(r.trace, None)
+        t = np.asarray(r.trace.t, dtype=np.float64)
+        y = np.asarray(r.trace[col], dtype=np.float64)
+        T = float(np.median(np.diff(t))) if t.size > 1 else 0.001
+        pre = int(np.count_nonzero(t < t_step - 0.5 * T))
+        baseline = float(np.mean(y[max(0, pre - 10):pre])) if pre else float(y[0])
+        x = t - t_step
+        keep = x >= -min(0.05, t_step)
+        xs, ys = envelope(x[keep], y[keep] - baseline, MAX_POINTS)
+        ax.plot(xs, ys, color=f"C{n % 10}", linewidth=1.2, label=r.setting.label)
+        t_end = max(t_end, float(x[-1]))
+    xr = np.array([0.0, t_end])
+    ref = step_mm + ramp * xr
+    band = BAND * abs(step_mm)
+    ax.plot([-0.05, 0.0, 0.0], [0.0, 0.0, step_mm], color="0.25", linestyle="--", linewidth=0.9)
+    ax.plot(xr, ref, color="0.25", linestyle="--", linewidth=0.9, label=f"step {step_mm:g} mm"
+            + (f" + ramp {ramp:g} mm/s" if ramp else ""))
+    ax.plot(xr, ref + band, color="0.55", linestyle="--", linewidth=0.7, label=f"±{BAND * 100:.0f} % band")
+    ax.plot(xr, ref - band, color="0.55", linestyle="--", linewidth=0.7, label="_nolegend_")
+    ax.set_xlabel("t − t_step [s]")
+    ax.set_ylabel("offset response [mm]")
+    ax.grid(True, alpha=0.4)
+    ax.legend(loc="best", fontsize="small")
+    mode = info0.get("mode")
+    fig.suptitle(title if title is not None else
+                 f"Distance-control step response ({mode + ', ' if mode else ''}step {step_mm:g} mm)")
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=110)
+    return fig
