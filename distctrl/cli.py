@@ -33,12 +33,17 @@ def params(list_file: str, show_all: bool) -> None:
 
 @main.command()
 @click.argument("scenario", type=click.Path(dir_okay=False))
-@click.option("--trace", "trace_path", type=click.Path(dir_okay=False), help="Write the per-cycle trace to this CSV file.")
+@click.option("--trace", "trace_path", type=click.Path(dir_okay=False),
+              help="Write the per-cycle trace to this CSV file (units in FILE.meta.json), or to a .parquet file.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object with the result instead of a summary.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Save a plot of the run (PNG or SVG).")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False),
               help="Write a self-contained HTML report (plots embedded) into this folder.")
-def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None, report_dir: str | None) -> None:
+@click.option("--record", "record", default="",
+              help="Also record these values behind the CNC objects per axis, comma-separated "
+                   "(e.g. a_max_int,v_max_int,kp,m_actual_offset); columns <axis>.dc.<name>.")
+def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None, report_dir: str | None,
+        record: str) -> None:
     """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
 
     Exit code 0 when the program ran to its end, 2 when an error aborted it, 1 for invalid input
@@ -50,7 +55,7 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
 
     try:
         result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None or report_dir is not None,
-                              progress=not as_json)
+                              progress=not as_json, record=tuple(record.split(",")) if record else ())
     except DistCtrlError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)

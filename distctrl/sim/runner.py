@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..control import HliState
 from ..nc.parser import parse_file, parse_program
+from .config_errors import ConfigError
 from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
 
 #: safety cap when a scenario has no duration: one hour of machine time
@@ -65,7 +66,25 @@ class RunResult:
         return self.trace.plot(path, signals=signals, title=self.name)
 
 
-def trace_columns(machine: Machine) -> tuple[list[str], dict[str, str]]:
+#: the values behind the CNC objects (CycleOutput fields) that ``record=`` may add, with their units
+RECORDABLE = {"m_actual_offset": "mm", "delta_offset": "mm", "offset_velocity": "mm/s", "v_max_int": "mm/s",
+              "a_max_int": "mm/s²", "v_max_param": "mm/s", "a_max_param": "mm/s²", "kp": "-", "i_tn": "s",
+              "d_tv": "s", "smoothing_fact": "-", "kalman_sigma": "-", "n_cycles": "-", "state": "-",
+              "surface_position": "mm", "measured_distance": "mm", "command_source": "-", "absorbed_offset": "mm",
+              "target_reached": "-", "sensor_valid": "-"}
+
+
+def check_record(record) -> tuple[str, ...]:
+    """The extra per-cycle values asked for (``distctrl run --record``), validated."""
+    fields = tuple(f.strip() for f in record if f.strip())
+    for f in fields:
+        if f not in RECORDABLE:
+            raise ConfigError("record", f, "one of " + ", ".join(sorted(RECORDABLE)),
+                              "not a recordable distance-control value")
+    return fields
+
+
+def trace_columns(machine: Machine, record: tuple[str, ...] = ()) -> tuple[list[str], dict[str, str]]:
     cols, units = ["t", "line"], {"t": "s", "line": "-"}
     for n in machine.axis_names:
         for c in ("prog", "cmd", "act"):
@@ -75,6 +94,10 @@ def trace_columns(machine: Machine) -> tuple[list[str], dict[str, str]]:
         for c in DC_COLUMNS:
             cols.append(f"{n}.{c}")
             units[f"{n}.{c}"] = "-" if c == "dc.state" else "mm"
+    for n in machine.dc_axes:
+        for f in record:
+            cols.append(f"{n}.dc.{f}")
+            units[f"{n}.dc.{f}"] = RECORDABLE[f]
     cols += ["true.surface", "true.distance"]
     units.update({"true.surface": "mm", "true.distance": "mm"})
     if getattr(machine, "ch3d", None) is not None:
@@ -88,7 +111,7 @@ def trace_columns(machine: Machine) -> tuple[list[str], dict[str, str]]:
     return cols, units
 
 
-def row_builder(machine: Machine):
+def row_builder(machine: Machine, record: tuple[str, ...] = ()):
     """A function ``(t, line) -> tuple`` giving one trace row in the order of :func:`trace_columns`.
 
     It is generated once per machine layout as a single tuple expression (the way
@@ -107,6 +130,8 @@ def row_builder(machine: Machine):
         parts += [f"c{j}.{a}" for a in ("hli_state", "offset", "sensor_value", "feedback_value", "filtered_feedback",
                                         "target_deviation", "delta_deviation_pre_limiter", "sloped_delta_deviation",
                                         "set_pos", "set_distance")]
+    for j, n in enumerate(machine.dc_axes):
+        parts += [f"float(c{j}.{f})" for f in record]            # names checked by check_record
     parts += ["m.true_surface", "m.true_distance"]
     if getattr(machine, "ch3d", None) is not None:
         env["q"] = machine.out3d
@@ -123,8 +148,12 @@ def load_program(scenario):
 
 
 def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, progress: bool = False,
-        plc_program=None) -> RunResult:
+        plc_program=None, record=()) -> RunResult:
     """Run ``scenario`` (a Scenario, or a path to a TOML file). Invalid files raise DistCtrlError.
+
+    ``trace``: a CSV path (streamed, with a ``.meta.json`` units sidecar) or a ``.parquet`` path
+    (kept in memory and written at the end; needs pyarrow). ``record``: extra values behind the CNC
+    objects to record per distance-controlled axis (:data:`RECORDABLE`, e.g. ``("a_max_int", "kp")``).
 
     ``plc_program(machine, cycle)``, if given, runs every cycle before the CNC reads the PLC
     interface: it may write ``machine.hli[axis]`` (command_w + semaphore, cyclic values) and read
@@ -137,7 +166,13 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     program = load_program(scenario)
     machine = Machine(scenario, program, plc_program=plc_program)
     T = scenario.cycle_time
-    columns, units = trace_columns(machine)
+    record = check_record(record)
+    columns, units = trace_columns(machine, record)
+    parquet_path = Path(trace) if trace is not None and str(trace).lower().endswith(".parquet") else None
+    if parquet_path is not None:
+        from ..workbench.parquet import require_pyarrow
+        require_pyarrow()                       # fail before the run, not after it
+        trace, keep_trace = None, True
     # 8192-row chunks: a chunk of buffered rows is ~6 MB of Python floats, the memory ceiling
     recorder = TraceRecorder(columns, units, csv_path=trace, keep=keep_trace, chunk_rows=8192,
                              meta={"scenario": scenario.name, "cycle_time": T})
@@ -152,7 +187,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     settled_for = 0
     nc = machine.nc
     append = recorder.append
-    build_row = row_builder(machine)
+    build_row = row_builder(machine, record)
     outputs, inputs = machine.outputs, machine.inputs
     step = machine.step
     dc_out = outputs[dc_axis] if dc_axis is not None else None
@@ -191,17 +226,23 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        errors, warnings = [], []
+        for t, ev in machine.events:
+            item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
+            (warnings if ev.severity == "warning" else errors).append(item)
+        if nc is not None and nc.error is not None:
+            errors.append({"id": nc.error.id, "line": nc.error.line, "t": round(machine.cycle * T, 9),
+                           "message": nc.error.message})
+        # the sidecar keeps them: `distctrl plot` marks them without the run's JSON
+        recorder.meta["errors"], recorder.meta["warnings"] = errors, warnings
         kept = recorder.close()
         machine.publish_all()
         if bar is not None:
             bar.close()
-    errors, warnings = [], []
-    for t, ev in machine.events:
-        item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
-        (warnings if ev.severity == "warning" else errors).append(item)
-    if nc is not None and nc.error is not None:
-        errors.append({"id": nc.error.id, "line": nc.error.line, "t": round(machine.cycle * T, 9),
-                       "message": nc.error.message})
+    if parquet_path is not None and kept is not None:
+        from ..workbench.parquet import to_parquet
+        to_parquet(kept, parquet_path)
+        trace = parquet_path
     program_done = nc is not None and nc.ended and not nc.aborted
     if out3d is not None:
         final_state = HliState(out3d.core.hli_state).name

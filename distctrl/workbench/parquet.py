@@ -45,6 +45,11 @@ def _pyarrow():
     return pa, pq
 
 
+def require_pyarrow() -> None:
+    """Raise ParquetError ("pip install pyarrow") unless Parquet traces can be written."""
+    _pyarrow()
+
+
 def _json_default(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()

@@ -290,3 +290,20 @@ def test_feed_hold_event_on_the_axis_holds_the_offset():
     held = tr["Z.dc.offset"][int(0.7 / 0.001):int(1.2 / 0.001)]
     assert np.ptp(held) == 0.0
     assert at(tr, "Z.dc.offset", 1.9) > held[0] + 0.5            # follows the ramp again afterwards
+
+
+def test_record_extra_object_values_and_parquet_and_errors_in_the_sidecar(tmp_path):
+    pytest.importorskip("pyarrow")
+    from distctrl.workbench.parquet import from_parquet
+    r = run(SCN / "dist_1.toml", trace=tmp_path / "t.parquet", record=("a_max_int", "kp", "m_actual_offset"))
+    tr = from_parquet(tmp_path / "t.parquet")
+    assert tr.rows == r.cycles and tr.units["Z.dc.a_max_int"] == "mm/s²"
+    assert np.array_equal(tr["Z.dc.m_actual_offset"], tr["Z.dc.offset"])
+    assert set(np.unique(tr["Z.dc.kp"])) == {1.0}
+    with pytest.raises(Exception, match="allowed: one of"):
+        run(SCN / "dist_1.toml", record=("nope",))
+    # a run with an error keeps it in the CSV sidecar, where `distctrl plot` finds it
+    csv = tmp_path / "err.csv"
+    run(base_scenario("N10 Z[DIST_CTRL ON]\nN20 M30\n"), trace=csv)
+    meta = json.loads((tmp_path / "err.csv.meta.json").read_text())["meta"]
+    assert [e["id"] for e in meta["errors"]] == [70335]
