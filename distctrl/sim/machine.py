@@ -562,6 +562,41 @@ class Machine:
                     self.in3d.commands.append(Command3D(Action.PROGRAM_END, line=nc.end_line))
         return nc.line
 
+    def _axes_cycle(self, setpoints: dict, line, t: float) -> None:
+        """Every axis: its distance controller (if enabled or commanded) on top of the setpoint from
+        the interpolation (or the kinematic transformation), then its drive."""
+        nc = self.nc
+        shift = self.shift if self._shift_any else None
+        for name, inp, out, ctrl, drive, is_dc, unit in self._axes:
+            p = setpoints[name]
+            if shift is not None:
+                p += shift[name]
+            inp.programmed_position = p
+            if is_dc or inp.commands or unit.command_semaphore_rw:
+                if unit.command_semaphore_rw or unit.cyclic.valid_position or unit.cyclic.valid_distance:
+                    unit.prepare(inp)
+                inp.actual_position = drive.actual
+                inp.nc_line = line
+                if inp.commands or ctrl.state.sensor_source is _VARIABLE:
+                    var = ctrl.state.sensor_var or self.sensor_variable
+                    if var is not None:
+                        inp.sensor_variable = self.variables.get(self._var_name(var), float("nan"))
+                ctrl.update(inp, out)
+                if out.events:
+                    for ev in out.events:
+                        self.events.append((t, ev))
+                        if ev.severity == "error" and nc is not None and nc.running:
+                            self.stop_program(None)
+                if out.absorbed_offset:
+                    self.shift[name] += out.absorbed_offset
+                    self._shift_any = True
+                if self.publish_hli:
+                    unit.publish(out)
+                drive.step(out.command_position)
+            else:
+                out.command_position = p
+                drive.step(p)
+
     def _step_axes(self) -> None:
         """One GEO cycle of the axis variant (no kinematics, no 3D distance control)."""
         k = self.cycle
@@ -591,38 +626,7 @@ class Machine:
                 self.inputs[sensor_axis].sensor_increments = value
             else:
                 self.variables[self.sensor_variable] = value
-        shift = self.shift if self._shift_any else None
-        for name, inp, out, ctrl, drive, is_dc, unit in self._axes:
-            p = prog[name]
-            if shift is not None:
-                p += shift[name]
-            inp.programmed_position = p
-            if is_dc or inp.commands or unit.command_semaphore_rw:
-                if unit.command_semaphore_rw or unit.cyclic.valid_position or unit.cyclic.valid_distance:
-                    unit.prepare(inp)
-                inp.actual_position = drive.actual
-                inp.nc_line = line
-                if inp.commands or ctrl.state.sensor_source is _VARIABLE:
-                    var = ctrl.state.sensor_var or self.sensor_variable
-                    if var is not None:
-                        if not var.startswith("V.E."):
-                            var = "V.E." + var
-                        inp.sensor_variable = self.variables.get(var, float("nan"))
-                ctrl.update(inp, out)
-                if out.events:
-                    for ev in out.events:
-                        self.events.append((t, ev))
-                        if ev.severity == "error" and nc is not None and nc.running:
-                            self.stop_program(None)
-                if out.absorbed_offset:
-                    self.shift[name] += out.absorbed_offset
-                    self._shift_any = True
-                if self.publish_hli:
-                    unit.publish(out)
-                drive.step(out.command_position)
-            else:
-                out.command_position = p
-                drive.step(p)
+        self._axes_cycle(prog, line, t)
         self.cycle = k + 1
 
     def _step_kin(self) -> None:
@@ -756,36 +760,7 @@ class Machine:
         if "Z" in machine:
             machine["Z"] = mz
         self.prog_values = [prog[n] for n in self.axis_names]
-        shift = self.shift if self._shift_any else None
-        for name, inp, out, ctrl, drive, is_dc, unit in self._axes:
-            p = machine[name]
-            if shift is not None:
-                p += shift[name]
-            inp.programmed_position = p
-            if is_dc or inp.commands or unit.command_semaphore_rw:
-                if unit.command_semaphore_rw or unit.cyclic.valid_position or unit.cyclic.valid_distance:
-                    unit.prepare(inp)
-                inp.actual_position = drive.actual
-                inp.nc_line = line
-                if inp.commands or ctrl.state.sensor_source is _VARIABLE:
-                    var = ctrl.state.sensor_var or self.sensor_variable
-                    if var is not None:
-                        inp.sensor_variable = self.variables.get(self._var_name(var), float("nan"))
-                ctrl.update(inp, out)
-                if out.events:
-                    for ev in out.events:
-                        self.events.append((t, ev))
-                        if ev.severity == "error" and nc is not None and nc.running:
-                            self.stop_program(None)
-                if out.absorbed_offset:
-                    self.shift[name] += out.absorbed_offset
-                    self._shift_any = True
-                if self.publish_hli:
-                    unit.publish(out)
-                drive.step(out.command_position)
-            else:
-                out.command_position = p
-                drive.step(p)
+        self._axes_cycle(machine, line, t)
         self.cycle = k + 1
 
     def channel3d_values(self):

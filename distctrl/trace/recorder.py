@@ -240,7 +240,8 @@ def format_rows(data: np.ndarray, block_values: int = 16384) -> bytes:
 # ------------------------------------------------------------------------------------------------------
 # sidecar and CSV reading
 # ------------------------------------------------------------------------------------------------------
-def _json_default(obj: Any) -> Any:
+def json_default(obj: Any) -> Any:
+    """``json.dumps(default=...)`` for the values trace meta may hold (numpy, paths, sets)."""
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):
@@ -257,7 +258,7 @@ def _write_sidecar(csv_path: str | os.PathLike, columns: Sequence[str], units: d
     side = sidecar_path(csv_path)
     doc = {"format": _FORMAT_NAME, "version": _FORMAT_VERSION, "columns": list(columns),
            "units": dict(units), "meta": meta, "rows": int(rows), "complete": bool(complete)}
-    text = json.dumps(doc, indent=2, default=_json_default, allow_nan=True) + "\n"
+    text = json.dumps(doc, indent=2, default=json_default, allow_nan=True) + "\n"
     tmp = side.with_name(side.name + ".tmp")
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, side)

@@ -32,6 +32,7 @@ import numpy as np
 from ..control.filters import FilterConfig, SensorFilter
 from ..control.kinds import FILTER_TYPE_NAMES, FilterType
 from ..errors import DistCtrlError, ParameterError
+from .tables import render_table
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -701,30 +702,7 @@ def format_table(results: Sequence[FilterResult], title: str | None = None, plai
     """The metrics as a text table (rich, no colour; ``plain=True``: fixed-width ASCII)."""
     rows = [(r.label, _fmt(r.noise_rms, ".4f"), _fmt(r.delay_s * 1e3, ".2f"), _fmt(r.dead_time_s * 1e3, ".2f"),
              _fmt(r.overshoot_mm, ".3f"), _fmt(r.overshoot_pct, ".1f")) for r in results]
-    if plain:
-        widths = [max([len(h)] + [len(row[i]) for row in rows]) for i, h in enumerate(TABLE_COLUMNS)]
-
-        def line(cells):
-            return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
-        out = ([title] if title else []) + [line(TABLE_COLUMNS), "  ".join("-" * w for w in widths)]
-        out += [line(row) for row in rows]
-        return "\n".join(s.rstrip() for s in out) + "\n"
-    from rich import box
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left")
-    table.add_column(TABLE_COLUMNS[0], no_wrap=True)
-    for h in TABLE_COLUMNS[1:]:
-        table.add_column(h, justify="right", no_wrap=True)
-    for row in rows:
-        table.add_row(*row)
-    width = sum(max(len(h), *(len(r[i]) for r in rows)) if rows else len(h)
-                for i, h in enumerate(TABLE_COLUMNS)) + 4 * len(TABLE_COLUMNS) + 4
-    buf = io.StringIO()
-    Console(file=buf, width=max(width, len(title or "") + 2, 60), color_system=None, force_terminal=False,
-            highlight=False, emoji=False, markup=False).print(table)
-    return "\n".join(s.rstrip() for s in buf.getvalue().splitlines()) + "\n"
+    return render_table(TABLE_COLUMNS, rows, title, plain)
 
 
 RESULT_CSV_COLUMNS = ("label", "filter_type", "n_cycles", "smoothing_factor", "kalman_sigma", "order", "fg_f0",

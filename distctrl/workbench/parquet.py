@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..trace.recorder import json_default
+
 from ..errors import DistCtrlError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -50,16 +52,6 @@ def require_pyarrow() -> None:
     _pyarrow()
 
 
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (set, frozenset, tuple)):
-        return list(obj)
-    if isinstance(obj, os.PathLike):
-        return os.fspath(obj)
-    return str(obj)
 
 
 def to_parquet(trace: "Trace", path: str | os.PathLike, *, compression: str = "zstd") -> Path:
@@ -71,7 +63,7 @@ def to_parquet(trace: "Trace", path: str | os.PathLike, *, compression: str = "z
     path = Path(path)
     doc = {"format": _FORMAT_NAME, "version": _FORMAT_VERSION, "columns": list(trace.columns),
            "units": dict(trace.units), "meta": trace.meta, "rows": int(trace.rows)}
-    text = json.dumps(doc, default=_json_default, allow_nan=True)
+    text = json.dumps(doc, default=json_default, allow_nan=True)
     fields = [pa.field(c, pa.float64(), nullable=True,
                        metadata={b"unit": trace.units[c].encode("utf-8")} if c in trace.units else None)
               for c in trace.columns]

@@ -29,7 +29,6 @@ Errors are :class:`StepError` (a ``DistCtrlError``) whose messages say what is a
 from __future__ import annotations
 
 import dataclasses
-import io
 import itertools
 import math
 import os
@@ -41,6 +40,7 @@ from typing import TYPE_CHECKING, Any, Iterable, NamedTuple, Sequence
 import numpy as np
 
 from ..errors import DistCtrlError
+from .tables import render_table
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -665,31 +665,7 @@ def _signed(v: float) -> str:
 def format_table(results: Sequence[StepResult], title: str | None = None, plain: bool = False) -> str:
     """The metrics of every setting as a text table (rich, no colour; ``plain=True``: fixed-width ASCII)."""
     rows = [_row(r) for r in results]
-    if plain:
-        widths = [max([len(h)] + [len(row[i]) for row in rows]) for i, h in enumerate(TABLE_COLUMNS)]
-
-        def line(cells: Sequence[str]) -> str:
-            return "  ".join(c.ljust(w) if i == 0 else c.rjust(w)
-                             for i, (c, w) in enumerate(zip(cells, widths)))
-        out = ([title] if title else []) + [line(TABLE_COLUMNS), "  ".join("-" * w for w in widths)]
-        out += [line(row) for row in rows]
-        return "\n".join(s.rstrip() for s in out) + "\n"
-    from rich import box
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left")
-    table.add_column(TABLE_COLUMNS[0], no_wrap=True)
-    for h in TABLE_COLUMNS[1:]:
-        table.add_column(h, justify="right", no_wrap=True)
-    for row in rows:
-        table.add_row(*row)
-    width = sum(max([len(h)] + [len(r[i]) for r in rows]) for i, h in enumerate(TABLE_COLUMNS)) \
-        + 3 * len(TABLE_COLUMNS) + 4
-    buf = io.StringIO()
-    Console(file=buf, width=max(width, len(title or "") + 2, 60), color_system=None, force_terminal=False,
-            highlight=False, emoji=False, markup=False).print(table)
-    return "\n".join(s.rstrip() for s in buf.getvalue().splitlines()) + "\n"
+    return render_table(TABLE_COLUMNS, rows, title, plain)
 
 
 def _decay_text(m: StepMetrics) -> str:
