@@ -17,12 +17,22 @@ def main() -> None:
 @main.command()
 @click.argument("list_file", type=click.Path(dir_okay=False))
 @click.option("--all", "show_all", is_flag=True, help="Show every parameter, not only the ones that differ from the defaults.")
-def params(list_file: str, show_all: bool) -> None:
+@click.option("--cycle-time", default=0.001, show_default=True, type=float,
+              help="GEO cycle time (s) the list is checked against (the low-pass cut-off must lie below 1/(2T)).")
+def params(list_file: str, show_all: bool, cycle_time: float) -> None:
     """Load and validate an axis parameter LIST_FILE (kernel format) and print it back."""
+    from .control.controller import AxisDistanceController
+    from .errors import ParameterError
     from .params import format_list, load_list
 
     try:
         pl = load_list(list_file)
+        try:
+            AxisDistanceController(pl.params, cycle_time)        # what only the cycle time can decide
+        except ParameterError as exc:
+            line = pl.lines.get("kenngr.distc.low_pass_filter_fg_f0") if exc.param_id == "P-AXIS-00508" else None
+            raise ParameterError(str(exc), file=list_file, line=line, key=exc.key, param_id=exc.param_id,
+                                 value=exc.value, allowed=exc.allowed) from None
     except DistCtrlError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)

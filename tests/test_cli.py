@@ -67,3 +67,11 @@ def test_diag_prints_the_3d_block_for_a_3d_channel():
     res = CliRunner().invoke(main, ["diag", str(ROOT / "examples" / "scenarios" / "app_30_60.toml"), "--seconds", "1"])
     assert res.exit_code == 0, res.output
     assert "DiagData 3D distance control" in res.output and "FCT_3D_DIST_CTRL" in res.output
+
+
+def test_params_checks_the_low_pass_cut_off_against_the_cycle_time(tmp_path):
+    f = tmp_path / "lp.lis"
+    f.write_text("kenngr.distc.filter_type LOWPASS\nkenngr.distc.low_pass_filter_fg_f0 600\n")
+    res = CliRunner().invoke(main, ["params", str(f)])
+    assert res.exit_code == 1 and f"{f}:2:" in res.output and "P-AXIS-00508" in res.output
+    assert CliRunner().invoke(main, ["params", str(f), "--cycle-time", "0.0005"]).exit_code == 0

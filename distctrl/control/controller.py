@@ -81,7 +81,8 @@ class ControllerState:
     ref_shift: float = 0.0                             # REF referencing offset, mm
     last_s: float = 0.0                                # last finite encoder reading s, mm
     has_last_s: bool = False
-    s_delayed: float = 0.0                             # previous cycle's reading (no optimized scheduling)
+    s_delayed: float | None = None                     # previous cycle's reading (no optimized scheduling);
+                                                       # None before the first reading
     last_p: float = 0.0
     last_a: float = 0.0
     last_var: float = 0.0
@@ -90,6 +91,7 @@ class ControllerState:
     vals: tuple = (0.0, 0.0, 0.0, 0.0, 0.0)
     pending: dict = field(default_factory=dict)        # CNC-object writes awaiting adoption
     a_bound: float = 0.0                               # acceleration the position bounds brake with
+    pending_dryrun: HliState | None = None             # DRYRUN selected while the offset still brakes
     error: ErrorEvent | None = None                    # the error that put the controller in ERROR
 
 
@@ -183,7 +185,9 @@ class AxisDistanceController:
         if p.optimized_scheduling:
             s = s_now
         else:
-            s, st.s_delayed = st.s_delayed, s_now
+            prev = st.s_delayed
+            st.s_delayed = s_now
+            s = s_now if prev is None else prev          # the very first cycle has no earlier reading
         if not sensor_ok:
             finite_inputs = False
 
@@ -243,6 +247,8 @@ class AxisDistanceController:
                 st.need_seed = False
                 st.m_prev = self._measurement(feedback, mode, both)
             filtered = law.filter_step(self._fc, self._fs, self._buf, feedback)
+            if state == _FREEZE:
+                st.m_prev = self._measurement(filtered, mode, both)   # no D kick when tracking resumes
         else:
             filtered = feedback
             st.need_seed = True
@@ -326,6 +332,12 @@ class AxisDistanceController:
         v_real = (o_new - o) / T
         st.velocity = v_real
         st.offset = o_new
+        if st.pending_dryrun is not None:
+            if state != _FREEZE:
+                st.pending_dryrun = None
+            elif v_real == 0.0:
+                st.hli_state = state = st.pending_dryrun
+                st.pending_dryrun = None
         if state == _TURNING_OFF and abs(o_new) <= _LAND and abs(v_real) <= a_applied * T:
             # run out: INACTIVE with the offset exactly 0; the velocity of this last step is kept so
             # that the next cycle (at rest, or a new select) continues within the acceleration bound
@@ -488,6 +500,8 @@ class AxisDistanceController:
         if problem:
             self._raise(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, events, line, problem)
             return 0.0
+        if a != Action.NONE:
+            st.pending_dryrun = None
         state = st.hli_state
         if state == _ERROR and not (a == Action.OFF or a == Action.NONE):
             self._raise(ErrorId.INVALID_TRANSITION, events, line,
@@ -598,6 +612,11 @@ class AxisDistanceController:
             st.integral = 0.0
         st.mode = mode
         st.hli_state = target
+        if target in (_DRY_SP, _DRY_CD) and st.velocity != 0.0:
+            # SPEC §6: DRYRUN => the offset does not change. While it still brakes (from a tracking state
+            # or an unfinished FREEZE) the state is FREEZE; DRYRUN begins when the offset stands.
+            st.hli_state = _FREEZE
+            st.pending_dryrun = target
 
     def _absorb_to_inactive(self) -> float:
         """Deselect at once; the channel takes over the offset (the axis does not move)."""

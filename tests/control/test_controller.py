@@ -590,3 +590,44 @@ def test_one_active_command_source_nc_and_plc():
     assert out.hli_state == HliState.ACTIVE and [(e.id, e.severity) for e in out.events] == [(900007, "warning")]
     out = rig.cycle(Command(Action.RESET, source=CommandSource.PLC))  # reset always acts
     assert out.hli_state == HliState.INACTIVE
+
+
+def test_review_select_in_the_very_first_cycle_reads_no_phantom_previous_value():
+    """Found in review: with optimized_scheduling = 0 the first cycle used an initial 0 as 'last reading'."""
+    p = params(optimized_scheduling=False, max_act_value_change=5.0)
+    ctrl = AxisDistanceController(p)
+    inp, out = CycleInput(programmed_position=50.0, actual_position=50.0, sensor_increments=-10.0 / 1e-4), CycleOutput()
+    inp.commands.append(Command(ON, set_pos=40.0))
+    ctrl.update(inp, out)
+    assert out.filtered_feedback == pytest.approx(40.0) and out.events == []
+    ctrl.update(inp, out)
+    assert out.events == [] and out.hli_state == HliState.ACTIVE
+
+
+def test_review_dryrun_from_tracking_keeps_the_offset_constant():
+    """SPEC §6 DRYRUN => o constant: while the offset still brakes the state is FREEZE."""
+    rig = Rig(params(v_max=5.0, a_max=200.0), p=40.0, surface=40.0)
+    rig.cycle(Command(ON, set_pos=40.0))
+    rig.surface = 41.0
+    rig.cycle(n=100)                                                   # moving at up to 5 mm/s
+    assert rig.history[-1].offset_velocity > 1.0
+    outs = [rig.cycle(Command(Action.DRYRUN, set_pos=40.0))] + [rig.cycle() for _ in range(200)]
+    states = [o.hli_state for o in outs]
+    assert states[0] == HliState.FREEZE and states[-1] == HliState.DRYRUN_SETPOS
+    dry = [o.offset for o in outs if o.hli_state == HliState.DRYRUN_SETPOS]
+    assert len(dry) > 100 and max(dry) == min(dry)
+    for a, b in zip(outs, outs[1:]):
+        assert abs(b.offset_velocity - a.offset_velocity) <= 200.0 * 0.001 + 1e-9
+
+
+def test_review_no_derivative_kick_when_tracking_resumes_after_freeze():
+    p = params(kp=0.5, d_tv=0.01, filter_type=FilterType.MOVING_AVERAGE, n_cycles=1)
+    rig = Rig(p, p=41.0, surface=40.0)
+    rig.cycle(Command(ON, const_dist=True, set_dist=1.0))
+    rig.cycle(n=200)
+    rig.cycle(Command(Action.FREEZE))
+    rig.p = 43.0                                                       # lift Z by 2 mm while frozen
+    rig.cycle(n=200)
+    out = rig.cycle(Command(ON, const_dist=True, set_dist=3.0))
+    e = 3.0 - out.filtered_feedback
+    assert out.delta_deviation_pre_limiter == pytest.approx(0.5 * e, abs=1e-9)   # kp·e, no D kick

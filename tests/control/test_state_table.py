@@ -78,6 +78,10 @@ def _running_row(own: HliState) -> dict:
             row[name] = {R(own)}
         elif {own, target} == {ACTIVE, ACTIVE_CD}:
             row[name] = {R(ERROR, INV)}
+        elif target in (DRY_SP, DRY_CD) and own in (ACTIVE, ACTIVE_CD):
+            # SPEC §6 "DRYRUN => the offset does not change": while the offset still brakes after
+            # tracking, the state is FREEZE; DRYRUN follows when it stands
+            row[name] = {R(target), R(FREEZE)}
         else:
             row[name] = {R(target)}
     row.update({
@@ -113,8 +117,10 @@ EXPECTED: dict[HliState, dict[str, set]] = {
     DRY_SP: _running_row(DRY_SP),
     DRY_CD: _running_row(DRY_CD),
     FREEZE: {
-        # FREEZE -> any running state is the documented way to change the mode
-        "ON": {R(ACTIVE)}, "ON_CD": {R(ACTIVE_CD)}, "DRY": {R(DRY_SP)}, "DRY_CD": {R(DRY_CD)},
+        # FREEZE -> any running state is the documented way to change the mode (a DRYRUN stays FREEZE
+        # while the offset still brakes: SPEC §6 "DRYRUN => the offset does not change")
+        "ON": {R(ACTIVE)}, "ON_CD": {R(ACTIVE_CD)}, "DRY": {R(DRY_SP), R(FREEZE)},
+        "DRY_CD": {R(DRY_CD), R(FREEZE)},
         "FREEZE": {R(FREEZE)},                      # documents silent; re-freezing is harmless
         "OFF": {R(TURNING_OFF)}, "NO_MOVE": {R(INACTIVE)},
         "REF": {R(ERROR, INV)},
@@ -497,10 +503,16 @@ class DistCtrlMachine(RuleBasedStateMachine):
         return out
 
     def _automatic(self, out):
-        """The only state changes without a command: TURNING_OFF -> INACTIVE once the offset ran out."""
+        """The only state changes without a command: TURNING_OFF -> INACTIVE once the offset ran out,
+        and a DRYRUN selected while the offset still braked (shown as FREEZE) once it stands."""
         if self.model.state == TURNING_OFF and out.hli_state == INACTIVE:
             assert out.offset == 0.0
             self.model.state = INACTIVE
+        pending = getattr(self, "pending_dryrun", None)
+        if pending is not None and self.model.state == FREEZE and out.hli_state == pending:
+            assert out.offset_velocity == 0.0, "DRYRUN only once the offset stands"
+            self.model.state = pending
+            self.pending_dryrun = None
 
     def _command(self, cmd):
         pre = self.model.state
@@ -508,7 +520,12 @@ class DistCtrlMachine(RuleBasedStateMachine):
         out = self.plant.step(self._surface(), [cmd], self.override, self.feed_hold)
         ids = tuple(e.id for e in out.events)
         got = HliState(out.hli_state)
-        if expected_state == TURNING_OFF and got == INACTIVE:
+        self.pending_dryrun = None
+        if expected_state in (DRY_SP, DRY_CD) and got == FREEZE and pre != expected_state:
+            assert self.last is None or self.last.offset_velocity != 0.0 or out.offset_velocity != 0.0
+            self.model.state = FREEZE                    # DRYRUN begins when the offset stands
+            self.pending_dryrun = expected_state
+        elif expected_state == TURNING_OFF and got == INACTIVE:
             assert out.offset == 0.0, "OFF: INACTIVE only once the offset has run out"
             self.model.state = INACTIVE
         elif pre == TURNING_OFF and expected_state == TURNING_OFF and got == INACTIVE:
