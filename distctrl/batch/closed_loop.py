@@ -1,0 +1,651 @@
+"""Closed-loop batch kernel: one scenario, many parameter sets, the full plant, compiled with numba.
+
+:func:`prepare` records from a scenario everything that does not depend on the Z control (the
+programmed position of the distance-controlled axis, the surface height under the tool, the probe's
+noise samples, the cycle distance control is switched on); :func:`closed_loop` replays one cycle
+after the other exactly as :meth:`Machine._step_axes <distctrl.sim.machine.Machine._step_axes>`
+and :meth:`AxisDistanceController.update <distctrl.control.controller.AxisDistanceController.update>`
+do for a running select; :func:`run_batch` runs it for many parameter sets in parallel
+(``numba.prange`` over the sets).
+
+Per cycle ``k`` (the order of the machine and of the cycle core)::
+
+    sensor   x = -(z_true - surface[k]) + noise[k]        (EncoderProbe: clamp to the stroke,
+             y = floor((x - ref_offset) * incr_per_mm + 0.5), dead time ring)
+    core     s = law.encoder_reading(y, ...)               (delayed one cycle without optimized scheduling)
+             monitoring 70329 / 70330 / 70576 (from the select on)
+             feedback per mode, law.filter_seed (first active cycle), law.filter_step,
+             law.pid_step, law.adaptive_acceleration, law.slope_limit, law.bound_velocity,
+             law.advance_offset, 70331 / SW limit, law.integrator_after_limiter
+    drive    c = p + o  -> bus delay ring, kv loop, feed-forward, v/a limits, quantisation
+
+The law is *only* called (``law.*``, registered with numba by :mod:`distctrl.batch.kernel`); the
+sensor and drive arithmetic is written out here and mirrors :mod:`distctrl.sim.sensors` /
+:mod:`distctrl.sim.drive` operation for operation, so a batch of one equals
+:func:`distctrl.sim.runner.run` bit for bit (tests/batch/test_closed_loop.py).
+
+Restrictions (checked by :func:`prepare`, a :class:`ClosedLoopError` says which one):
+
+* the axis variant only: no 3D distance control, no head kinematics (no CA axes set), sensor
+  ``kind = "encoder"`` with ``mode = "axis"``;
+* no scenario ``events`` and no sensor ``faults``;
+* the program's DIST_CTRL commands address the sensor axis only; before the select only value-
+  setting commands (``SET_POS=``/``SET_DIST=`` without an action), then one ``ON`` (SET_POS or
+  CONST_DIST) from the NC; no ``WAIT`` (its end depends on the control), no tuning words in the
+  blocks (``KP=``, ``FILTER_TYPE=`` ... would override the parameter set), no ``SENSOR_SOURCE``,
+  ``REF``, ``DRYRUN``, ``CHECK_POS``;
+* the run ends before the next command reaches the axis (``OFF``, program end, ...): with
+  ``cycles=None`` the replay ends before the cycle it arrives in (or at ``duration``); a larger explicit
+  ``cycles`` is refused;
+* the NC program must not abort and the other axes must not raise events.
+
+A parameter set that raises a controller error in the replay (70329, 70330, 70576, 70331, SW
+limit) stops there: the scalar machine would stop the program, which the recorded path cannot
+follow. Its outputs are NaN from the error cycle on and ``errors[i] = (cycle, error id)``.
+
+Per parameter set everything the law uses may differ (gains, limits, filter, adaptive
+acceleration, optimized scheduling, both encoders, bounds, monitoring limits, the encoder
+conversion; the probe is built per set with that set's resolution, sign and reference offset, as
+the machine does). The plant (drives, probe stroke, noise, dead time) is the scenario's.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+from numba import njit, prange
+
+from ..control import law
+from ..control.commands import Action, Command
+from ..control.controller import AxisDistanceController
+from ..control.cycle_io import CycleOutput
+from ..control.kinds import SensorSource
+from ..control.states import CommandSource
+from ..errors import ErrorId
+from ..params.axis import AxisParameters
+from . import kernel as _kernel  # noqa: F401  (registers law.* with numba)
+
+__all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "closed_loop", "run_batch",
+           "Q_LEN", "PACKED_LEN"]
+
+
+class ClosedLoopError(ValueError):
+    """The scenario (or a parameter set) is outside what the closed-loop kernel replays."""
+
+
+# ----------------------------------------------------------------------------- layouts
+
+# per parameter set: the float64 vector ``prm`` (after the law's fc in a packed row)
+Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR = range(9)
+Q_ADAPTIVE, Q_A_MIN, Q_DEV_A_MIN, Q_DEV_A_MAX, Q_OPTIMIZED, Q_BOTH = range(9, 15)
+Q_MAX_DEV, Q_CHECK_SW, Q_SW_MIN, Q_SW_MAX = range(15, 19)
+Q_JUMP, Q_S_HI, Q_S_LO = range(19, 22)
+Q_MM_PER_INCR, Q_SIGN_REV, Q_REF_OFF, Q_MODULO, Q_MIN_POS, Q_MAX_POS = range(22, 28)
+Q_PROBE_IPM, Q_PROBE_REF = range(28, 30)
+Q_LEN = 30
+#: a packed row: ``[fc (law.FC_LEN) | prm (Q_LEN)]``
+PACKED_LEN = law.FC_LEN + Q_LEN
+
+# the scenario's plant and select (``plant``)
+PL_Z0, PL_ACT0, PL_KV, PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF = range(8)
+PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON, PL_MODE, PL_SET = range(8, 15)
+PL_LEN = 15
+
+MODE_SET_POS, MODE_CONST_DIST = 0, 1
+_E_JUMP = int(ErrorId.SENSOR_JUMP)
+_E_RUN_MAX = int(ErrorId.SENSOR_RUN_OUT_MAX)
+_E_RUN_MIN = int(ErrorId.SENSOR_RUN_OUT_MIN)
+_E_MAX_DEV = int(ErrorId.MAX_DEVIATION)
+_E_SW = int(ErrorId.SW_LIMIT)
+_HUGE = law.HUGE
+_LAND = 1e-9                    # as controller._LAND
+
+
+# ----------------------------------------------------------------------------- prepare
+
+@dataclass
+class LoopInputs:
+    """What :func:`prepare` recorded: the Z-independent inputs of one scenario, per cycle."""
+
+    scenario: object
+    axis: str                      # the distance-controlled (sensor) axis
+    cycle_time: float
+    n_cycles: int
+    k_on: int                      # the cycle whose update applies the ON command
+    mode: int                      # MODE_SET_POS / MODE_CONST_DIST
+    set_value: float               # SET_POS or SET_DIST, mm
+    prog: np.ndarray               # programmed position of the axis per cycle, mm
+    surface: np.ndarray            # surface height under the tool per cycle, mm
+    noise: np.ndarray              # noise_std * standard normal per cycle, mm (zeros without noise)
+    plant: np.ndarray              # PL_* vector
+    params: AxisParameters         # the scenario's parameters of the axis
+    notes: list = field(default_factory=list)
+
+
+class _Recorder:
+    """Stands in for the axis's controller during :func:`prepare`: records the programmed position
+    and the commands, commands the programmed position (offset 0), never raises an event."""
+
+    def __init__(self):
+        self.state = SimpleNamespace(sensor_source=SensorSource.SECOND_ENCODER, sensor_var=None)
+        self.prog: list[float] = []
+        self.commands: list[tuple[int, object]] = []
+
+    def update(self, inp, out: CycleOutput):
+        k = len(self.prog)
+        self.prog.append(inp.programmed_position)
+        for cmd in inp.commands:
+            self.commands.append((k, cmd))
+        inp.commands.clear()
+        out.command_position = inp.programmed_position
+        out.absorbed_offset = 0.0
+        out.events = []
+        return 0
+
+
+_TUNING_FIELDS = ("kp", "i_tn", "d_tv", "filter_type", "n_cycles", "fg_f0", "order", "smooth_fact",
+                  "kalman_sigma", "sensor_source", "sensor_var", "ref_position")
+
+
+def _noise(sensor_cfg, n: int) -> np.ndarray:
+    """The probe's noise samples of cycles 0..n-1, drawn as EncoderProbe draws them."""
+    from ..sim.sensors import NOISE_BLOCK
+
+    if not sensor_cfg.noise_std:
+        return np.zeros(n)
+    noise_seq, _ = np.random.SeedSequence(sensor_cfg.seed).spawn(2)
+    rng = np.random.default_rng(noise_seq)
+    blocks = [rng.standard_normal(NOISE_BLOCK) for _ in range((n + NOISE_BLOCK - 1) // NOISE_BLOCK)]
+    normal = np.concatenate(blocks)[:n] if blocks else np.zeros(0)
+    return sensor_cfg.noise_std * normal
+
+
+def prepare(scenario, cycles: int | None = None) -> LoopInputs:
+    """Record the Z-independent inputs of ``scenario`` (a Scenario or a TOML path) for the kernel.
+
+    Runs the scenario's machine once with a recorder in place of the distance-controlled axis's
+    controller (the axis just follows its programmed path; the other axes, interpolator and NC
+    run as they would). ``cycles``: how many cycles to replay; default: up to ``duration`` (or
+    one hour), stopping before the next command after the select. Raises
+    :class:`ClosedLoopError` for scenarios outside the restrictions (module docstring).
+    """
+    from ..sim.machine import Machine
+    from ..sim.runner import MAX_RUN_SECONDS, load_program
+    from ..sim.scenario import Scenario, load_scenario
+
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    sc = scenario
+    sensor = sc.sensor
+    if sensor is None or sensor.kind != "encoder" or sensor.orthogonal:
+        raise ClosedLoopError("the closed-loop kernel needs an encoder probe on the axis ([sensor] kind = "
+                              "'encoder', mode 'axis')")
+    if sensor.faults:
+        raise ClosedLoopError("sensor faults are not modelled by the closed-loop kernel ([sensor] faults)")
+    if sc.events:
+        raise ClosedLoopError(f"scenario events are not replayed by the closed-loop kernel ({len(sc.events)} "
+                              "events: PLC commands, overrides, faults, resets ...)")
+    axis = sensor.axis
+    if not sc.axes[axis].params.enabled:
+        raise ClosedLoopError(f"distance control is not enabled on the sensor axis {axis}")
+    machine = Machine(sc, load_program(sc))
+    if machine.kinematic_path:
+        raise ClosedLoopError("3D distance control / head kinematics (CA) are not modelled by the "
+                              "closed-loop "
+                              "kernel (the axis variant only)")
+    T = sc.cycle_time
+    limit_s = sc.duration if sc.duration is not None else MAX_RUN_SECONDS
+    max_cycles = int(round(limit_s / T))
+    if cycles is not None:
+        if int(cycles) != cycles or cycles < 1:
+            raise ClosedLoopError(f"cycles = {cycles!r}: a positive integer")
+        if cycles > max_cycles:
+            raise ClosedLoopError(f"cycles = {cycles} beyond the scenario's duration ({max_cycles} cycles)")
+        max_cycles = int(cycles)
+
+    rec = _Recorder()
+    machine.controllers[axis] = rec
+    machine._axes = [(n, i, o, rec if n == axis else c, d, dc, u) for (n, i, o, c, d, dc, u) in machine._axes]
+
+    def no_wait(ax, action):
+        raise ClosedLoopError(f"DIST_CTRL ... WAIT (line {machine.nc.line}) is not replayable: when the "
+                              "next block starts depends on the control")
+
+    orig_dist_ctrl = machine.dist_ctrl
+
+    def dist_ctrl(ax, command):
+        if ax != axis:
+            raise ClosedLoopError(f"DIST_CTRL on axis {ax} (line {command.line}): only the sensor axis "
+                                  f"{axis} "
+                                  "may be distance-controlled")
+        orig_dist_ctrl(ax, command)
+
+    machine.dist_ctrl_done = no_wait
+    machine.dist_ctrl = dist_ctrl
+    prog_values, surface = [], []
+    k_on = None
+    stop = max_cycles
+    programmed_set_pos = programmed_set_dist = None
+    mode = MODE_SET_POS
+    set_value = 0.0
+    n_seen = 0
+    for k in range(max_cycles):
+        machine.step()
+        prog_values.append(rec.prog[-1])
+        surface.append(machine.true_surface)
+        if machine.nc is not None and machine.nc.aborted:
+            err = machine.nc.error
+            raise ClosedLoopError(f"the NC program aborted at cycle {k}: {err.message if err else 'aborted'}")
+        if machine.events:
+            t, ev = machine.events[0]
+            raise ClosedLoopError(f"event {ev.id} at t = {t:g} s on another axis: {ev.message}")
+        new = rec.commands[n_seen:]
+        n_seen = len(rec.commands)
+        ended = False
+        for kc, cmd in new:
+            if k_on is not None:           # the next command after the select: the replay ends before it
+                ended = True
+                break
+            if not isinstance(cmd, Command):
+                raise ClosedLoopError(f"cycle {kc}: {type(cmd).__name__} is not replayed (only NC commands)")
+            bad = [f for f in _TUNING_FIELDS if getattr(cmd, f) is not None]
+            if bad:
+                words = ", ".join(b.upper() for b in bad)
+                raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: {words} in the block "
+                                      "is not replayed (tuning belongs to the parameter sets)")
+            if cmd.set_pos is not None:
+                programmed_set_pos = float(cmd.set_pos)
+            if cmd.set_dist is not None:
+                programmed_set_dist = float(cmd.set_dist)
+            if cmd.action == Action.NONE:
+                continue
+            if cmd.action != Action.ON:
+                raise ClosedLoopError(f"cycle {kc}: {cmd.action.name} before the select is not replayed "
+                                      "(the first action must be ON)")
+            if cmd.source != CommandSource.NC:
+                raise ClosedLoopError("only an ON from the NC program is replayed")
+            if cmd.const_dist:
+                if programmed_set_dist is None:
+                    raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: ON CONST_DIST without SET_DIST")
+                mode, set_value = MODE_CONST_DIST, programmed_set_dist
+            else:
+                if programmed_set_pos is None:
+                    raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: ON without SET_POS")
+                mode, set_value = MODE_SET_POS, programmed_set_pos
+            if not math.isfinite(set_value):
+                raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: set value {set_value!r} not finite")
+            k_on = kc
+        if ended:
+            if cycles is not None and k < cycles:
+                raise ClosedLoopError(f"cycles = {cycles}: a command reaches axis {axis} at cycle {k} "
+                                      f"({new[-1][1].action.name}); at most {k} cycles are replayable")
+            stop = k
+            break
+    if k_on is None:
+        raise ClosedLoopError(f"distance control is never selected on axis {axis} within "
+                              f"{len(prog_values)} cycles")
+    n = stop
+    ax = sc.axes[axis]
+    from ..sim.drive import Drive
+
+    drive = Drive(T, kv=ax.kv, v_max=ax.v_max, a_max=ax.a_max,
+                  bus_delay_cycles=ax.bus_delay_cycles, resolution=ax.resolution,
+                  initial_position=ax.start, velocity_feedforward=ax.feedforward)
+    plant = np.zeros(PL_LEN)
+    plant[PL_Z0] = drive.position
+    plant[PL_ACT0] = drive.actual
+    plant[PL_KV] = drive.kv
+    plant[PL_VMAX] = drive.v_max
+    plant[PL_DV] = drive._dv_max
+    plant[PL_BUS] = drive.bus_delay_cycles
+    plant[PL_RES] = drive.resolution
+    plant[PL_FF] = drive.velocity_feedforward
+    plant[PL_RMIN] = sensor.range_min
+    plant[PL_RMAX] = sensor.range_max
+    plant[PL_DELAY] = sensor.delay_cycles
+    plant[PL_NOISE] = 1.0 if sensor.noise_std else 0.0
+    plant[PL_K_ON] = k_on
+    plant[PL_MODE] = mode
+    plant[PL_SET] = set_value
+    return LoopInputs(sc, axis, T, n, k_on, mode, set_value, np.asarray(prog_values[:n], dtype=np.float64),
+                      np.asarray(surface[:n], dtype=np.float64), _noise(sensor, n), plant, ax.params)
+
+
+# ----------------------------------------------------------------------------- packing
+
+def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
+    """``(n_sets, PACKED_LEN)`` rows ``[fc | prm]`` for a list of :class:`AxisParameters`.
+
+    The law's constants come from an :class:`AxisDistanceController` built with each set (so kernel
+    and cycle core cannot disagree); the probe from ``inputs.scenario``'s sensor with the set's
+    encoder resolution, sign reversal and reference offset (as the machine builds it). Columns of
+    ``prm`` (offset ``law.FC_LEN``) that are plain numbers (``Q_KP``, ``Q_I_GAIN`` = T/i_tn,
+    ``Q_D_GAIN`` = d_tv/T, ``Q_V_MAX``, ``Q_A_BASE`` ...) may be edited in the array for a sweep; the
+    filter (``fc``) only through this function.
+    """
+    T = inputs.cycle_time
+    rows = np.zeros((len(param_sets), PACKED_LEN))
+    for i, p in enumerate(param_sets):
+        if not isinstance(p, AxisParameters):
+            raise ClosedLoopError(f"param_sets[{i}]: an AxisParameters, not {type(p).__name__}")
+        if not p.enabled:
+            raise ClosedLoopError(f"param_sets[{i}]: distance control not enabled (P-AXIS-00328)")
+        ctrl = AxisDistanceController(p, T)            # validates, designs the filter
+        c = ctrl.law_constants()
+        probe = inputs.scenario.sensor.make_sensor(T, p)
+        fc = np.asarray(c["fc"], dtype=np.float64)
+        q = np.zeros(Q_LEN)
+        q[Q_T] = c["T"]
+        q[Q_KP] = c["kp"]
+        q[Q_I_GAIN] = c["i_gain"]
+        q[Q_D_GAIN] = c["d_gain"]
+        q[Q_V_MAX] = c["v_max"]
+        q[Q_A_BASE] = c["a_base"]
+        q[Q_W_V] = c["w_v"]
+        q[Q_W_A] = c["w_a"]
+        q[Q_A_FLOOR] = c["a_floor"]
+        q[Q_ADAPTIVE] = 1.0 if p.use_adaptive_acceleration else 0.0
+        q[Q_A_MIN] = p.a_min
+        q[Q_DEV_A_MIN] = p.dist_error_a_min
+        q[Q_DEV_A_MAX] = p.dist_error_a_max
+        q[Q_OPTIMIZED] = 1.0 if p.optimized_scheduling else 0.0
+        q[Q_BOTH] = 1.0 if p.use_both_encoders else 0.0
+        q[Q_MAX_DEV] = p.max_deviation
+        q[Q_CHECK_SW] = 1.0 if p.check_sw_limit_switch else 0.0
+        q[Q_SW_MIN] = p.sw_limit_min
+        q[Q_SW_MAX] = p.sw_limit_max
+        q[Q_JUMP] = ctrl._jump_limit
+        q[Q_S_HI] = ctrl._s_hi
+        q[Q_S_LO] = ctrl._s_lo
+        q[Q_MM_PER_INCR] = ctrl._mm_per_incr
+        q[Q_SIGN_REV] = 1.0 if p.sensor_sign_reversal else 0.0
+        q[Q_REF_OFF] = p.ref_offset + ctrl.state.ref_shift
+        q[Q_MODULO] = 1.0 if ctrl._modulo else 0.0
+        q[Q_MIN_POS] = p.min_pos
+        q[Q_MAX_POS] = p.max_pos
+        q[Q_PROBE_IPM] = probe.increments_per_mm
+        q[Q_PROBE_REF] = probe.ref_offset
+        rows[i, :law.FC_LEN] = fc
+        rows[i, law.FC_LEN:] = q
+    return rows
+
+
+# ----------------------------------------------------------------------------- kernel
+
+@njit(nogil=True, error_model="numpy")
+def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, out_error):
+    """The closed loop of one parameter set over ``len(out_offset)`` cycles.
+
+    ``fc``: the law's filter coefficients, ``prm``: the ``Q_*`` vector, ``plant``: the ``PL_*``
+    vector, ``prog`` / ``surface`` / ``noise``: per cycle (mm). Writes ``out_offset`` (the trace's
+    ``<axis>.dc.offset``), ``out_distance`` (``true.distance``) and ``out_error`` = (cycle, id) of
+    the first controller error (-1, 0 without); outputs are NaN from the error cycle on.
+    """
+    n = out_offset.shape[0]
+    out_error[0] = -1
+    out_error[1] = 0
+    # law constants of this set
+    T = prm[Q_T]
+    kp = prm[Q_KP]
+    i_gain = prm[Q_I_GAIN]
+    d_gain = prm[Q_D_GAIN]
+    v_max = prm[Q_V_MAX]
+    a_base = prm[Q_A_BASE]
+    w_v = prm[Q_W_V]
+    w_a = prm[Q_W_A]
+    a_floor = prm[Q_A_FLOOR]
+    adaptive = prm[Q_ADAPTIVE] != 0.0
+    a_min = prm[Q_A_MIN]
+    dev_a_min = prm[Q_DEV_A_MIN]
+    dev_a_max = prm[Q_DEV_A_MAX]
+    optimized = prm[Q_OPTIMIZED] != 0.0
+    both = prm[Q_BOTH] != 0.0
+    max_dev = prm[Q_MAX_DEV]
+    check_sw = prm[Q_CHECK_SW] != 0.0
+    sw_min = prm[Q_SW_MIN]
+    sw_max = prm[Q_SW_MAX]
+    jump_limit = prm[Q_JUMP]
+    s_hi = prm[Q_S_HI]
+    s_lo = prm[Q_S_LO]
+    mm_per_incr = prm[Q_MM_PER_INCR]
+    sign_rev = prm[Q_SIGN_REV] != 0.0
+    ref_off = prm[Q_REF_OFF]
+    modulo = prm[Q_MODULO] != 0.0
+    min_pos = prm[Q_MIN_POS]
+    max_pos = prm[Q_MAX_POS]
+    probe_ipm = prm[Q_PROBE_IPM]
+    probe_ref = prm[Q_PROBE_REF]
+    # plant and select
+    z_pos = plant[PL_Z0]
+    z_act = plant[PL_ACT0]
+    z_vel = 0.0
+    kv = plant[PL_KV]
+    dr_vmax = plant[PL_VMAX]
+    dr_dv = plant[PL_DV]
+    nbus = int(plant[PL_BUS])
+    res = plant[PL_RES]
+    ff = plant[PL_FF]
+    r_min = plant[PL_RMIN]
+    r_max = plant[PL_RMAX]
+    ndel = int(plant[PL_DELAY])
+    has_noise = plant[PL_NOISE] != 0.0
+    k_on = int(plant[PL_K_ON])
+    const_dist = int(plant[PL_MODE]) == MODE_CONST_DIST
+    set_value = plant[PL_SET]
+    d_mode = const_dist and not both          # feedback is the distance d (CONST_DIST, one encoder)
+
+    ring = np.empty(nbus + 1)                 # Drive.setpoint_history: starts full of the start position
+    for j in range(nbus + 1):
+        ring[j] = z_pos
+    ring_w = 0
+    prev_sp = z_pos
+    dline = np.empty(ndel if ndel > 0 else 1)  # the probe's dead time
+    dline_i = 0
+    fs = np.zeros(law.FS_LEN)
+    buf = np.zeros(law.MAX_N)
+
+    o = 0.0
+    vel = 0.0
+    integral = 0.0
+    m_prev = 0.0
+    need_seed = True
+    a_bound_state = a_floor
+    s_delayed = 0.0
+    last_s = 0.0
+    has_last_s = False
+    for k in range(n):
+        # ---- machine: the probe reads the true geometry (EncoderProbe.read)
+        sz = surface[k]
+        z = z_pos
+        out_distance[k] = z - sz
+        x = -1.0 * (z - sz)
+        if has_noise:
+            x += noise[k]
+        if x < r_min:
+            x = r_min
+        elif x > r_max:
+            x = r_max
+        y = np.floor((x - probe_ref) * probe_ipm + 0.5)
+        if ndel > 0:
+            if k == 0:
+                for j in range(ndel):
+                    dline[j] = y
+            yo = dline[dline_i]
+            dline[dline_i] = y
+            dline_i = dline_i + 1 if dline_i + 1 < ndel else 0
+            y = yo
+        # ---- cycle core (AxisDistanceController.update)
+        pr = prog[k]
+        act = z_act
+        s_now = law.encoder_reading(y, mm_per_incr, sign_rev, ref_off, modulo, min_pos, max_pos)
+        if optimized:
+            s = s_now
+        else:
+            s = s_now if k == 0 else s_delayed      # the very first cycle has no earlier reading
+            s_delayed = s_now
+        running = k >= k_on
+        err_id = 0
+        if running:
+            if has_last_s and abs(s - last_s) > jump_limit:
+                err_id = _E_JUMP
+            elif s > s_hi:
+                err_id = _E_RUN_MAX
+            elif s < s_lo:
+                err_id = _E_RUN_MIN
+        if err_id != 0:
+            out_error[0] = k
+            out_error[1] = err_id
+            for j in range(k, n):
+                out_offset[j] = np.nan
+                out_distance[j] = np.nan
+            return
+        last_s = s
+        has_last_s = True
+        d = -s
+        surf = act - d
+        feedback = d if d_mode else surf
+        target_dev = 0.0
+        e = 0.0
+        u = 0.0
+        i_cand = integral
+        if running:
+            if need_seed:
+                law.filter_seed(fc, fs, buf, feedback)
+                need_seed = False
+                m_prev = -feedback if d_mode else feedback
+            filtered = law.filter_step(fc, fs, buf, feedback)
+            if not const_dist:
+                target_dev = filtered - set_value
+                e = target_dev - o
+                m = filtered
+            elif both:
+                target_dev = (pr + o - filtered) - set_value
+                e = (filtered + set_value - pr) - o
+                m = filtered
+            else:
+                target_dev = filtered - set_value
+                e = set_value - filtered
+                m = -filtered
+            u, i_cand = law.pid_step(kp, i_gain, d_gain, integral, m_prev, e, m)
+            m_prev = m
+            if not (-_HUGE < u < _HUGE) or not (-_HUGE < i_cand < _HUGE):
+                if u != u:
+                    u = 0.0
+                else:
+                    u = max(-_HUGE, min(_HUGE, u))
+                i_cand = integral
+        # slope limiter and bounds (override 1, no feed hold: hold = not running)
+        v_lim = v_max * 1.0
+        a_lim = a_base
+        if adaptive and running:
+            a_lim = law.adaptive_acceleration(abs(target_dev), a_min, a_base, dev_a_min, dev_a_max)
+        if running:
+            u_lim = u
+            e_lim = e
+        else:
+            u_lim = 0.0
+            e_lim = 0.0
+        v, a_applied, v_applied = law.slope_limit(u_lim, e_lim, vel, T, v_lim, a_lim, v_lim * w_v,
+                                                  a_lim * w_a)
+        lo = -max_dev
+        hi = max_dev
+        if check_sw:
+            lo_sw = sw_min - pr
+            if lo_sw > lo:
+                lo = lo_sw
+            hi_sw = sw_max - pr
+            if hi_sw < hi:
+                hi = hi_sw
+        if vel == 0.0:
+            a_bound = a_floor
+        else:
+            a_bound = a_bound_state if a_bound_state > a_floor else a_floor
+        a_bound_state = a_bound
+        v = law.bound_velocity(v, o, T, lo, hi, a_bound)
+        o_new = law.advance_offset(o, v, T, lo, hi)
+        if running:
+            wanted = o + u_lim
+            if wanted > hi + _LAND and hi - o_new <= _LAND:
+                err_id = _E_MAX_DEV if hi >= max_dev - _LAND else _E_SW
+            elif wanted < lo - _LAND and o_new - lo <= _LAND:
+                err_id = _E_MAX_DEV if lo <= -max_dev + _LAND else _E_SW
+            if err_id != 0:
+                out_error[0] = k
+                out_error[1] = err_id
+                for j in range(k, n):
+                    out_offset[j] = np.nan
+                    out_distance[j] = np.nan
+                return
+            integral = law.integrator_after_limiter(integral, i_cand, u_lim, v, e, T)
+        vel = (o_new - o) / T
+        o = o_new
+        out_offset[k] = o_new
+        cmd = pr + o_new + 0.0
+        # ---- drive (Drive.step)
+        ring[ring_w] = cmd
+        ring_w = ring_w + 1 if ring_w < nbus else 0
+        c = ring[ring_w]
+        dv = kv * (c - z_act)
+        if ff != 0.0:
+            dv += ff * (c - prev_sp) / T
+        prev_sp = c
+        if dv > dr_vmax:
+            dv = dr_vmax
+        elif dv < -dr_vmax:
+            dv = -dr_vmax
+        if dv > z_vel + dr_dv:
+            dv = z_vel + dr_dv
+        elif dv < z_vel - dr_dv:
+            dv = z_vel - dr_dv
+        z_pos = z_pos + dv * T
+        z_vel = dv
+        z_act = np.floor(z_pos / res + 0.5) * res if res != 0.0 else z_pos
+
+
+@njit(nogil=True, parallel=True, error_model="numpy")
+def _closed_loop_batch(packed, plant, prog, surface, noise, out_offset, out_distance, out_error):
+    for i in prange(packed.shape[0]):
+        closed_loop(packed[i, :law.FC_LEN], packed[i, law.FC_LEN:], plant, prog, surface, noise,
+                    out_offset[i], out_distance[i], out_error[i])
+
+
+def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, threads: int | None = None,
+              return_errors: bool = False):
+    """Run the closed loop of ``inputs`` for every parameter set, in parallel over the sets.
+
+    ``param_sets``: a list of :class:`AxisParameters`, or rows from :func:`pack_sets` (an array of
+    shape ``(n_sets, PACKED_LEN)``). ``cycles``: at most ``inputs.n_cycles`` (default all).
+    ``threads``: numba threads for this call (default: numba's setting). Returns
+    ``(offset, distance)`` of shape ``(n_sets, cycles)``, plus ``errors`` (n_sets, 2) = (cycle, id),
+    cycle -1 without error, when ``return_errors``.
+    """
+    import numba
+
+    if isinstance(param_sets, np.ndarray):
+        packed = np.ascontiguousarray(param_sets, dtype=np.float64)
+        if packed.ndim != 2 or packed.shape[1] != PACKED_LEN:
+            raise ClosedLoopError(f"packed parameter sets must have shape (n_sets, {PACKED_LEN}), "
+                                  f"not {packed.shape}")
+    else:
+        packed = pack_sets(inputs, list(param_sets))
+    n = inputs.n_cycles if cycles is None else int(cycles)
+    if not 0 < n <= inputs.n_cycles:
+        raise ClosedLoopError(f"cycles = {cycles!r}: 1 ... {inputs.n_cycles}")
+    n_sets = packed.shape[0]
+    out_offset = np.empty((n_sets, n))
+    out_distance = np.empty((n_sets, n))
+    out_error = np.empty((n_sets, 2), dtype=np.int64)
+    old = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(int(threads))
+    try:
+        _closed_loop_batch(packed, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
+                           out_offset, out_distance, out_error)
+    finally:
+        if threads is not None:
+            numba.set_num_threads(old)
+    if return_errors:
+        return out_offset, out_distance, out_error
+    return out_offset, out_distance
