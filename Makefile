@@ -27,6 +27,7 @@ test: $(STAMP) chromium
 
 bench: $(STAMP)
 	$(PY) bench/bench_core.py
+	$(PY) bench/bench_batch.py
 	$(PY) bench/bench_run.py
 	$(PY) bench/bench_ads.py
 

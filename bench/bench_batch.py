@@ -1,0 +1,282 @@
+"""Benchmark: the numba closed-loop batch kernel beside its C reference (gcc -O2).
+
+Targets (issue): >= 100 M parameter-set-cycles per second per core for the full closed loop with a
+MOVING_AVERAGE filter; the numba kernel within 1.5x of the C reference per core; a 10 000-set x
+10 000-cycle sweep in under a minute on this 2-core machine; the scaling from 1 to 2 workers is
+reported.
+
+The C reference is bench/batch_c/closed_loop.c: the loop of distctrl.batch.closed_loop.closed_loop
+with the law inlined by hand, operation for operation (MOVING_AVERAGE; SET_POS and CONST_DIST). It
+is compiled here with ``gcc -O2 -fno-fast-math -ffp-contract=off`` into bench/batch_c/build/ and
+called through ctypes with the very arrays the kernel gets; the benchmark first checks that both
+give the same offsets and distances (max |difference|, normally exactly 0).
+
+Results are merged into bench/results.json (keys ``batch_*``) and appended to bench/RESULTS.md
+(own section), as bench_run.py does. ``--quick``: small sizes, a smoke test.
+"""
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import threading
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+C_SOURCE = ROOT / "bench" / "batch_c" / "closed_loop.c"
+BUILD_DIR = ROOT / "bench" / "batch_c" / "build"
+#: the issue's compiler setting; no contraction / fast math so the numbers equal numba's
+CFLAGS = ("-O2", "-fno-fast-math", "-ffp-contract=off")
+SCENARIO = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"
+N_CYCLES = 10_000
+TARGET_RATE = 100e6            # set-cycles / s per core
+TARGET_RATIO = 1.5             # numba time / C time
+TARGET_SWEEP_S = 60.0          # 10 000 x 10 000
+
+
+# ----------------------------------------------------------------------------- the C reference
+
+def build_c(out_dir: pathlib.Path = BUILD_DIR, flags=CFLAGS, name: str = "libclosed_loop.so") -> pathlib.Path:
+    """Compile the C reference into a shared library in ``out_dir``; the path of the library."""
+    cc = shutil.which("gcc")
+    if cc is None:
+        raise RuntimeError("gcc not found: the C reference needs it")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    lib = out_dir / name
+    subprocess.run([cc, *flags, "-Wall", "-shared", "-fPIC", "-o", str(lib), str(C_SOURCE), "-lm"],
+                   check=True, capture_output=True, text=True)
+    return lib
+
+
+class CReference:
+    """The compiled C loop, called with the kernel's arrays (ctypes releases the GIL)."""
+
+    def __init__(self, lib_path):
+        from distctrl.batch import closed_loop as CL
+        from distctrl.control import law
+        from distctrl.errors import ErrorId
+
+        self.lib = ctypes.CDLL(str(lib_path))
+        p, i64 = ctypes.c_void_p, ctypes.c_int64
+        self.lib.closed_loop_batch.argtypes = [i64, i64, p, p, p, p, p, i64, p, p, p, p]
+        self.lib.closed_loop_batch.restype = None
+        layout = np.zeros(5, dtype=np.int64)
+        self.lib.closed_loop_layout(layout.ctypes.data_as(p))
+        want = [law.FC_LEN, CL.Q_LEN, CL.PL_LEN, law.MAX_N, CL.PACKED_LEN]
+        if layout.tolist() != want:
+            raise RuntimeError(f"closed_loop.c layout {layout.tolist()} != the kernel's {want}: "
+                               "update the C code")
+        self.err_ids = np.array([ErrorId.SENSOR_JUMP, ErrorId.SENSOR_RUN_OUT_MAX, ErrorId.SENSOR_RUN_OUT_MIN,
+                                 ErrorId.MAX_DEVIATION, ErrorId.SW_LIMIT], dtype=np.int64)
+
+    def run(self, inputs, packed, cycles: int | None = None, threads: int = 1):
+        """``(offset, distance, errors)`` like ``run_batch(..., return_errors=True)``; ``threads``
+        OS threads, each running a contiguous block of sets. errors[i, 0] == -2: the set's filter is
+        not MOVING_AVERAGE (not in the C reference)."""
+        packed = np.ascontiguousarray(packed, dtype=np.float64)
+        n = inputs.n_cycles if cycles is None else int(cycles)
+        n_sets = packed.shape[0]
+        off = np.empty((n_sets, n))
+        dist = np.empty((n_sets, n))
+        err = np.empty((n_sets, 2), dtype=np.int64)
+        arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in
+                  (inputs.plant, inputs.prog, inputs.surface, inputs.noise)]
+        ptr = [a.ctypes.data for a in (packed, *arrays)]
+        outs = [off.ctypes.data, dist.ctypes.data, err.ctypes.data, self.err_ids.ctypes.data]
+
+        def block(first, count):
+            self.lib.closed_loop_batch(first, count, *ptr, n, *outs)
+
+        bounds = np.linspace(0, n_sets, max(1, threads) + 1).astype(int)
+        if threads <= 1:
+            block(0, n_sets)
+        else:
+            ts = [threading.Thread(target=block, args=(int(a), int(b - a)))
+                  for a, b in zip(bounds, bounds[1:])]
+            for t in ts:
+                t.start()
+            for t in ts:
+                t.join()
+        return off, dist, err
+
+
+# ----------------------------------------------------------------------------- scenario and sets
+
+def scenario(seconds: float = 12.0):
+    """const_dist_sheet.toml (CONST_DIST 1 mm, both encoders, probe with 2 µm noise and a 1-cycle
+    dead time, sine + step + obstacle surface) with a straight program long enough for ``seconds``."""
+    from distctrl.sim.scenario import scenario_from_text
+
+    length = 100.0 * seconds                      # F6000 = 100 mm/s
+    text = SCENARIO.read_text().replace(
+        'program = "const_dist_sheet.nc"',
+        'program_text = """\nN10 G90 G0 X0 Y0 Z31\nN20 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\n'
+        f'N30 G1 X{length:g} F6000\nN40 Z[DIST_CTRL OFF]\nN60 M30\n"""').replace(
+        "duration = 10.0", f"duration = {seconds + 5:g}")
+    return scenario_from_text(text, base_dir=SCENARIO.parent, source="bench")
+
+
+def param_sets(inputs, n_sets: int, seed: int = 1):
+    """``n_sets`` packed MOVING_AVERAGE sets: n_cycles 2 ... 30 (packed once each), kp 0.2 ... 1.5 and
+    d_tv 0 ... 4 ms drawn per set and written into the plain columns (as docs/batch.md shows)."""
+    from distctrl.batch import closed_loop as CL
+    from distctrl.control import FilterType, law
+
+    base = inputs.params.replace(filter_type=FilterType.MOVING_AVERAGE)
+    ns = list(range(2, 31))
+    by_n = CL.pack_sets(inputs, [base.replace(n_cycles=n) for n in ns])
+    rng = np.random.default_rng(seed)
+    packed = by_n[rng.integers(0, len(ns), n_sets)]
+    packed[:, law.FC_LEN + CL.Q_KP] = rng.uniform(0.2, 1.5, n_sets)
+    packed[:, law.FC_LEN + CL.Q_D_GAIN] = rng.uniform(0.0, 0.004, n_sets) / inputs.cycle_time
+    return packed
+
+
+# ----------------------------------------------------------------------------- measurements
+
+def best_of(fn, repeats: int) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main(argv=None) -> dict:
+    from distctrl.batch import closed_loop as CL
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="small sizes (smoke test, figures not meaningful)")
+    ap.add_argument("--sets", type=int, default=1024, help="sets of the per-core measurements (default 1024)")
+    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "bench",
+                    help="directory of results.json / RESULTS.md")
+    args = ap.parse_args(argv)
+    quick = args.quick
+    n_sets = 16 if quick else args.sets
+    n_cycles = 2000 if quick else N_CYCLES
+    repeats = 1 if quick else 3
+    sweep_sets, sweep_cycles = (500, 2000) if quick else (10_000, N_CYCLES)
+
+    t0 = time.perf_counter()
+    inputs = CL.prepare(scenario(n_cycles / 1000.0 + 2.0), cycles=n_cycles)
+    t_prepare = time.perf_counter() - t0
+    packed = param_sets(inputs, n_sets)
+    t0 = time.perf_counter()
+    lib = build_c()
+    t_gcc = time.perf_counter() - t0
+    cref = CReference(lib)
+    t0 = time.perf_counter()
+    CL.run_batch(inputs, packed[:1], cycles=10)                        # compile the kernel
+    t_jit = time.perf_counter() - t0
+
+    # same numbers?
+    off_n, dist_n, err_n = CL.run_batch(inputs, packed, threads=1, return_errors=True)
+    off_c, dist_c, err_c = cref.run(inputs, packed)
+    same_err = bool(np.array_equal(err_n, err_c))
+    d_off = float(np.nanmax(np.abs(off_n - off_c)))
+    d_dist = float(np.nanmax(np.abs(dist_n - dist_c)))
+    nan_same = bool(np.array_equal(np.isnan(off_n), np.isnan(off_c)))
+    n_err = int(np.sum(err_n[:, 0] >= 0))
+    match = same_err and nan_same and d_off <= 1e-12 and d_dist <= 1e-12
+    identical = bool(np.array_equal(off_n, off_c, equal_nan=True)
+                     and np.array_equal(dist_n, dist_c, equal_nan=True))
+    del off_n, dist_n, off_c, dist_c
+
+    # per core and 2 workers
+    work = n_sets * n_cycles
+    t_n1 = best_of(lambda: CL.run_batch(inputs, packed, threads=1), repeats)
+    t_c1 = best_of(lambda: cref.run(inputs, packed, threads=1), repeats)
+    t_n2 = best_of(lambda: CL.run_batch(inputs, packed, threads=2), repeats)
+    t_c2 = best_of(lambda: cref.run(inputs, packed, threads=2), repeats)
+    r_n1, r_c1, r_n2, r_c2 = work / t_n1, work / t_c1, work / t_n2, work / t_c2
+    ratio = t_n1 / t_c1
+
+    # the sweep: 10 000 sets x 10 000 cycles, numba, all cores (outputs 2 x 0.8 GB allocated per call)
+    sweep_inputs = inputs if sweep_cycles == n_cycles else CL.prepare(scenario(sweep_cycles / 1000.0 + 2.0),
+                                                                      cycles=sweep_cycles)
+    t0 = time.perf_counter()
+    sweep_packed = param_sets(sweep_inputs, sweep_sets, seed=2)
+    t_pack = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = CL.run_batch(sweep_inputs, sweep_packed)
+    t_sweep = time.perf_counter() - t0
+    del out
+    sweep_rate = sweep_sets * sweep_cycles / t_sweep
+    sweep_label = (f"{sweep_sets:,} x {sweep_cycles:,} sweep, numba, 2 threads "
+                   "(measured, incl. output allocation)")
+    if quick:
+        t_sweep_full = t_sweep * (10_000 * N_CYCLES) / (sweep_sets * sweep_cycles)
+        sweep_label = "10,000 x 10,000 sweep, EXTRAPOLATED from a " + \
+            f"{sweep_sets:,} x {sweep_cycles:,} run (--quick)"
+    else:
+        t_sweep_full = t_sweep
+
+    res = {
+        "batch_sets": n_sets, "batch_cycles": n_cycles, "batch_repeats": repeats,
+        "batch_mode": "CONST_DIST (both encoders), MOVING_AVERAGE n 2..30",
+        "batch_cflags": " ".join(CFLAGS),
+        "batch_numba_c_max_abs_diff_offset_mm": d_off, "batch_numba_c_max_abs_diff_distance_mm": d_dist,
+        "batch_numba_c_errors_equal": same_err, "batch_sets_with_error": n_err, "batch_numba_c_match": match,
+        "batch_numba_c_bit_identical": identical,
+        "batch_numba_1t_set_cycles_per_s": r_n1, "batch_c_1t_set_cycles_per_s": r_c1,
+        "batch_numba_over_c_time": ratio,
+        "batch_numba_2t_set_cycles_per_s": r_n2, "batch_c_2t_set_cycles_per_s": r_c2,
+        "batch_numba_scaling_1_to_2": r_n2 / r_n1, "batch_c_scaling_1_to_2": r_c2 / r_c1,
+        "batch_sweep_sets": sweep_sets, "batch_sweep_cycles": sweep_cycles, "batch_sweep_s": t_sweep,
+        "batch_sweep_10k_x_10k_s": t_sweep_full, "batch_sweep_extrapolated": quick,
+        "batch_sweep_set_cycles_per_s": sweep_rate, "batch_sweep_pack_s": t_pack,
+        "batch_prepare_s": t_prepare, "batch_gcc_s": t_gcc, "batch_numba_compile_s": t_jit,
+        "batch_cpu_count": os.cpu_count(),
+    }
+    rows = [
+        ("numba == C reference: max abs offset difference", d_off, "mm", "<= 1e-12, same errors",
+         "PASS" if match else "FAIL"),
+        ("numba kernel, 1 thread", r_n1 / 1e6, "M set-cycles/s", ">= 100",
+         "PASS" if r_n1 >= TARGET_RATE else "FAIL"),
+        ("C reference (gcc -O2), 1 thread", r_c1 / 1e6, "M set-cycles/s", "", "-"),
+        ("numba time / C time, 1 thread", ratio, "x", "<= 1.5", "PASS" if ratio <= TARGET_RATIO else "FAIL"),
+        ("numba kernel, 2 threads", r_n2 / 1e6, "M set-cycles/s", "", "-"),
+        ("numba scaling 1 -> 2 threads", r_n2 / r_n1, "x", "", "-"),
+        ("C reference, 2 threads", r_c2 / 1e6, "M set-cycles/s", "", "-"),
+        ("C scaling 1 -> 2 threads", r_c2 / r_c1, "x", "", "-"),
+        (sweep_label, t_sweep_full, "s", "< 60", "PASS" if t_sweep_full < TARGET_SWEEP_S else "FAIL"),
+    ]
+    for a, b, c, d, e in rows:
+        print(f"{a:<80} {b:>12,.4g} {c:<15} {d:<22} {e}")
+    lines = ["", "## Batch closed loop vs C reference (bench/bench_batch.py)", "",
+             f"- scenario: examples/scenarios/const_dist_sheet.toml with a straight {n_cycles}-cycle path; "
+             "CONST_DIST 1 mm with both encoders, probe with 2 µm noise and a 1-cycle dead time, drive kv 60 "
+             "with 1-cycle bus delay and 0.1 µm encoder",
+             f"- {n_sets} MOVING_AVERAGE sets (n_cycles 2 … 30, kp 0.2 … 1.5, d_tv 0 … 4 ms) × {n_cycles} "
+             "cycles, "
+             f"best of {repeats}; {n_err} sets ran into a controller error (both stop at the same cycle)",
+             f"- C reference bench/batch_c/closed_loop.c, `gcc {' '.join(CFLAGS)}`, called through ctypes "
+             "(2 threads: two OS threads, each a half of the sets); numba via `run_batch(threads=...)`",
+             f"- max abs offset difference {d_off:.3g} mm, max abs distance difference {d_dist:.3g} mm, "
+             f"errors equal: {same_err}, bit for bit identical: {identical}",
+             f"- sweep: packing {sweep_sets} sets {t_pack:.2f} s (not in the sweep time); "
+             f"prepare {t_prepare:.2f} s, "
+             f"gcc {t_gcc:.2f} s, numba compile {t_jit:.1f} s", "",
+             "| measurement | value | unit | target | result |", "|---|---:|---|---:|---|"]
+    lines += [f"| {a} | {b:,.4g} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
+    results = args.out / "results.json"
+    data = json.loads(results.read_text()) if results.exists() else {}
+    data.update(res)
+    results.write_text(json.dumps(data, indent=2))
+    with open(args.out / "RESULTS.md", "a", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
+    return res
+
+
+if __name__ == "__main__":
+    main()
