@@ -242,6 +242,11 @@ def _register_workbench() -> None:
     main.add_command(filters)
     main.add_command(plot)
     main.add_command(step)
+    # batch tuning (issue 7): numba and dask are imported only when these commands run
+    from .tuning.cli import sweep, tune_cmd
+
+    main.add_command(sweep)
+    main.add_command(tune_cmd)
 
 
 _register_workbench()

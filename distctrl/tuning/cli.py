@@ -1,0 +1,123 @@
+"""``distctrl sweep`` and ``distctrl tune`` (click commands; distctrl/cli.py registers them)."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ..errors import DistCtrlError
+
+
+def _errors() -> tuple:
+    from ..batch.closed_loop import ClosedLoopError
+
+    return (DistCtrlError, ClosedLoopError)
+
+__all__ = ["sweep", "tune_cmd"]
+
+
+def _fail(exc: Exception) -> None:
+    click.echo(f"error: {exc}", err=True)
+    sys.exit(1)
+
+
+def _mode(local: bool, scheduler: str | None) -> dict:
+    if local and scheduler:
+        raise click.UsageError("--local and --scheduler exclude each other")
+    return {"mode": "local" if local else "cluster", "scheduler": scheduler}
+
+
+@click.command()
+@click.argument("scenario", type=click.Path(dir_okay=False, exists=True))
+@click.option("--grid", help="Grid to evaluate, e.g. 'kp=0.1:1.0:10,d_tv=0,0.01,filter_type=MOVING_AVERAGE,"
+                             "n_cycles=4,8,16' (a:b:n ranges, a:b:n:log, lists).")
+@click.option("--random", "n_random", type=int, help="Evaluate N random points of the default search space.")
+@click.option("--seed", default=0, show_default=True, type=int, help="Seed of --random.")
+@click.option("--cycles", type=int, help="Cycles to replay (default: to the next command after the select).")
+@click.option("--out", "out", default="sweep.csv", show_default=True, type=click.Path(dir_okay=False),
+              help="Results table: .csv, or .parquet (needs pyarrow).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Save a heatmap (two swept parameters) or parallel-coordinates plot (PNG/SVG).")
+@click.option("--metric", default="rms_error", show_default=True, help="Metric of the plot and the ranking.")
+@click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
+@click.option("--local", is_flag=True, help="Run in this process without dask.")
+@click.option("--workers", type=int, help="Workers of the embedded LocalCluster (default: all cores).")
+@click.option("--chunk", default=256, show_default=True, type=int, help="Parameter sets per chunk.")
+@click.option("--top", default=10, show_default=True, type=int, help="Rows of the summary table.")
+def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, scheduler, local, workers, chunk, top):
+    """Evaluate a grid (--grid) or a random sample (--random N) of filter/PID settings on SCENARIO.toml
+    with the closed-loop batch kernel; write the metrics table and optionally a plot."""
+    from ..batch.closed_loop import prepare
+    from .metrics import METRIC_NAMES
+    from .runner import Evaluator, plot_sweep
+    from .space import build_sets, grid_points, parse_grid, random_sample
+
+    if (grid is None) == (n_random is None):
+        raise click.UsageError("give exactly one of --grid and --random N")
+    if metric not in METRIC_NAMES + ("cost",):
+        raise click.UsageError(f"--metric {metric!r}: one of cost, {', '.join(METRIC_NAMES)}")
+    opts = _mode(local, scheduler)
+    try:
+        inputs = prepare(scenario, cycles)
+        points = grid_points(parse_grid(grid)) if grid is not None else \
+            random_sample(n_random, seed, cycle_time=inputs.cycle_time)
+        sets, points, rejected = build_sets(inputs.params, points, inputs.cycle_time)
+        if rejected:
+            click.echo(f"warning: {len(rejected)} of {len(rejected) + len(sets)} combinations rejected; "
+                       f"first: {rejected[0][1]}", err=True)
+        if not sets:
+            raise DistCtrlError("no valid parameter set to evaluate")
+        with Evaluator(inputs, cycles=cycles, n_workers=workers, chunk_size=chunk, **opts) as ev:
+            res = ev.evaluate(sets, points)
+        path = res.write(out)
+        if plot_path:
+            plot_sweep(res, plot_path, metric)
+    except _errors() as exc:
+        _fail(exc)
+    info = res.info
+    rate = info["sets"] * info["cycles"] / max(info["seconds"], 1e-9)
+    click.echo(res.render(top, key=metric, plain=True,
+                          title=f"best {min(top, len(res))} of {len(res)} sets by {metric}"), nl=False)
+    click.echo(f"{info['sets']} sets x {info['cycles']} cycles in {info['seconds']:.2f} s "
+               f"({rate / 1e6:.1f} M set-cycles/s, {info['mode']}, {info['workers']} worker(s)); "
+               f"table: {path}" + (f"; plot: {plot_path}" if plot_path else ""))
+
+
+@click.command("tune")
+@click.argument("scenario", type=click.Path(dir_okay=False, exists=True))
+@click.option("--budget", default=400, show_default=True, type=int, help="Parameter sets to evaluate.")
+@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the coarse random sweep.")
+@click.option("--cycles", type=int, help="Cycles to replay (default: to the next command after the select).")
+@click.option("--out", "out_dir", default="tune_out", show_default=True, type=click.Path(file_okay=False),
+              help="Folder for tuned.lis, tuned.nc.txt, sweep.csv, before_after.png, report.txt.")
+@click.option("--osc-weight", default=1.0, show_default=True, type=float,
+              help="Weight of the oscillation penalty (hf_rms) in the cost.")
+@click.option("--no-robustness", is_flag=True, help="Skip the re-check on perturbed scenarios.")
+@click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
+@click.option("--local", is_flag=True, help="Run in this process without dask.")
+@click.option("--workers", type=int, help="Workers of the embedded LocalCluster (default: all cores).")
+def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, no_robustness, scheduler, local, workers):
+    """Find good filter/PID settings for SCENARIO.toml: a coarse sweep, a local refinement, a robustness
+    check; print them as an axis parameter list and an NC DIST_CTRL block."""
+    from .tune import plot_before_after, tune
+
+    opts = _mode(local, scheduler)
+    if budget < 2:
+        raise click.UsageError("--budget: at least 2")
+    try:
+        res = tune(scenario, budget=budget, seed=seed, cycles=cycles, osc_weight=osc_weight,
+                   robustness=not no_robustness, n_workers=workers,
+                   log=lambda m: click.echo(m, err=True), **opts)
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "tuned.lis").write_text(res.param_list)
+        (out / "tuned.nc.txt").write_text(res.nc_block + "\n")
+        res.sweep.write(out / "sweep.csv")
+        plot_before_after(scenario, res.base, res.best, out / "before_after.png", cycles=cycles)
+        text = res.report()
+        (out / "report.txt").write_text(text)
+    except _errors() as exc:
+        _fail(exc)
+    click.echo(text, nl=False)
+    click.echo(f"written: {out}/tuned.lis, tuned.nc.txt, sweep.csv, before_after.png, report.txt")

@@ -1,0 +1,448 @@
+"""Evaluate many parameter sets of one scenario in chunks: in-process or on a dask.distributed cluster.
+
+:class:`Evaluator` holds the recorded scenario (:class:`~distctrl.batch.closed_loop.LoopInputs`)
+and where the work runs:
+
+* ``mode="local"``: in this process, one chunk after the other, each on all cores (numba threads);
+  a chunk that raises is retried up to ``retries`` times;
+* ``mode="cluster"`` (the default): an embedded ``LocalCluster(n_workers=os.cpu_count(),
+  threads_per_worker=1, processes=True)`` started on entry and closed on exit, or, with
+  ``scheduler="tcp://host:8786"``, a ``Client`` of an existing cluster (not closed).
+
+Each chunk (at most ``chunk_size`` sets, fewer for long runs so a chunk's traces stay within
+``chunk_bytes``) is the pure function :func:`evaluate_chunk` of the scattered inputs (without the
+scenario object) and the packed rows, submitted with ``retries``: an exception is retried, and a
+chunk whose worker dies is rescheduled by dask on another worker; only that chunk is lost. Progress
+is a rich bar on stderr when it is a terminal.
+
+The result is a :class:`SweepResult`: a column table (plain lists, no pandas) with the swept
+parameters, the metrics of :mod:`distctrl.tuning.metrics`, the objective ``cost`` and the
+controller error of each set; ``write()`` saves CSV or Parquet (pyarrow).
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..control.kinds import FilterType
+from ..errors import DistCtrlError
+from .metrics import METRIC_NAMES, compute_metrics, cost, limits_from_packed, wanted_distance
+from .space import NC_WORDS
+
+__all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "TuningRunError", "PARAM_COLUMNS",
+           "plot_sweep"]
+
+#: the parameter columns of every result table (AxisParameters fields)
+PARAM_COLUMNS = tuple(NC_WORDS)
+DEFAULT_CHUNK = 256
+DEFAULT_CHUNK_BYTES = 256 * 2**20
+
+
+class TuningRunError(DistCtrlError, RuntimeError):
+    """A sweep could not run (cluster unreachable, a chunk failed after its retries, ...)."""
+
+
+# ----------------------------------------------------------------------------- the chunk function
+
+def slim_inputs(inputs):
+    """``inputs`` without the scenario object and parameters: what a worker needs (arrays only)."""
+    return dataclasses.replace(inputs, scenario=None, params=None, notes=[])
+
+
+def evaluate_chunk(inputs, packed: np.ndarray, cycles: int | None, metric_options: dict,
+                   threads: int | None = None) -> dict[str, np.ndarray]:
+    """Run the kernel for the packed rows and return their metrics (a pure function of its arguments)."""
+    from ..batch.closed_loop import run_batch
+
+    offset, distance, errors = run_batch(inputs, packed, cycles=cycles, threads=threads, return_errors=True)
+    n = distance.shape[1]
+    m = compute_metrics(offset, distance, wanted_distance(inputs, n), inputs.cycle_time, inputs.k_on,
+                        limits_from_packed(packed), **metric_options)
+    m["error_cycle"] = errors[:, 0].copy()
+    m["error_id"] = errors[:, 1].copy()
+    return m
+
+
+# ----------------------------------------------------------------------------- results
+
+class SweepResult:
+    """A table: ``columns`` (names) and ``data`` (name -> numpy array or list), one row per set."""
+
+    def __init__(self, data: dict[str, object], params: list | None = None, rejected: list | None = None,
+                 info: dict | None = None):
+        self.data = {k: (v if isinstance(v, list) else np.asarray(v)) for k, v in data.items()}
+        self.params = params or []
+        self.rejected = rejected or []
+        self.info = info or {}
+
+    @property
+    def columns(self) -> list[str]:
+        return list(self.data)
+
+    def __len__(self) -> int:
+        return len(next(iter(self.data.values()))) if self.data else 0
+
+    def __getitem__(self, name: str):
+        return self.data[name]
+
+    def rows(self) -> list[dict]:
+        """The table as a list of dicts (plain Python values)."""
+        out = []
+        for i in range(len(self)):
+            out.append({k: _plain(v[i]) for k, v in self.data.items()})
+        return out
+
+    def order(self, key: str = "cost") -> np.ndarray:
+        """Row indices sorted by ``key`` ascending (NaN / inf last)."""
+        v = np.asarray(self.data[key], dtype=np.float64)
+        return np.argsort(np.where(np.isnan(v), np.inf, v), kind="stable")
+
+    def best(self, key: str = "cost") -> int:
+        return int(self.order(key)[0])
+
+    def concat(self, other: "SweepResult") -> "SweepResult":
+        cols = [c for c in self.data if c in other.data]
+        data = {}
+        for c in cols:
+            a, b = self.data[c], other.data[c]
+            data[c] = (list(a) + list(b)) if isinstance(a, list) or isinstance(b, list) else np.concatenate([a, b])
+        return SweepResult(data, self.params + other.params, self.rejected + other.rejected, dict(self.info))
+
+    def to_csv(self, path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(self.columns)
+            for row in self.rows():
+                w.writerow([_csv(row[c]) for c in self.columns])
+        return path
+
+    def to_parquet(self, path) -> Path:
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError:
+            raise TuningRunError("Parquet results need pyarrow, which is not installed: pip install pyarrow "
+                                 "(or write a .csv)") from None
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {c: pa.array([_plain(x) for x in v]) for c, v in self.data.items()}
+        pq.write_table(pa.table(arrays), path)
+        return path
+
+    def write(self, path) -> Path:
+        """CSV, or Parquet for a ``.parquet`` / ``.pq`` name."""
+        if str(path).lower().endswith((".parquet", ".pq")):
+            return self.to_parquet(path)
+        return self.to_csv(path)
+
+    def render(self, n: int = 10, key: str = "cost", plain: bool = False, title: str | None = None) -> str:
+        """The best ``n`` rows as a text table."""
+        from ..workbench.tables import render_table
+
+        params = [c for c in PARAM_COLUMNS if c in self.data and len(set(map(str, self.data[c]))) > 1] \
+            or [c for c in ("kp", "filter_type") if c in self.data]
+        mets = ["cost", "rms_error", "max_error", "overshoot", "osc_index", "settling_time", "sat_share"]
+        cols = params + [m for m in mets if m in self.data]
+        rows = []
+        for i in self.order(key)[:n]:
+            rows.append([_fmt(self.data[c][i]) for c in cols])
+        return render_table(cols, rows, title=title, plain=plain)
+
+
+def _plain(x):
+    if isinstance(x, FilterType):
+        return x.name
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _csv(x):
+    if isinstance(x, float):
+        return "" if math.isnan(x) else repr(x)
+    return x
+
+
+def _fmt(x) -> str:
+    x = _plain(x)
+    if isinstance(x, float):
+        if math.isnan(x):
+            return "-"
+        if math.isinf(x):
+            return "inf"
+        return f"{x:.4g}"
+    return str(x)
+
+
+# ----------------------------------------------------------------------------- evaluator
+
+def _progress_wanted(progress) -> bool:
+    if progress is not None:
+        return bool(progress)
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+class Evaluator:
+    """Evaluates parameter sets of one recorded scenario; a context manager (see the module docstring).
+
+    ``metric_options``: keyword arguments of :func:`~distctrl.tuning.metrics.compute_metrics`
+    (``skip``, ``band``, ``hold``, ``f_osc``); ``osc_weight``: weight of ``hf_rms`` in ``cost``.
+    ``chunk_fn``: the chunk function (default :func:`evaluate_chunk`; tests substitute a flaky one).
+    """
+
+    def __init__(self, inputs, *, mode: str = "cluster", scheduler: str | None = None,
+                 n_workers: int | None = None, chunk_size: int = DEFAULT_CHUNK,
+                 chunk_bytes: int = DEFAULT_CHUNK_BYTES, retries: int = 2, progress: bool | None = None,
+                 cycles: int | None = None, metric_options: dict | None = None, osc_weight: float = 1.0,
+                 chunk_fn=None, threads: int | None = None):
+        if scheduler:
+            mode = "cluster"
+        if mode not in ("local", "cluster"):
+            raise TuningRunError(f"mode {mode!r}: 'local' or 'cluster'")
+        self.inputs = inputs
+        self.mode = mode
+        self.scheduler = scheduler
+        self.n_workers = n_workers or os.cpu_count() or 1
+        self.cycles = cycles
+        n = inputs.n_cycles if cycles is None else int(cycles)
+        self.n_cycles = n
+        self.chunk_size = max(1, min(int(chunk_size), int(chunk_bytes // (16 * max(n, 1))) or 1))
+        self.retries = int(retries)
+        self.progress = _progress_wanted(progress)
+        self.metric_options = dict(metric_options or {})
+        self.osc_weight = osc_weight
+        self.chunk_fn = chunk_fn or evaluate_chunk
+        self.threads = threads
+        self._slim = slim_inputs(inputs)
+        self._client = None
+        self._cluster = None
+        self._remote_inputs = None
+        self.stats = {"sets": 0, "set_cycles": 0, "seconds": 0.0, "chunks": 0, "retried": 0}
+
+    # -- lifecycle
+    def __enter__(self) -> "Evaluator":
+        self.open()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def open(self) -> None:
+        if self.mode != "cluster" or self._client is not None:
+            return
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise TuningRunError("cluster mode needs dask.distributed: pip install 'dask[distributed]' "
+                                 "(or use --local)") from None
+        import logging
+        try:
+            if self.scheduler:
+                self._client = Client(self.scheduler, timeout="20s")
+            else:
+                self._cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1, processes=True,
+                                             dashboard_address=":0", silence_logs=logging.ERROR)
+                self._client = Client(self._cluster)
+        except OSError as exc:
+            self.close()
+            raise TuningRunError(f"cannot reach the dask scheduler {self.scheduler or '(local)'}: {exc}") from None
+        self._remote_inputs = self._client.scatter(self._slim, broadcast=True)
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+        self._remote_inputs = None
+
+    def set_inputs(self, inputs) -> None:
+        """Evaluate further sets on another recording (e.g. a perturbed scenario); same cluster."""
+        self.inputs = inputs
+        self.n_cycles = inputs.n_cycles if self.cycles is None else int(self.cycles)
+        self._slim = slim_inputs(inputs)
+        if self._client is not None:
+            self._remote_inputs = self._client.scatter(self._slim, broadcast=True)
+
+    # -- work
+    def evaluate(self, param_sets, points: list[dict] | None = None, *, description: str = "sweep") -> SweepResult:
+        """Metrics of every set (a list of AxisParameters); ``points``: what each set changes (for the
+        table; default: the tuning fields of the sets)."""
+        from ..batch.closed_loop import pack_sets
+
+        param_sets = list(param_sets)
+        t0 = time.perf_counter()
+        if not param_sets:
+            return SweepResult(self._table([], [], {}))
+        packed = pack_sets(self.inputs, param_sets)
+        chunks = [packed[i:i + self.chunk_size] for i in range(0, len(packed), self.chunk_size)]
+        if self.mode == "local":
+            parts = self._run_local(chunks, description)
+        else:
+            self.open()
+            parts = self._run_cluster(chunks, description)
+        merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        dt = time.perf_counter() - t0
+        self.stats["sets"] += len(param_sets)
+        self.stats["set_cycles"] += len(param_sets) * self.n_cycles
+        self.stats["seconds"] += dt
+        self.stats["chunks"] += len(chunks)
+        res = SweepResult(self._table(param_sets, points, merged), params=param_sets,
+                          info={"seconds": dt, "sets": len(param_sets), "cycles": self.n_cycles,
+                                "mode": self.mode, "workers": self.n_workers if self.mode == "cluster" else 1})
+        return res
+
+    def _table(self, sets, points, m) -> dict:
+        data: dict[str, object] = {}
+        for f in PARAM_COLUMNS:
+            vals = [getattr(p, f) for p in sets]
+            data[f] = [v.name for v in vals] if f == "filter_type" else np.asarray(vals)
+        if sets:
+            data["cost"] = cost(m, self.osc_weight)
+            for name in METRIC_NAMES:
+                data[name] = m[name]
+            data["failed"] = m["failed"]
+            data["error_cycle"] = m["error_cycle"]
+            data["error_id"] = m["error_id"]
+        return data
+
+    def _bar(self, total: int, description: str):
+        if not self.progress:
+            return None
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+        bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                       TextColumn("sets"), TimeRemainingColumn(), console=Console(stderr=True), transient=True)
+        bar.start()
+        bar.add_task(description, total=total)
+        return bar
+
+    def _run_local(self, chunks, description) -> list[dict]:
+        bar = self._bar(sum(len(c) for c in chunks), description)
+        parts = []
+        try:
+            for c in chunks:
+                for attempt in range(self.retries + 1):
+                    try:
+                        parts.append(self.chunk_fn(self._slim, c, self.cycles, self.metric_options, self.threads))
+                        break
+                    except Exception as exc:          # noqa: BLE001 - retried, then reported
+                        if attempt == self.retries:
+                            raise TuningRunError(f"a chunk of {len(c)} sets failed after {self.retries} "
+                                                 f"retries: {type(exc).__name__}: {exc}") from exc
+                        self.stats["retried"] += 1
+                if bar is not None:
+                    bar.advance(0, len(c))
+        finally:
+            if bar is not None:
+                bar.stop()
+        return parts
+
+    def _run_cluster(self, chunks, description) -> list[dict]:
+        from distributed import as_completed
+
+        client = self._client
+        threads = self.threads if self.threads is not None else (1 if not self.scheduler else None)
+        futures = [client.submit(self.chunk_fn, self._remote_inputs, c, self.cycles, self.metric_options,
+                                 threads, retries=self.retries, pure=False) for c in chunks]
+        index = {f.key: i for i, f in enumerate(futures)}
+        parts: list = [None] * len(chunks)
+        bar = self._bar(sum(len(c) for c in chunks), description)
+        try:
+            for fut in as_completed(futures):
+                i = index[fut.key]
+                try:
+                    parts[i] = fut.result()
+                except Exception as exc:              # noqa: BLE001
+                    for f in futures:
+                        f.cancel()
+                    raise TuningRunError(f"chunk {i} ({len(chunks[i])} sets) failed after {self.retries} "
+                                         f"retries: {type(exc).__name__}: {exc}") from exc
+                if bar is not None:
+                    bar.advance(0, len(chunks[i]))
+        finally:
+            if bar is not None:
+                bar.stop()
+        return parts
+
+
+def evaluate(inputs, param_sets, points=None, **options) -> SweepResult:
+    """One-shot :class:`Evaluator`: open, evaluate ``param_sets``, close."""
+    with Evaluator(inputs, **options) as ev:
+        return ev.evaluate(param_sets, points)
+
+
+def plot_sweep(result: SweepResult, path=None, metric: str = "rms_error"):
+    """A heatmap of ``metric`` over the two swept parameters with the most values (the best value
+    over the others), or parallel coordinates when fewer than two numeric parameters vary or the
+    grid is irregular. A Figure on an Agg canvas, saved to ``path`` when given."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9, 6), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    y = np.asarray(result[metric], dtype=float)
+    varied = [c for c in PARAM_COLUMNS if c in result.data and len(set(map(str, result[c]))) > 1]
+    numeric = [c for c in varied if c != "filter_type"]
+    counts = {c: len(set(map(str, result[c]))) for c in numeric}
+    two = sorted(numeric, key=lambda c: -counts[c])[:2]
+    if len(two) == 2 and counts[two[0]] * counts[two[1]] <= len(result) and counts[two[0]] <= 60 \
+            and counts[two[1]] <= 60:
+        xs = np.unique(np.asarray(result[two[0]], dtype=float))
+        ys = np.unique(np.asarray(result[two[1]], dtype=float))
+        grid = np.full((len(ys), len(xs)), np.nan)
+        xi = np.searchsorted(xs, np.asarray(result[two[0]], dtype=float))
+        yi = np.searchsorted(ys, np.asarray(result[two[1]], dtype=float))
+        for a, b, v in zip(yi, xi, y):
+            if np.isfinite(v) and not (grid[a, b] <= v):
+                grid[a, b] = v
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(len(xs)), [f"{v:.4g}" for v in xs], rotation=60, fontsize=7)
+        ax.set_yticks(range(len(ys)), [f"{v:.4g}" for v in ys], fontsize=7)
+        ax.set_xlabel(two[0])
+        ax.set_ylabel(two[1])
+        fig.colorbar(im, ax=ax, label=f"{metric} (best over the other parameters)")
+        ax.set_title(f"{metric} over {two[0]} x {two[1]} ({len(result)} sets)")
+    else:
+        cols = varied or ["kp"]
+        mat = []
+        for c in cols + [metric]:
+            v = result[c]
+            if c == "filter_type":
+                names = sorted(set(v))
+                v = [names.index(x) for x in v]
+            v = np.asarray(v, dtype=float)
+            lo, hi = np.nanmin(v[np.isfinite(v)]) if np.isfinite(v).any() else 0, \
+                np.nanmax(v[np.isfinite(v)]) if np.isfinite(v).any() else 1
+            mat.append((v - lo) / (hi - lo) if hi > lo else np.zeros_like(v))
+        mat = np.asarray(mat)
+        finite = np.isfinite(y)
+        order = np.argsort(np.where(finite, y, np.inf))[::-1]
+        from matplotlib import colormaps
+        cmap = colormaps["viridis_r"]
+        ylo, yhi = (np.min(y[finite]), np.max(y[finite])) if finite.any() else (0, 1)
+        for i in order:
+            c = cmap((y[i] - ylo) / (yhi - ylo) if finite[i] and yhi > ylo else 0.0) if finite[i] else "lightgray"
+            ax.plot(range(len(cols) + 1), mat[:, i], color=c, lw=0.6, alpha=0.6)
+        ax.set_xticks(range(len(cols) + 1), cols + [metric])
+        ax.set_ylabel("normalised value")
+        ax.set_title(f"parallel coordinates, colour = {metric} ({len(result)} sets; dark = better)")
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=110)
+    return fig

@@ -1,0 +1,296 @@
+"""The search space of the tuning tools: filter and PID settings of one distance-controlled axis.
+
+A *point* is a plain ``dict`` ``{field: value}`` over :class:`~distctrl.params.axis.AxisParameters`
+fields (internal units: s, Hz). :func:`parse_grid` turns a ``--grid`` text into the points of a
+grid, :func:`random_sample` draws points at random, :func:`to_params` / :func:`build_sets` turn
+points into validated parameter sets (``base.replace(**point)`` plus the checks only the cycle
+time can make, e.g. the low-pass cut-off below Nyquist). Every value is checked against the
+documented range of its parameter (docs/parameters.md); a problem raises :class:`SpaceError`
+naming the key, the value and what is allowed.
+
+Grid syntax (``distctrl sweep --grid``)::
+
+    kp=0.1:1.0:10,d_tv=0,0.01,0.02,filter_type=MOVING_AVERAGE,n_cycles=4,8,16
+
+``name=a:b:n`` is ``n`` values from ``a`` to ``b`` (both included, linear), ``name=a:b:n:log``
+the same on a log scale; ``name=v1,v2,...`` a list. A comma followed by ``name=`` starts the next
+parameter. Names are the field names or the NC words (``kp``, ``i_tn``, ``d_tv``, ``filter_type``,
+``n_cycles``, ``smoothing_factor``/``smooth_fact``, ``kalman_sigma``, ``order``, ``fg_f0``).
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..control.kinds import FILTER_TYPE_NAMES, FilterType
+from ..errors import DistCtrlError, ParameterError
+from ..params.axis import AxisParameters, check_internal
+from ..params.table import BY_FIELD
+
+__all__ = ["SpaceError", "Dim", "DEFAULT_SPACE", "ALIASES", "NC_WORDS", "canonical", "parse_grid",
+           "grid_points", "random_sample", "to_params", "build_sets", "point_label", "filter_fields"]
+
+
+class SpaceError(DistCtrlError, ValueError):
+    """A grid text, a search-space value or a combination of values that is not allowed."""
+
+
+#: names accepted in a grid -> AxisParameters field
+ALIASES = {
+    "kp": "kp", "i_tn": "i_tn", "d_tv": "d_tv", "filter_type": "filter_type", "n_cycles": "n_cycles",
+    "smoothing_factor": "smoothing_factor", "smooth_fact": "smoothing_factor",
+    "kalman_sigma": "kalman_sigma", "sigma": "kalman_sigma",
+    "order": "low_pass_filter_order", "low_pass_filter_order": "low_pass_filter_order",
+    "fg_f0": "low_pass_filter_fg_f0", "low_pass_filter_fg_f0": "low_pass_filter_fg_f0",
+    # limiter settings may be swept too (not part of the default tuning space)
+    "v_max": "v_max", "a_max": "a_max", "optimized_scheduling": "optimized_scheduling",
+}
+#: AxisParameters field -> NC DIST_CTRL word
+NC_WORDS = {"kp": "KP", "i_tn": "I_TN", "d_tv": "D_TV", "filter_type": "FILTER_TYPE", "n_cycles": "N_CYCLES",
+            "smoothing_factor": "SMOOTH_FACT", "kalman_sigma": "KALMAN_SIGMA",
+            "low_pass_filter_order": "ORDER", "low_pass_filter_fg_f0": "FG_F0"}
+_INT_FIELDS = {"n_cycles", "low_pass_filter_order"}
+_BOOL_FIELDS = {"optimized_scheduling"}
+
+
+def canonical(name: str) -> str:
+    """The AxisParameters field of a grid name (``order`` -> ``low_pass_filter_order``)."""
+    key = name.strip().lower()
+    if key not in ALIASES:
+        raise SpaceError(f"unknown sweep parameter {name!r}; allowed: {', '.join(sorted(ALIASES))}")
+    return ALIASES[key]
+
+
+def filter_fields(filter_type: FilterType) -> tuple[str, ...]:
+    """The filter parameters a filter type uses (the others do not change the law)."""
+    ft = FilterType(filter_type)
+    return {
+        FilterType.DEFAULT: (),
+        FilterType.MOVING_AVERAGE: ("n_cycles",),
+        FilterType.EXPO_MEAN: ("n_cycles", "smoothing_factor"),
+        FilterType.LOWPASS: ("low_pass_filter_order", "low_pass_filter_fg_f0"),
+        FilterType.KALMAN_MA: ("n_cycles", "kalman_sigma"),
+        FilterType.KALMAN_EXPO: ("n_cycles", "smoothing_factor", "kalman_sigma"),
+    }[ft]
+
+
+@dataclass(frozen=True)
+class Dim:
+    """One dimension of the search space: ``kind`` "float", "log" (float, log-uniform), "int", "choice".
+
+    ``zero_share``: for "log" dimensions whose 0 means "off" (i_tn, d_tv), the share of random
+    points that get exactly 0.
+    """
+
+    field: str
+    kind: str
+    lo: float = 0.0
+    hi: float = 0.0
+    choices: tuple = ()
+    zero_share: float = 0.0
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        if self.kind == "choice":
+            return np.asarray(self.choices, dtype=object)[rng.integers(0, len(self.choices), n)]
+        if self.kind == "int":
+            return rng.integers(int(self.lo), int(self.hi) + 1, n)
+        if self.kind == "log":
+            x = np.exp(rng.uniform(math.log(self.lo), math.log(self.hi), n))
+        else:
+            x = rng.uniform(self.lo, self.hi, n)
+        if self.zero_share:
+            x[rng.random(n) < self.zero_share] = 0.0
+        return x
+
+    def clip(self, value: float) -> float:
+        if self.kind == "int":
+            return int(min(max(round(value), self.lo), self.hi))
+        if self.kind == "choice":
+            return value
+        lo = 0.0 if self.zero_share else self.lo
+        return float(min(max(value, lo), self.hi))
+
+
+#: the default tuning space: inside the documented ranges, narrowed to what makes sense for a
+#: distance control at 1 ms (kp in (0, 2], n_cycles 0..99, i_tn 0..50 s, d_tv 0..2 s documented)
+DEFAULT_SPACE: tuple[Dim, ...] = (
+    Dim("filter_type", "choice", choices=(FilterType.MOVING_AVERAGE, FilterType.EXPO_MEAN, FilterType.LOWPASS,
+                                          FilterType.KALMAN_MA, FilterType.KALMAN_EXPO)),
+    Dim("n_cycles", "int", 1, 32),
+    Dim("smoothing_factor", "float", 0.05, 1.0),
+    Dim("kalman_sigma", "log", 1.0, 1000.0),
+    Dim("low_pass_filter_order", "int", 1, 6),
+    Dim("low_pass_filter_fg_f0", "log", 5.0, 200.0),     # further clipped below Nyquist per scenario
+    Dim("kp", "float", 0.05, 2.0),
+    Dim("i_tn", "log", 0.005, 2.0, zero_share=0.5),
+    Dim("d_tv", "log", 0.0002, 0.05, zero_share=0.3),
+)
+
+
+# ----------------------------------------------------------------------------- values
+
+def _check_value(field: str, value, where: str):
+    """Convert ``value`` to the field's type and check its documented range (SpaceError if not)."""
+    spec = BY_FIELD[field]
+    try:
+        if field == "filter_type":
+            v = value if isinstance(value, FilterType) else FilterType.parse(str(value))
+            if v == FilterType.PASS:
+                raise ValueError("PASS is internal")
+        elif field in _BOOL_FIELDS:
+            v = bool(int(float(value)))
+        elif field in _INT_FIELDS:
+            f = float(value)
+            if not f.is_integer():
+                raise ValueError(f"{value!r} is not an integer")
+            v = int(f)
+        else:
+            v = float(value)
+    except (TypeError, ValueError) as exc:
+        allowed = ", ".join(FILTER_TYPE_NAMES) if field == "filter_type" else spec.range_text()
+        raise SpaceError(f"{where}: {field} = {value!r} is not valid ({exc}); allowed: {allowed}") from None
+    try:
+        check_internal(spec, v)
+    except ParameterError as exc:
+        raise SpaceError(f"{where}: {exc}") from None
+    return v
+
+
+def _num(text: str, where: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise SpaceError(f"{where}: {text!r} is not a number") from None
+
+
+def _expand(field: str, items: list[str], where: str) -> list:
+    """The values of one grid entry: a range ``a:b:n[:log]`` or a list."""
+    if len(items) == 1 and ":" in items[0]:
+        parts = items[0].split(":")
+        if len(parts) not in (3, 4) or (len(parts) == 4 and parts[3].strip().lower() not in ("log", "lin")):
+            raise SpaceError(f"{where}: range {items[0]!r} must be a:b:n or a:b:n:log")
+        a, b = _num(parts[0], where), _num(parts[1], where)
+        nf = _num(parts[2], where)
+        if not nf.is_integer() or nf < 1:
+            raise SpaceError(f"{where}: the number of values n in {items[0]!r} must be a positive integer")
+        n = int(nf)
+        log = len(parts) == 4 and parts[3].strip().lower() == "log"
+        if log and (a <= 0 or b <= 0):
+            raise SpaceError(f"{where}: a log range needs positive ends, not {items[0]!r}")
+        raw = np.geomspace(a, b, n) if log else np.linspace(a, b, n)
+        if field in _INT_FIELDS:
+            vals = list(dict.fromkeys(int(round(x)) for x in raw))
+        else:
+            vals = [float(x) for x in raw]
+    else:
+        vals = [x.strip() for x in items]
+        if any(not x for x in vals):
+            raise SpaceError(f"{where}: empty value in {','.join(items)!r}")
+    return list(dict.fromkeys(_check_value(field, v, where) for v in vals))
+
+
+_ENTRY_RE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=(.*)$")
+
+
+def parse_grid(text: str) -> dict[str, list]:
+    """``"kp=0.1:1.0:10,d_tv=0,0.01,filter_type=MOVING_AVERAGE"`` -> ``{field: [values]}`` (in order).
+
+    Every value is converted and checked against its documented range.
+    """
+    if not text or not text.strip():
+        raise SpaceError("empty grid; expected e.g. 'kp=0.1:1.0:10,n_cycles=4,8,16'")
+    entries: list[tuple[str, list[str]]] = []
+    for tok in text.split(","):
+        m = _ENTRY_RE.match(tok)
+        if m:
+            entries.append((m.group(1), [m.group(2)]))
+        elif not entries:
+            raise SpaceError(f"grid {text!r}: expected name=values at the start, not {tok!r}")
+        else:
+            entries[-1][1].append(tok)
+    grid: dict[str, list] = {}
+    for name, items in entries:
+        field = canonical(name)
+        where = f"grid entry {name}"
+        if field in grid:
+            raise SpaceError(f"{where}: {field} is given twice")
+        grid[field] = _expand(field, items, where)
+    return grid
+
+
+def grid_points(grid: dict[str, list]) -> list[dict]:
+    """The cartesian product of a parsed grid as points (the last name varies fastest)."""
+    names = list(grid)
+    return [dict(zip(names, combo)) for combo in itertools.product(*(grid[n] for n in names))]
+
+
+def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE, *,
+                  cycle_time: float | None = None) -> list[dict]:
+    """``n`` random points of ``space``; each point sets only the filter parameters its filter type uses.
+
+    With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin).
+    """
+    if n < 0:
+        raise SpaceError(f"random sample size {n}: must be >= 0")
+    rng = np.random.default_rng(seed)
+    dims = {d.field: d for d in space}
+    draws = {f: d.sample(rng, n) for f, d in dims.items()}
+    points = []
+    for i in range(n):
+        p: dict = {}
+        ft = draws["filter_type"][i] if "filter_type" in dims else None
+        for f, d in dims.items():
+            if f in NC_WORDS and f not in ("kp", "i_tn", "d_tv", "filter_type") and ft is not None \
+                    and f not in filter_fields(ft):
+                continue
+            v = draws[f][i]
+            v = FilterType(v) if f == "filter_type" else (int(v) if d.kind == "int" else float(v))
+            if f == "low_pass_filter_fg_f0" and cycle_time:
+                v = min(v, 0.45 / cycle_time)
+            p[f] = v
+        points.append(p)
+    return points
+
+
+# ----------------------------------------------------------------------------- points -> sets
+
+def point_label(point: dict) -> str:
+    """``kp=0.5 n_cycles=8 filter_type=MOVING_AVERAGE`` (for messages and tables)."""
+    parts = []
+    for k, v in point.items():
+        if isinstance(v, FilterType):
+            v = v.name
+        elif isinstance(v, float):
+            v = f"{v:.6g}"
+        parts.append(f"{k}={v}")
+    return " ".join(parts)
+
+
+def to_params(base: AxisParameters, point: dict, cycle_time: float | None = None) -> AxisParameters:
+    """``base.replace(**point)`` validated; with ``cycle_time`` also the checks of the controller
+    (the low-pass cut-off below Nyquist). Raises :class:`SpaceError` naming the point."""
+    try:
+        p = base.replace(**point)
+        if cycle_time is not None:
+            from ..control.controller import AxisDistanceController
+            AxisDistanceController(p, cycle_time)
+    except (ParameterError, ValueError, TypeError) as exc:
+        raise SpaceError(f"parameter set {point_label(point)} is not valid: {exc}") from None
+    return p
+
+
+def build_sets(base: AxisParameters, points: list[dict], cycle_time: float | None = None
+               ) -> tuple[list[AxisParameters], list[dict], list[tuple[dict, str]]]:
+    """Valid sets, their points, and the rejected ``(point, message)`` pairs."""
+    sets, kept, rejected = [], [], []
+    for pt in points:
+        try:
+            sets.append(to_params(base, pt, cycle_time))
+            kept.append(pt)
+        except SpaceError as exc:
+            rejected.append((pt, str(exc)))
+    return sets, kept, rejected

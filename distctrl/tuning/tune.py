@@ -1,0 +1,395 @@
+"""Auto-tuning of the filter and PID settings of one distance-controlled axis.
+
+:func:`tune` runs, on one :class:`~distctrl.tuning.runner.Evaluator` (an embedded dask cluster,
+an existing one, or in-process):
+
+1. **coarse sweep**: the scenario's own parameters plus ``coarse_share * budget`` random points of
+   the search space (:data:`~distctrl.tuning.space.DEFAULT_SPACE`);
+2. **local refinement**: a parallel pattern (coordinate) search around the best ``top`` distinct
+   points: per round every point's neighbours (each continuous or integer parameter one step up
+   and down, the filter type fixed) are evaluated in one batch; a point moves to its best
+   neighbour if that is better, otherwise its step is halved; until the budget is used up;
+3. the objective is :func:`~distctrl.tuning.metrics.cost` = ``rms_error + osc_weight * hf_rms``
+   (the oscillation penalty), ``inf`` for a set that raises a controller error;
+4. **robustness**: the chosen set and the scenario's own set are re-run on perturbed copies of
+   the scenario (probe noise x2, surface amplitude x1.5, Z drive kv x0.7); the report gives for
+   each the cost, the degradation against the nominal run and the margin = the share of the
+   improvement over the scenario's own set that is left under the perturbation.
+
+Output: :class:`TuneResult` with the chosen :class:`~distctrl.params.axis.AxisParameters`,
+its kernel parameter list (:func:`~distctrl.params.format_list`, changed values only), an NC
+block ``Z[DIST_CTRL KP=.. I_TN=.. D_TV=.. FILTER_TYPE=.. N_CYCLES=..]`` and a before/after plot
+(:func:`plot_before_after`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..control.kinds import FilterType
+from ..params.axis import AxisParameters
+from ..sim.surface import Surface
+from .metrics import METRIC_NAMES, wanted_distance
+from .runner import Evaluator, SweepResult
+from .space import DEFAULT_SPACE, NC_WORDS, Dim, build_sets, filter_fields, random_sample
+
+__all__ = ["TuneResult", "tune", "nc_block", "param_list", "perturbed_scenarios", "ScaledSurface",
+           "plot_before_after", "PERTURBATIONS"]
+
+#: (name, description) of the robustness checks
+PERTURBATIONS = (("noise x2", "probe noise_std x2"), ("surface x1.5", "surface amplitude x1.5"),
+                 ("kv x0.7", "Z drive kv x0.7"))
+_TUNED = ("kp", "i_tn", "d_tv")
+
+
+# ----------------------------------------------------------------------------- output formats
+
+def _fmt(v) -> str:
+    if isinstance(v, FilterType):
+        return v.name
+    if isinstance(v, (bool, np.bool_)):
+        return str(int(v))
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return f"{float(v):.6g}"
+
+
+def nc_block(params: AxisParameters, axis: str = "Z") -> str:
+    """``Z[DIST_CTRL KP=.. I_TN=.. D_TV=.. FILTER_TYPE=.. N_CYCLES=..]`` (+ the words the filter uses)."""
+    words = [f"KP={_fmt(params.kp)}", f"I_TN={_fmt(params.i_tn)}", f"D_TV={_fmt(params.d_tv)}",
+             f"FILTER_TYPE={params.filter_type.name}"]
+    if params.filter_type != FilterType.DEFAULT:
+        used = filter_fields(params.filter_type)
+        if "n_cycles" in used:
+            words.append(f"N_CYCLES={params.n_cycles}")
+        for f in used:
+            if f != "n_cycles":
+                words.append(f"{NC_WORDS[f]}={_fmt(getattr(params, f))}")
+    return f"{axis}[DIST_CTRL {' '.join(words)}]"
+
+
+def param_list(params: AxisParameters) -> str:
+    """The kernel list of ``params``, only the values that differ from the defaults."""
+    from ..params import format_list
+
+    return format_list(params, only_changed=True)
+
+
+# ----------------------------------------------------------------------------- perturbations
+
+class ScaledSurface(Surface):
+    """A surface whose features are scaled: ``base + factor * (surface - base)``."""
+
+    def __init__(self, surface: Surface, factor: float):
+        super().__init__(surface.base, surface.features)
+        self._inner = surface
+        self._factor = float(factor)
+
+    def height(self, x: float, y: float = 0.0) -> float:
+        return self.base + self._factor * (self._inner.height(x, y) - self.base)
+
+    def height_array(self, xs, ys=0.0):
+        return self.base + self._factor * (self._inner.height_array(xs, ys) - self.base)
+
+    def gradient(self, x: float, y: float = 0.0):
+        gx, gy = self._inner.gradient(x, y)
+        return self._factor * gx, self._factor * gy
+
+
+def perturbed_scenarios(scenario, axis: str, noise: float = 2.0, surface: float = 1.5, kv: float = 0.7):
+    """``[(name, scenario)]``: copies of ``scenario`` with the probe noise, the surface amplitude and
+    the drive kv of ``axis`` scaled (the scenario is edited, then recorded again by ``prepare``)."""
+    sc = scenario
+    out = []
+    out.append((PERTURBATIONS[0][0], dataclasses.replace(
+        sc, sensor=dataclasses.replace(sc.sensor, noise_std=sc.sensor.noise_std * noise))))
+    out.append((PERTURBATIONS[1][0], dataclasses.replace(sc, surface=ScaledSurface(sc.surface, surface))))
+    axes = dict(sc.axes)
+    axes[axis] = dataclasses.replace(axes[axis], kv=axes[axis].kv * kv)
+    out.append((PERTURBATIONS[2][0], dataclasses.replace(sc, axes=axes)))
+    return out
+
+
+# ----------------------------------------------------------------------------- search
+
+def _refine_dims(ft: FilterType, space: tuple[Dim, ...], cycle_time: float) -> list[Dim]:
+    used = set(_TUNED) | set(filter_fields(ft))
+    dims = []
+    for d in space:
+        if d.field in used and d.kind != "choice":
+            if d.field == "low_pass_filter_fg_f0":
+                d = dataclasses.replace(d, hi=min(d.hi, 0.45 / cycle_time))
+            dims.append(d)
+    return dims
+
+
+def _neighbours(point: dict, dims: list[Dim], scale: float) -> list[dict]:
+    out = []
+    for d in dims:
+        v = point.get(d.field)
+        if v is None:
+            continue
+        cands = []
+        if d.kind == "float":
+            step = scale * 0.15 * (d.hi - d.lo)
+            cands = [v - step, v + step]
+        elif d.kind == "int":
+            step = max(1, int(round(scale * (d.hi - d.lo) / 4)))
+            cands = [v - step, v + step]
+        elif d.kind == "log":
+            f = 2.0 ** scale
+            if v == 0:
+                cands = [d.lo]
+            else:
+                cands = [v / f, v * f]
+                if d.zero_share and v / f < d.lo:
+                    cands.append(0.0)
+        for c in cands:
+            c = d.clip(c)
+            if d.kind == "log" and 0 < c < d.lo and not d.zero_share:
+                c = d.lo
+            if c != v:
+                q = dict(point)
+                q[d.field] = c
+                out.append(q)
+    return out
+
+
+def _key(point: dict) -> tuple:
+    return tuple(sorted((k, round(float(v), 9) if not isinstance(v, FilterType) else v.name)
+                        for k, v in point.items()))
+
+
+def _point_of(p: AxisParameters) -> dict:
+    pt = {f: getattr(p, f) for f in _TUNED}
+    pt["filter_type"] = p.filter_type
+    for f in filter_fields(p.filter_type):
+        pt[f] = getattr(p, f)
+    return pt
+
+
+@dataclass
+class TuneResult:
+    """What :func:`tune` found (see the module docstring)."""
+
+    axis: str
+    base: AxisParameters
+    best: AxisParameters
+    base_metrics: dict
+    best_metrics: dict
+    sweep: SweepResult
+    robustness: list[dict] = field(default_factory=list)
+    evaluations: int = 0
+    seconds: float = 0.0
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def param_list(self) -> str:
+        return param_list(self.best)
+
+    @property
+    def nc_block(self) -> str:
+        return nc_block(self.best, self.axis)
+
+    @property
+    def margin(self) -> float:
+        """The smallest margin over the perturbations (1 = the full improvement kept, <= 0 = none)."""
+        vals = [r["margin"] for r in self.robustness if math.isfinite(r["margin"])]
+        return min(vals) if vals else float("nan")
+
+    def report(self, plain: bool = True) -> str:
+        from ..workbench.tables import render_table
+
+        names = ["cost"] + list(METRIC_NAMES)
+        rows = [[n, _num(self.base_metrics.get(n)), _num(self.best_metrics.get(n))] for n in names]
+        out = [f"evaluated {self.evaluations} parameter sets in {self.seconds:.1f} s",
+               render_table(["metric", "scenario params", "tuned"], rows, title="nominal scenario", plain=plain)]
+        if self.robustness:
+            rrows = [[r["name"], _num(r["base_cost"]), _num(r["best_cost"]), _num(r["best_rms"]),
+                      f"{r['degradation']:.2f}x" if math.isfinite(r["degradation"]) else "-",
+                      f"{r['margin']:.0%}" if math.isfinite(r["margin"]) else "-",
+                      "FAILED" if r["failed"] else "ok"] for r in self.robustness]
+            out.append(render_table(["perturbation", "cost scen.", "cost tuned", "rms tuned", "degradation",
+                                     "margin", "state"], rrows, title="robustness", plain=plain))
+            out.append(f"margin: {self.margin:.0%} of the improvement is kept in the worst perturbation "
+                       "(degradation: cost perturbed / cost nominal of the tuned set)")
+        out.append("# axis parameter list (changed values)\n" + self.param_list)
+        out.append("; NC block\n" + self.nc_block)
+        return "\n".join(out) + "\n"
+
+
+def _num(x) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, (bool, np.bool_)):
+        return str(bool(x))
+    x = float(x)
+    if math.isnan(x):
+        return "-"
+    if math.isinf(x):
+        return "inf"
+    return f"{x:.4g}"
+
+
+def _row(res: SweepResult, i: int) -> dict:
+    return {k: (v[i] if not isinstance(v, list) else v[i]) for k, v in res.data.items()}
+
+
+def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = None, coarse_share: float = 0.6,
+         top: int = 3, osc_weight: float = 1.0, space: tuple[Dim, ...] = DEFAULT_SPACE,
+         robustness: bool = True, evaluator: Evaluator | None = None, log=None, **evaluator_options) -> TuneResult:
+    """Tune the scenario's distance-controlled axis (module docstring). ``budget``: parameter sets to
+    evaluate in the search (the robustness runs come on top: 2 per perturbation). ``evaluator_options``
+    go to :class:`Evaluator` (``mode``, ``scheduler``, ``n_workers``, ``progress`` ...)."""
+    import time
+
+    from ..batch.closed_loop import prepare
+    from ..sim.scenario import Scenario, load_scenario
+
+    say = log or (lambda msg: None)
+    t0 = time.perf_counter()
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    inputs = prepare(scenario, cycles)
+    T = inputs.cycle_time
+    base = inputs.params
+    own = evaluator is None
+    ev = evaluator or Evaluator(inputs, cycles=cycles, osc_weight=osc_weight, **evaluator_options)
+    ev.osc_weight = osc_weight
+    try:
+        ev.open()
+        # 1. coarse
+        n_coarse = max(1, int(budget * coarse_share))
+        pts = random_sample(n_coarse, seed, space, cycle_time=T)
+        sets, pts, rejected = build_sets(base, pts, T)
+        sets = [base] + sets
+        pts = [_point_of(base)] + pts
+        say(f"coarse sweep: {len(sets)} sets ({len(rejected)} rejected)")
+        res = ev.evaluate(sets, pts, description="coarse")
+        seen = {_key(p) for p in pts}
+        all_pts = list(pts)
+        used = len(sets)
+        # 2. refine: pattern search around the best distinct points
+        order = res.order("cost")
+        starts, starts_ft = [], []
+        for i in order:
+            if not math.isfinite(res["cost"][i]):
+                break
+            p = all_pts[i]
+            starts.append([p, float(res["cost"][i]), 1.0])
+            starts_ft.append(p["filter_type"])
+            if len(starts) >= top:
+                break
+        rounds = 0
+        while used < budget and starts and any(s[2] > 1 / 64 for s in starts):
+            cand, owner = [], []
+            for j, (p, c, scale) in enumerate(starts):
+                if scale <= 1 / 64:
+                    continue
+                for q in _neighbours(p, _refine_dims(p["filter_type"], space, T), scale):
+                    k = _key(q)
+                    if k not in seen:
+                        seen.add(k)
+                        cand.append(q)
+                        owner.append(j)
+            if not cand:
+                for s in starts:
+                    s[2] /= 2
+                continue
+            room = budget - used
+            cand, owner = cand[:room], owner[:room]
+            sets_r, kept, rej = build_sets(base, cand, T)
+            ok = {_key(q) for q in kept}
+            owner = [o for q, o in zip(cand, owner) if _key(q) in ok]
+            if not sets_r:
+                for s in starts:
+                    s[2] /= 2
+                used += len(cand)
+                continue
+            r = ev.evaluate(sets_r, kept, description=f"refine {rounds + 1}")
+            used += len(cand)
+            res = res.concat(r)
+            all_pts += kept
+            costs = np.asarray(r["cost"], dtype=float)
+            for j, s in enumerate(starts):
+                mine = [i for i, o in enumerate(owner) if o == j]
+                if not mine:
+                    s[2] /= 2
+                    continue
+                b = min(mine, key=lambda i: costs[i])
+                if costs[b] < s[1]:
+                    s[0], s[1] = kept[b], float(costs[b])
+                else:
+                    s[2] /= 2
+            rounds += 1
+            say(f"refine round {rounds}: best cost {min(s[1] for s in starts):.5g} mm ({used}/{budget} sets)")
+        ib = res.best("cost")
+        best = res.params[ib]
+        base_metrics = _row(res, 0)
+        best_metrics = _row(res, ib)
+        # 4. robustness
+        rob = []
+        if robustness:
+            for name, sc in perturbed_scenarios(scenario, inputs.axis):
+                try:
+                    pin = prepare(sc, cycles)
+                except Exception as exc:          # noqa: BLE001 - reported, not fatal
+                    rob.append({"name": name, "base_cost": math.nan, "best_cost": math.nan, "best_rms": math.nan,
+                                "degradation": math.nan, "margin": math.nan, "failed": True, "note": str(exc)})
+                    continue
+                ev.set_inputs(pin)
+                rr = ev.evaluate([base, best], description=name)
+                bc, tc = float(rr["cost"][0]), float(rr["cost"][1])
+                gain_nom = float(base_metrics["cost"]) - float(best_metrics["cost"])
+                margin = (bc - tc) / gain_nom if gain_nom > 0 and math.isfinite(bc) and math.isfinite(tc) else \
+                    (math.nan if gain_nom <= 0 else -math.inf)
+                rob.append({"name": name, "base_cost": bc, "best_cost": tc, "best_rms": float(rr["rms_error"][1]),
+                            "degradation": tc / float(best_metrics["cost"]) if best_metrics["cost"] > 0 else math.nan,
+                            "margin": margin, "failed": bool(rr["failed"][1])})
+            ev.set_inputs(inputs)
+        stats = dict(ev.stats)
+    finally:
+        if own:
+            ev.close()
+    return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
+                      time.perf_counter() - t0, stats)
+
+
+# ----------------------------------------------------------------------------- plot
+
+def plot_before_after(scenario_or_inputs, base: AxisParameters, best: AxisParameters, path=None,
+                      cycles: int | None = None, title: str | None = None):
+    """Distance error over time for the scenario's and the tuned parameters (a Figure on an Agg
+    canvas, no pyplot); saved to ``path`` (PNG/SVG) when given. Returns the Figure."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from ..batch.closed_loop import LoopInputs, prepare, run_batch
+
+    inputs = scenario_or_inputs if isinstance(scenario_or_inputs, LoopInputs) else prepare(scenario_or_inputs, cycles)
+    offset, distance = run_batch(inputs, [base, best], cycles=cycles)
+    n = distance.shape[1]
+    t = np.arange(n) * inputs.cycle_time
+    e = distance - wanted_distance(inputs, n)[None, :]
+    k0 = inputs.k_on
+    fig = Figure(figsize=(10, 6), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    for row, label, color in ((0, "scenario parameters", "tab:gray"), (1, "tuned", "tab:blue")):
+        rms = float(np.sqrt(np.nanmean(e[row, k0:] ** 2)))
+        ax1.plot(t[k0:], e[row, k0:], color=color, lw=0.8, label=f"{label} (RMS {rms:.4g} mm)")
+        ax2.plot(t, offset[row], color=color, lw=0.8, label=label)
+    ax1.axhline(0.0, color="k", lw=0.5)
+    ax1.set_ylabel("distance error (mm)")
+    ax1.legend(loc="upper right", fontsize=8)
+    ax1.set_title(title or f"before / after tuning: {getattr(inputs.scenario, 'name', '')}")
+    ax2.set_ylabel(f"{inputs.axis} offset (mm)")
+    ax2.set_xlabel("t (s)")
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=110)
+    return fig

@@ -1,0 +1,63 @@
+"""Grid parsing, random samples and the validation of points."""
+from __future__ import annotations
+
+import pytest
+
+from distctrl.control import FilterType
+from distctrl.params import AxisParameters
+from distctrl.tuning.space import (SpaceError, build_sets, grid_points, parse_grid, random_sample,
+                                   to_params)
+
+
+def test_parse_grid_ranges_and_lists():
+    g = parse_grid("kp=0.1:1.0:10,d_tv=0,0.01,0.02,filter_type=MOVING_AVERAGE,n_cycles=4,8,16")
+    assert list(g) == ["kp", "d_tv", "filter_type", "n_cycles"]
+    assert len(g["kp"]) == 10 and g["kp"][0] == pytest.approx(0.1) and g["kp"][-1] == pytest.approx(1.0)
+    assert g["d_tv"] == [0.0, 0.01, 0.02]
+    assert g["filter_type"] == [FilterType.MOVING_AVERAGE]
+    assert g["n_cycles"] == [4, 8, 16]
+    assert len(grid_points(g)) == 10 * 3 * 1 * 3
+
+
+def test_parse_grid_aliases_and_log():
+    g = parse_grid("order=1,2, fg_f0=10:100:3:log,smooth_fact=0.5")
+    assert g["low_pass_filter_order"] == [1, 2]
+    assert g["low_pass_filter_fg_f0"] == pytest.approx([10.0, 31.6227766, 100.0])
+    assert g["smoothing_factor"] == [0.5]
+
+
+@pytest.mark.parametrize("text, words", [
+    ("kp=0:1:3", "P-AXIS-00759"),               # kp = 0 outside (0, 2]
+    ("kp=3", "out of range"),
+    ("n_cycles=2.5", "not an integer"),
+    ("filter_type=PASS", "allowed"),
+    ("foo=1", "unknown sweep parameter"),
+    ("kp=1,kp=2", "given twice"),
+    ("kp=0.1:1", "a:b:n"),
+    ("0.1,kp=1", "name=values"),
+    ("", "empty grid"),
+])
+def test_parse_grid_errors(text, words):
+    with pytest.raises(SpaceError, match=words):
+        parse_grid(text)
+
+
+def test_random_sample_reproducible_and_valid():
+    a = random_sample(50, seed=3, cycle_time=0.001)
+    b = random_sample(50, seed=3, cycle_time=0.001)
+    assert a == b
+    base = AxisParameters(enabled=True)
+    sets, kept, rejected = build_sets(base, a, 0.001)
+    assert not rejected and len(sets) == 50
+    for p in a:                                  # only the filter's own parameters are set
+        if p["filter_type"] == FilterType.MOVING_AVERAGE:
+            assert "kalman_sigma" not in p and "smoothing_factor" not in p
+
+
+def test_invalid_combination_rejected_with_message():
+    base = AxisParameters(enabled=True)
+    with pytest.raises(SpaceError, match="Nyquist"):
+        to_params(base, {"filter_type": FilterType.LOWPASS, "low_pass_filter_fg_f0": 600.0}, 0.001)
+    sets, kept, rejected = build_sets(base, [{"kp": 0.5}, {"filter_type": FilterType.LOWPASS,
+                                                            "low_pass_filter_fg_f0": 900.0}], 0.001)
+    assert len(sets) == 1 and len(rejected) == 1 and "P-AXIS-00508" in rejected[0][1]
