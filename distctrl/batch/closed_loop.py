@@ -516,18 +516,7 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
                 need_seed = False
                 m_prev = -feedback if d_mode else feedback
             filtered = law.filter_step(fc, fs, buf, feedback)
-            if not const_dist:
-                target_dev = filtered - set_value
-                e = target_dev - o
-                m = filtered
-            elif both:
-                target_dev = (pr + o - filtered) - set_value
-                e = (filtered + set_value - pr) - o
-                m = filtered
-            else:
-                target_dev = filtered - set_value
-                e = set_value - filtered
-                m = -filtered
+            target_dev, e, m = law.mode_error(const_dist, both, filtered, set_value, pr, o)
             u, i_cand = law.pid_step(kp, i_gain, d_gain, integral, m_prev, e, m)
             m_prev = m
             if not (-_HUGE < u < _HUGE) or not (-_HUGE < i_cand < _HUGE):

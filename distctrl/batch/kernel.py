@@ -50,8 +50,8 @@ _LAW_JIT_OPTIONS = {"_nrt": False}
 #: the per-cycle entry points the kernels call are inlined into them at numba-IR level (no call
 #: with 3 array structs on the stack per cycle); the helpers they call stay separate functions
 #: (inlining ``_push`` trips numba's pedantic IR checks). Only affects jitted callers.
-_INLINE = frozenset({"filter_step", "pid_step", "adaptive_acceleration", "slope_limit", "bound_velocity",
-                     "advance_offset"})
+_INLINE = frozenset({"filter_step", "mode_error", "pid_step", "adaptive_acceleration",
+                     "slope_limit", "bound_velocity", "advance_offset"})
 
 
 def register_law() -> None:

@@ -263,18 +263,8 @@ class AxisDistanceController:
         if scale != 1.0 and -_HUGE < scale < _HUGE:
             set_dist = set_dist * scale                 # 3D: the orthogonal set distance (SPEC §11)
         if running:
-            if mode is _SET_POS:
-                target_dev = filtered - st.set_pos
-                e = target_dev - o
-                m = filtered
-            elif both:
-                target_dev = (prog + o - filtered) - set_dist
-                e = (filtered + set_dist - prog) - o
-                m = filtered
-            else:
-                target_dev = filtered - set_dist
-                e = set_dist - filtered
-                m = -filtered
+            const = mode is _CONST_DIST
+            target_dev, e, m = law.mode_error(const, both, filtered, set_dist if const else st.set_pos, prog, o)
             u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
             st.m_prev = m
             if not -_HUGE < u < _HUGE or not -_HUGE < i_cand < _HUGE:   # never let inf/NaN through

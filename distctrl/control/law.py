@@ -162,6 +162,22 @@ def filter_step(fc, fs, buf, x):
     return y
 
 
+# ----------------------------------------------------------------------------- error by mode
+
+def mode_error(const_dist, both, filtered, set_value, programmed, o):
+    """SPEC §3: (target deviation, remaining error e, measurement part m of e) for the mode.
+
+    SET_POS: filtered surface against SET_POS; CONST_DIST: filtered distance against SET_DIST;
+    CONST_DIST with both encoders (P-AXIS-00500): filtered surface + SET_DIST against the setpoint.
+    """
+    if not const_dist:
+        target_dev = filtered - set_value
+        return target_dev, target_dev - o, filtered
+    if both:
+        return (programmed + o - filtered) - set_value, (filtered + set_value - programmed) - o, filtered
+    return filtered - set_value, set_value - filtered, -filtered
+
+
 # ----------------------------------------------------------------------------- PID
 
 def pid_step(kp, t_over_tn, tv_over_t, integral, m_prev, e, m):
@@ -310,5 +326,5 @@ def advance_offset(o, v, T, lo, hi):
 
 #: the functions numba compiles for the batch kernel (registered by distctrl.batch.kernel)
 LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, _push,
-                 filter_step, pid_step, integrator_after_limiter, brake_velocity, adaptive_acceleration, _clamp, _band,
+                 filter_step, mode_error, pid_step, integrator_after_limiter, brake_velocity, adaptive_acceleration, _clamp, _band,
                  slope_limit, bound_velocity, advance_offset)
