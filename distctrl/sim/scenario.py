@@ -634,8 +634,10 @@ def _parse_toml(text: str, source: str) -> dict:
     except tomllib.TOMLDecodeError as exc:
         msg = str(exc)
         m = _TOML_LINE_RE.search(msg)
+        # tomllib says "(at end of document)" instead of a line when the text ends too early
+        line = int(m.group(1)) if m else (max(1, len(text.splitlines())) if "end of document" in msg else None)
         raise ScenarioError(source, "toml", msg, "valid TOML (https://toml.io/en/v1.0.0)", "syntax error:",
-                            line=int(m.group(1)) if m else None) from None
+                            line=line) from None
 
 
 def scenario_from_text(toml_text: str, base_dir: str | os.PathLike = ".",
