@@ -332,6 +332,11 @@ class AxisDistanceController:
             # run out: INACTIVE with the offset exactly 0; the velocity of this last step is kept so
             # that the next cycle (at rest, or a new select) continues within the acceleration bound
             st.offset = o_new = 0.0
+            if o * v > 0.0:
+                # o had overshot 0 by rounding (~1e-17 mm): the snap moves against v, so report the
+                # velocity and limit of the step actually made (SPEC §6 weighting by direction)
+                st.velocity = v_real = -o / T
+                v_applied = v_lim if o < 0.0 else v_lim * self._w_v
             self._to_inactive()
             state = _INACTIVE
 
@@ -486,6 +491,10 @@ class AxisDistanceController:
                                      f"owned by {st.source.name}, {refused.name} {a.name} refused",
                                      severity="error" if refused == CommandSource.NC else "warning"))
             return 0.0
+        if st.hli_state == _INACTIVE:
+            # from INACTIVE the commanding source takes over, also when its command fails into
+            # ERROR (FREEZE, a select without a set value): it must be able to leave it with OFF
+            st.source = CommandSource(cmd.source)
         problem = _check_command_values(cmd, self.T)
         if problem:
             self._raise(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, events, line, problem)
