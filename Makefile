@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench clean docs chromium
+.PHONY: demo test bench stress clean docs chromium
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,11 @@ bench: $(STAMP)
 	$(PY) bench/bench_batch.py
 	$(PY) bench/bench_run.py
 	$(PY) bench/bench_ads.py
+
+# reliability suites (issue 8) at full length; figures go to bench/reliability.json and bench/soak.json
+stress: $(STAMP)
+	DISTCTRL_STRESS=1 DISTCTRL_FIGURES=bench $(PY) -m pytest -q -s -p no:cacheprovider tests/reliability
+	$(PY) bench/soak.py --cycles 10000000
 
 docs: $(STAMP)
 	$(PY) -m distctrl.params.docgen > docs/parameters.md

@@ -50,5 +50,9 @@ def pytest_sessionfinish(session, exitstatus):  # noqa: ARG001 - pytest hook sig
         path = Path(target)
         path.mkdir(parents=True, exist_ok=True)
         (path / "reliability.json").write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
+    detail = ("tr_", "rule_", "hit_", "state_", "fault_", "error_")   # per-kind counts: in the JSON only
     for suite, counts in sorted(figures.items()):
-        print(f"\n[reliability] {suite}: " + ", ".join(f"{k}={v}" for k, v in sorted(counts.items())))
+        main = {k: v for k, v in counts.items() if not k.startswith(detail)}
+        more = len(counts) - len(main)
+        print(f"\n[reliability] {suite}: " + ", ".join(f"{k}={v}" for k, v in sorted(main.items()))
+              + (f" (+{more} per-kind counts with DISTCTRL_FIGURES)" if more else ""))
