@@ -421,7 +421,10 @@ class InvariantChecker:
             self._fail(out, "TURNING_OFF -> INACTIVE before the offset ran out")
         if Action.PROGRAM_END in actions:
             ids = [e.id for e in out.events]
-            automatic = (pre in RUNNING and state == S.ERROR) or (pre == S.TURNING_OFF and state == S.INACTIVE)
+            # automatic changes that may fall into the program-end cycle: a monitoring error, the run-out
+            # landing, and FREEZE -> a pending DRYRUN once the offset stands
+            automatic = (pre in RUNNING and state == S.ERROR) or (pre == S.TURNING_OFF and state == S.INACTIVE) \
+                or (pre == S.FREEZE and state in (S.DRYRUN_SETPOS, S.DRYRUN_CONST_DIST) and out.delta_offset == 0.0)
             if state != pre and not automatic:
                 self._fail(out, f"PROGRAM_END changed the state {pre} -> {state}")
             if (pre not in (S.INACTIVE, S.TURNING_OFF)) != (70332 in ids):      # warning only while active
