@@ -175,7 +175,9 @@ class StateModel(RuleBasedStateMachine):
         if col is not None:
             allowed = {s for s, _ in EXPECTED[pre][col]}
             assert got in allowed or (got == INACTIVE and TURNING_OFF in allowed) \
-                or (got == FREEZE and allowed & {DRY_SP, DRY_CD}), f"table: {pre.name} + {col} -> {got.name}"
+                or (got == FREEZE and allowed & {DRY_SP, DRY_CD}) \
+                or (pre == FREEZE and got in (DRY_SP, DRY_CD) and got == self.model.state), \
+                f"table: {pre.name} + {col} -> {got.name}"   # last: a pending DRYRUN began in this cycle
         # ownership: any command taken in INACTIVE (also one failing into ERROR) makes its source the
         # owner, and so does a select that succeeds
         if isinstance(cmd, Command) and cmd.action not in ALWAYS_ACT:
