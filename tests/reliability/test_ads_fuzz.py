@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import pytest
 from hypothesis import given
+from hypothesis import settings as _settings
 from hypothesis import strategies as st
 
 from distctrl.ads import AdsServer
@@ -32,7 +33,12 @@ from distctrl.ads import errors as E
 from distctrl.ads import protocol as P
 from tests.ads import IG_DATA, IG_RO, MemoryDevice, RawClient
 
-from .conftest import RELIABILITY, stress_scale, tally
+from .conftest import RELIABILITY as _RELIABILITY
+from .conftest import stress_scale, tally
+
+#: every example waits on real sockets (up to 0.1 s of required silence, 1 s timeouts), so the long
+#: profile is capped at 500 examples per test (~1 min each) to keep `make stress` under half an hour
+RELIABILITY = _settings(_RELIABILITY, max_examples=min(_RELIABILITY.max_examples, 500))
 
 MAX_FRAME = 4096
 TIMEOUT = 1.0          # longest wait for an answer / a close (no hang beyond this)
