@@ -251,6 +251,9 @@ _FLOAT_FIELDS = {"SET_POS": "set_pos", "SET_DIST": "set_dist", "KP": "kp", "I_TN
                  "D_TV": "d_tv", "FG_F0": "fg_f0", "SMOOTH_FACT": "smooth_fact",
                  "KALMAN_SIGMA": "kalman_sigma"}
 _INT_FIELDS = {"N_CYCLES": "n_cycles", "ORDER": "order"}
+#: keywords with a name as value (MODE and DIRECTION exist only in the 3D command)
+_NAME_FIELDS = {"FILTER_TYPE": "filter_type", "SENSOR_SOURCE": "sensor_source", "SENSOR_VAR": "sensor_var",
+                "MODE": "mode", "DIRECTION": "direction"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -294,6 +297,37 @@ class _KeywordCommand:
         the axis command)."""
         return self.has("WAIT")
 
+    def _argument_fields(self, lookup: Lookup, file: str | None,
+                         int_fields: dict[str, str]) -> tuple[dict[str, object], list[float | None]]:
+        """Command fields and VAL1-VAL5 from the keyword arguments (numbers evaluated now)."""
+        fields: dict[str, object] = {}
+        vals: list[float | None] = [None] * 5
+        for arg in self.args:
+            if isinstance(arg.value, Expr):
+                value = self._evaluate(arg, lookup, file)
+                if arg.keyword.startswith("VAL"):
+                    vals[int(arg.keyword[3]) - 1] = value
+                elif arg.keyword in int_fields:
+                    fields[int_fields[arg.keyword]] = int(value)
+                else:
+                    fields[_FLOAT_FIELDS[arg.keyword]] = value
+            elif arg.keyword in _NAME_FIELDS:
+                fields[_NAME_FIELDS[arg.keyword]] = arg.value
+        return fields, vals
+
+    @staticmethod
+    def _evaluate(arg: DistCtrlArg, lookup: Lookup, file: str | None) -> float:
+        assert isinstance(arg.value, Expr)
+        try:
+            value = arg.value.evaluate(lookup)
+        except ExprError as exc:
+            raise NcSyntaxError(f"{arg.keyword}: {exc}", file=file, line=arg.line,
+                                column=arg.column) from None
+        problem = dist_ctrl_range_error(arg.keyword, value)
+        if problem:
+            raise NcSyntaxError(problem, file=file, line=arg.line, column=arg.column)
+        return value
+
 
 @dataclass(frozen=True, slots=True)
 class DistCtrlWord(_KeywordCommand):
@@ -324,40 +358,11 @@ class DistCtrlWord(_KeywordCommand):
         raise :class:`NcSyntaxError` at the keyword's position.
         """
         action = self.action
-        fields: dict[str, object] = {}
-        vals: list[float | None] = [None] * 5
-        for arg in self.args:
-            if isinstance(arg.value, Expr):
-                value = self._evaluate(arg, lookup, file)
-                if arg.keyword.startswith("VAL"):
-                    vals[int(arg.keyword[3]) - 1] = value
-                elif arg.keyword in _INT_FIELDS:
-                    fields[_INT_FIELDS[arg.keyword]] = int(value)
-                else:
-                    fields[_FLOAT_FIELDS[arg.keyword]] = value
-            elif arg.keyword == "FILTER_TYPE":
-                fields["filter_type"] = arg.value
-            elif arg.keyword == "SENSOR_SOURCE":
-                fields["sensor_source"] = arg.value
-            elif arg.keyword == "SENSOR_VAR":
-                fields["sensor_var"] = arg.value
+        fields, vals = self._argument_fields(lookup, file, _INT_FIELDS)
         if action == Action.REF:
             fields["ref_position"] = 0.0   # NC REF: the current reading is "sensor zero"
         return Command(action=action, const_dist=self.has("CONST_DIST"), no_move=self.has("NO_MOVE"),
                        vals=tuple(vals), line=self.line if line is None else line, **fields)
-
-    @staticmethod
-    def _evaluate(arg: DistCtrlArg, lookup: Lookup, file: str | None) -> float:
-        assert isinstance(arg.value, Expr)
-        try:
-            value = arg.value.evaluate(lookup)
-        except ExprError as exc:
-            raise NcSyntaxError(f"{arg.keyword}: {exc}", file=file, line=arg.line,
-                                column=arg.column) from None
-        problem = dist_ctrl_range_error(arg.keyword, value)
-        if problem:
-            raise NcSyntaxError(problem, file=file, line=arg.line, column=arg.column)
-        return value
 
 
 # ---------------------------------------------------------------- #DIST CTRL (3D distance control)
@@ -406,29 +411,11 @@ class DistCtrl3DWord(_KeywordCommand):
         :class:`NcSyntaxError` at the keyword's position.
         """
         action = self.action
-        fields: dict[str, object] = {}
-        vals: list[float | None] = [None] * 5
-        for arg in self.args:
-            if isinstance(arg.value, Expr):
-                value = DistCtrlWord._evaluate(arg, lookup, file)
-                if arg.keyword.startswith("VAL"):
-                    vals[int(arg.keyword[3]) - 1] = value
-                elif arg.keyword in _INT_FIELDS_3D:
-                    fields[_INT_FIELDS_3D[arg.keyword]] = int(value)
-                else:
-                    fields[_FLOAT_FIELDS[arg.keyword]] = value
-            elif arg.keyword == "FILTER_TYPE":
-                fields["filter_type"] = arg.value
-            elif arg.keyword == "SENSOR_SOURCE":
-                # "If DEFAULT is selected as the sensor source, the CNC automatically sets to the
-                # VARIABLE sensor source internally" (seeds/000 §12.2)
-                fields["sensor_source"] = SensorSource.VARIABLE
-            elif arg.keyword == "SENSOR_VAR":
-                fields["sensor_var"] = arg.value
-            elif arg.keyword == "MODE":
-                fields["mode"] = arg.value
-            elif arg.keyword == "DIRECTION":
-                fields["direction"] = arg.value
+        fields, vals = self._argument_fields(lookup, file, _INT_FIELDS_3D)
+        if "sensor_source" in fields:
+            # "If DEFAULT is selected as the sensor source, the CNC automatically sets to the
+            # VARIABLE sensor source internally" (seeds/000 §12.2)
+            fields["sensor_source"] = SensorSource.VARIABLE
         if action == Action.REF:
             fields["ref_position"] = 0.0   # as the axis command: the current reading is "sensor zero"
         return Command3D(action=action, wait=self.wait, const_dist=self.has("CONST_DIST"),

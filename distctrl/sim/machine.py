@@ -597,18 +597,21 @@ class Machine:
                 out.command_position = p
                 drive.step(p)
 
+    def _cycle_line(self, k: int, t: float) -> int | None:
+        """The NC line of cycle ``k``; runs the cycle start (events, PLC, NC) only when something is due."""
+        nc = self.nc
+        if (t + 0.5 * self.T >= self._next_event_t or self._plc_pending or self.plc_program is not None
+                or (nc is not None and self.interp.block == "idle")):
+            return self._cycle_start(k, t)
+        return nc.line if nc is not None else None      # the common cycle: a block runs, nothing due
+
     def _step_axes(self) -> None:
         """One GEO cycle of the axis variant (no kinematics, no 3D distance control)."""
         k = self.cycle
         T = self.T
         t = k * T
-        nc = self.nc
         interp = self.interp
-        if (t + 0.5 * T >= self._next_event_t or self._plc_pending or self.plc_program is not None
-                or (nc is not None and interp.block == "idle")):
-            line = self._cycle_start(k, t)
-        else:                                            # the common cycle: a block is running, nothing due
-            line = nc.line if nc is not None else None
+        line = self._cycle_line(k, t)
         interp.feed_override = self.channel_override
         prog = interp.step()
         drives = self.drives
@@ -634,13 +637,8 @@ class Machine:
         k = self.cycle
         T = self.T
         t = k * T
-        nc = self.nc
         interp = self.interp
-        if (t + 0.5 * T >= self._next_event_t or self._plc_pending or self.plc_program is not None
-                or (nc is not None and interp.block == "idle")):
-            line = self._cycle_start(k, t)
-        else:                                            # the common cycle: a block is running, nothing due
-            line = nc.line if nc is not None else None
+        line = self._cycle_line(k, t)
         ch3d = self.ch3d
         interp.feed_override = self.channel_override
         prog = interp.step()
@@ -730,7 +728,7 @@ class Machine:
             if out3.events:
                 for ev in out3.events:
                     self.events.append((t, ev))
-                    if ev.severity == "error" and nc is not None and nc.running:
+                    if ev.severity == "error" and self.nc is not None and self.nc.running:
                         self.stop_program(None)
             core = out3.core
             if core.absorbed_offset and not out3.static:
