@@ -360,18 +360,24 @@ class Evaluator:
         futures = [client.submit(self.chunk_fn, self._remote_inputs, c, self.cycles, self.metric_options,
                                  threads, retries=self.retries, pure=False) for c in chunks]
         index = {f.key: i for i, f in enumerate(futures)}
+        running = {f.key: f for f in futures}
+        done = as_completed(futures)
+        del futures
         parts: list = [None] * len(chunks)
         bar = self._bar(sum(len(c) for c in chunks), description)
         try:
-            for fut in as_completed(futures):
+            for fut in done:
                 i = index[fut.key]
                 try:
                     parts[i] = fut.result()
                 except Exception as exc:              # noqa: BLE001
-                    for f in futures:
+                    for f in running.values():
                         f.cancel()
                     raise TuningRunError(f"chunk {i} ({len(chunks[i])} sets) failed after {self.retries} "
                                          f"retries: {type(exc).__name__}: {exc}") from exc
+                # fetched: release it at once, so a worker dying later does not make dask recompute it
+                running.pop(fut.key).release()
+                del fut
                 if bar is not None:
                     bar.advance(0, len(chunks[i]))
         finally:
