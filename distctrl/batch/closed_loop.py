@@ -65,7 +65,7 @@ from ..control.kinds import SensorSource
 from ..control.states import CommandSource
 from ..errors import ErrorId
 from ..params.axis import AxisParameters
-from . import kernel as _kernel  # noqa: F401  (registers law.* with numba)
+from . import kernel as _kernel  # registers law.* with numba; the law-constant columns
 
 __all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "closed_loop", "run_batch",
            "Q_LEN", "PACKED_LEN"]
@@ -78,7 +78,10 @@ class ClosedLoopError(ValueError):
 # ----------------------------------------------------------------------------- layouts
 
 # per parameter set: the float64 vector ``prm`` (after the law's fc in a packed row)
-Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR = range(9)
+# the first columns are the law's constants, in the layout of distctrl.batch.kernel (put_law_constants)
+Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR = (
+    _kernel.P_T, _kernel.P_KP, _kernel.P_I_GAIN, _kernel.P_D_GAIN, _kernel.P_V_LIM, _kernel.P_A_BASE,
+    _kernel.P_W_V, _kernel.P_W_A, _kernel.P_A_FLOOR)
 Q_ADAPTIVE, Q_A_MIN, Q_DEV_A_MIN, Q_DEV_A_MAX, Q_OPTIMIZED, Q_BOTH = range(9, 15)
 Q_MAX_DEV, Q_CHECK_SW, Q_SW_MIN, Q_SW_MAX = range(15, 19)
 Q_JUMP, Q_S_HI, Q_S_LO = range(19, 22)
@@ -337,15 +340,7 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
         probe = inputs.scenario.sensor.make_sensor(T, p)
         fc = np.asarray(c["fc"], dtype=np.float64)
         q = np.zeros(Q_LEN)
-        q[Q_T] = c["T"]
-        q[Q_KP] = c["kp"]
-        q[Q_I_GAIN] = c["i_gain"]
-        q[Q_D_GAIN] = c["d_gain"]
-        q[Q_V_MAX] = c["v_max"]
-        q[Q_A_BASE] = c["a_base"]
-        q[Q_W_V] = c["w_v"]
-        q[Q_W_A] = c["w_a"]
-        q[Q_A_FLOOR] = c["a_floor"]
+        _kernel.put_law_constants(q, c)
         q[Q_ADAPTIVE] = 1.0 if p.use_adaptive_acceleration else 0.0
         q[Q_A_MIN] = p.a_min
         q[Q_DEV_A_MIN] = p.dist_error_a_min

@@ -72,7 +72,10 @@ register_law()
 
 # ----------------------------------------------------------------------------- parameter vector
 
-#: layout of the float64 parameter vector ``prm`` of one parameter set (see :func:`pack_params`)
+#: layout of the float64 parameter vector ``prm`` of one parameter set (see :func:`pack_params`).
+#: Its first columns are the law's constants (``AxisDistanceController.law_constants()``), written by
+#: :func:`put_law_constants`; the closed-loop kernel's vector starts with the same columns.
+LAW_CONSTANT_COLUMNS = ("T", "kp", "i_gain", "d_gain", "v_max", "a_base", "w_v", "w_a", "a_floor")
 P_T = 0            # cycle time, s
 P_KP = 1           # kp
 P_I_GAIN = 2       # T / i_tn (0 = no I part)
@@ -82,6 +85,7 @@ P_A_BASE = 5       # acceleration limit, mm/s² (a_max, or the axis acceleration
 P_W_V = 6          # lowering weight of the velocity (1 = off)
 P_W_A = 7          # lowering weight of the acceleration (1 = off)
 P_A_FLOOR = 8      # smallest acceleration the limiter may use (braking to a bound)
+assert (P_T, P_KP, P_I_GAIN, P_D_GAIN, P_V_LIM, P_A_BASE, P_W_V, P_W_A, P_A_FLOOR) == tuple(range(9))
 P_LO = 9           # offset bounds, mm (max_deviation and, if checked, software limits)
 P_HI = 10
 P_SET_POS = 11     # SET_POS, mm
@@ -93,6 +97,13 @@ P_DEV_A_MAX = 16   # mm
 P_DELAY = 17       # 1.0: optimized scheduling off (the law sees the last cycle's reading)
 P_S_BEFORE = 18    # with P_DELAY: the reading of the cycle before the first one, mm
 P_LEN = 19
+
+
+def put_law_constants(prm: np.ndarray, constants: dict) -> None:
+    """Write the law's constants (``AxisDistanceController.law_constants()``) into the first
+    ``len(LAW_CONSTANT_COLUMNS)`` columns of a parameter vector (both kernels' layouts start so)."""
+    for j, name in enumerate(LAW_CONSTANT_COLUMNS):
+        prm[j] = constants[name]
 
 
 def pack_params(params, cycle_time: float, set_pos: float, programmed_position: float = 0.0,
@@ -113,15 +124,7 @@ def pack_params(params, cycle_time: float, set_pos: float, programmed_position: 
         lo = max(lo, p.sw_limit_min - programmed_position)
         hi = min(hi, p.sw_limit_max - programmed_position)
     prm = np.zeros(P_LEN)
-    prm[P_T] = c["T"]
-    prm[P_KP] = c["kp"]
-    prm[P_I_GAIN] = c["i_gain"]
-    prm[P_D_GAIN] = c["d_gain"]
-    prm[P_V_LIM] = c["v_max"]
-    prm[P_A_BASE] = c["a_base"]
-    prm[P_W_V] = c["w_v"]
-    prm[P_W_A] = c["w_a"]
-    prm[P_A_FLOOR] = c["a_floor"]
+    put_law_constants(prm, c)
     prm[P_LO] = lo
     prm[P_HI] = hi
     prm[P_SET_POS] = set_pos
