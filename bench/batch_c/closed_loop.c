@@ -34,6 +34,7 @@
 #define MAX_SECTIONS 3
 #define FC_KIND 0
 #define FC_N 1
+#define FC_INV_N 7
 #define FC_SOS 8
 #define FC_ZI (FC_SOS + 6 * MAX_SECTIONS)
 #define FC_LEN (FC_ZI + 2 * MAX_SECTIONS)
@@ -130,7 +131,7 @@ static inline double band(double v_wanted, double v_prev, double v_lim, double a
 static inline double slope_limit(double u, double e, double v_prev, double T, double v_lim,
                                  double a_lim, double v_lim_down, double a_lim_down)
 {
-    double v_wanted = u / T;
+    double v_wanted = u * (1.0 / T);
     double vb = sqrt(2.0 * a_lim * fabs(e));
     double v = band((-vb <= v_wanted && v_wanted <= vb) ? v_wanted : (v_wanted > 0.0 ? vb : -vb),
                     v_prev, v_lim, a_lim * T);
@@ -344,7 +345,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
                     total += buf[i];
             }
             f_total = total;
-            double filtered = f_total / nf;
+            double filtered = f_total * fc[FC_INV_N];   /* law.moving_mean */
             double m;
             if (!const_dist) {
                 target_dev = filtered - set_value;
@@ -415,7 +416,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
             }
             integral = integrator_after_limiter(integral, i_cand, u_lim, v, e, T);
         }
-        vel = (o_new - o) / T;
+        vel = (o_new - o) * (1.0 / T);
         o = o_new;
         out_offset[k] = o_new;
         double cmd = pr + o_new + 0.0;
@@ -425,7 +426,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
         double c = ring[ring_w];
         double dv = kv * (c - z_act);
         if (ff != 0.0)
-            dv += ff * (c - prev_sp) / T;
+            dv += ff * (c - prev_sp) * (1.0 / T);
         prev_sp = c;
         if (dv > dr_vmax)
             dv = dr_vmax;
@@ -437,7 +438,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
             dv = z_vel - dr_dv;
         z_pos = z_pos + dv * T;
         z_vel = dv;
-        z_act = res != 0.0 ? floor(z_pos / res + 0.5) * res : z_pos;
+        z_act = res != 0.0 ? floor(z_pos * (1.0 / res) + 0.5) * res : z_pos;
     }
 }
 

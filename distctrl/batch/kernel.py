@@ -193,7 +193,7 @@ def _setpos_loop_into(fc, prm, surface_mm, n_cycles, fs, buf, out_offset, out_ve
         v = law.bound_velocity(v, o, T, lo, hi, a_floor)
         o_new = law.advance_offset(o, v, T, lo, hi)
         integral = law.integrator_after_limiter(integral, i_cand, u, v, e, T)
-        v_prev = (o_new - o) / T
+        v_prev = (o_new - o) * (1.0 / T)
         o = o_new
         out_offset[k] = o
         out_velocity[k] = v_prev

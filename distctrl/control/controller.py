@@ -319,7 +319,7 @@ class AxisDistanceController:
         # integrator: keep the candidate only if the limiter did not clip in its direction
         if state in _TRACKING and not hold:
             st.integral = law.integrator_after_limiter(st.integral, i_cand, u_lim, v, e, T)
-        v_real = (o_new - o) / T
+        v_real = (o_new - o) * (1.0 / T)
         st.velocity = v_real
         st.offset = o_new
         if st.pending_dryrun is not None:
@@ -335,7 +335,7 @@ class AxisDistanceController:
             if o * v > 0.0:
                 # o had overshot 0 by rounding (~1e-17 mm): the snap moves against v, so report the
                 # velocity and limit of the step actually made (SPEC §6 weighting by direction)
-                st.velocity = v_real = -o / T
+                st.velocity = v_real = -o * (1.0 / T)
                 v_applied = v_lim if o < 0.0 else v_lim * self._w_v
             self._to_inactive()
             state = _INACTIVE

@@ -95,6 +95,7 @@ def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
     alpha = float(config.smoothing_factor)
     fc[law.FC_KIND] = float(kind)
     fc[law.FC_N] = float(n)
+    fc[law.FC_INV_N] = 1.0 / n if n > 0 else 0.0     # (n = 0: PASS, the mean is not used)
     fc[law.FC_ALPHA] = alpha
     fc[law.FC_SIGMA] = float(config.kalman_sigma)
     # (1-alpha)^n and the weight sum 1-(1-alpha)^n via log1p/expm1: exact also for a tiny alpha,

@@ -9,7 +9,7 @@ Python ``list`` in the scalar core, a ``numpy`` array in the kernel), no objects
 Units: mm, s, Hz. ``T`` is the GEO cycle time in s.
 
 Filter buffers (see :func:`new_filter_buffers`):
-  ``fc`` coefficients: [kind, n, alpha, sigma, (1-alpha)^n, 1-(1-alpha)^n, n_sections, -,
+  ``fc`` coefficients: [kind, n, alpha, sigma, (1-alpha)^n, 1-(1-alpha)^n, n_sections, 1/n,
   sos (3 sections x b0 b1 b2 a0 a1 a2), zi for a unit input (3 sections x 2)]
   ``fs`` state: [ring index, running sum, Kalman P, last output, zi (3 sections x 2)]
   ``buf`` ring buffer of the last n inputs (averages) or estimates (Kalman), length MAX_N.
@@ -28,7 +28,7 @@ KALMAN_EXPO = 5
 
 MAX_N = 100            # n_cycles < 100
 MAX_SECTIONS = 3       # order <= 6
-FC_KIND, FC_N, FC_ALPHA, FC_SIGMA, FC_DECAY_N, FC_WSUM, FC_NSEC = 0, 1, 2, 3, 4, 5, 6
+FC_KIND, FC_N, FC_ALPHA, FC_SIGMA, FC_DECAY_N, FC_WSUM, FC_NSEC, FC_INV_N = 0, 1, 2, 3, 4, 5, 6, 7
 FC_SOS = 8
 FC_ZI = FC_SOS + 6 * MAX_SECTIONS
 FC_LEN = FC_ZI + 2 * MAX_SECTIONS
@@ -102,13 +102,24 @@ def filter_seed(fc, fs, buf, x0):
         fs[FS_ZI + 2 * s + 1] = fc[FC_ZI + 2 * s + 1] * x0
 
 
+def window_sum_update(total, x, old):
+    """Running sum of the last n values after x enters and ``old`` leaves the window."""
+    return total + x - old
+
+
+def moving_mean(total, inv_n):
+    """MOVING_AVERAGE output from the running sum of the last n values; ``inv_n`` = 1/n
+    (``fc[FC_INV_N]``): a multiplication, which a vectorised kernel does at full rate."""
+    return total * inv_n
+
+
 def _push(fc, fs, buf, kind, n, x):
     """Put x into the ring of the last n values, updating the running (weighted) sum."""
     idx = int(fs[FS_IDX])
     old = buf[idx]
     buf[idx] = x
     if kind == MOVING_AVERAGE or kind == KALMAN_MA:
-        total = fs[FS_TOTAL] + x - old
+        total = window_sum_update(fs[FS_TOTAL], x, old)
     else:
         alpha = fc[FC_ALPHA]
         total = alpha * x + (1.0 - alpha) * fs[FS_TOTAL] - alpha * fc[FC_DECAY_N] * old
@@ -132,7 +143,7 @@ def filter_step(fc, fs, buf, x):
         y = x
     elif kind == MOVING_AVERAGE:
         _push(fc, fs, buf, kind, n, x)
-        y = fs[FS_TOTAL] / n
+        y = moving_mean(fs[FS_TOTAL], fc[FC_INV_N])
     elif kind == EXPO_MEAN:
         _push(fc, fs, buf, kind, n, x)
         y = fs[FS_TOTAL] / fc[FC_WSUM]
@@ -264,6 +275,19 @@ def _band(v_wanted, v_prev, v_lim, a_t):
     return v_wanted
 
 
+def slope_limit_side(u, e, v_prev, T, v_lim, a_lim):
+    """One pass of the slope limiter with one pair of limits: the wanted velocity u/T, braked to
+    sqrt(2 a |e|), then acceleration- and velocity-limited (mm/s)."""
+    v_wanted = u * (1.0 / T)            # (a kernel computes 1/T once for all sets)
+    vb = sqrt(2.0 * a_lim * abs(e))
+    return _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim, a_lim * T)
+
+
+def needs_lowering_pass(v, v_lim, a_lim, v_lim_down, a_lim_down):
+    """True if the first pass gave a lowering velocity and lowering has its own (weighted) limits."""
+    return v < 0.0 and not (v_lim_down == v_lim and a_lim_down == a_lim)
+
+
 def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
     """Slope limiter (SPEC §6). Returns (v, a_applied, v_lim_applied) in mm/s, mm/s², mm/s.
 
@@ -273,14 +297,10 @@ def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
     kp = 1), then acceleration- and velocity-limited. A result towards the workpiece (v < 0) is computed with
     the lowering limits instead.
     """
-    v_wanted = u / T
-    vb = sqrt(2.0 * a_lim * abs(e))
-    v = _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim, a_lim * T)
-    if v >= 0.0 or (v_lim_down == v_lim and a_lim_down == a_lim):
+    v = slope_limit_side(u, e, v_prev, T, v_lim, a_lim)
+    if not needs_lowering_pass(v, v_lim, a_lim, v_lim_down, a_lim_down):
         return v, a_lim, v_lim
-    vb = sqrt(2.0 * a_lim_down * abs(e))
-    v = _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim_down,
-              a_lim_down * T)
+    v = slope_limit_side(u, e, v_prev, T, v_lim_down, a_lim_down)
     if v <= 0.0:
         return v, a_lim_down, v_lim_down
     # the lifting limits say "lower", the lowering limits say "lift": the velocity passes zero this
@@ -300,18 +320,33 @@ def bound_velocity(v, o, T, lo, hi, a_floor):
     if a_floor <= 0.0:                      # no deceleration possible at all: do not approach a bound
         return 0.0 if (v > 0.0 and o < hi) or (v < 0.0 and o > lo) else v
     if v > 0.0:
-        room = hi - o
-        if room < (v * v / (2.0 * a_floor) + 0.5 * v * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) + 1e-300:
-            v_hi = brake_velocity(room, a_floor, T)
+        if _brakes_to_bound(v, hi - o, T, a_floor):
+            v_hi = brake_velocity(hi - o, a_floor, T)
             if v > v_hi:
                 v = v_hi
     elif v < 0.0:
-        room = o - lo
-        if room < (v * v / (2.0 * a_floor) - 0.5 * v * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) + 1e-300:
-            v_lo = -brake_velocity(room, a_floor, T)
+        if _brakes_to_bound(-v, o - lo, T, a_floor):
+            v_lo = -brake_velocity(o - lo, a_floor, T)
             if v < v_lo:
                 v = v_lo
     return v
+
+
+def _brakes_to_bound(speed, room, T, a_floor):
+    """True if ``room`` (mm) may be too short to stop from ``speed`` (mm/s, > 0) at a_floor > 0."""
+    return room < (speed * speed / (2.0 * a_floor) + 0.5 * speed * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) \
+        + 1e-300
+
+
+def near_bound(v, o, T, lo, hi, a_floor):
+    """True unless :func:`bound_velocity` certainly returns ``v`` unchanged (far from both bounds,
+    or standing). A kernel can run the cheap test for many sets and the full function for the few."""
+    if a_floor <= 0.0:
+        return v != 0.0
+    if v == 0.0:
+        return False
+    # one test for both directions (abs(v) == -v for v < 0 exactly): one division per call
+    return _brakes_to_bound(abs(v), hi - o if v > 0.0 else o - lo, T, a_floor)
 
 
 def advance_offset(o, v, T, lo, hi):
@@ -325,6 +360,7 @@ def advance_offset(o, v, T, lo, hi):
 
 
 #: the functions numba compiles for the batch kernel (registered by distctrl.batch.kernel)
-LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, _push,
-                 filter_step, mode_error, pid_step, integrator_after_limiter, brake_velocity, adaptive_acceleration, _clamp, _band,
-                 slope_limit, bound_velocity, advance_offset)
+LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, window_sum_update,
+                 moving_mean, _push, filter_step, mode_error, pid_step, integrator_after_limiter, brake_velocity,
+                 adaptive_acceleration, _clamp, _band, slope_limit_side, needs_lowering_pass, slope_limit,
+                 _brakes_to_bound, near_bound, bound_velocity, advance_offset)

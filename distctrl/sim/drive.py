@@ -84,7 +84,7 @@ class Drive:
 
     def _quantise(self, x: float) -> float:
         r = self.resolution
-        return math.floor(x / r + 0.5) * r if r else x
+        return math.floor(x * (1.0 / r) + 0.5) * r if r else x
 
     def step(self, setpoint_mm: float) -> float:
         """Advance one cycle with the new drive setpoint (mm); return the encoder position (mm)."""
@@ -95,7 +95,7 @@ class Drive:
         err = c - self.actual
         v = self.kv * err
         if self.velocity_feedforward:
-            v += self.velocity_feedforward * (c - self._prev_setpoint) / T
+            v += self.velocity_feedforward * (c - self._prev_setpoint) * (1.0 / T)
         self._prev_setpoint = c
         vm = self.v_max
         if v > vm:
@@ -116,7 +116,7 @@ class Drive:
         self.position = x
         self.velocity = v
         r = self.resolution
-        a = math.floor(x / r + 0.5) * r if r else x
+        a = math.floor(x * (1.0 / r) + 0.5) * r if r else x
         self.actual = a
         self.following_error = c - a
         return a

@@ -1,0 +1,474 @@
+"""The closed loop for a block of MOVING_AVERAGE parameter sets at once, vectorised across the sets.
+
+:func:`distctrl.batch.closed_loop.closed_loop` runs one parameter set after the other. Each of its
+cycles is a serial chain of divisions and square roots, so one set leaves most of a core idle
+(about 21 M set-cycles/s). :func:`block_loop` runs ``BLOCK`` sets side by side, cycle by cycle,
+with every per-set quantity in a row of one work array (structure of arrays). Each step of the
+cycle is then a short loop over the sets, which LLVM compiles to AVX-512 (or AVX2) instructions,
+8 (or 4) sets per instruction. :func:`distctrl.batch.closed_loop.run_batch` uses it for every
+set it can take; docs/batch.md has the figures.
+
+It is the same loop and gives the same numbers bit for bit (tests/batch/test_soa.py):
+
+* the same law functions (``law.*``) compute every value, lane by lane;
+* the same order of operations, with no fast math and no FMA contraction;
+* what is rare or branchy leaves the vector loops and runs per set through the complete law
+  function:
+  - the lowering pass of the slope limiter (``law.needs_lowering_pass`` decides);
+  - braking near an offset bound (``law.near_bound`` decides, then ``law.bound_velocity`` runs);
+  - seeding the filter (``law.filter_seed``);
+  - the re-sum of a moving-average window when it wraps (``law._ring_sum``);
+  - the adaptive acceleration (``law.adaptive_acceleration``) and the drive's velocity
+    feed-forward, when a lane or the plant uses them;
+  - monitoring errors.
+
+Which sets it takes (:func:`soa_eligible`): filter MOVING_AVERAGE, no modulo encoder. The lanes of
+one block may have different window lengths (they share one ring, see :func:`block_loop`);
+:func:`plan_blocks` sorts the sets by window length, so most blocks have one length and their ring
+bookkeeping is a plain vector copy. The other sets go through ``closed_loop``.
+
+Restrictions, as for ``closed_loop`` (see there): the axis variant, probe sensor, no events. A set
+that raises a controller error stops at that cycle: its outputs are NaN from the error cycle on,
+and ``out_error`` holds (cycle, id). Its lane keeps computing, but nothing of it is written.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from ..control import law
+from . import closed_loop as CL
+from .closed_loop import (MODE_CONST_DIST, PL_ACT0, PL_BUS, PL_DELAY, PL_DV, PL_FF, PL_K_ON, PL_KV, PL_MODE,
+                          PL_NOISE, PL_RES, PL_RMAX, PL_RMIN, PL_SET, PL_VMAX, PL_Z0, Q_A_BASE, Q_A_FLOOR,
+                          Q_A_MIN, Q_ADAPTIVE, Q_BOTH, Q_CHECK_SW, Q_D_GAIN, Q_DEV_A_MAX, Q_DEV_A_MIN,
+                          Q_I_GAIN, Q_JUMP, Q_KP, Q_LEN, Q_MAX_DEV, Q_MAX_POS, Q_MIN_POS, Q_MM_PER_INCR,
+                          Q_MODULO, Q_OPTIMIZED, Q_PROBE_IPM, Q_PROBE_REF, Q_REF_OFF, Q_S_HI, Q_S_LO,
+                          Q_SIGN_REV, Q_SW_MAX, Q_SW_MIN, Q_T, Q_V_MAX, Q_W_A, Q_W_V)
+
+__all__ = ["BLOCK", "soa_eligible", "plan_blocks", "block_loop"]
+
+#: sets per block (lanes): the work array (about 70 rows of BLOCK float64) stays in L1
+BLOCK = 32
+
+_FC = law.FC_LEN
+_HUGE = law.HUGE
+_LAND = 1e-9                     # as controller._LAND
+_E_JUMP = CL._E_JUMP
+_E_RUN_MAX = CL._E_RUN_MAX
+_E_RUN_MIN = CL._E_RUN_MIN
+_E_MAX_DEV = CL._E_MAX_DEV
+_E_SW = CL._E_SW
+
+# rows of the work array: state, per-cycle values handed between the loops, then the Q_* parameters.
+# Every access in the vector loops is W[<constant row>, b]: one allocation with constant row
+# offsets, so LLVM needs no run-time alias checks (with them it refuses to vectorise). Whatever is
+# indexed per lane or per cycle (the rings, the output buffer) is copied in and out by short loops.
+(Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, A_BOUND, S_DELAYED, LAST_S, TOTAL, N_WIN,
+ Y_OLD, Y_NEW, OLD, FEEDBACK, CMD, C_IN, DIST, ERR_SENSOR, ERR_BOUND, U_LIM, E_LIM, I_CAND, V, V_LIM, A_LIM,
+ LO, HI, LOWER, FLAG, TARGET, C_USE, DV_FF, N_ROWS) = range(36)
+_INV_N = N_ROWS                  # W[_INV_N, b]: 1/n of the lane's window
+_P = N_ROWS + 1                  # W[_P + Q_*, b]: the set's parameters
+#: cycles buffered per lane before the outputs are written (sequentially per set)
+CHUNK = 256
+
+
+def soa_eligible(packed: np.ndarray) -> np.ndarray:
+    """Boolean per packed row: can :func:`block_loop` run it (MOVING_AVERAGE, no modulo encoder)?"""
+    kind = packed[:, law.FC_KIND]
+    modulo = packed[:, _FC + Q_MODULO]
+    return (kind == law.MOVING_AVERAGE) & (modulo == 0.0)
+
+
+def plan_blocks(packed: np.ndarray, block: int = BLOCK) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split the rows into blocks for :func:`block_loop` and the rest for ``closed_loop``.
+
+    Returns ``(lanes, counts, rest)``: ``lanes[j]`` the row indices of block j (``block`` of
+    them; a partial last block repeats its last row, which is computed but not written),
+    ``counts[j]`` how many of them are real, ``rest`` the rows that ``closed_loop`` runs. Rows
+    are sorted by window length so that a block's shared ring is short.
+    """
+    ok = soa_eligible(packed)
+    rows = np.flatnonzero(ok).astype(np.int64)
+    rest = np.flatnonzero(~ok).astype(np.int64)
+    rows = rows[np.argsort(packed[rows, law.FC_N], kind="stable")]
+    lanes, counts = [], []
+    for a in range(0, len(rows), block):
+        part = rows[a:a + block]
+        lane = np.empty(block, dtype=np.int64)
+        lane[:len(part)] = part
+        lane[len(part):] = part[-1]
+        lanes.append(lane)
+        counts.append(len(part))
+    if lanes:
+        return np.stack(lanes), np.asarray(counts, dtype=np.int64), rest
+    return np.zeros((0, block), dtype=np.int64), np.zeros(0, dtype=np.int64), rest
+
+
+@njit(nogil=True, error_model="numpy")
+def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, out_distance, out_error):
+    """The closed loop of the rows ``lanes[:count]`` of ``packed`` (MOVING_AVERAGE, no modulo
+    encoder; ``len(lanes) == BLOCK``), written to their rows of the outputs.
+
+    Same arguments and outputs as ``closed_loop`` otherwise: ``plant``, ``prog``, ``surface``,
+    ``noise`` of the scenario; ``out_offset`` / ``out_distance`` (n_sets, n), ``out_error``
+    (n_sets, 2).
+
+    The moving-average windows of all lanes share one ring of ``max(n)`` rows: push q of every lane
+    goes to row q mod max(n), and lane b's oldest value is the row n_b pushes back. Summing a lane's
+    last n_b values oldest first is what ``law._push`` re-sums when its own ring wraps.
+    """
+    n = out_offset.shape[1]
+    B = BLOCK
+    # the scenario's plant and select (the same for every lane)
+    z0 = plant[PL_Z0]
+    kv = plant[PL_KV]
+    dr_vmax = plant[PL_VMAX]
+    dr_dv = plant[PL_DV]
+    nbus = int(plant[PL_BUS])
+    res = plant[PL_RES]
+    ff = plant[PL_FF]
+    r_min = plant[PL_RMIN]
+    r_max = plant[PL_RMAX]
+    ndel = int(plant[PL_DELAY])
+    has_noise = plant[PL_NOISE] != 0.0
+    k_on = int(plant[PL_K_ON])
+    const_dist = int(plant[PL_MODE]) == MODE_CONST_DIST
+    set_value = plant[PL_SET]
+    T = packed[lanes[0], _FC + Q_T]
+    inv_T = 1.0 / T
+    inv_res = 1.0 / res if res != 0.0 else 0.0
+
+    W = np.zeros((_P + Q_LEN, B))
+    n_win = np.empty(B, dtype=np.int64)
+    ring_len = 1
+    for b in range(B):
+        i = lanes[b]
+        for j in range(Q_LEN):
+            W[_P + j, b] = packed[i, _FC + j]
+        W[Z_POS, b] = z0
+        W[Z_ACT, b] = plant[PL_ACT0]
+        W[PREV_SP, b] = z0
+        W[A_BOUND, b] = packed[i, _FC + Q_A_FLOOR]
+        n_win[b] = int(packed[i, law.FC_N])
+        W[N_WIN, b] = n_win[b]
+        W[_INV_N, b] = packed[i, law.FC_INV_N]
+        if n_win[b] > ring_len:
+            ring_len = n_win[b]
+    uniform = True
+    any_adaptive = False
+    for b in range(B):
+        if W[_P + Q_ADAPTIVE, b] != 0.0:
+            any_adaptive = True
+    for b in range(B):
+        if n_win[b] != n_win[0]:
+            uniform = False
+    ring = np.empty((nbus + 1, B))               # Drive.setpoint_history, full of the start position
+    for j in range(nbus + 1):
+        for b in range(B):
+            ring[j, b] = z0
+    dline = np.empty((ndel if ndel > 0 else 1, B))   # the probe's dead time
+    window = np.zeros((ring_len, B))             # the moving-average windows (shared ring)
+    old_row = np.zeros(B, dtype=np.int64)        # per lane: the ring row of its oldest value
+    to_wrap = np.zeros(B, dtype=np.int64)        # per lane: pushes until law._push would re-sum
+    death = np.full(B, n, dtype=np.int64)        # per lane: the error cycle (n: none)
+    out_o = np.empty((CHUNK, B))
+    out_d = np.empty((CHUNK, B))
+    fs = np.zeros(law.FS_LEN)
+    scratch = np.zeros(law.MAX_N)
+    for b in range(count):
+        out_error[lanes[b], 0] = -1
+        out_error[lanes[b], 1] = 0
+
+    ring_w = 0
+    dline_i = 0
+    d_const = 1.0 if const_dist else 0.0
+    for k in range(n):
+        sz = surface[k]
+        pr = prog[k]
+        nz = noise[k] if has_noise else 0.0
+        running = k >= k_on
+        first = k == 0
+        push = running and k > k_on             # the seed cycle pushes after seeding (below)
+        win_row = (k - k_on) % ring_len if running else 0
+        # ---- rows indexed per cycle or per lane: copied in
+        if ndel > 0 and not first:
+            for b in range(B):
+                W[Y_OLD, b] = dline[dline_i, b]
+        nxt = ring_w + 1 if ring_w < nbus else 0
+        for b in range(B):
+            W[C_IN, b] = ring[nxt, b]
+        if push:
+            if uniform:                         # one window length: one row, a vector copy
+                r = old_row[0]
+                for b in range(B):
+                    W[OLD, b] = window[r, b]
+                r = r + 1 if r + 1 < ring_len else 0
+                for b in range(B):
+                    old_row[b] = r
+            else:
+                for b in range(B):              # a gather: not vectorised, but short
+                    r = old_row[b]
+                    W[OLD, b] = window[r, b]
+                    old_row[b] = r + 1 if r + 1 < ring_len else 0
+
+        # ---- sensor, encoder reading, monitoring, feedback, the window sum (update() 1-4)
+        n_err = 0
+        for b in range(B):
+            z = W[Z_POS, b]
+            W[DIST, b] = z - sz
+            x = -1.0 * (z - sz)
+            if has_noise:
+                x += nz
+            if x < r_min:
+                x = r_min
+            elif x > r_max:
+                x = r_max
+            y = np.floor((x - W[_P + Q_PROBE_REF, b]) * W[_P + Q_PROBE_IPM, b] + 0.5)
+            W[Y_NEW, b] = y
+            if ndel > 0 and not first:
+                y = W[Y_OLD, b]
+            s_now = law.encoder_reading(y, W[_P + Q_MM_PER_INCR, b], W[_P + Q_SIGN_REV, b] != 0.0,
+                                        W[_P + Q_REF_OFF, b], False, W[_P + Q_MIN_POS, b], W[_P + Q_MAX_POS, b])
+            if W[_P + Q_OPTIMIZED, b] != 0.0 or first:
+                s = s_now                          # the very first cycle has no earlier reading
+            else:
+                s = W[S_DELAYED, b]
+            W[S_DELAYED, b] = s_now
+            err = 0.0
+            if running:
+                if not first and abs(s - W[LAST_S, b]) > W[_P + Q_JUMP, b]:
+                    err = _E_JUMP
+                elif s > W[_P + Q_S_HI, b]:
+                    err = _E_RUN_MAX
+                elif s < W[_P + Q_S_LO, b]:
+                    err = _E_RUN_MIN
+            W[ERR_SENSOR, b] = err
+            n_err += 1 if err != 0.0 else 0
+            W[LAST_S, b] = s
+            d = -s
+            surf = W[Z_ACT, b] - d
+            d_mode = d_const != 0.0 and W[_P + Q_BOTH, b] == 0.0
+            fb = d if d_mode else surf
+            W[FEEDBACK, b] = fb
+            if push:
+                W[TOTAL, b] = law.window_sum_update(W[TOTAL, b], fb, W[OLD, b])
+        if ndel > 0:
+            for b in range(B):
+                dline[dline_i, b] = W[Y_NEW, b]
+            if first:
+                for j in range(1, ndel):
+                    for b in range(B):
+                        dline[j, b] = W[Y_NEW, b]
+            dline_i = dline_i + 1 if dline_i + 1 < ndel else 0
+
+        # ---- the filter's bookkeeping (law.filter_seed, law._push's ring and re-sum)
+        if running:
+            if k == k_on:
+                for b in range(B):
+                    fb = W[FEEDBACK, b]
+                    law.filter_seed(packed[lanes[b], :_FC], fs, scratch, fb)
+                    for j in range(ring_len):
+                        window[j, b] = fb         # the seed fills the window
+                    W[TOTAL, b] = law.window_sum_update(fs[law.FS_TOTAL], fb, fb)   # push 0: x0 leaves
+                    d_mode = d_const != 0.0 and W[_P + Q_BOTH, b] == 0.0
+                    W[M_PREV, b] = -fb if d_mode else fb
+                    old_row[b] = (1 - n_win[b]) % ring_len
+                    to_wrap[b] = n_win[b]
+            for b in range(B):
+                window[win_row, b] = W[FEEDBACK, b]
+            if uniform:                           # all lanes wrap in the same cycle
+                c = to_wrap[0] - 1
+                if c == 0:
+                    for b in range(B):
+                        W[TOTAL, b] = _window_sum(window, b, win_row, n_win[b], scratch)
+                    c = n_win[0]
+                to_wrap[0] = c
+            else:
+                for b in range(B):
+                    c = to_wrap[b] - 1
+                    if c == 0:
+                        W[TOTAL, b] = _window_sum(window, b, win_row, n_win[b], scratch)
+                        c = n_win[b]
+                    to_wrap[b] = c
+
+        # ---- PID, slope limiter (first pass), bounds: the law, lane by lane (update() 5-6)
+        # (short loops: their iterations are independent, so more of them overlap in the core)
+        if running:
+            for b in range(B):
+                o = W[OFS, b]
+                integral = W[INTEG, b]
+                filtered = law.moving_mean(W[TOTAL, b], W[_INV_N, b])
+                both = W[_P + Q_BOTH, b] != 0.0
+                target_dev, e, m = law.mode_error(const_dist, both, filtered, set_value, pr, o)
+                u, i_cand = law.pid_step(W[_P + Q_KP, b], W[_P + Q_I_GAIN, b], W[_P + Q_D_GAIN, b], integral,
+                                         W[M_PREV, b], e, m)
+                W[M_PREV, b] = m
+                if not (-_HUGE < u < _HUGE) or not (-_HUGE < i_cand < _HUGE):
+                    if u != u:
+                        u = 0.0
+                    else:
+                        u = max(-_HUGE, min(_HUGE, u))
+                    i_cand = integral
+                W[TARGET, b] = target_dev
+                W[U_LIM, b] = u
+                W[E_LIM, b] = e
+                W[I_CAND, b] = i_cand
+        else:
+            for b in range(B):
+                W[TARGET, b] = 0.0
+                W[U_LIM, b] = 0.0
+                W[E_LIM, b] = 0.0
+                W[I_CAND, b] = W[INTEG, b]
+        for b in range(B):
+            W[A_LIM, b] = W[_P + Q_A_BASE, b]
+        if running and any_adaptive:          # its own loop: the division only where needed
+            for b in range(B):
+                if W[_P + Q_ADAPTIVE, b] != 0.0:
+                    W[A_LIM, b] = law.adaptive_acceleration(abs(W[TARGET, b]), W[_P + Q_A_MIN, b],
+                                                            W[_P + Q_A_BASE, b], W[_P + Q_DEV_A_MIN, b],
+                                                            W[_P + Q_DEV_A_MAX, b])
+        n_flag = 0
+        for b in range(B):
+            o = W[OFS, b]
+            u = W[U_LIM, b]
+            e = W[E_LIM, b]
+            v_lim = W[_P + Q_V_MAX, b] * 1.0
+            a_lim = W[A_LIM, b]
+            vel = W[VEL, b]
+            v = law.slope_limit_side(u, e, vel, T, v_lim, a_lim)
+            lower = law.needs_lowering_pass(v, v_lim, a_lim, v_lim * W[_P + Q_W_V, b], a_lim * W[_P + Q_W_A, b])
+            max_dev = W[_P + Q_MAX_DEV, b]
+            lo = -max_dev
+            hi = max_dev
+            if W[_P + Q_CHECK_SW, b] != 0.0:
+                lo_sw = W[_P + Q_SW_MIN, b] - pr
+                if lo_sw > lo:
+                    lo = lo_sw
+                hi_sw = W[_P + Q_SW_MAX, b] - pr
+                if hi_sw < hi:
+                    hi = hi_sw
+            a_floor = W[_P + Q_A_FLOOR, b]
+            a_state = W[A_BOUND, b]
+            if vel == 0.0:
+                a_bound = a_floor
+            else:
+                a_bound = a_state if a_state > a_floor else a_floor
+            W[A_BOUND, b] = a_bound
+            flag = lower or law.near_bound(v, o, T, lo, hi, a_bound)
+            n_flag += 1 if flag else 0
+            W[FLAG, b] = 1.0 if flag else 0.0
+            W[LOWER, b] = 1.0 if lower else 0.0
+            W[V, b] = v
+            W[V_LIM, b] = v_lim
+            W[LO, b] = lo
+            W[HI, b] = hi
+        if n_flag:
+            for b in range(B):                # the lowering pass / braking near a bound: the full law
+                if W[FLAG, b] != 0.0:
+                    v = W[V, b]
+                    if W[LOWER, b] != 0.0:
+                        v_lim = W[V_LIM, b]
+                        a_lim = W[A_LIM, b]
+                        v = law.slope_limit(W[U_LIM, b], W[E_LIM, b], W[VEL, b], T, v_lim, a_lim,
+                                            v_lim * W[_P + Q_W_V, b], a_lim * W[_P + Q_W_A, b])[0]
+                    W[V, b] = law.bound_velocity(v, W[OFS, b], T, W[LO, b], W[HI, b], W[A_BOUND, b])
+
+        # ---- the offset, 70331 / SW limit, anti-windup, then the drive (Drive.step)
+        n_bound = 0
+        for b in range(B):
+            o = W[OFS, b]
+            v = W[V, b]
+            lo = W[LO, b]
+            hi = W[HI, b]
+            o_new = law.advance_offset(o, v, T, lo, hi)
+            err = 0.0
+            if running:
+                wanted = o + W[U_LIM, b]
+                max_dev = W[_P + Q_MAX_DEV, b]
+                if wanted > hi + _LAND and hi - o_new <= _LAND:
+                    err = _E_MAX_DEV if hi >= max_dev - _LAND else _E_SW
+                elif wanted < lo - _LAND and o_new - lo <= _LAND:
+                    err = _E_MAX_DEV if lo <= -max_dev + _LAND else _E_SW
+                W[INTEG, b] = law.integrator_after_limiter(W[INTEG, b], W[I_CAND, b], W[U_LIM, b], v,
+                                                           W[E_LIM, b], T)
+            W[ERR_BOUND, b] = err
+            n_bound += 1 if err != 0.0 else 0
+            W[VEL, b] = (o_new - o) * inv_T
+            W[OFS, b] = o_new
+            cmd = pr + o_new + 0.0
+            W[CMD, b] = cmd
+            W[C_USE, b] = cmd if nbus == 0 else W[C_IN, b]
+        if ff != 0.0:                          # velocity feed-forward: its own loop (a division)
+            for b in range(B):
+                W[DV_FF, b] = ff * (W[C_USE, b] - W[PREV_SP, b]) * inv_T
+        for b in range(B):
+            c = W[C_USE, b]
+            z_act = W[Z_ACT, b]
+            dv = kv * (c - z_act)
+            if ff != 0.0:
+                dv += W[DV_FF, b]
+            W[PREV_SP, b] = c
+            if dv > dr_vmax:
+                dv = dr_vmax
+            elif dv < -dr_vmax:
+                dv = -dr_vmax
+            z_vel = W[Z_VEL, b]
+            if dv > z_vel + dr_dv:
+                dv = z_vel + dr_dv
+            elif dv < z_vel - dr_dv:
+                dv = z_vel - dr_dv
+            z_pos = W[Z_POS, b] + dv * T
+            W[Z_POS, b] = z_pos
+            W[Z_VEL, b] = dv
+            W[Z_ACT, b] = np.floor(z_pos * inv_res + 0.5) * res if res != 0.0 else z_pos
+        for b in range(B):
+            ring[ring_w, b] = W[CMD, b]
+        ring_w = nxt
+
+        # ---- errors, outputs
+        if n_err or n_bound:
+            for b in range(count):
+                if death[b] == n and (W[ERR_SENSOR, b] != 0.0 or W[ERR_BOUND, b] != 0.0):
+                    i = lanes[b]
+                    death[b] = k
+                    out_error[i, 0] = k
+                    out_error[i, 1] = int(W[ERR_SENSOR, b] if W[ERR_SENSOR, b] != 0.0 else W[ERR_BOUND, b])
+                    for j in range(k, n):
+                        out_offset[i, j] = np.nan
+                        out_distance[i, j] = np.nan
+        kk = k % CHUNK
+        for b in range(B):
+            out_o[kk, b] = W[OFS, b]
+            out_d[kk, b] = W[DIST, b]
+        if kk == CHUNK - 1 or k == n - 1:
+            k0 = k - kk
+            for b in range(count):
+                i = lanes[b]
+                end = min(k + 1, death[b])
+                if end > k0:                          # slices: no per-element index checks
+                    out_offset[i, k0:end] = out_o[:end - k0, b]
+                    out_distance[i, k0:end] = out_d[:end - k0, b]
+
+
+@njit(nogil=True, error_model="numpy", inline="always")
+def _window_sum(window, b, newest_row, nb, scratch):
+    """law._ring_sum of lane b's last nb values, oldest first (what law._push re-sums on a wrap)."""
+    ring_len = window.shape[0]
+    r = newest_row + 1 - nb
+    if r < 0:
+        r += ring_len
+    for j in range(nb):                       # no % per value: an integer division is slow
+        scratch[j] = window[r, b]
+        r = r + 1 if r + 1 < ring_len else 0
+    return law._ring_sum(scratch, nb)
+
+
+@njit(nogil=True, parallel=True, error_model="numpy")
+def run_blocks(packed, lanes, counts, rest, plant, prog, surface, noise, out_offset, out_distance, out_error):
+    """All blocks (``block_loop``) and then the other rows (``closed_loop``), in parallel."""
+    for j in prange(lanes.shape[0]):
+        block_loop(packed, lanes[j], counts[j], plant, prog, surface, noise, out_offset, out_distance, out_error)
+    for r in prange(rest.shape[0]):
+        i = rest[r]
+        CL.closed_loop(packed[i, :_FC], packed[i, _FC:], plant, prog, surface, noise, out_offset[i],
+                       out_distance[i], out_error[i])

@@ -1,0 +1,138 @@
+"""The vectorised block kernel (distctrl.batch.soa) equals closed_loop bit for bit.
+
+``run_batch(..., vectorised=False)`` runs every set through ``closed_loop`` (one set after the
+other); the default runs MOVING_AVERAGE sets in blocks through ``soa.block_loop``. The two must
+give identical offsets, distances and errors (NaN where a set stopped), for every option the
+kernel has, for blocks that mix window lengths, for partial blocks and for batches that mix
+block and one-by-one sets.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from distctrl.batch import closed_loop as CL  # noqa: E402
+from distctrl.batch import soa  # noqa: E402
+from distctrl.control import FilterType, law  # noqa: E402
+from distctrl.errors import ErrorId  # noqa: E402
+
+from .test_closed_loop import FILTERS, MODES, PATH, assert_replays, make_params, make_scenario  # noqa: E402
+
+MA = dict(filter_type=FilterType.MOVING_AVERAGE)
+
+
+def assert_same(inputs, sets):
+    a = CL.run_batch(inputs, sets, return_errors=True, vectorised=False)
+    b = CL.run_batch(inputs, sets, return_errors=True)
+    for x, y, name in zip(a, b, ("offset", "distance", "errors")):
+        assert np.array_equal(x, y, equal_nan=True), name
+    return b
+
+
+def option_sets(n_sets, seed=0):
+    """MOVING_AVERAGE sets with random window lengths, gains and every law option mixed."""
+    rng = np.random.default_rng(seed)
+    sets = []
+    for i in range(n_sets):
+        kw = dict(MA, n_cycles=int(rng.integers(1, 40)), kp=float(rng.uniform(0.2, 1.9)),
+                  d_tv=float(rng.choice([0.0, 0.001, 0.004])), i_tn=float(rng.choice([0.0, 0.05, 0.5])))
+        if rng.random() < 0.3:
+            kw.update(use_adaptive_acceleration=True, a_min=300.0, dist_error_a_min=0.05, dist_error_a_max=0.3)
+        if rng.random() < 0.3:
+            kw.update(v_weight_down=float(rng.uniform(0.3, 1.0)), a_weight_down=float(rng.uniform(0.3, 1.0)))
+        if rng.random() < 0.3:
+            kw.update(optimized_scheduling=False)
+        if rng.random() < 0.2:
+            kw.update(check_sw_limit_switch=True, sw_limit_min=-100.0, sw_limit_max=float(rng.uniform(30.2, 31.0)))
+        if rng.random() < 0.1:
+            kw.update(max_deviation=float(rng.uniform(0.1, 0.4)))       # 70331 at some point
+        if rng.random() < 0.1:
+            kw.update(max_act_value_change=100.0)                       # 70329 at the surface step
+        if rng.random() < 0.2:
+            kw.update(a_max=float(rng.uniform(200.0, 2000.0)), v_max=float(rng.uniform(5.0, 50.0)))
+        sets.append(make_params(**kw))
+    return sets
+
+
+@pytest.mark.parametrize("mode", list(MODES))
+def test_mixed_blocks_equal_closed_loop(tmp_path, mode):
+    block, extra = MODES[mode]
+    sets = [p.replace(**extra) for p in option_sets(75, seed=len(mode))]
+    sc = make_scenario(tmp_path, sets[0], block + PATH)
+    inputs = CL.prepare(sc)
+    off, dist, err = assert_same(inputs, sets)
+    packed = CL.pack_sets(inputs, sets)
+    lanes, counts, rest = soa.plan_blocks(packed)
+    # n_cycles 1 is no filter (PASS): those go one by one; the rest in blocks, the last one partial
+    assert len(rest) == int(np.sum(packed[:, law.FC_KIND] != law.MOVING_AVERAGE)) < 10
+    assert counts.sum() + len(rest) == 75 and counts.min() < soa.BLOCK
+    # the options were exercised: errors of every kind drawn, and controlled offsets
+    ids = set(err[err[:, 0] >= 0, 1].tolist())
+    assert {int(ErrorId.MAX_DEVIATION), int(ErrorId.SENSOR_JUMP)} <= ids
+    assert np.nanmax(np.abs(off)) > 0.05
+
+
+@pytest.mark.parametrize("variant", ["no_optimized_scheduling", "drive_ff_bus0", "no_noise_no_delay_resolution",
+                                     "set_before_select", "sw_limit_error", "lowering_weights"])
+def test_batch_of_one_replays_the_runner(tmp_path, variant):
+    """The plant and law variants of test_closed_loop, with MOVING_AVERAGE: through the block kernel."""
+    params = make_params(**MA, n_cycles=6)
+    program = MODES["SET_POS"][0] + PATH
+    z, sensor, error = {}, {}, None
+    if variant == "no_optimized_scheduling":
+        params = params.replace(optimized_scheduling=False, kp=1.2, d_tv=0.0)
+    elif variant == "drive_ff_bus0":
+        z = {"feedforward": 0.6, "bus_delay_cycles": 0, "resolution": 1e-3}
+    elif variant == "no_noise_no_delay_resolution":
+        params = params.replace(encoder_resolution_num=3, encoder_resolution_denom=7, sensor_sign_reversal=True,
+                                ref_offset=0.25)
+        sensor = {"noise_std": 0.0, "delay_cycles": 0}
+    elif variant == "set_before_select":
+        program = "N5 Z[DIST_CTRL SET_POS=29.6]\nN10 G1 X5 F600\nN15 Z[DIST_CTRL ON]" + PATH
+    elif variant == "sw_limit_error":
+        params = params.replace(check_sw_limit_switch=True, sw_limit_min=-100.0, sw_limit_max=30.3)
+        error = ErrorId.SW_LIMIT
+    else:
+        params = params.replace(v_weight_down=0.4, a_weight_down=0.5, use_adaptive_acceleration=True,
+                                a_min=300.0, dist_error_a_min=0.05, dist_error_a_max=0.3)
+    sc = make_scenario(tmp_path, params, program, z=z, sensor=sensor)
+    inputs = CL.prepare(sc)
+    assert soa.soa_eligible(CL.pack_sets(inputs, [params])).all()
+    assert_replays(sc, inputs, error)
+    assert_same(inputs, [params, params.replace(kp=0.3), params.replace(n_cycles=1)])
+
+
+def test_batch_mixing_block_and_one_by_one_sets(tmp_path):
+    """Non-MOVING_AVERAGE filters and a modulo encoder go through closed_loop, in the same call."""
+    sets = option_sets(40, seed=7)
+    sets += [make_params(**FILTERS[f]) for f in ("LOWPASS", "KALMAN_MA", "EXPO_MEAN", "DEFAULT")]
+    sc = make_scenario(tmp_path, sets[0], MODES["CONST_DIST_BOTH"][0] + PATH)
+    inputs = CL.prepare(sc)
+    packed = CL.pack_sets(inputs, sets)
+    modulo_row = packed[:1].copy()
+    modulo_row[0, law.FC_LEN + CL.Q_MODULO] = 1.0
+    modulo_row[0, law.FC_LEN + CL.Q_MIN_POS] = -1000.0      # a span wide enough not to wrap here
+    modulo_row[0, law.FC_LEN + CL.Q_MAX_POS] = 1000.0
+    packed = np.vstack([packed, modulo_row])
+    lanes, counts, rest = soa.plan_blocks(packed)
+    assert {40, 41, 42, 44} <= set(rest.tolist())     # LOWPASS, KALMAN_MA, EXPO_MEAN, the modulo row
+    assert counts.sum() + len(rest) == 45               # (DEFAULT is the moving average: a block)
+    off, dist, err = assert_same(inputs, packed)
+    # the modulo copy of row 0, far from wrapping: the same run up to the rounding of the modulo
+    assert np.array_equal(err[-1], err[0])
+    assert np.nanmax(np.abs(off[-1] - off[0])) < 1e-9
+
+
+def test_uniform_and_mixed_window_lengths_give_the_same_numbers(tmp_path):
+    """A set's result does not depend on the other lanes of its block (shared ring, wraps, errors)."""
+    base = option_sets(1, seed=3)[0]
+    sets = [base.replace(n_cycles=n, kp=kp) for n in (2, 3, 5, 13, 37, 99) for kp in (0.4, 1.1)]
+    sc = make_scenario(tmp_path, sets[0], MODES["SET_POS"][0] + PATH)
+    inputs = CL.prepare(sc)
+    together = CL.run_batch(inputs, sets, return_errors=True)
+    for i, p in enumerate(sets):
+        alone = CL.run_batch(inputs, [p], return_errors=True)
+        for x, y in zip(together, alone):
+            assert np.array_equal(x[i], y[0], equal_nan=True)
