@@ -65,6 +65,7 @@ from ..control.kinds import SensorSource
 from ..control.states import CommandSource
 from ..errors import ErrorId
 from ..params.axis import AxisParameters
+from ..sim import physics
 from . import kernel as _kernel  # registers law.* with numba; the law-constant columns
 
 __all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "closed_loop", "run_batch",
@@ -102,7 +103,6 @@ _E_RUN_MAX = int(ErrorId.SENSOR_RUN_OUT_MAX)
 _E_RUN_MIN = int(ErrorId.SENSOR_RUN_OUT_MIN)
 _E_MAX_DEV = int(ErrorId.MAX_DEVIATION)
 _E_SW = int(ErrorId.SW_LIMIT)
-_HUGE = law.HUGE
 _LAND = 1e-9                    # as controller._LAND
 
 
@@ -369,6 +369,16 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- kernel
 
+@njit(nogil=True, error_model="numpy", inline="always")
+def plant_constants(plant):
+    """What every set shares, from the ``PL_*`` vector: (kv, drive v_max, drive a_max*T, bus delay
+    cycles, encoder resolution, feed-forward, probe range min, max, probe dead time cycles, noise on,
+    select cycle, CONST_DIST, set value)."""
+    return (plant[PL_KV], plant[PL_VMAX], plant[PL_DV], int(plant[PL_BUS]), plant[PL_RES], plant[PL_FF],
+            plant[PL_RMIN], plant[PL_RMAX], int(plant[PL_DELAY]), plant[PL_NOISE] != 0.0, int(plant[PL_K_ON]),
+            int(plant[PL_MODE]) == MODE_CONST_DIST, plant[PL_SET])
+
+
 @njit(nogil=True, error_model="numpy")
 def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, out_error):
     """The closed loop of one parameter set over ``len(out_offset)`` cycles.
@@ -416,19 +426,8 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
     z_pos = plant[PL_Z0]
     z_act = plant[PL_ACT0]
     z_vel = 0.0
-    kv = plant[PL_KV]
-    dr_vmax = plant[PL_VMAX]
-    dr_dv = plant[PL_DV]
-    nbus = int(plant[PL_BUS])
-    res = plant[PL_RES]
-    ff = plant[PL_FF]
-    r_min = plant[PL_RMIN]
-    r_max = plant[PL_RMAX]
-    ndel = int(plant[PL_DELAY])
-    has_noise = plant[PL_NOISE] != 0.0
-    k_on = int(plant[PL_K_ON])
-    const_dist = int(plant[PL_MODE]) == MODE_CONST_DIST
-    set_value = plant[PL_SET]
+    kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
+        plant_constants(plant)
     d_mode = const_dist and not both          # feedback is the distance d (CONST_DIST, one encoder)
 
     ring = np.empty(nbus + 1)                 # Drive.setpoint_history: starts full of the start position
@@ -458,11 +457,7 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         x = -1.0 * (z - sz)
         if has_noise:
             x += noise[k]
-        if x < r_min:
-            x = r_min
-        elif x > r_max:
-            x = r_max
-        y = np.floor((x - probe_ref) * probe_ipm + 0.5)
+        y = physics.probe_increments(x, r_min, r_max, probe_ref, probe_ipm)
         if ndel > 0:
             if k == 0:
                 for j in range(ndel):
@@ -514,12 +509,7 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
             target_dev, e, m = law.mode_error(const_dist, both, filtered, set_value, pr, o)
             u, i_cand = law.pid_step(kp, i_gain, d_gain, integral, m_prev, e, m)
             m_prev = m
-            if not (-_HUGE < u < _HUGE) or not (-_HUGE < i_cand < _HUGE):
-                if u != u:
-                    u = 0.0
-                else:
-                    u = max(-_HUGE, min(_HUGE, u))
-                i_cand = integral
+            u, i_cand = law.finite_step(u, i_cand, integral)
         # slope limiter and bounds (override 1, no feed hold: hold = not running)
         v_lim = v_max * 1.0
         a_lim = a_base
@@ -575,17 +565,10 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         if ff != 0.0:
             dv += ff * (c - prev_sp) * (1.0 / T)
         prev_sp = c
-        if dv > dr_vmax:
-            dv = dr_vmax
-        elif dv < -dr_vmax:
-            dv = -dr_vmax
-        if dv > z_vel + dr_dv:
-            dv = z_vel + dr_dv
-        elif dv < z_vel - dr_dv:
-            dv = z_vel - dr_dv
+        dv = physics.limit_velocity(dv, dr_vmax, z_vel, dr_dv)
         z_pos = z_pos + dv * T
         z_vel = dv
-        z_act = np.floor(z_pos * (1.0 / res) + 0.5) * res if res != 0.0 else z_pos
+        z_act = physics.quantise(z_pos, res, 1.0 / res) if res != 0.0 else z_pos
 
 
 @njit(nogil=True, parallel=True, error_model="numpy")

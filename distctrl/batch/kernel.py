@@ -55,8 +55,11 @@ _INLINE = frozenset({"filter_step", "mode_error", "pid_step", "adaptive_accelera
 
 
 def register_law() -> None:
-    """Register every law function with numba (idempotent). Done once on import of this module."""
-    for fn in law.LAW_FUNCTIONS:
+    """Register every law function, and the plant's (:mod:`distctrl.sim.physics`), with numba
+    (idempotent). Done once on import of this module."""
+    from ..sim import physics
+
+    for fn in law.LAW_FUNCTIONS + physics.PHYSICS_FUNCTIONS:
         if id(fn) in _REGISTERED:
             continue
         options = dict(_LAW_JIT_OPTIONS)

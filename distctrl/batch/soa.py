@@ -37,12 +37,11 @@ import numpy as np
 from numba import njit, prange
 
 from ..control import law
+from ..sim import physics
 from . import closed_loop as CL
-from .closed_loop import (MODE_CONST_DIST, PL_ACT0, PL_BUS, PL_DELAY, PL_DV, PL_FF, PL_K_ON, PL_KV, PL_MODE,
-                          PL_NOISE, PL_RES, PL_RMAX, PL_RMIN, PL_SET, PL_VMAX, PL_Z0, Q_A_BASE, Q_A_FLOOR,
-                          Q_A_MIN, Q_ADAPTIVE, Q_BOTH, Q_CHECK_SW, Q_D_GAIN, Q_DEV_A_MAX, Q_DEV_A_MIN,
-                          Q_I_GAIN, Q_JUMP, Q_KP, Q_LEN, Q_MAX_DEV, Q_MAX_POS, Q_MIN_POS, Q_MM_PER_INCR,
-                          Q_MODULO, Q_OPTIMIZED, Q_PROBE_IPM, Q_PROBE_REF, Q_REF_OFF, Q_S_HI, Q_S_LO,
+from .closed_loop import (PL_ACT0, PL_Z0, Q_A_BASE, Q_A_FLOOR, Q_A_MIN, Q_ADAPTIVE, Q_BOTH, Q_CHECK_SW, Q_D_GAIN,
+                          Q_DEV_A_MAX, Q_DEV_A_MIN, Q_I_GAIN, Q_JUMP, Q_KP, Q_LEN, Q_MAX_DEV, Q_MAX_POS, Q_MIN_POS,
+                          Q_MM_PER_INCR, Q_MODULO, Q_OPTIMIZED, Q_PROBE_IPM, Q_PROBE_REF, Q_REF_OFF, Q_S_HI, Q_S_LO,
                           Q_SIGN_REV, Q_SW_MAX, Q_SW_MIN, Q_T, Q_V_MAX, Q_W_A, Q_W_V)
 
 __all__ = ["BLOCK", "soa_eligible", "plan_blocks", "block_loop"]
@@ -51,7 +50,6 @@ __all__ = ["BLOCK", "soa_eligible", "plan_blocks", "block_loop"]
 BLOCK = 32
 
 _FC = law.FC_LEN
-_HUGE = law.HUGE
 _LAND = 1e-9                     # as controller._LAND
 _E_JUMP = CL._E_JUMP
 _E_RUN_MAX = CL._E_RUN_MAX
@@ -121,19 +119,8 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     B = BLOCK
     # the scenario's plant and select (the same for every lane)
     z0 = plant[PL_Z0]
-    kv = plant[PL_KV]
-    dr_vmax = plant[PL_VMAX]
-    dr_dv = plant[PL_DV]
-    nbus = int(plant[PL_BUS])
-    res = plant[PL_RES]
-    ff = plant[PL_FF]
-    r_min = plant[PL_RMIN]
-    r_max = plant[PL_RMAX]
-    ndel = int(plant[PL_DELAY])
-    has_noise = plant[PL_NOISE] != 0.0
-    k_on = int(plant[PL_K_ON])
-    const_dist = int(plant[PL_MODE]) == MODE_CONST_DIST
-    set_value = plant[PL_SET]
+    kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
+        CL.plant_constants(plant)
     T = packed[lanes[0], _FC + Q_T]
     inv_T = 1.0 / T
     inv_res = 1.0 / res if res != 0.0 else 0.0
@@ -219,11 +206,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             x = -1.0 * (z - sz)
             if has_noise:
                 x += nz
-            if x < r_min:
-                x = r_min
-            elif x > r_max:
-                x = r_max
-            y = np.floor((x - W[_P + Q_PROBE_REF, b]) * W[_P + Q_PROBE_IPM, b] + 0.5)
+            y = physics.probe_increments(x, r_min, r_max, W[_P + Q_PROBE_REF, b], W[_P + Q_PROBE_IPM, b])
             W[Y_NEW, b] = y
             if ndel > 0 and not first:
                 y = W[Y_OLD, b]
@@ -303,12 +286,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                 u, i_cand = law.pid_step(W[_P + Q_KP, b], W[_P + Q_I_GAIN, b], W[_P + Q_D_GAIN, b], integral,
                                          W[M_PREV, b], e, m)
                 W[M_PREV, b] = m
-                if not (-_HUGE < u < _HUGE) or not (-_HUGE < i_cand < _HUGE):
-                    if u != u:
-                        u = 0.0
-                    else:
-                        u = max(-_HUGE, min(_HUGE, u))
-                    i_cand = integral
+                u, i_cand = law.finite_step(u, i_cand, integral)
                 W[TARGET, b] = target_dev
                 W[U_LIM, b] = u
                 W[E_LIM, b] = e
@@ -408,19 +386,11 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             if ff != 0.0:
                 dv += W[DV_FF, b]
             W[PREV_SP, b] = c
-            if dv > dr_vmax:
-                dv = dr_vmax
-            elif dv < -dr_vmax:
-                dv = -dr_vmax
-            z_vel = W[Z_VEL, b]
-            if dv > z_vel + dr_dv:
-                dv = z_vel + dr_dv
-            elif dv < z_vel - dr_dv:
-                dv = z_vel - dr_dv
+            dv = physics.limit_velocity(dv, dr_vmax, W[Z_VEL, b], dr_dv)
             z_pos = W[Z_POS, b] + dv * T
             W[Z_POS, b] = z_pos
             W[Z_VEL, b] = dv
-            W[Z_ACT, b] = np.floor(z_pos * inv_res + 0.5) * res if res != 0.0 else z_pos
+            W[Z_ACT, b] = physics.quantise(z_pos, res, inv_res) if res != 0.0 else z_pos
         for b in range(B):
             ring[ring_w, b] = W[CMD, b]
         ring_w = nxt

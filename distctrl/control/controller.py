@@ -267,9 +267,7 @@ class AxisDistanceController:
             target_dev, e, m = law.mode_error(const, both, filtered, set_dist if const else st.set_pos, prog, o)
             u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
             st.m_prev = m
-            if not -_HUGE < u < _HUGE or not -_HUGE < i_cand < _HUGE:   # never let inf/NaN through
-                u = 0.0 if u != u else max(-_HUGE, min(_HUGE, u))
-                i_cand = st.integral
+            u, i_cand = law.finite_step(u, i_cand, st.integral)   # never let inf/NaN through
         elif state == _TURNING_OFF:
             e = -o
             u = -o

@@ -203,6 +203,14 @@ def pid_step(kp, t_over_tn, tv_over_t, integral, m_prev, e, m):
     return u, i_new
 
 
+def finite_step(u, i_candidate, integral):
+    """Never let inf/NaN through: a non-finite (or beyond ``HUGE``) step u or integral candidate
+    becomes u clipped to +-HUGE (0 for NaN) and the integral is kept. Returns (u, integral candidate)."""
+    if -HUGE < u < HUGE and -HUGE < i_candidate < HUGE:
+        return u, i_candidate
+    return (0.0 if u != u else max(-HUGE, min(HUGE, u))), integral
+
+
 def integrator_after_limiter(integral, i_candidate, u, v, e, T):
     """Anti-windup (SPEC §5): keep the new integral unless the limiter clipped the wanted step u
     in the direction the error pushes (then the integrator would wind up)."""
@@ -361,6 +369,7 @@ def advance_offset(o, v, T, lo, hi):
 
 #: the functions numba compiles for the batch kernel (registered by distctrl.batch.kernel)
 LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, window_sum_update,
-                 moving_mean, _push, filter_step, mode_error, pid_step, integrator_after_limiter, brake_velocity,
+                 moving_mean, _push, filter_step, mode_error, pid_step, finite_step, integrator_after_limiter,
+                 brake_velocity,
                  adaptive_acceleration, _clamp, _band, slope_limit_side, needs_lowering_pass, slope_limit,
                  _brakes_to_bound, near_bound, bound_velocity, advance_offset)

@@ -29,6 +29,7 @@ import math
 from collections import deque
 
 from distctrl.sim.config_errors import ConfigError, require_int, require_number
+from distctrl.sim.physics import limit_velocity, quantise
 
 __all__ = ["Drive"]
 
@@ -84,7 +85,7 @@ class Drive:
 
     def _quantise(self, x: float) -> float:
         r = self.resolution
-        return math.floor(x * (1.0 / r) + 0.5) * r if r else x
+        return quantise(x, r, 1.0 / r) if r else x
 
     def step(self, setpoint_mm: float) -> float:
         """Advance one cycle with the new drive setpoint (mm); return the encoder position (mm)."""
@@ -97,16 +98,7 @@ class Drive:
         if self.velocity_feedforward:
             v += self.velocity_feedforward * (c - self._prev_setpoint) * (1.0 / T)
         self._prev_setpoint = c
-        vm = self.v_max
-        if v > vm:
-            v = vm
-        elif v < -vm:
-            v = -vm
-        v0, dv = self.velocity, self._dv_max
-        if v > v0 + dv:
-            v = v0 + dv
-        elif v < v0 - dv:
-            v = v0 - dv
+        v = limit_velocity(v, self.v_max, self.velocity, self._dv_max)
         x = self.position + v * T
         self.at_limit = False
         if self.max_pos is not None and x > self.max_pos:
@@ -116,7 +108,7 @@ class Drive:
         self.position = x
         self.velocity = v
         r = self.resolution
-        a = math.floor(x * (1.0 / r) + 0.5) * r if r else x
+        a = quantise(x, r, 1.0 / r) if r else x
         self.actual = a
         self.following_error = c - a
         return a

@@ -29,6 +29,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, require_int, require_number
+from distctrl.sim.physics import probe_increments
 
 __all__ = ["Fault", "FAULT_KINDS", "SensorBase", "EncoderProbe", "DistanceSensor", "NOISE_BLOCK"]
 
@@ -300,12 +301,7 @@ class EncoderProbe(SensorBase):
     def _convert(self, x_mm: float) -> float:
         if x_mm != x_mm:  # NaN geometry in, NaN out (math.floor would raise)
             return x_mm
-        lo, hi = self.range_min, self.range_max
-        if x_mm < lo:
-            x_mm = lo
-        elif x_mm > hi:
-            x_mm = hi
-        return float(math.floor((x_mm - self.ref_offset) * self.increments_per_mm + 0.5))
+        return probe_increments(x_mm, self.range_min, self.range_max, self.ref_offset, self.increments_per_mm)
 
     def to_mm(self, increments: float) -> float:
         """The core's conversion (for tests and plots): raw increments -> reading ``s`` in mm."""

@@ -1,0 +1,45 @@
+"""The plant's arithmetic as plain functions: drive loop, encoder quantisation, probe conversion.
+
+Like :mod:`distctrl.control.law` for the controller, this is the only copy. The virtual machine
+(:class:`~distctrl.sim.drive.Drive`, :class:`~distctrl.sim.sensors.EncoderProbe`) calls these
+functions in CPython; the batch kernels (:mod:`distctrl.batch.closed_loop`,
+:mod:`distctrl.batch.soa`) call the same functions compiled with numba (registered by
+:mod:`distctrl.batch.kernel`), so the replay equals the machine bit for bit. Scalars only. Units: mm,
+mm/s, s.
+"""
+from __future__ import annotations
+
+from math import floor
+
+
+def limit_velocity(v, v_max, v_prev, dv_max):
+    """The drive's velocity limits: |v| <= v_max, then |v - v_prev| <= dv_max (= a_max * T)."""
+    if v > v_max:
+        v = v_max
+    elif v < -v_max:
+        v = -v_max
+    if v > v_prev + dv_max:
+        v = v_prev + dv_max
+    elif v < v_prev - dv_max:
+        v = v_prev - dv_max
+    return v
+
+
+def quantise(x, resolution, inv_resolution):
+    """A position (mm) as the encoder reads it: rounded to ``resolution`` (> 0; ``inv_resolution``
+    = 1/resolution)."""
+    return floor(x * inv_resolution + 0.5) * resolution
+
+
+def probe_increments(x, range_min, range_max, ref_offset, increments_per_mm):
+    """The probe's raw reading of the geometric value x (mm, not NaN): clamped to the stroke,
+    shifted by the reference offset and rounded to whole increments."""
+    if x < range_min:
+        x = range_min
+    elif x > range_max:
+        x = range_max
+    return float(floor((x - ref_offset) * increments_per_mm + 0.5))
+
+
+#: the functions numba compiles for the batch kernels (registered by distctrl.batch.kernel)
+PHYSICS_FUNCTIONS = (limit_velocity, quantise, probe_increments)
