@@ -73,11 +73,15 @@ def main() -> dict:
     lines += [f"| {a} | {b:,.1f} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
     for a, b, c, d, e in rows:
         print(f"{a:<55} {b:>14,.1f} {c:<9} {d:<28} {e}")
-    results = ROOT / "bench" / "results.json"
+    out = ROOT / "bench"
+    if "--out" in sys.argv:                       # a scratch directory (make bench writes bench/)
+        out = pathlib.Path(sys.argv[sys.argv.index("--out") + 1])
+        out.mkdir(parents=True, exist_ok=True)
+    results = out / "results.json"
     data = json.loads(results.read_text()) if results.exists() else {}
     data.update(res)
     results.write_text(json.dumps(data, indent=2))
-    with open(ROOT / "bench" / "RESULTS.md", "a", encoding="utf-8") as f:
+    with open(out / "RESULTS.md", "a", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
     return res
 

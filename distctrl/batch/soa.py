@@ -14,7 +14,7 @@ It is the same loop and gives the same numbers bit for bit (tests/batch/test_soa
 * the same order of operations, with no fast math and no FMA contraction;
 * what is rare or branchy leaves the vector loops and runs per set through the complete law
   function:
-  - the lowering pass of the slope limiter (``law.needs_lowering_pass`` decides);
+  - the lowering pass of the slope limiter (``law.slope_limit_side`` says whether it is needed);
   - braking near an offset bound (``law.near_bound`` decides, then ``law.bound_velocity`` runs);
   - seeding the filter (``law.filter_seed``);
   - the re-sum of a moving-average window when it wraps (``law._ring_sum``);
@@ -313,8 +313,8 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             v_lim = W[_P + Q_V_MAX, b] * 1.0
             a_lim = W[A_LIM, b]
             vel = W[VEL, b]
-            v = law.slope_limit_side(u, e, vel, T, v_lim, a_lim)
-            lower = law.needs_lowering_pass(v, v_lim, a_lim, v_lim * W[_P + Q_W_V, b], a_lim * W[_P + Q_W_A, b])
+            v, lower = law.slope_limit_side(u, e, vel, T, v_lim, a_lim, v_lim * W[_P + Q_W_V, b],
+                                            a_lim * W[_P + Q_W_A, b])
             max_dev = W[_P + Q_MAX_DEV, b]
             lo = -max_dev
             hi = max_dev

@@ -267,7 +267,8 @@ class AxisDistanceController:
             target_dev, e, m = law.mode_error(const, both, filtered, set_dist if const else st.set_pos, prog, o)
             u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
             st.m_prev = m
-            u, i_cand = law.finite_step(u, i_cand, st.integral)   # never let inf/NaN through
+            if not (-_HUGE < u < _HUGE and -_HUGE < i_cand < _HUGE):   # (rare: no call per cycle)
+                u, i_cand = law.finite_step(u, i_cand, st.integral)   # never let inf/NaN through
         elif state == _TURNING_OFF:
             e = -o
             u = -o

@@ -265,9 +265,20 @@ def _clamp(x, lo, hi):
     return x
 
 
-def _band(v_wanted, v_prev, v_lim, a_t):
-    """Clamp into |v| <= v_lim and |v - v_prev| <= a_t; if v_prev is above a lowered v_lim,
-    decelerate at the full rate rather than step (the acceleration bound always holds)."""
+def slope_limit_side(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
+    """One pass of the slope limiter with the limits (v_lim, a_lim), in mm/s: the wanted velocity
+    u/T, braked to sqrt(2 a |e|), then clamped into |v| <= v_lim and |v - v_prev| <= a_lim*T; if
+    v_prev is above a lowered v_lim, it decelerates at the full rate rather than steps (the
+    acceleration bound always holds).
+
+    Returns (v, lower): ``lower`` is True if v lowers (v < 0) and lowering has its own (weighted)
+    limits (v_lim_down, a_lim_down), so that :func:`slope_limit` makes a second pass with those.
+    """
+    v_wanted = u * (1.0 / T)            # (a kernel computes 1/T once for all sets)
+    vb = sqrt(2.0 * a_lim * abs(e))
+    if not -vb <= v_wanted <= vb:
+        v_wanted = vb if v_wanted > 0.0 else -vb
+    a_t = a_lim * T
     lo = v_prev - a_t
     hi = v_prev + a_t
     if lo < -v_lim:
@@ -275,25 +286,14 @@ def _band(v_wanted, v_prev, v_lim, a_t):
     if hi > v_lim:
         hi = v_lim
     if lo > hi:
-        return v_prev - a_t if v_prev > 0.0 else v_prev + a_t
-    if v_wanted < lo:
-        return lo
-    if v_wanted > hi:
-        return hi
-    return v_wanted
-
-
-def slope_limit_side(u, e, v_prev, T, v_lim, a_lim):
-    """One pass of the slope limiter with one pair of limits: the wanted velocity u/T, braked to
-    sqrt(2 a |e|), then acceleration- and velocity-limited (mm/s)."""
-    v_wanted = u * (1.0 / T)            # (a kernel computes 1/T once for all sets)
-    vb = sqrt(2.0 * a_lim * abs(e))
-    return _band(v_wanted if -vb <= v_wanted <= vb else (vb if v_wanted > 0.0 else -vb), v_prev, v_lim, a_lim * T)
-
-
-def needs_lowering_pass(v, v_lim, a_lim, v_lim_down, a_lim_down):
-    """True if the first pass gave a lowering velocity and lowering has its own (weighted) limits."""
-    return v < 0.0 and not (v_lim_down == v_lim and a_lim_down == a_lim)
+        v = v_prev - a_t if v_prev > 0.0 else v_prev + a_t
+    elif v_wanted < lo:
+        v = lo
+    elif v_wanted > hi:
+        v = hi
+    else:
+        v = v_wanted
+    return v, v < 0.0 and not (v_lim_down == v_lim and a_lim_down == a_lim)
 
 
 def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
@@ -305,10 +305,10 @@ def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
     kp = 1), then acceleration- and velocity-limited. A result towards the workpiece (v < 0) is computed with
     the lowering limits instead.
     """
-    v = slope_limit_side(u, e, v_prev, T, v_lim, a_lim)
-    if not needs_lowering_pass(v, v_lim, a_lim, v_lim_down, a_lim_down):
+    v, lower = slope_limit_side(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down)
+    if not lower:
         return v, a_lim, v_lim
-    v = slope_limit_side(u, e, v_prev, T, v_lim_down, a_lim_down)
+    v = slope_limit_side(u, e, v_prev, T, v_lim_down, a_lim_down, v_lim_down, a_lim_down)[0]
     if v <= 0.0:
         return v, a_lim_down, v_lim_down
     # the lifting limits say "lower", the lowering limits say "lift": the velocity passes zero this
@@ -371,5 +371,5 @@ def advance_offset(o, v, T, lo, hi):
 LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, window_sum_update,
                  moving_mean, _push, filter_step, mode_error, pid_step, finite_step, integrator_after_limiter,
                  brake_velocity,
-                 adaptive_acceleration, _clamp, _band, slope_limit_side, needs_lowering_pass, slope_limit,
+                 adaptive_acceleration, _clamp, slope_limit_side, slope_limit,
                  _brakes_to_bound, near_bound, bound_velocity, advance_offset)

@@ -44,7 +44,7 @@ class Drive:
 
     __slots__ = ("cycle_time", "kv", "v_max", "a_max", "bus_delay_cycles", "resolution", "min_pos",
                  "max_pos", "velocity_feedforward", "position", "actual", "velocity", "setpoint_history",
-                 "following_error", "at_limit", "_dv_max", "_prev_setpoint")
+                 "following_error", "at_limit", "_dv_max", "_prev_setpoint", "_inv_T", "_inv_res", "_limited")
 
     def __init__(self, cycle_time: float = 0.001, *, kv: float = 30.0, v_max: float = 500.0,
                  a_max: float = 5000.0, bus_delay_cycles: int = 1, resolution: float = 0.0,
@@ -68,6 +68,10 @@ class Drive:
         x0 = require_number(initial_position, f"{name}.initial_position",
                             lo=self.min_pos, hi=self.max_pos)
         self._dv_max = self.a_max * self.cycle_time  # largest velocity change per cycle (mm/s)
+        # per-cycle constants (the same numbers as 1.0 / T and 1.0 / resolution each cycle)
+        self._inv_T = 1.0 / self.cycle_time
+        self._inv_res = 1.0 / self.resolution if self.resolution else 0.0
+        self._limited = self.min_pos is not None or self.max_pos is not None
         self.position = x0
         self.actual = self._quantise(x0)
         self.velocity = 0.0
@@ -85,30 +89,29 @@ class Drive:
 
     def _quantise(self, x: float) -> float:
         r = self.resolution
-        return quantise(x, r, 1.0 / r) if r else x
+        return quantise(x, r, self._inv_res) if r else x
 
     def step(self, setpoint_mm: float) -> float:
         """Advance one cycle with the new drive setpoint (mm); return the encoder position (mm)."""
         hist = self.setpoint_history
         hist.append(setpoint_mm)
         c = hist[0]
-        T = self.cycle_time
-        err = c - self.actual
-        v = self.kv * err
+        v = self.kv * (c - self.actual)
         if self.velocity_feedforward:
-            v += self.velocity_feedforward * (c - self._prev_setpoint) * (1.0 / T)
+            v += self.velocity_feedforward * (c - self._prev_setpoint) * self._inv_T
         self._prev_setpoint = c
         v = limit_velocity(v, self.v_max, self.velocity, self._dv_max)
-        x = self.position + v * T
-        self.at_limit = False
-        if self.max_pos is not None and x > self.max_pos:
-            x, v, self.at_limit = self.max_pos, 0.0, True
-        elif self.min_pos is not None and x < self.min_pos:
-            x, v, self.at_limit = self.min_pos, 0.0, True
+        x = self.position + v * self.cycle_time
+        if self._limited:
+            self.at_limit = False
+            if self.max_pos is not None and x > self.max_pos:
+                x, v, self.at_limit = self.max_pos, 0.0, True
+            elif self.min_pos is not None and x < self.min_pos:
+                x, v, self.at_limit = self.min_pos, 0.0, True
         self.position = x
         self.velocity = v
         r = self.resolution
-        a = quantise(x, r, 1.0 / r) if r else x
+        a = quantise(x, r, self._inv_res) if r else x
         self.actual = a
         self.following_error = c - a
         return a
