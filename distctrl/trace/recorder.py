@@ -300,8 +300,9 @@ class Trace:
     """
 
     def __init__(self, columns: Sequence[str], data: Any, units: dict[str, str] | None = None,
-                 meta: dict | None = None):
+                 meta: dict | None = None, packed: bool = False):
         self.columns: list[str] = _check_columns(columns)
+        self.packed = bool(packed)
         arr = np.asarray(data, dtype=np.float64)
         if arr.ndim == 1 and arr.size == 0:
             arr = arr.reshape(0, len(self.columns))
@@ -436,12 +437,18 @@ class TraceRecorder:
 
     A malformed row (wrong length, not numbers) raises ``ValueError`` at the flush that meets it;
     the row is dropped, every other row is kept. :meth:`close` never raises for such rows (it warns).
+
+    ``packed=True``: rows are given already packed, ``recorder.pack(*numbers)`` (bytes of
+    ``len(columns)`` native float64). A producer that packs each row at once keeps no Python floats
+    alive between flushes: for the simulator's row of ~25 numbers that is ~0.5 µs a cycle less than
+    buffering tuples (their floats leave the CPU caches before the flush packs them).
     """
 
     def __init__(self, columns: list[str], units: dict[str, str] | None = None,
                  csv_path: str | os.PathLike | None = None, keep: bool = True, chunk_rows: int = 65536,
-                 meta: dict | None = None):
+                 meta: dict | None = None, packed: bool = False):
         self.columns: list[str] = _check_columns(columns)
+        self.packed = bool(packed)
         self.units: dict[str, str] = {c: str(u) for c, u in (units or {}).items() if c in self.columns}
         self.meta: dict = dict(meta or {})
         self.keep = bool(keep)
@@ -452,6 +459,9 @@ class TraceRecorder:
         self.csv_path: Path | None = Path(csv_path) if csv_path is not None else None
         self._ncol = len(self.columns)
         self._pack = struct.Struct(f"={self._ncol}d").pack
+        #: packs one row (``len(columns)`` numbers) into what ``append`` takes with ``packed=True``
+        self.pack = self._pack
+        self._row_bytes = 8 * self._ncol
         self._buf: list = []
         self._chunks: list[np.ndarray] = []
         self._flushed = 0
@@ -515,8 +525,13 @@ class TraceRecorder:
             raise RuntimeError(f"{n} rows appended after close() were not recorded")
         n = len(buf)
         try:
-            # struct packs the tuples at C speed (about twice np.fromiter) and checks each row's length
-            packed = b"".join(itertools.starmap(self._pack, buf))
+            if self.packed:
+                packed = b"".join(buf)
+                if len(packed) != n * self._row_bytes:
+                    raise ValueError("a packed row of the wrong length")
+            else:
+                # struct packs the tuples at C speed (about twice np.fromiter) and checks each row's length
+                packed = b"".join(itertools.starmap(self._pack, buf))
         except (struct.error, ValueError, TypeError, OverflowError):
             self._flush_bad(buf)
             return
@@ -540,22 +555,28 @@ class TraceRecorder:
         if self.keep:
             self._chunks.append(arr)
 
+    def _row_bytes_of(self, row) -> bytes:
+        """One buffered row as packed bytes; raises for a malformed one."""
+        if self.packed:
+            if not isinstance(row, (bytes, bytearray)) or len(row) != self._row_bytes:
+                raise ValueError("not a packed row")
+            return row
+        return self._pack(*row)
+
     def _flush_bad(self, buf: list) -> None:
         """Take the rows before the first malformed one, drop that one and raise ValueError."""
-        pack = self._pack
+        one = self._row_bytes_of
         for i, row in enumerate(buf):
             try:
-                pack(*row)
+                one(row)
             except (struct.error, ValueError, TypeError, OverflowError):
                 break
         else:  # pragma: no cover - only if the rows changed under us: all good now
             n = len(buf)
-            self._take(np.frombuffer(b"".join(itertools.starmap(pack, buf)),
-                                     dtype=np.float64).reshape(n, self._ncol), n)
+            self._take(np.frombuffer(b"".join(map(one, buf)), dtype=np.float64).reshape(n, self._ncol), n)
             return
         if i:
-            self._take(np.frombuffer(b"".join(itertools.starmap(pack, buf[:i])),
-                                     dtype=np.float64).reshape(i, self._ncol), i)
+            self._take(np.frombuffer(b"".join(map(one, buf[:i])), dtype=np.float64).reshape(i, self._ncol), i)
         bad = buf[0]
         index = self._flushed
         del buf[0]

@@ -304,3 +304,26 @@ def test_append_million_rows_of_25_floats_is_fast():
     elapsed = time.perf_counter() - t0
     assert tr.data.shape == (1_000_000, 25)
     assert elapsed < 3.0, f"1e6 appends of 25 floats took {elapsed:.2f} s"
+
+
+def test_packed_rows_equal_tuple_rows_and_a_bad_packed_row_is_dropped(tmp_path):
+    cols = ["t", "a", "b"]
+    rows = [(k * 0.001, float(k), -k / 3.0) for k in range(2500)]
+    plain = TraceRecorder(cols, csv_path=tmp_path / "plain.csv", chunk_rows=700)
+    packed = TraceRecorder(cols, csv_path=tmp_path / "packed.csv", chunk_rows=700, packed=True)
+    for r in rows:
+        plain.append(r)
+        packed.append(packed.pack(*r))
+    a, b = plain.close(), packed.close()
+    assert np.array_equal(a.data, b.data) and b.data.shape == (2500, 3)
+    assert (tmp_path / "plain.csv").read_bytes() == (tmp_path / "packed.csv").read_bytes()
+    # a row of the wrong length: raised at its flush, dropped, the others kept
+    rec = TraceRecorder(cols, chunk_rows=10, packed=True)
+    for k in range(5):
+        rec.append(rec.pack(k, k, k))
+    rec.append(b"\0" * 16)
+    with pytest.raises(ValueError, match="trace row 5 is not 3 numbers"):
+        rec.flush()
+    rec.append(rec.pack(9.0, 9.0, 9.0))
+    tr = rec.close()
+    assert tr.data.shape == (6, 3) and tr.data[-1, 0] == 9.0
