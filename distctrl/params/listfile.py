@@ -178,12 +178,28 @@ def parse_list_text(text: str, source: str = "<string>", base: Any = None, *,
     try:
         params = (base if base is not None else fmt.target()).replace(**fields)
     except ParameterError as exc:
-        line = None
-        if exc.key:
-            line = next((lines[k] for k in exc.key.split("/") if k in lines), None)
-        raise ParameterError(str(exc), file=source, line=line, key=exc.key, param_id=exc.param_id,
-                             value=exc.value, allowed=exc.allowed) from None
+        # a check across parameters (e.g. the sensor window): the line of the last of them in the
+        # file, the value that completed the contradiction
+        found = [lines[k] for k in _involved_keys(exc, fmt) if k in lines]
+        raise ParameterError(str(exc), file=source, line=max(found) if found else None, key=exc.key,
+                             param_id=exc.param_id, value=exc.value, allowed=exc.allowed) from None
     return ParameterList(params, source, lines, warnings)
+
+
+def _involved_keys(exc: ParameterError, fmt: ListFormat) -> list[str]:
+    """The table keys of the parameters a validation error names: its ``key`` (``a.b.c/d/e`` is
+    ``a.b.c``, ``a.b.d``, ``a.b.e``) and its ``param_id`` (``P-AXIS-00177/00178`` is both IDs)."""
+    keys: list[str] = []
+    if exc.key:
+        first, *rest = exc.key.split("/")
+        prefix = first.rsplit(".", 1)[0] + "." if "." in first else ""
+        keys += [first] + [k if "." in k else prefix + k for k in rest]
+    if exc.param_id:
+        first, *rest = str(exc.param_id).split("/")
+        head = first.rsplit("-", 1)[0] + "-" if "-" in first else ""
+        ids = {first} | {i if "-" in i else head + i for i in rest}
+        keys += [spec.key for spec in fmt.specs if spec.id in ids]
+    return keys
 
 
 def load_list(path: str | Path, base: Any = None, *, fmt: ListFormat = AXIS_LIST) -> ParameterList:

@@ -137,3 +137,27 @@ def test_docs_parameters_md_is_generated_from_the_table():
     generated = subprocess.run([sys.executable, "-m", "distctrl.params.docgen"], capture_output=True, text=True,
                                check=True).stdout
     assert (ROOT / "docs" / "parameters.md").read_text(encoding="utf-8") == generated
+
+
+# Was BUG (found by the input fuzzer, tests/reliability): an error across parameters (the sensor
+# window, the software limits) named no line when the file did not set the first parameter of
+# the check. It now names the last involved line of the file.
+@pytest.mark.parametrize("text, line, what", [
+    ("kenngr.distc.max_pos -40000\nkenngr.distc.toleranz 10000\n", 2, "sensor window"),
+    ("kenngr.distc.tolerance 10000\n# a comment\nkenngr.distc.max_pos -40000\n", 3, "sensor window"),
+    ("kenngr.distc.min_pos 40000\nkenngr.distc.max_pos 30000\n", 2, "sensor window"),
+    ("getriebe[0].swe_neg 0\n\ngetriebe[0].swe_pos -100\n", 3, "software limits"),
+])
+def test_cross_parameter_errors_name_the_last_involved_line(text, line, what):
+    with pytest.raises(ParameterError) as info:
+        parse_list_text(text, "x.lis")
+    assert info.value.line == line and what in str(info.value)
+    assert str(info.value).startswith(f"x.lis:{line}: ")
+
+
+def test_channel_sensor_window_error_names_its_line():
+    from distctrl.params.channel import CHANNEL_LIST
+    text = "dist_ctrl[0].kp 0.3\ndist_ctrl[0].max_pos -60000\n"
+    with pytest.raises(ParameterError) as info:
+        parse_list_text(text, "c.lis", fmt=CHANNEL_LIST)
+    assert info.value.line == 2 and "sensor window" in str(info.value)
