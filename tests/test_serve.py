@@ -1,6 +1,7 @@
 """distctrl serve with the real pyads client on loopback (issue 4 acceptance)."""
 from __future__ import annotations
 
+import gc
 import socket
 import time
 from pathlib import Path
@@ -42,8 +43,17 @@ def served():
         "variables": {"GAIN": 2.5},
         # the surface "moves": the probe reading drifts by 0.2 mm/s from t = 0.3 s on
         "events": [{"t": 0.3, "sensor_fault": {"kind": "drift", "rate": 0.2}}]}, base_dir=SCN)
-    with ServedMachine(sc, host=HOST, net_id=NET_ID) as s:
-        yield s
+    # In a test run the served machine shares its process with pytest's heap (numba, scipy, dask
+    # ...): a full garbage collection of that heap can stop every thread for more than the loop's
+    # 100 ms resync limit. Freezing what exists now keeps those collections small; `distctrl serve`
+    # runs in a process of its own.
+    gc.collect()
+    gc.freeze()
+    try:
+        with ServedMachine(sc, host=HOST, net_id=NET_ID) as s:
+            yield s
+    finally:
+        gc.unfreeze()
 
 
 @pytest.fixture(scope="module")
