@@ -10,7 +10,7 @@ and where the work runs:
   ``scheduler="tcp://host:8786"``, a ``Client`` of an existing cluster (not closed).
 
 Each chunk (at most ``chunk_size`` sets, fewer for long runs so a chunk's traces stay within
-``chunk_bytes``) is the pure function :func:`evaluate_chunk` of the scattered inputs (without the
+``chunk_bytes``) is the pure function :func:`evaluate_chunk` of the recorded inputs (without the
 scenario object) and the packed rows, submitted with ``retries``: an exception is retried, and a
 chunk whose worker dies is rescheduled by dask on another worker; only that chunk is lost. Progress
 is a rich bar on stderr when it is a terminal.
@@ -50,6 +50,11 @@ class TuningRunError(DistCtrlError, RuntimeError):
 
 
 # ----------------------------------------------------------------------------- the chunk function
+
+def _hold(value):
+    """Identity: a cluster task whose result is ``value`` (see Evaluator._hold_inputs)."""
+    return value
+
 
 def slim_inputs(inputs):
     """``inputs`` without the scenario object and parameters: what a worker needs (arrays only)."""
@@ -258,7 +263,13 @@ class Evaluator:
         except OSError as exc:
             self.close()
             raise TuningRunError(f"cannot reach the dask scheduler {self.scheduler or '(local)'}: {exc}") from None
-        self._remote_inputs = self._client.scatter(self._slim, broadcast=True)
+        self._remote_inputs = self._hold_inputs()
+
+    def _hold_inputs(self):
+        """The recorded inputs as a cluster value that survives losing any worker. Scattered data
+        cannot be recovered when the workers holding it die (a death then cancelled every chunk);
+        the result of a task is recomputed from the task, which the scheduler keeps."""
+        return self._client.submit(_hold, self._slim, pure=False)
 
     def close(self) -> None:
         if self._client is not None:
@@ -275,7 +286,7 @@ class Evaluator:
         self.n_cycles = inputs.n_cycles if self.cycles is None else int(self.cycles)
         self._slim = slim_inputs(inputs)
         if self._client is not None:
-            self._remote_inputs = self._client.scatter(self._slim, broadcast=True)
+            self._remote_inputs = self._hold_inputs()
 
     # -- work
     def evaluate(self, param_sets, points: list[dict] | None = None, *, description: str = "sweep") -> SweepResult:
