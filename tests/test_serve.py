@@ -12,6 +12,7 @@ pyads = pytest.importorskip("pyads")
 
 from distctrl.serve import ServedMachine  # noqa: E402
 from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
+from tests.ads import wait_for  # noqa: E402
 
 SCN = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
 IG = 0x120300
@@ -70,15 +71,6 @@ def plc(served):
     conn.open()
     yield conn
     conn.close()
-
-
-def wait_for(predicate, timeout=3.0):
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 def command(plc, transition: int, position_01um: int = 0):

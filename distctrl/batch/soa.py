@@ -61,7 +61,7 @@ _E_SW = CL._E_SW
 # Every access in the vector loops is W[<constant row>, b]: one allocation with constant row
 # offsets, so LLVM needs no run-time alias checks (with them it refuses to vectorise). Whatever is
 # indexed per lane or per cycle (the rings, the output buffer) is copied in and out by short loops.
-(Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, A_BOUND, S_DELAYED, LAST_S, TOTAL, N_WIN,
+(Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, A_BOUND, S_DELAYED, LAST_S, TOTAL, D_MODE,
  Y_OLD, Y_NEW, OLD, FEEDBACK, CMD, C_IN, DIST, ERR_SENSOR, ERR_BOUND, U_LIM, E_LIM, I_CAND, V, V_LIM, A_LIM,
  LO, HI, LOWER, FLAG, TARGET, C_USE, DV_FF, N_ROWS) = range(36)
 _INV_N = N_ROWS                  # W[_INV_N, b]: 1/n of the lane's window
@@ -137,18 +137,16 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
         W[PREV_SP, b] = z0
         W[A_BOUND, b] = packed[i, _FC + Q_A_FLOOR]
         n_win[b] = int(packed[i, law.FC_N])
-        W[N_WIN, b] = n_win[b]
+        # the feedback is the distance d (CONST_DIST with one encoder) or the surface
+        W[D_MODE, b] = 1.0 if const_dist and packed[i, _FC + Q_BOTH] == 0.0 else 0.0
         W[_INV_N, b] = packed[i, law.FC_INV_N]
         if n_win[b] > ring_len:
             ring_len = n_win[b]
-    uniform = True
+    uniform = True                               # one window length for all lanes
     any_adaptive = False
     for b in range(B):
-        if W[_P + Q_ADAPTIVE, b] != 0.0:
-            any_adaptive = True
-    for b in range(B):
-        if n_win[b] != n_win[0]:
-            uniform = False
+        uniform = uniform and n_win[b] == n_win[0]
+        any_adaptive = any_adaptive or W[_P + Q_ADAPTIVE, b] != 0.0
     ring = np.empty((nbus + 1, B))               # Drive.setpoint_history, full of the start position
     for j in range(nbus + 1):
         for b in range(B):
@@ -168,7 +166,6 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
 
     ring_w = 0
     dline_i = 0
-    d_const = 1.0 if const_dist else 0.0
     for k in range(n):
         sz = surface[k]
         pr = prog[k]
@@ -230,8 +227,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             W[LAST_S, b] = s
             d = -s
             surf = W[Z_ACT, b] - d
-            d_mode = d_const != 0.0 and W[_P + Q_BOTH, b] == 0.0
-            fb = d if d_mode else surf
+            fb = d if W[D_MODE, b] != 0.0 else surf
             W[FEEDBACK, b] = fb
             if push:
                 W[TOTAL, b] = law.window_sum_update(W[TOTAL, b], fb, W[OLD, b])
@@ -253,8 +249,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     for j in range(ring_len):
                         window[j, b] = fb         # the seed fills the window
                     W[TOTAL, b] = law.window_sum_update(fs[law.FS_TOTAL], fb, fb)   # push 0: x0 leaves
-                    d_mode = d_const != 0.0 and W[_P + Q_BOTH, b] == 0.0
-                    W[M_PREV, b] = -fb if d_mode else fb
+                    W[M_PREV, b] = -fb if W[D_MODE, b] != 0.0 else fb
                     old_row[b] = (1 - n_win[b]) % ring_len
                     to_wrap[b] = n_win[b]
             for b in range(B):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import socket
 import struct
 import threading
+import time
 from dataclasses import dataclass
 
 from distctrl.ads import AdsError, SymbolInfo
@@ -233,3 +234,13 @@ class RawClient:
         r = self.read_write(P.ADSIGRP_SYM_HNDBYNAME, 0, 4, name.encode() + b"\0", **kw)
         assert r.result == 0, hex(r.result)
         return struct.unpack("<I", r.data)[0]
+
+
+def wait_for(cond, timeout: float = 3.0) -> bool:
+    """Poll ``cond()`` until it is true or ``timeout`` seconds passed; its last value."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.005)
+    return bool(cond())

@@ -20,7 +20,7 @@ from pyads.errorcodes import ERROR_CODES
 from distctrl.ads import AdsServer
 from distctrl.ads import errors as E
 
-from . import IG_DATA, IG_RO, MemoryDevice
+from . import IG_DATA, IG_RO, MemoryDevice, wait_for
 
 NET_ID = "127.0.0.1.1.1"
 PLC_PORT = 851
@@ -248,15 +248,6 @@ def test_device_exception_is_0x700_and_logged(plc, caplog):
     assert plc.read_state() == (pyads.ADSSTATE_RUN, 0)   # and the server is fine
 
 
-def wait_until(cond, timeout: float = 3.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.01)
-    return cond()
-
-
 def test_notification_on_change(plc, server):
     got = []
 
@@ -266,10 +257,10 @@ def test_notification_on_change(plc, server):
     plc.write_by_name("MAIN.counter", 1000, pyads.PLCTYPE_UDINT)
     handles = plc.add_device_notification("MAIN.counter", pyads.NotificationAttrib(4), callback)
     try:
-        assert wait_until(lambda: got == [1000])           # the current value first
+        assert wait_for(lambda: got == [1000])           # the current value first
         for v in (1001, 1002, 1003):
             plc.write_by_name("MAIN.counter", v, pyads.PLCTYPE_UDINT)
-            assert wait_until(lambda v=v: got[-1:] == [v])
+            assert wait_for(lambda v=v: got[-1:] == [v])
         time.sleep(0.1)
         assert got == [1000, 1001, 1002, 1003]             # no sample without a change
     finally:
@@ -289,7 +280,7 @@ def test_notification_cyclic_by_index_group(plc):
     attr = pyads.NotificationAttrib(8, trans_mode=pyads.ADSTRANS_SERVERCYCLE, cycle_time=20)  # ms
     handles = plc.add_device_notification((IG_DATA, 8), attr, callback)
     try:
-        assert wait_until(lambda: len(got) >= 5)            # unchanged value, sent every cycle
+        assert wait_for(lambda: len(got) >= 5)            # unchanged value, sent every cycle
         assert set(got) == {0.5}
     finally:
         plc.del_device_notification(*handles)

@@ -13,7 +13,7 @@ from distctrl.ads import AdsServer
 from distctrl.ads import errors as E
 from distctrl.ads import protocol as P
 
-from . import IG_DATA, MemoryDevice, RawClient
+from . import IG_DATA, MemoryDevice, RawClient, wait_for
 
 MAX_FRAME = 4096
 
@@ -45,15 +45,6 @@ def good(server):
 def assert_serves(client: RawClient) -> None:
     r = client.read(IG_DATA, 8, 8)
     assert r.result == 0 and len(r.data) == 8
-
-
-def wait_for(cond, timeout: float = 3.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.01)
-    return cond()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from distctrl.ads import AdsServer
 from distctrl.ads import protocol as P
 from distctrl.ads import server as S
 
-from . import IG_DATA, MemoryDevice, RawClient
+from . import IG_DATA, MemoryDevice, RawClient, wait_for
 
 MAX_FRAME = 4096
 N_REQUESTS = 20000            # answers of 416 bytes each: ~8 MB, more than the socket buffers hold
@@ -28,15 +28,6 @@ def server():
         yield srv
     finally:
         srv.stop()
-
-
-def wait_for(cond, timeout: float = 5.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.005)
-    return cond()
 
 
 def _upload_request(invoke_id: int) -> bytes:
@@ -60,7 +51,7 @@ def test_late_reader_bounded_backlog_and_every_answer_in_order(server):
     sock.settimeout(10.0)
     sock.connect(("127.0.0.1", server.port))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-    assert wait_for(lambda: len(set(server._writers) - before) == 1)
+    assert wait_for(lambda: len(set(server._writers) - before) == 1, timeout=5.0)
     proto = next(iter(set(server._writers) - before))
     try:
         requests = b"".join(_upload_request(i) for i in range(1, N_REQUESTS + 1))
@@ -78,7 +69,7 @@ def test_late_reader_bounded_backlog_and_every_answer_in_order(server):
         sender.start()
 
         # the server stops reading from this client once its output backlog is above the mark
-        assert wait_for(lambda: proto.paused), "the server never paused this connection"
+        assert wait_for(lambda: proto.paused, timeout=5.0), "the server never paused this connection"
         worst_out = worst_in = 0
         t_end = time.monotonic() + 0.3
         with RawClient(server.port) as good:           # everyone else is served meanwhile
@@ -101,7 +92,7 @@ def test_late_reader_bounded_backlog_and_every_answer_in_order(server):
         sender.join(5.0)
         assert sent == [None]
         assert sock.recv(1) == b""
-        assert wait_for(lambda: proto not in server._writers)
+        assert wait_for(lambda: proto not in server._writers, timeout=5.0)
     finally:
         sock.close()
 

@@ -31,7 +31,7 @@ from hypothesis import strategies as st
 from distctrl.ads import AdsServer
 from distctrl.ads import errors as E
 from distctrl.ads import protocol as P
-from tests.ads import IG_DATA, IG_RO, MemoryDevice, RawClient
+from tests.ads import IG_DATA, IG_RO, MemoryDevice, RawClient, wait_for
 
 from .conftest import RELIABILITY as _RELIABILITY
 from .conftest import stress_scale, tally
@@ -83,15 +83,6 @@ def rig():
         r.stop.set()
         t.join(2.0)
         srv.stop()
-
-
-def wait_for(cond, timeout: float = 3.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.005)
-    return cond()
 
 
 def assert_survived(rig: Rig) -> None:
