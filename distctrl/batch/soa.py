@@ -66,8 +66,6 @@ _E_SW = CL._E_SW
  LO, HI, LOWER, FLAG, TARGET, C_USE, DV_FF, N_ROWS) = range(36)
 _INV_N = N_ROWS                  # W[_INV_N, b]: 1/n of the lane's window
 _P = N_ROWS + 1                  # W[_P + Q_*, b]: the set's parameters
-#: cycles buffered per lane before the outputs are written (sequentially per set)
-CHUNK = 256
 
 
 def soa_eligible(packed: np.ndarray) -> np.ndarray:
@@ -82,13 +80,25 @@ def plan_blocks(packed: np.ndarray, block: int = BLOCK) -> tuple[np.ndarray, np.
 
     Returns ``(lanes, counts, rest)``: ``lanes[j]`` the row indices of block j (``block`` of
     them; a partial last block repeats its last row, which is computed but not written),
-    ``counts[j]`` how many of them are real, ``rest`` the rows that ``closed_loop`` runs. Rows
-    are sorted by window length so that a block's shared ring is short.
+    ``counts[j]`` how many of them are real, ``rest`` the rows that ``closed_loop`` runs. The
+    rows of one window length fill whole blocks first; the remainders of all lengths, sorted by
+    length, share the last blocks (so their shared ring is short).
     """
     ok = soa_eligible(packed)
     rows = np.flatnonzero(ok).astype(np.int64)
     rest = np.flatnonzero(~ok).astype(np.int64)
     rows = rows[np.argsort(packed[rows, law.FC_N], kind="stable")]
+    # whole blocks of one window length first (their ring bookkeeping and re-sum are vector
+    # operations), then what is left of every length, still sorted, in mixed blocks
+    n_of = packed[rows, law.FC_N]
+    full, left = [], []
+    for n_value in np.unique(n_of):
+        same = rows[n_of == n_value]
+        cut = len(same) - len(same) % block
+        full.append(same[:cut])
+        left.append(same[cut:])
+    if len(rows):
+        rows = np.concatenate(full + left)
     lanes, counts = [], []
     for a in range(0, len(rows), block):
         part = rows[a:a + block]
@@ -156,8 +166,6 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     old_row = np.zeros(B, dtype=np.int64)        # per lane: the ring row of its oldest value
     to_wrap = np.zeros(B, dtype=np.int64)        # per lane: pushes until law._push would re-sum
     death = np.full(B, n, dtype=np.int64)        # per lane: the error cycle (n: none)
-    out_o = np.empty((CHUNK, B))
-    out_d = np.empty((CHUNK, B))
     fs = np.zeros(law.FS_LEN)
     scratch = np.zeros(law.MAX_N)
     for b in range(count):
@@ -166,6 +174,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
 
     ring_w = 0
     dline_i = 0
+    win_row = 0
     for k in range(n):
         sz = surface[k]
         pr = prog[k]
@@ -173,7 +182,8 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
         running = k >= k_on
         first = k == 0
         push = running and k > k_on             # the seed cycle pushes after seeding (below)
-        win_row = (k - k_on) % ring_len if running else 0
+        if push:                                # (k - k_on) % ring_len without a division
+            win_row = win_row + 1 if win_row + 1 < ring_len else 0
         # ---- rows indexed per cycle or per lane: copied in
         if ndel > 0 and not first:
             for b in range(B):
@@ -256,10 +266,18 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                 window[win_row, b] = W[FEEDBACK, b]
             if uniform:                           # all lanes wrap in the same cycle
                 c = to_wrap[0] - 1
-                if c == 0:
+                if c == 0:                        # law._ring_sum of every lane, oldest first
+                    nb = n_win[0]
+                    r = win_row + 1 - nb
+                    if r < 0:
+                        r += ring_len
                     for b in range(B):
-                        W[TOTAL, b] = _window_sum(window, b, win_row, n_win[b], scratch)
-                    c = n_win[0]
+                        W[TOTAL, b] = 0.0
+                    for j in range(nb):
+                        for b in range(B):
+                            W[TOTAL, b] += window[r, b]
+                        r = r + 1 if r + 1 < ring_len else 0
+                    c = nb
                 to_wrap[0] = c
             else:
                 for b in range(B):
@@ -401,18 +419,11 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     for j in range(k, n):
                         out_offset[i, j] = np.nan
                         out_distance[i, j] = np.nan
-        kk = k % CHUNK
-        for b in range(B):
-            out_o[kk, b] = W[OFS, b]
-            out_d[kk, b] = W[DIST, b]
-        if kk == CHUNK - 1 or k == n - 1:
-            k0 = k - kk
-            for b in range(count):
+        for b in range(count):
+            if k < death[b]:                   # (an error filled the rest of the row with NaN)
                 i = lanes[b]
-                end = min(k + 1, death[b])
-                if end > k0:                          # slices: no per-element index checks
-                    out_offset[i, k0:end] = out_o[:end - k0, b]
-                    out_distance[i, k0:end] = out_d[:end - k0, b]
+                out_offset[i, k] = W[OFS, b]
+                out_distance[i, k] = W[DIST, b]
 
 
 @njit(nogil=True, error_model="numpy", inline="always")
