@@ -127,6 +127,10 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     """
     n = out_offset.shape[1]
     B = BLOCK
+    # == B, but not a compile-time constant: LLVM would unroll a B-long copy between two arrays
+    # into scalar moves (it cannot prove they do not overlap); with a run-time count it vectorises
+    # the copy behind one overlap check
+    n_lanes = lanes.shape[0]
     # the scenario's plant and select (the same for every lane)
     z0 = plant[PL_Z0]
     kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
@@ -186,15 +190,15 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             win_row = win_row + 1 if win_row + 1 < ring_len else 0
         # ---- rows indexed per cycle or per lane: copied in
         if ndel > 0 and not first:
-            for b in range(B):
+            for b in range(n_lanes):
                 W[Y_OLD, b] = dline[dline_i, b]
         nxt = ring_w + 1 if ring_w < nbus else 0
-        for b in range(B):
+        for b in range(n_lanes):
             W[C_IN, b] = ring[nxt, b]
         if push:
             if uniform:                         # one window length: one row, a vector copy
                 r = old_row[0]
-                for b in range(B):
+                for b in range(n_lanes):
                     W[OLD, b] = window[r, b]
                 r = r + 1 if r + 1 < ring_len else 0
                 for b in range(B):
@@ -242,7 +246,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             if push:
                 W[TOTAL, b] = law.window_sum_update(W[TOTAL, b], fb, W[OLD, b])
         if ndel > 0:
-            for b in range(B):
+            for b in range(n_lanes):
                 dline[dline_i, b] = W[Y_NEW, b]
             if first:
                 for j in range(1, ndel):
@@ -262,7 +266,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     W[M_PREV, b] = -fb if W[D_MODE, b] != 0.0 else fb
                     old_row[b] = (1 - n_win[b]) % ring_len
                     to_wrap[b] = n_win[b]
-            for b in range(B):
+            for b in range(n_lanes):
                 window[win_row, b] = W[FEEDBACK, b]
             if uniform:                           # all lanes wrap in the same cycle
                 c = to_wrap[0] - 1
@@ -404,7 +408,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             W[Z_POS, b] = z_pos
             W[Z_VEL, b] = dv
             W[Z_ACT, b] = physics.quantise(z_pos, res, inv_res) if res != 0.0 else z_pos
-        for b in range(B):
+        for b in range(n_lanes):
             ring[ring_w, b] = W[CMD, b]
         ring_w = nxt
 
