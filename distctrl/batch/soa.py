@@ -210,41 +210,11 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     old_row[b] = r + 1 if r + 1 < ring_len else 0
 
         # ---- sensor, encoder reading, monitoring, feedback, the window sum (update() 1-4)
-        n_err = 0
-        for b in range(B):
-            z = W[Z_POS, b]
-            W[DIST, b] = z - sz
-            x = -1.0 * (z - sz)
-            if has_noise:
-                x += nz
-            y = physics.probe_increments(x, r_min, r_max, W[_P + Q_PROBE_REF, b], W[_P + Q_PROBE_IPM, b])
-            W[Y_NEW, b] = y
-            if ndel > 0 and not first:
-                y = W[Y_OLD, b]
-            s_now = law.encoder_reading(y, W[_P + Q_MM_PER_INCR, b], W[_P + Q_SIGN_REV, b] != 0.0,
-                                        W[_P + Q_REF_OFF, b], False, W[_P + Q_MIN_POS, b], W[_P + Q_MAX_POS, b])
-            if W[_P + Q_OPTIMIZED, b] != 0.0 or first:
-                s = s_now                          # the very first cycle has no earlier reading
-            else:
-                s = W[S_DELAYED, b]
-            W[S_DELAYED, b] = s_now
-            err = 0.0
-            if running:
-                if not first and abs(s - W[LAST_S, b]) > W[_P + Q_JUMP, b]:
-                    err = _E_JUMP
-                elif s > W[_P + Q_S_HI, b]:
-                    err = _E_RUN_MAX
-                elif s < W[_P + Q_S_LO, b]:
-                    err = _E_RUN_MIN
-            W[ERR_SENSOR, b] = err
-            n_err += 1 if err != 0.0 else 0
-            W[LAST_S, b] = s
-            d = -s
-            surf = W[Z_ACT, b] - d
-            fb = d if W[D_MODE, b] != 0.0 else surf
-            W[FEEDBACK, b] = fb
-            if push:
-                W[TOTAL, b] = law.window_sum_update(W[TOTAL, b], fb, W[OLD, b])
+        if push and not first:                  # every cycle after the seed: constant flags
+            n_err = _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, ndel > 0, False, True, True)
+        else:
+            n_err = _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, ndel > 0 and not first, first, running,
+                                  push)
         if ndel > 0:
             for b in range(n_lanes):
                 dline[dline_i, b] = W[Y_NEW, b]
@@ -428,6 +398,50 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                 i = lanes[b]
                 out_offset[i, k] = W[OFS, b]
                 out_distance[i, k] = W[DIST, b]
+
+
+@njit(nogil=True, error_model="numpy", inline="always")
+def _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, delayed, first, running, push):
+    """update() 1-4 for every lane: the probe's reading of the distance (``delayed``: the dead
+    time's older reading is used), the encoder reading, the sensor monitoring (while ``running``),
+    the feedback and the window sum (``push``). Returns the number of lanes with a sensor error.
+    Inlined: called with constant flags, its tests vanish from the vector loop."""
+    n_err = 0
+    for b in range(BLOCK):
+        z = W[Z_POS, b]
+        W[DIST, b] = z - sz
+        x = -1.0 * (z - sz)
+        if has_noise:
+            x += nz
+        y = physics.probe_increments(x, r_min, r_max, W[_P + Q_PROBE_REF, b], W[_P + Q_PROBE_IPM, b])
+        W[Y_NEW, b] = y
+        if delayed:
+            y = W[Y_OLD, b]
+        s_now = law.encoder_reading(y, W[_P + Q_MM_PER_INCR, b], W[_P + Q_SIGN_REV, b] != 0.0,
+                                    W[_P + Q_REF_OFF, b], False, W[_P + Q_MIN_POS, b], W[_P + Q_MAX_POS, b])
+        if W[_P + Q_OPTIMIZED, b] != 0.0 or first:
+            s = s_now                          # the very first cycle has no earlier reading
+        else:
+            s = W[S_DELAYED, b]
+        W[S_DELAYED, b] = s_now
+        err = 0.0
+        if running:
+            if not first and abs(s - W[LAST_S, b]) > W[_P + Q_JUMP, b]:
+                err = _E_JUMP
+            elif s > W[_P + Q_S_HI, b]:
+                err = _E_RUN_MAX
+            elif s < W[_P + Q_S_LO, b]:
+                err = _E_RUN_MIN
+        W[ERR_SENSOR, b] = err
+        n_err += 1 if err != 0.0 else 0
+        W[LAST_S, b] = s
+        d = -s
+        surf = W[Z_ACT, b] - d
+        fb = d if W[D_MODE, b] != 0.0 else surf
+        W[FEEDBACK, b] = fb
+        if push:
+            W[TOTAL, b] = law.window_sum_update(W[TOTAL, b], fb, W[OLD, b])
+    return n_err
 
 
 @njit(nogil=True, error_model="numpy", inline="always")
