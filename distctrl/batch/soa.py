@@ -39,6 +39,7 @@ from numba import njit, prange
 from ..control import law
 from ..sim import physics
 from . import closed_loop as CL
+from .stream import store_fence, store_stream
 from .closed_loop import (PL_ACT0, PL_Z0, Q_A_BASE, Q_A_FLOOR, Q_A_MIN, Q_ADAPTIVE, Q_BOTH, Q_CHECK_SW, Q_D_GAIN,
                           Q_DEV_A_MAX, Q_DEV_A_MIN, Q_I_GAIN, Q_JUMP, Q_KP, Q_LEN, Q_MAX_DEV, Q_MAX_POS, Q_MIN_POS,
                           Q_MM_PER_INCR, Q_MODULO, Q_OPTIMIZED, Q_PROBE_IPM, Q_PROBE_REF, Q_REF_OFF, Q_S_HI, Q_S_LO,
@@ -175,6 +176,32 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     for b in range(count):
         out_error[lanes[b], 0] = -1
         out_error[lanes[b], 1] = 0
+    # the traces: the last 8 cycles of every lane are kept, and a lane's 64-byte line of a trace row
+    # is streamed to memory when it is complete (distctrl.batch.stream). grp_*[r, :cnt_*[r]]: the
+    # lanes whose line ends in a cycle k with k % 8 == r (where their row lies in the cache lines)
+    buf_o = np.empty((8, B))
+    buf_d = np.empty((8, B))
+    stream = (out_offset.strides[1] == 8 and out_distance.strides[1] == 8
+              and out_offset.ctypes.data % 8 == 0 and out_distance.ctypes.data % 8 == 0)
+    tail_o = np.zeros(B, dtype=np.int64)         # per lane: elements of the row's last, partial line
+    tail_d = np.zeros(B, dtype=np.int64)
+    grp_o = np.zeros((8, B), dtype=np.int64)
+    grp_d = np.zeros((8, B), dtype=np.int64)
+    cnt_o = np.zeros(8, dtype=np.int64)
+    cnt_d = np.zeros(8, dtype=np.int64)
+    if stream:
+        for b in range(count):
+            i = lanes[b]
+            ph = ((out_offset.ctypes.data + i * out_offset.strides[0]) // 8) % 8    # column 0's place
+            r = (7 - ph) % 8
+            grp_o[r, cnt_o[r]] = b
+            cnt_o[r] += 1
+            tail_o[b] = (ph + n) % 8
+            ph = ((out_distance.ctypes.data + i * out_distance.strides[0]) // 8) % 8
+            r = (7 - ph) % 8
+            grp_d[r, cnt_d[r]] = b
+            cnt_d[r] += 1
+            tail_d[b] = (ph + n) % 8
 
     ring_w = 0
     dline_i = 0
@@ -390,14 +417,47 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     death[b] = k
                     out_error[i, 0] = k
                     out_error[i, 1] = int(W[ERR_SENSOR, b] if W[ERR_SENSOR, b] != 0.0 else W[ERR_BOUND, b])
-                    for j in range(k, n):
-                        out_offset[i, j] = np.nan
-                        out_distance[i, j] = np.nan
-        for b in range(count):
-            if k < death[b]:                   # (an error filled the rest of the row with NaN)
+        if stream:
+            kk = k % 8
+            for b in range(n_lanes):
+                buf_o[kk, b] = W[OFS, b]
+                buf_d[kk, b] = W[DIST, b]
+            _stream_lines(out_offset, buf_o, lanes, grp_o[kk], cnt_o[kk], k)
+            _stream_lines(out_distance, buf_d, lanes, grp_d[kk], cnt_d[kk], k)
+        else:
+            for b in range(count):
                 i = lanes[b]
                 out_offset[i, k] = W[OFS, b]
                 out_distance[i, k] = W[DIST, b]
+    if stream:
+        for b in range(count):                 # the rows' last, partial lines: ordinary stores
+            i = lanes[b]
+            for j in range(max(0, n - tail_o[b]), n):
+                out_offset[i, j] = buf_o[j % 8, b]
+            for j in range(max(0, n - tail_d[b]), n):
+                out_distance[i, j] = buf_d[j % 8, b]
+        store_fence()
+    for b in range(count):                     # a set that ran into an error: NaN from that cycle
+        i = lanes[b]
+        for j in range(death[b], n):
+            out_offset[i, j] = np.nan
+            out_distance[i, j] = np.nan
+
+
+@njit(nogil=True, error_model="numpy", inline="always")
+def _stream_lines(out, buf, lanes, group, count, k):
+    """Write the trace line that ends in cycle k of each lane in ``group[:count]`` from ``buf``
+    (the last 8 cycles, row k % 8): streamed when it is a whole line, the row's first, partial line
+    (k < 7) with ordinary stores."""
+    for g in range(count):
+        b = group[g]
+        i = lanes[b]
+        if k >= 7:
+            for j in range(k - 7, k + 1):
+                store_stream(out, i, j, buf[j % 8, b])
+        else:
+            for j in range(k + 1):
+                out[i, j] = buf[j % 8, b]
 
 
 @njit(nogil=True, error_model="numpy", inline="always")
