@@ -136,3 +136,40 @@ def test_uniform_and_mixed_window_lengths_give_the_same_numbers(tmp_path):
         alone = CL.run_batch(inputs, [p], return_errors=True)
         for x, y in zip(together, alone):
             assert np.array_equal(x[i], y[0], equal_nan=True)
+
+
+@pytest.mark.parametrize("cycles", [1, 5, 7, 8, 9, 13, 64, 203, None])
+def test_streamed_trace_lines_of_any_length_and_place(tmp_path, cycles):
+    """The block kernel streams its traces a 64-byte line (8 cycles) at a time: rows of any length
+    (no whole line, a partial first and last line) and rows that begin anywhere in a line (an odd
+    row length places row i at 8 * i * cycles bytes) give closed_loop's numbers, NaN tails of
+    errors included."""
+    sets = option_sets(70, seed=11)
+    sc = make_scenario(tmp_path, sets[0], MODES["CONST_DIST"][0] + PATH)
+    inputs = CL.prepare(sc)
+    a = CL.run_batch(inputs, sets, cycles=cycles, return_errors=True, vectorised=False)
+    b = CL.run_batch(inputs, sets, cycles=cycles, return_errors=True)
+    for x, y, name in zip(a, b, ("offset", "distance", "errors")):
+        assert np.array_equal(x, y, equal_nan=True), name
+    if cycles is None:
+        assert (b[2][:, 0] >= 0).any()                # some sets stopped with an error: NaN tails
+
+
+def test_outputs_that_are_not_contiguous_rows_take_ordinary_stores(tmp_path):
+    """Outputs whose rows are strided views (no whole lines to stream) get the same numbers."""
+    sets = option_sets(40, seed=5)
+    sc = make_scenario(tmp_path, sets[0], MODES["SET_POS"][0] + PATH)
+    inputs = CL.prepare(sc)
+    ref = CL.run_batch(inputs, sets, return_errors=True, vectorised=False)
+    packed = CL.pack_sets(inputs, sets)
+    lanes, counts, rest = soa.plan_blocks(packed)
+    n = inputs.n_cycles
+    wide_o = np.full((len(sets), 2 * n), -7.0)
+    wide_d = np.full((len(sets), 2 * n), -7.0)
+    out_o, out_d = wide_o[:, ::2], wide_d[:, ::2]
+    out_e = np.empty((len(sets), 2), dtype=np.int64)
+    soa.run_blocks(packed, lanes, counts, rest, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
+                   out_o, out_d, out_e)
+    for x, y in zip(ref, (out_o, out_d, out_e)):
+        assert np.array_equal(x, y, equal_nan=True)
+    assert np.all(wide_o[:, 1::2] == -7.0) and np.all(wide_d[:, 1::2] == -7.0)    # nothing else written
