@@ -579,7 +579,7 @@ def _closed_loop_batch(packed, plant, prog, surface, noise, out_offset, out_dist
 
 
 def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, threads: int | None = None,
-              return_errors: bool = False, vectorised: bool = True):
+              return_errors: bool = False, vectorised: bool = True, out=None):
     """Run the closed loop of ``inputs`` for every parameter set, in parallel over the sets.
 
     MOVING_AVERAGE sets (without a modulo encoder) run in blocks through the vectorised
@@ -591,6 +591,10 @@ def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, thre
     ``threads``: numba threads for this call (default: numba's setting). Returns
     ``(offset, distance)`` of shape ``(n_sets, cycles)``, plus ``errors`` (n_sets, 2) = (cycle, id),
     cycle -1 without error, when ``return_errors``.
+
+    ``out``: ``(offset, distance)``, two float64 arrays of shape ``(n_sets, cycles)`` to write
+    into and return instead of new ones. A caller that runs many batches can reuse them: fresh
+    memory costs the operating system a page fault and zeroing on first touch (docs/batch.md).
     """
     import numba
 
@@ -605,8 +609,18 @@ def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, thre
     if not 0 < n <= inputs.n_cycles:
         raise ClosedLoopError(f"cycles = {cycles!r}: 1 ... {inputs.n_cycles}")
     n_sets = packed.shape[0]
-    out_offset = np.empty((n_sets, n))
-    out_distance = np.empty((n_sets, n))
+    if out is None:
+        out_offset = np.empty((n_sets, n))
+        out_distance = np.empty((n_sets, n))
+    else:
+        out_offset, out_distance = out
+        for name, a in (("offset", out_offset), ("distance", out_distance)):
+            if not (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.shape == (n_sets, n)
+                    and a.flags.writeable):
+                raise ClosedLoopError(f"out {name}: a writeable float64 array of shape {(n_sets, n)} is needed, "
+                                      f"not {getattr(a, 'dtype', type(a).__name__)} {getattr(a, 'shape', '')}")
+        if np.shares_memory(out_offset, out_distance):
+            raise ClosedLoopError("out: the offset and distance arrays overlap")
     out_error = np.empty((n_sets, 2), dtype=np.int64)
     from . import soa
 

@@ -69,6 +69,14 @@ def register_law() -> None:
         if same is not fn:          # register_jitable must hand back the plain function
             raise RuntimeError(f"numba.register_jitable replaced {fn.__name__}; CPython callers would change")
         _REGISTERED.add(id(fn))
+    if id(physics.floor_float) not in _REGISTERED:
+        from numba.extending import overload
+
+        @overload(physics.floor_float, jit_options=dict(_LAW_JIT_OPTIONS))
+        def _floor_float(x):          # the same value for every finite x (and for |x| >= 2**63 too)
+            return lambda x: np.floor(x)
+
+        _REGISTERED.add(id(physics.floor_float))
 
 
 register_law()

@@ -25,10 +25,16 @@ def limit_velocity(v, v_max, v_prev, dv_max):
     return v
 
 
+def floor_float(x):
+    """floor(x) as a float. Compiled (distctrl.batch.kernel) it is one rounding instruction
+    (``np.floor``); ``math.floor`` there goes through a 64-bit integer and back."""
+    return float(floor(x))
+
+
 def quantise(x, resolution, inv_resolution):
     """A position (mm) as the encoder reads it: rounded to ``resolution`` (> 0; ``inv_resolution``
     = 1/resolution)."""
-    return floor(x * inv_resolution + 0.5) * resolution
+    return floor_float(x * inv_resolution + 0.5) * resolution
 
 
 def probe_increments(x, range_min, range_max, ref_offset, increments_per_mm):
@@ -38,7 +44,7 @@ def probe_increments(x, range_min, range_max, ref_offset, increments_per_mm):
         x = range_min
     elif x > range_max:
         x = range_max
-    return float(floor((x - ref_offset) * increments_per_mm + 0.5))
+    return floor_float((x - ref_offset) * increments_per_mm + 0.5)
 
 
 #: the functions numba compiles for the batch kernels (registered by distctrl.batch.kernel)

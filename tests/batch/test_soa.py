@@ -173,3 +173,23 @@ def test_outputs_that_are_not_contiguous_rows_take_ordinary_stores(tmp_path):
     for x, y in zip(ref, (out_o, out_d, out_e)):
         assert np.array_equal(x, y, equal_nan=True)
     assert np.all(wide_o[:, 1::2] == -7.0) and np.all(wide_d[:, 1::2] == -7.0)    # nothing else written
+
+
+def test_run_batch_writes_into_given_outputs(tmp_path):
+    """``out=``: the same numbers, in the caller's arrays (reused between calls); wrong arrays are
+    refused with their shape and dtype named."""
+    sets = option_sets(20, seed=8)
+    sc = make_scenario(tmp_path, sets[0], MODES["SET_POS"][0] + PATH)
+    inputs = CL.prepare(sc)
+    ref = CL.run_batch(inputs, sets, cycles=301)
+    out = (np.full((20, 301), 5.0), np.full((20, 301), 5.0))
+    for vectorised in (True, False):
+        got = CL.run_batch(inputs, sets, cycles=301, out=out, vectorised=vectorised)
+        assert got[0] is out[0] and got[1] is out[1]
+        assert np.array_equal(got[0], ref[0], equal_nan=True) and np.array_equal(got[1], ref[1], equal_nan=True)
+    with pytest.raises(CL.ClosedLoopError, match=r"shape \(20, 301\).*float32"):
+        CL.run_batch(inputs, sets, cycles=301, out=(np.zeros((20, 301), np.float32), out[1]))
+    with pytest.raises(CL.ClosedLoopError, match="float64 array of shape"):
+        CL.run_batch(inputs, sets, cycles=301, out=(np.zeros((20, 300)), out[1]))
+    with pytest.raises(CL.ClosedLoopError, match="overlap"):
+        CL.run_batch(inputs, sets, cycles=301, out=(out[0], out[0]))
