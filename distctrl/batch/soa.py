@@ -62,7 +62,7 @@ _E_SW = CL._E_SW
 # Every access in the vector loops is W[<constant row>, b]: one allocation with constant row
 # offsets, so LLVM needs no run-time alias checks (with them it refuses to vectorise). Whatever is
 # indexed per lane or per cycle (the rings, the output buffer) is copied in and out by short loops.
-(Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, A_BOUND, S_DELAYED, LAST_S, TOTAL, D_MODE,
+(Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, INV_2A, S_DELAYED, LAST_S, TOTAL, D_MODE,
  Y_OLD, Y_NEW, OLD, FEEDBACK, CMD, C_IN, DIST, ERR_SENSOR, ERR_BOUND, U_LIM, E_LIM, I_CAND, V, V_LIM, A_LIM,
  LO, HI, LOWER, FLAG, TARGET, C_USE, DV_FF, N_ROWS) = range(36)
 _INV_N = N_ROWS                  # W[_INV_N, b]: 1/n of the lane's window
@@ -150,7 +150,9 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
         W[Z_POS, b] = z0
         W[Z_ACT, b] = plant[PL_ACT0]
         W[PREV_SP, b] = z0
-        W[A_BOUND, b] = packed[i, _FC + Q_A_FLOOR]
+        a_floor = packed[i, _FC + Q_A_FLOOR]
+        W[INV_2A, b] = 0.5 / a_floor if a_floor > 0.0 else 0.0
+        W[A_LIM, b] = packed[i, _FC + Q_A_BASE]      # (set per cycle only where adaptive)
         n_win[b] = int(packed[i, law.FC_N])
         # the feedback is the distance d (CONST_DIST with one encoder) or the surface
         W[D_MODE, b] = 1.0 if const_dist and packed[i, _FC + Q_BOTH] == 0.0 else 0.0
@@ -311,8 +313,9 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                 W[U_LIM, b] = 0.0
                 W[E_LIM, b] = 0.0
                 W[I_CAND, b] = W[INTEG, b]
-        for b in range(B):
-            W[A_LIM, b] = W[_P + Q_A_BASE, b]
+        if any_adaptive:                      # else A_LIM holds a_base from the start
+            for b in range(B):
+                W[A_LIM, b] = W[_P + Q_A_BASE, b]
         if running and any_adaptive:          # its own loop: the division only where needed
             for b in range(B):
                 if W[_P + Q_ADAPTIVE, b] != 0.0:
@@ -339,14 +342,9 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                 hi_sw = W[_P + Q_SW_MAX, b] - pr
                 if hi_sw < hi:
                     hi = hi_sw
-            a_floor = W[_P + Q_A_FLOOR, b]
-            a_state = W[A_BOUND, b]
-            if vel == 0.0:
-                a_bound = a_floor
-            else:
-                a_bound = a_state if a_state > a_floor else a_floor
-            W[A_BOUND, b] = a_bound
-            flag = lower or law.near_bound(v, o, T, lo, hi, a_bound)
+            # the bounds brake with a_floor: the controller's a_bound is a_floor or max(a_floor,
+            # a_bound), which stays a_floor while the parameters do not change (they do not here)
+            flag = lower or law.near_bound(v, o, T, lo, hi, W[_P + Q_A_FLOOR, b], W[INV_2A, b])
             n_flag += 1 if flag else 0
             W[FLAG, b] = 1.0 if flag else 0.0
             W[LOWER, b] = 1.0 if lower else 0.0
@@ -363,7 +361,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                         a_lim = W[A_LIM, b]
                         v = law.slope_limit(W[U_LIM, b], W[E_LIM, b], W[VEL, b], T, v_lim, a_lim,
                                             v_lim * W[_P + Q_W_V, b], a_lim * W[_P + Q_W_A, b])[0]
-                    W[V, b] = law.bound_velocity(v, W[OFS, b], T, W[LO, b], W[HI, b], W[A_BOUND, b])
+                    W[V, b] = law.bound_velocity(v, W[OFS, b], T, W[LO, b], W[HI, b], W[_P + Q_A_FLOOR, b])
 
         # ---- the offset, 70331 / SW limit, anti-windup, then the drive (Drive.step)
         n_bound = 0

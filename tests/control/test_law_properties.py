@@ -204,6 +204,31 @@ def test_bounds_are_reached_at_rest_and_never_crossed(T, a, lo, hi, o0, wants):
         v_prev, o = v, o_new
 
 
+@settings(max_examples=1000, **SETTINGS)
+@given(T=cycle_times, a=st.one_of(st.floats(1e-3, 1e5), st.just(0.0)), speed=st.floats(0.0, 1e3),
+       down=st.booleans(), o=st.floats(-50.0, 50.0), rel=st.floats(-3e-11, 3e-11), far=st.floats(0.0, 10.0),
+       near=st.booleans())
+def test_near_bound_is_true_wherever_bound_velocity_may_act(T, a, speed, down, o, rel, far, near):
+    """near_bound (the kernel's cheap test, with 0.5/a multiplied) is True wherever the exact test of
+    bound_velocity (_brakes_to_bound, which divides) is; where it is False, bound_velocity returns v
+    unchanged. Rooms are drawn within a few 1e-11 of the braking threshold, where the two roundings
+    could disagree, and far from it."""
+    v = -speed if down else speed
+    if a > 0.0:
+        threshold = speed * speed / (2.0 * a) + 0.5 * speed * T + 0.125 * a * T * T
+        room = threshold * (1.0 + rel) if near else threshold + far
+    else:
+        room = far
+    lo, hi = (o - room, o + 60.0) if down else (o - 60.0, o + room)
+    inv = 0.5 / a if a > 0.0 else 0.0
+    flagged = law.near_bound(v, o, T, lo, hi, a, inv)
+    if a > 0.0 and speed > 0.0:
+        exact = law._brakes_to_bound(speed, (o - lo) if down else (hi - o), T, a)
+        assert flagged or not exact
+    if not flagged:
+        assert law.bound_velocity(v, o, T, lo, hi, a) == v
+
+
 # ============================================================================ adaptive_acceleration
 
 @settings(max_examples=300, **SETTINGS)
