@@ -170,7 +170,6 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             ring[j, b] = z0
     dline = np.empty((ndel if ndel > 0 else 1, B))   # the probe's dead time
     window = np.zeros((ring_len, B))             # the moving-average windows (shared ring)
-    old_row = np.zeros(B, dtype=np.int64)        # per lane: the ring row of its oldest value
     to_wrap = np.zeros(B, dtype=np.int64)        # per lane: pushes until law._push would re-sum
     death = np.full(B, n, dtype=np.int64)        # per lane: the error cycle (n: none)
     fs = np.zeros(law.FS_LEN)
@@ -225,18 +224,19 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
         for b in range(n_lanes):
             W[C_IN, b] = ring[nxt, b]
         if push:
+            # the value leaving lane b's window was pushed n_b pushes ago: ring row win_row - n_b
             if uniform:                         # one window length: one row, a vector copy
-                r = old_row[0]
+                r = win_row - n_win[0]
+                if r < 0:
+                    r += ring_len
                 for b in range(n_lanes):
                     W[OLD, b] = window[r, b]
-                r = r + 1 if r + 1 < ring_len else 0
-                for b in range(B):
-                    old_row[b] = r
             else:
-                for b in range(B):              # a gather: not vectorised, but short
-                    r = old_row[b]
+                for b in range(B):              # a gather
+                    r = win_row - n_win[b]
+                    if r < 0:
+                        r += ring_len
                     W[OLD, b] = window[r, b]
-                    old_row[b] = r + 1 if r + 1 < ring_len else 0
 
         # ---- sensor, encoder reading, monitoring, feedback, the window sum (update() 1-4)
         if push and not first:                  # every cycle after the seed: constant flags
@@ -263,7 +263,6 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                         window[j, b] = fb         # the seed fills the window
                     W[TOTAL, b] = law.window_sum_update(fs[law.FS_TOTAL], fb, fb)   # push 0: x0 leaves
                     W[M_PREV, b] = -fb if W[D_MODE, b] != 0.0 else fb
-                    old_row[b] = (1 - n_win[b]) % ring_len
                     to_wrap[b] = n_win[b]
             for b in range(n_lanes):
                 window[win_row, b] = W[FEEDBACK, b]
@@ -282,13 +281,17 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                         r = r + 1 if r + 1 < ring_len else 0
                     c = nb
                 to_wrap[0] = c
-            else:
+            else:                                 # count down in a vector loop, re-sum the few
+                n_wrap = 0
                 for b in range(B):
                     c = to_wrap[b] - 1
-                    if c == 0:
-                        W[TOTAL, b] = _window_sum(window, b, win_row, n_win[b], scratch)
-                        c = n_win[b]
+                    n_wrap += 1 if c == 0 else 0
                     to_wrap[b] = c
+                if n_wrap:
+                    for b in range(B):
+                        if to_wrap[b] == 0:
+                            W[TOTAL, b] = _window_sum(window, b, win_row, n_win[b], scratch)
+                            to_wrap[b] = n_win[b]
 
         # ---- PID, slope limiter (first pass), bounds: the law, lane by lane (update() 5-6)
         # (short loops: their iterations are independent, so more of them overlap in the core)
