@@ -161,6 +161,26 @@ def best_of(fn, repeats: int) -> float:
     return best
 
 
+def dask_sweep_scaling(inputs, n_sets: int, chunk: int) -> dict:
+    """Seconds for one sweep of ``n_sets`` MOVING_AVERAGE sets (kernel and metrics, as `distctrl
+    sweep` runs it) on an embedded LocalCluster of 1 and of 2 workers, after a warm-up sweep that
+    compiles the kernels on every worker."""
+    from distctrl.control import FilterType
+    from distctrl.tuning.runner import Evaluator
+
+    rng = np.random.default_rng(3)
+    base = inputs.params.replace(filter_type=FilterType.MOVING_AVERAGE)
+    sets = [base.replace(n_cycles=int(rng.integers(2, 31)), kp=float(rng.uniform(0.2, 1.5))) for _ in range(n_sets)]
+    out = {}
+    for workers in (1, 2):
+        with Evaluator(inputs, mode="cluster", n_workers=workers, chunk_size=chunk, progress=False) as ev:
+            ev.evaluate(sets[:2 * chunk * workers])                    # compile on every worker
+            t0 = time.perf_counter()
+            ev.evaluate(sets)
+            out[workers] = time.perf_counter() - t0
+    return out
+
+
 def main(argv=None) -> dict:
     from distctrl.batch import closed_loop as CL
 
@@ -218,6 +238,10 @@ def main(argv=None) -> dict:
     ratio = t_n1 / t_c1
     ratio_scalar = t_s1 / t_c1
 
+    # the same kind of sweep through dask (kernel + metrics per chunk), 1 and 2 workers
+    dask_sets = 64 if quick else 1024
+    t_dask = dask_sweep_scaling(inputs, dask_sets, chunk=16 if quick else 128)
+
     # the sweep: 10 000 sets x 10 000 cycles, numba, all cores (outputs 2 x 0.8 GB allocated per call)
     sweep_inputs = inputs if sweep_cycles == n_cycles else CL.prepare(scenario(sweep_cycles / 1000.0 + 2.0),
                                                                       cycles=sweep_cycles)
@@ -256,6 +280,8 @@ def main(argv=None) -> dict:
         "batch_sweep_set_cycles_per_s": sweep_rate, "batch_sweep_pack_s": t_pack,
         "batch_prepare_s": t_prepare, "batch_gcc_s": t_gcc, "batch_numba_compile_s": t_jit,
         "batch_cpu_count": os.cpu_count(),
+        "batch_dask_sets": dask_sets, "batch_dask_1_worker_s": t_dask[1], "batch_dask_2_workers_s": t_dask[2],
+        "batch_dask_scaling_1_to_2": t_dask[1] / t_dask[2],
     }
     rows = [
         ("numba == C reference: max abs offset difference", d_off, "mm", "<= 1e-12, same errors",
@@ -274,6 +300,10 @@ def main(argv=None) -> dict:
         ("C reference, 2 threads", r_c2 / 1e6, "M set-cycles/s", "", "-"),
         ("C scaling 1 -> 2 threads", r_c2 / r_c1, "x", "", "-"),
         (sweep_label, t_sweep_full, "s", "< 60", "PASS" if t_sweep_full < TARGET_SWEEP_S else "FAIL"),
+        (f"dask sweep, {dask_sets} sets x {n_cycles} cycles with metrics, LocalCluster 1 worker", t_dask[1], "s",
+         "", "-"),
+        ("the same, 2 workers", t_dask[2], "s", "", "-"),
+        ("dask scaling 1 -> 2 workers", t_dask[1] / t_dask[2], "x", "", "-"),
     ]
     for a, b, c, d, e in rows:
         print(f"{a:<80} {b:>12,.4g} {c:<15} {d:<22} {e}")

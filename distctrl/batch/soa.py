@@ -24,12 +24,17 @@ It is the same loop and gives the same numbers bit for bit (tests/batch/test_soa
 
 Which sets it takes (:func:`soa_eligible`): filter MOVING_AVERAGE, no modulo encoder. The lanes of
 one block may have different window lengths (they share one ring, see :func:`block_loop`);
-:func:`plan_blocks` sorts the sets by window length, so most blocks have one length and their ring
-bookkeeping is a plain vector copy. The other sets go through ``closed_loop``.
+:func:`plan_blocks` fills whole blocks with sets of one length first, whose ring bookkeeping and
+re-sum are vector operations. The other sets go through ``closed_loop``.
+
+The traces leave through an 8-cycle buffer per lane, a 64-byte line of a row at a time, with
+non-temporal stores (:mod:`distctrl.batch.stream`; ordinary stores when the output rows are not
+contiguous).
 
 Restrictions, as for ``closed_loop`` (see there): the axis variant, probe sensor, no events. A set
 that raises a controller error stops at that cycle: its outputs are NaN from the error cycle on,
-and ``out_error`` holds (cycle, id). Its lane keeps computing, but nothing of it is written.
+and ``out_error`` holds (cycle, id). Its lane keeps computing; the NaN are written over its row
+from the error cycle on when the block is done.
 """
 from __future__ import annotations
 
