@@ -5,8 +5,8 @@ cache holds. An ordinary store first reads the cache line it writes into (read f
 every trace byte crosses the memory bus twice. A non-temporal store writes a whole line straight
 to memory through a write-combining buffer, without reading it; it pays when the 8 doubles of one
 64-byte line are stored back to back. :func:`distctrl.batch.soa.block_loop` therefore keeps the
-last 8 cycles of every lane and streams a line when it is complete (bench: 2.0 ns -> 1.2 ns per
-set-cycle for the writes alone, docs/batch.md).
+last 8 cycles of every lane and streams a line when it is complete (the writes alone: 2.0-2.8 ns
+-> 1.2 ns per set-cycle on the bench machine, docs/batch.md).
 
 Non-temporal stores are weakly ordered: :func:`store_fence` must follow them before anybody else
 reads the memory (or this thread stores to it the ordinary way). On a machine without such
