@@ -189,25 +189,8 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     buf_d = np.empty((8, B))
     stream = (out_offset.strides[1] == 8 and out_distance.strides[1] == 8
               and out_offset.ctypes.data % 8 == 0 and out_distance.ctypes.data % 8 == 0)
-    tail_o = np.zeros(B, dtype=np.int64)         # per lane: elements of the row's last, partial line
-    tail_d = np.zeros(B, dtype=np.int64)
-    grp_o = np.zeros((8, B), dtype=np.int64)
-    grp_d = np.zeros((8, B), dtype=np.int64)
-    cnt_o = np.zeros(8, dtype=np.int64)
-    cnt_d = np.zeros(8, dtype=np.int64)
-    if stream:
-        for b in range(count):
-            i = lanes[b]
-            ph = ((out_offset.ctypes.data + i * out_offset.strides[0]) // 8) % 8    # column 0's place
-            r = (7 - ph) % 8
-            grp_o[r, cnt_o[r]] = b
-            cnt_o[r] += 1
-            tail_o[b] = (ph + n) % 8
-            ph = ((out_distance.ctypes.data + i * out_distance.strides[0]) // 8) % 8
-            r = (7 - ph) % 8
-            grp_d[r, cnt_d[r]] = b
-            cnt_d[r] += 1
-            tail_d[b] = (ph + n) % 8
+    grp_o, cnt_o, tail_o = _line_groups(out_offset, lanes, count)
+    grp_d, cnt_d, tail_d = _line_groups(out_distance, lanes, count)
 
     ring_w = 0
     dline_i = 0
@@ -244,7 +227,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     W[OLD, b] = window[r, b]
 
         # ---- sensor, encoder reading, monitoring, feedback, the window sum (update() 1-4)
-        if push and not first:                  # every cycle after the seed: constant flags
+        if push:                                # every cycle after the seed: constant flags
             n_err = _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, ndel > 0, False, True, True)
         else:
             n_err = _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, ndel > 0 and not first, first, running,
@@ -435,19 +418,43 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                 i = lanes[b]
                 out_offset[i, k] = W[OFS, b]
                 out_distance[i, k] = W[DIST, b]
-    if stream:
-        for b in range(count):                 # the rows' last, partial lines: ordinary stores
-            i = lanes[b]
-            for j in range(max(0, n - tail_o[b]), n):
-                out_offset[i, j] = buf_o[j % 8, b]
-            for j in range(max(0, n - tail_d[b]), n):
-                out_distance[i, j] = buf_d[j % 8, b]
+    if stream:                                 # the rows' last, partial lines: ordinary stores
+        _write_tails(out_offset, buf_o, lanes, count, tail_o)
+        _write_tails(out_distance, buf_d, lanes, count, tail_d)
         store_fence()
     for b in range(count):                     # a set that ran into an error: NaN from that cycle
         i = lanes[b]
         for j in range(death[b], n):
             out_offset[i, j] = np.nan
             out_distance[i, j] = np.nan
+
+
+@njit(nogil=True, error_model="numpy")
+def _line_groups(out, lanes, count):
+    """Where the lanes' rows of ``out`` lie in 64-byte lines: ``(group, counts, tail)``, with
+    ``group[r, :counts[r]]`` the lanes whose line ends in a cycle k with k % 8 == r and ``tail[b]``
+    the elements of lane b's last, partial line (rows of ``out.shape[1]`` doubles)."""
+    group = np.zeros((8, BLOCK), dtype=np.int64)
+    counts = np.zeros(8, dtype=np.int64)
+    tail = np.zeros(BLOCK, dtype=np.int64)
+    n = out.shape[1]
+    for b in range(count):
+        place = ((out.ctypes.data + lanes[b] * out.strides[0]) // 8) % 8    # column 0's place in its line
+        r = (7 - place) % 8
+        group[r, counts[r]] = b
+        counts[r] += 1
+        tail[b] = (place + n) % 8
+    return group, counts, tail
+
+
+@njit(nogil=True, error_model="numpy", inline="always")
+def _write_tails(out, buf, lanes, count, tail):
+    """The rows' last, partial lines from ``buf`` (the last 8 cycles), with ordinary stores."""
+    n = out.shape[1]
+    for b in range(count):
+        i = lanes[b]
+        for j in range(max(0, n - tail[b]), n):
+            out[i, j] = buf[j % 8, b]
 
 
 @njit(nogil=True, error_model="numpy", inline="always")
