@@ -103,36 +103,61 @@ def test_write_csv_parquet_and_plots(local_result, tmp_path):
 
 
 def test_cluster_worker_killed_mid_sweep_loses_only_its_chunk(inputs, sets, local_result, tmp_path):
-    """A worker process dies (os._exit) while running one chunk: dask reschedules that chunk on a
-    (restarted) worker, the sweep completes with the same numbers, and the chunks already fetched are
-    not run again."""
+    """A worker process dies (os._exit) while running one chunk: dask reschedules that chunk on the
+    restarted worker, the sweep completes with the same numbers, and the chunks already fetched are
+    not run again. One worker, so the dying process ran every other chunk: without the release on
+    fetch dask would recompute them."""
     pytest.importorskip("distributed")
     log = tmp_path / "calls.log"
     killed = tmp_path / "killed"
-    victim = 2                                          # the third chunk of four sets
+    done = tmp_path / "done.keys"                       # the task keys of the chunks that finished
+    victim = 3                                          # the last chunk of four sets
 
     def dying(slim, packed, cycles, opts, threads):     # pickled by value (a closure)
         import os
+        import time
         import numpy as np
+        from distributed import get_client, get_worker, secede
         chunk = int(np.argmin(np.abs(all_first - packed[0]).sum(axis=1)))
+        me = get_worker().get_current_task()
         with open(log, "a") as f:
             f.write(f"{chunk} {os.getpid()}\n")
         if chunk == victim and not os.path.exists(killed):
-            open(killed, "w").close()
+            # leave the worker's only thread to the other three chunks (secede), wait until all of
+            # them finished on this worker and were fetched by the Evaluator, then die. It releases
+            # each result as it fetches it and the scheduler then forgets that task, so waiting on
+            # the scheduler's state (not on a sleep) keeps the test free of timing races
+            secede()
+            client = get_client()
+
+            def held(dask_scheduler):
+                return sum(1 for k in dask_scheduler.tasks if str(k) in finished)
+
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline:
+                finished = set(done.read_text().split()) if done.exists() else set()
+                if len(finished) == 3 and not client.run_on_scheduler(held):
+                    break
+                time.sleep(0.02)
+            killed.write_text(str(len(finished)))
             os._exit(1)                                 # the worker process dies, no exception
         from distctrl.tuning.runner import evaluate_chunk as ec
-        return ec(slim, packed, cycles, opts, threads)
+        result = ec(slim, packed, cycles, opts, threads)
+        with open(done, "a") as f:
+            f.write(f"{me}\n")
+        return result
 
     from distctrl.batch.closed_loop import pack_sets
     all_first = pack_sets(inputs, sets[0])[::4]         # first row of every chunk
-    with Evaluator(inputs, mode="cluster", n_workers=2, chunk_size=4, progress=False, chunk_fn=dying) as ev:
+    with Evaluator(inputs, mode="cluster", n_workers=1, chunk_size=4, progress=False, chunk_fn=dying) as ev:
         res = ev.evaluate(*sets)
-    assert killed.exists()
+    assert len(done.read_text().split()) == 4
+    assert int(killed.read_text()) == 3       # the three other chunks had run on the dying worker
     for name in METRIC_NAMES + ("cost",):
         assert np.array_equal(res[name], local_result[name], equal_nan=True), name
     calls = [line.split() for line in log.read_text().split("\n") if line]
     runs = {c: [pid for cc, pid in calls if int(cc) == c] for c in range(4)}
-    assert len(runs[victim]) == 2 and runs[victim][0] != runs[victim][1], runs   # lost once, rerun elsewhere
-    # chunks fetched before the death are released at once, so at most the one that finished on the
-    # dying worker but was not yet fetched may run twice
-    assert sum(len(r) for c, r in runs.items() if c != victim) <= 4, runs
+    assert len(runs[victim]) == 2 and runs[victim][0] != runs[victim][1], runs   # lost once, rerun on the new process
+    # the chunks fetched before the death were released at once, so none of them runs again
+    # (without the release, those held by the dying worker would be recomputed)
+    assert all(len(r) == 1 for c, r in runs.items() if c != victim), runs
