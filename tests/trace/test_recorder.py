@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import time
 import warnings
 
 import numpy as np
@@ -291,19 +290,17 @@ def test_numpy_rows_and_ints_accepted():
     assert rec.close().data.tolist() == [[1, 2, 3], [4, 5, 1], [7, 8, 9]]
 
 
-# --- speed --------------------------------------------------------------------------------------------
-def test_append_million_rows_of_25_floats_is_fast():
+# --- a million rows (its speed target, < 3 s, is measured by bench/bench_run.py) ---------------------
+def test_append_million_rows_of_25_floats_keeps_every_row():
     cols = [f"s{i}" for i in range(25)]
-    row = tuple(0.1 * i + 1e-3 for i in range(25))
     rec = TraceRecorder(cols)
     append = rec.append
-    t0 = time.perf_counter()
-    for _ in range(1_000_000):
-        append(row)
+    for k in range(1_000_000):
+        append((float(k),) + (0.5,) * 23 + (-float(k),))
     tr = rec.close()
-    elapsed = time.perf_counter() - t0
     assert tr.data.shape == (1_000_000, 25)
-    assert elapsed < 3.0, f"1e6 appends of 25 floats took {elapsed:.2f} s"
+    assert np.array_equal(tr.data[:, 0], np.arange(1_000_000.0)) and np.array_equal(tr.data[:, 24], -tr.data[:, 0])
+    assert np.all(tr.data[:, 1:24] == 0.5)
 
 
 def test_packed_rows_equal_tuple_rows_and_a_bad_packed_row_is_dropped(tmp_path):
