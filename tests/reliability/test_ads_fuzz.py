@@ -180,10 +180,16 @@ def observe(sock: socket.socket, n_answers: int, expect_close: bool):
     "closed" / "open"."""
     answers: list[tuple[int, bytes]] = []
     sock.settimeout(TIMEOUT)
-    try:
+    until = None              # once the answers are in: when the watch ends, however many
+    try:                      # notifications (a valid AddDeviceNotification's samples) keep coming
         while True:
             if len(answers) >= n_answers:
-                sock.settimeout(TIMEOUT if expect_close else SILENT_WAIT)
+                if until is None:
+                    until = time.monotonic() + (TIMEOUT if expect_close else SILENT_WAIT)
+                left = until - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError
+                sock.settimeout(left)
             head = recv_exact(sock, P.AMS_TCP_HEADER_SIZE)
             if head is None:
                 return answers, "closed", False
@@ -371,6 +377,20 @@ def test_oversized_lengths(rig, reserved, length, tail):
 def test_disconnect_mid_frame(rig, frame, cut, how):
     """A client sends part of a frame and then closes (or half-closes) its socket."""
     run_stream(rig, [frame[:cut % max(len(frame), 1)]], then=how)
+
+
+@pytest.mark.parametrize("mode", [3, 4])            # cyclic, on change
+def test_a_valid_notification_stream_does_not_stall_the_watch(rig, mode):
+    """A valid AddDeviceNotification makes the server send samples every 10 ms: the fuzz harness's
+    'silence' watch must still end (it once restarted its timeout at every sample and hung)."""
+    data = P.ADD_NOTIFICATION_REQ.pack(IG_DATA, 0, 4, mode, 0, 100_000, b"")   # 10 ms in 100 ns
+    done: list[Expect] = []
+    t = threading.Thread(target=lambda: done.append(run_stream(rig, [P.request(
+        P.CMD_ADD_DEVICE_NOTIFICATION, data, invoke_id=7)])), daemon=True)
+    t.start()
+    t.join(30.0)
+    assert not t.is_alive(), "the watch never ended"
+    assert done and done[0].end == "open" and len(done[0].answers) == 1
 
 
 @st.composite
