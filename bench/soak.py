@@ -119,6 +119,14 @@ def soak(cycles: int, window: int, trace_dir: str | None) -> dict:
     return res
 
 
+def _has_data_row(trace: pathlib.Path) -> bool:
+    """True once the streamed CSV holds a header and at least one row (only read while small)."""
+    try:
+        return trace.stat().st_size > 0 and trace.read_bytes()[:1 << 16].count(b"\n") >= 2
+    except OSError:
+        return False
+
+
 def interrupted_run(workdir: pathlib.Path, seconds_before_sigint: float) -> dict:
     """``distctrl run`` with a streamed trace, SIGINT after the given time; check the trace left."""
     trace = workdir / "interrupted.csv"
@@ -138,6 +146,11 @@ def interrupted_run(workdir: pathlib.Path, seconds_before_sigint: float) -> dict
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=workdir, env=env,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(seconds_before_sigint)
+    # interrupt a run, not a start-up: on a slow machine the first rows may come later than the
+    # delay, so wait (up to 60 s) until the trace holds a data row
+    started = time.monotonic()
+    while proc.poll() is None and time.monotonic() - started < 60.0 and not _has_data_row(trace):
+        time.sleep(0.05)
     proc.send_signal(signal.SIGINT)
     try:
         out, err = proc.communicate(timeout=60)

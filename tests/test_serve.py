@@ -149,7 +149,9 @@ def test_channel_3d_status_symbols_are_served_read_only(plc):
 
 def test_the_cycle_kept_running_at_its_pace(served):
     stats = served.loop.stats.summary()
-    assert stats["cycles"] > 200 and stats["resyncs"] == 0 and served.loop.error is None
+    # a resync is a stall of over 100 ms (the thread was not scheduled): a loaded CI machine may
+    # cause one or two; more would mean the served requests block the cycle
+    assert stats["cycles"] > 200 and stats["resyncs"] <= 3 and served.loop.error is None
 
 
 def test_3d_objects_are_readable_on_the_cnc_port_without_network():

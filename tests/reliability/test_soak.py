@@ -32,4 +32,4 @@ def test_trace_complete_and_readable_after_sigint(tmp_path):
         r = soak_module.interrupted_run(tmp_path, rng.uniform(1.5, 4.0))
         tally("sigint", runs=1, rows=r["rows"])
         assert r["returncode"] == 130, r["stderr_tail"]
-        assert r["rows"] > 0 and r["consecutive"] and r["sidecar"]
+        assert r["rows"] > 0 and r["consecutive"] and r["sidecar"], r

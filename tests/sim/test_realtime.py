@@ -14,9 +14,11 @@ def test_cycles_are_paced_to_wall_clock_and_jitter_is_reported():
     stats = loop.run(max_cycles=200)
     elapsed = time.perf_counter() - t0
     assert len(n) == 200
-    assert 0.38 <= elapsed <= 0.6                     # 200 cycles of 2 ms, not as fast as possible
+    # 200 cycles of 2 ms, not as fast as possible; the upper bound only catches a hang (a loaded CI
+    # machine stalls the thread, and a stall over 0.1 s resyncs and adds its whole length)
+    assert 0.38 <= elapsed <= 5.0
     s = stats.summary()
-    assert s["cycles"] == 200 and s["lateness_median_us"] < 2000 and s["lateness_max_us"] >= s["lateness_p99_us"]
+    assert s["cycles"] == 200 and 0 <= s["lateness_median_us"] < 20_000 and s["lateness_max_us"] >= s["lateness_p99_us"]
 
 
 def test_with_a_fake_clock_late_cycles_catch_up_and_a_long_stall_resyncs():
@@ -40,6 +42,8 @@ def test_background_thread_holds_the_lock_during_a_step_and_stops():
     inside = []
     loop = RealTimeLoop(lambda: inside.append(lock.locked()), 0.001, lock=lock)
     loop.start()
-    time.sleep(0.05)
+    end = time.monotonic() + 10.0
+    while len(inside) < 3 and time.monotonic() < end:     # a few steps, however slow the machine
+        time.sleep(0.005)
     loop.stop()
     assert not loop.running and inside and all(inside) and loop.error is None
