@@ -5,6 +5,7 @@ import threading
 import time
 
 from distctrl.sim.realtime import RealTimeLoop
+from tests.ads import wait_for
 
 
 def test_cycles_are_paced_to_wall_clock_and_jitter_is_reported():
@@ -42,8 +43,6 @@ def test_background_thread_holds_the_lock_during_a_step_and_stops():
     inside = []
     loop = RealTimeLoop(lambda: inside.append(lock.locked()), 0.001, lock=lock)
     loop.start()
-    end = time.monotonic() + 10.0
-    while len(inside) < 3 and time.monotonic() < end:     # a few steps, however slow the machine
-        time.sleep(0.005)
+    wait_for(lambda: len(inside) >= 3, timeout=10.0)      # a few steps, however slow the machine
     loop.stop()
     assert not loop.running and inside and all(inside) and loop.error is None
