@@ -38,7 +38,7 @@ from ..objects.units import mm_to_dint_01um, round_saturate
 from ..plc.hli import ChannelDistanceStatus, DistanceControlUnit
 from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
-from .sensors import DistanceSensor, EncoderProbe, Fault
+from .sensors import Fault
 
 _TRACKING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST))
 _VARIABLE = SensorSource.VARIABLE
@@ -140,17 +140,8 @@ class Machine:
         if sc is not None:
             self.sensor_axis = None if sc.orthogonal else sc.axis
             p = axes[sc.axis].params if sc.axis is not None else None
-            if sc.kind == "encoder":
-                self.sensor = EncoderProbe(T, range_min=sc.range_min, range_max=sc.range_max,
-                                           resolution_num=p.encoder_resolution_num,
-                                           resolution_denom=p.encoder_resolution_denom,
-                                           sign_reversal=p.sensor_sign_reversal, ref_offset=p.ref_offset,
-                                           noise_std=sc.noise_std, delay_cycles=sc.delay_cycles, seed=sc.seed,
-                                           faults=sc.faults)
-            else:
-                self.sensor = DistanceSensor(T, range_max=sc.range_max, characteristic=sc.characteristic,
-                                             noise_std=sc.noise_std, delay_cycles=sc.delay_cycles, seed=sc.seed,
-                                             faults=sc.faults)
+            self.sensor = sc.make_sensor(T, p)          # the probe has its own zero (reading_at_contact)
+            if sc.kind != "encoder":
                 self.sensor_variable = f"V.E.{sc.variable}"
                 self.variables.setdefault(self.sensor_variable, 0.0)
         self.nc = NcInterpreter(program, self, file=scenario.program_file) if program is not None else None

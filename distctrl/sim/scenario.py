@@ -60,11 +60,11 @@ SENSOR_KINDS = ("encoder", "distance")
 #: axis variant); "orthogonal_clamping_point" - the orthogonal distance of the tool clamping point
 #: from the surface (3D distance control, seeds/000 §12.3)
 SENSOR_MODES = ("axis", "orthogonal_clamping_point")
-SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", "seed", "range_min",
+SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", "seed", "range_min", "reading_at_contact",
                "range_max", "characteristic", "resolution", "faults")
 #: sensor keys that only one kind accepts
 _SENSOR_KIND_ONLY = {"variable": "distance", "characteristic": "distance", "resolution": "distance",
-                     "range_min": "encoder"}
+                     "range_min": "encoder", "reading_at_contact": "encoder"}
 #: [channel]: the kernel channel list (3D distance control) and the head kinematics
 CHANNEL_KEYS = ("params", "kinematics")
 #: head kinematics a channel may have: "CA" (5-axis CA head, kinematic ID 9) or "none"
@@ -173,6 +173,10 @@ class SensorConfig:
     resolution: float = 0.0                # mm (distance sensor quantisation, 0 = none)
     faults: tuple[Fault, ...] = ()
     mode: str = "axis"
+    #: probe only: what encoder 2 reads (mm, after resolution and sign, before P-AXIS-00418) when the
+    #: tool touches the surface -- the probe's own physical zero. The list's ref_offset (P-AXIS-00418)
+    #: must be its negative for the core to read the true distance (a wrong one shows as a wrong distance)
+    reading_at_contact: float = 0.0
 
     @property
     def orthogonal(self) -> bool:
@@ -180,8 +184,10 @@ class SensorConfig:
         return self.mode == "orthogonal_clamping_point"
 
     def make_sensor(self, cycle_time: float, params: AxisParameters | None = None) -> SensorBase:
-        """Build the sensor model. The probe takes its resolution, sign reversal and reference offset
-        from the axis parameters (P-AXIS-00422/00423/00230/00418), so the core's conversion inverts it."""
+        """Build the sensor model. The probe takes its resolution and sign reversal from the axis
+        parameters (P-AXIS-00422/00423/00230), so the core's conversion inverts them; its zero is its
+        own (``reading_at_contact``), so the core reads the true distance only with the matching
+        P-AXIS-00418 ref_offset = -reading_at_contact."""
         common = dict(noise_std=self.noise_std, delay_cycles=self.delay_cycles, seed=self.seed,
                       faults=self.faults)
         if self.kind == "encoder":
@@ -189,7 +195,8 @@ class SensorConfig:
             return EncoderProbe(cycle_time, range_min=self.range_min, range_max=self.range_max,
                                 resolution_num=p.encoder_resolution_num,
                                 resolution_denom=p.encoder_resolution_denom,
-                                sign_reversal=p.sensor_sign_reversal, ref_offset=p.ref_offset, **common)
+                                sign_reversal=p.sensor_sign_reversal, ref_offset=-self.reading_at_contact,
+                                **common)
         return DistanceSensor(cycle_time, range_max=self.range_max, characteristic=self.characteristic,
                               resolution=self.resolution, **common)
 
@@ -388,9 +395,11 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
     range_min: float | None = None
     characteristic = None
     resolution = 0.0
+    reading_at_contact = 0.0
     if kind == "encoder":
         range_min = require_number(cfg.get("range_min", -10.0), f"{key}.range_min")
         range_max = require_number(cfg.get("range_max", 10.0), f"{key}.range_max", lo=range_min, lo_open=True)
+        reading_at_contact = require_number(cfg.get("reading_at_contact", 0.0), f"{key}.reading_at_contact")
     else:
         variable = _var_name(cfg.get("variable", "SENSOR"), f"{key}.variable")
         range_max = require_number(cfg.get("range_max", 10.0), f"{key}.range_max", lo=0.0, lo_open=True)
@@ -417,7 +426,7 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
             raise ConfigError(f"{fkey}.start_time", MISSING, "start_time (s) or start_cycle")
         faults.append(_fault(fcfg, fkey))
     sc = SensorConfig(axis, kind, variable, noise_std, delay, sensor_seed, range_min, range_max,
-                      characteristic, resolution, tuple(faults), mode)
+                      characteristic, resolution, tuple(faults), mode, reading_at_contact)
     try:  # anything the models check beyond the keys above (combinations)
         sc.make_sensor(cycle_time, axes[axis].params if axis is not None else None)
     except ConfigError as exc:
