@@ -146,7 +146,9 @@ def param_sets(inputs, n_sets: int, seed: int = 1):
     rng = np.random.default_rng(seed)
     packed = by_n[rng.integers(0, len(ns), n_sets)]
     packed[:, law.FC_LEN + CL.Q_KP] = rng.uniform(0.2, 1.5, n_sets)
-    packed[:, law.FC_LEN + CL.Q_D_GAIN] = rng.uniform(0.0, 0.004, n_sets) / inputs.cycle_time
+    d_tv = rng.uniform(0.0, 0.004, n_sets)                                  # s
+    packed[:, law.FC_LEN + CL.Q_D_GAIN] = [law.derivative_gain(kp, tv, inputs.cycle_time)
+                                           for kp, tv in zip(packed[:, law.FC_LEN + CL.Q_KP], d_tv)]
     return packed
 
 

@@ -182,7 +182,7 @@ def format_diag_axis(controller, output, axis_name: str, *, axis_index: int = 0,
         ("i_tn", _f(t.i_tn), "s"),
         ("d_tv", _f(t.d_tv), "s"),
         ("filter_type", f.filter_type.name, "-"),
-        ("n_cycles", _i(f.n_cycles), "-"),
+        ("n_cycles", _i(f.effective_n), "-"),          # the n the filter uses (4 under DEFAULT)
         ("smooth_fact", _f(f.smoothing_factor), "-"),
         ("sigma", _f(f.kalman_sigma), "-"),
         ("max_dist_change", _f(0.0), "mm"),

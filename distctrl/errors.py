@@ -36,7 +36,8 @@ class ErrorId(IntEnum):
     SENSOR_SOURCE_CHANGED = 900004  # sensor source changed while active
     COMMAND_VALUE_OUT_OF_RANGE = 900005  # a programmed/commanded value outside its documented range
     OBJECT_READ_ONLY = 900006      # write to a CNC object that is not read/write
-    SOURCE_CONFLICT = 900007       # command from NC while the PLC owns distance control, or vice versa
+    SENSOR_NOT_REFERENCED = 900008  # select with a sensor that is not absolute before it was referenced (REF)
+    NO_MOVE_IN_ERROR = 900009      # warning: OFF NO_MOVE in ERROR acts as OFF (ERROR is left only through TURNING_OFF)
     NC_RUNTIME = 900010            # NC program stopped at run time (undefined variable, value out of range)
     KIN98_MAX_INCLINATION = 900020  # 3D: tool inclination above kinematic 98's HD4 (the program aborts)
     MODE_OFF_SELECTED = 900023     # 3D warning: select with MODE=OFF, the offset is computed, not superimposed
@@ -59,7 +60,8 @@ CATALOGUE: dict[int, tuple[str, str]] = {
     900004: ("error", "Sensor source changed while distance control is active"),
     900005: ("error", "Commanded value outside its documented range"),
     900006: ("error", "CNC object is read-only"),
-    900007: ("error", "Distance control is commanded by the other source (NC / PLC); command refused"),
+    900008: ("error", "Sensor not referenced: a sensor that is not absolute must be referenced (REF) before a select"),
+    900009: ("warning", "OFF NO_MOVE in ERROR acts as OFF: ERROR is left only through TURNING_OFF"),
     900010: ("error", "NC program stopped at run time"),
     900020: ("error", "Tool inclination exceeds the maximum angle of kinematic 98 (HD4, PARAM[3])"),
     900023: ("warning", "3D distance control selected with MODE=OFF: the offset is computed, not superimposed"),

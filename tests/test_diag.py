@@ -242,3 +242,11 @@ def test_docs_diag_md_explains_every_field_of_fig_56():
     doc = (Path(__file__).resolve().parents[1] / "docs" / "diag.md").read_text(encoding="utf-8")
     for name in FIG56_DISTANCE_CONTROL + FIG56_INTERFACE:
         assert f"`{name}`" in doc, name
+
+
+def test_diagnosis_shows_the_n_the_filter_uses_under_default():
+    """The diagnosis block's n_cycles (FCT-M3 Fig. 56) is the n in use: 4 under FILTER_TYPE DEFAULT."""
+    loop = Loop(filter_type="DEFAULT", n_cycles=20)
+    loop.cycle()
+    dc = fields(sections(format_diag_axis(loop.ctrl, loop.out, "Z"))["Distance Control"])
+    assert dc["n_cycles"] == ("4", "-") and dc["filter_type"] == ("DEFAULT", "-")

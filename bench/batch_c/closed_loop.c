@@ -12,7 +12,7 @@
  *     ring buffer, running sum, re-sum once per window). A set with any other filter kind is not
  *     run: out_error = (-2, kind), outputs NaN.
  *   - modes: SET_POS, CONST_DIST with one encoder (feedback = distance) and CONST_DIST with both
- *     encoders (feedback = surface) - the three feedback variants of the kernel.
+ *     encoders (feedback = d + c - a) - the three feedback variants of the kernel.
  *   - everything else of the kernel: probe noise / stroke clamp / quantisation / dead time,
  *     optimized scheduling on or off, monitoring 70329 / 70330 / 70576, PID with the non-finite
  *     guard, adaptive acceleration, slope limiter with the lowering limits, max_deviation and SW
@@ -37,7 +37,8 @@
 #define FC_INV_N 7
 #define FC_SOS 8
 #define FC_ZI (FC_SOS + 6 * MAX_SECTIONS)
-#define FC_LEN (FC_ZI + 2 * MAX_SECTIONS)
+#define FC_PRED (FC_ZI + 2 * MAX_SECTIONS + 3)   /* after Kalman gain, prior variance, EXPO factor */
+#define FC_LEN (FC_PRED + MAX_N)
 #define MOVING_AVERAGE 1
 #define HUGE_MM 1e12
 #define LAND 1e-9
@@ -101,14 +102,21 @@ static inline double brake_velocity(double remaining, double a, double T)
     return a_t * (j + f);
 }
 
-static inline double adaptive_acceleration(double deviation_abs, double a_min, double a_max,
+static inline double adaptive_acceleration(double error_abs, double a_min, double a_max,
                                            double dev_a_min, double dev_a_max)
 {
-    if (deviation_abs <= dev_a_min)
+    if (error_abs <= dev_a_min)
         return a_min;
-    if (deviation_abs >= dev_a_max)
+    if (error_abs >= dev_a_max)
         return a_max;
-    return a_min + (a_max - a_min) * (deviation_abs - dev_a_min) / (dev_a_max - dev_a_min);
+    return a_min + (a_max - a_min) * (error_abs - dev_a_min) / (dev_a_max - dev_a_min);
+}
+
+static inline double adaptive_braking_acceleration(double error_abs, double a_min, double a_max,
+                                                   double dev_a_min, double dev_a_max)
+{
+    double a_here = adaptive_acceleration(error_abs, a_min, a_max, dev_a_min, dev_a_max);
+    return a_min < a_here ? a_min : a_here;
 }
 
 static inline double band(double v_wanted, double v_prev, double v_lim, double a_t)
@@ -129,15 +137,16 @@ static inline double band(double v_wanted, double v_prev, double v_lim, double a
 }
 
 static inline double slope_limit(double u, double e, double v_prev, double T, double v_lim,
-                                 double a_lim, double v_lim_down, double a_lim_down)
+                                 double a_lim, double a_brake, double w_v, double w_a)
 {
+    double v_lim_down = v_lim * w_v, a_lim_down = a_lim * w_a;
     double v_wanted = u * (1.0 / T);
-    double vb = sqrt(2.0 * a_lim * fabs(e));
+    double vb = sqrt(2.0 * a_brake * fabs(e));
     double v = band((-vb <= v_wanted && v_wanted <= vb) ? v_wanted : (v_wanted > 0.0 ? vb : -vb),
                     v_prev, v_lim, a_lim * T);
     if (v >= 0.0 || (v_lim_down == v_lim && a_lim_down == a_lim))
         return v;
-    vb = sqrt(2.0 * a_lim_down * fabs(e));
+    vb = sqrt(2.0 * (a_brake * w_a) * fabs(e));
     v = band((-vb <= v_wanted && v_wanted <= vb) ? v_wanted : (v_wanted > 0.0 ? vb : -vb),
              v_prev, v_lim_down, a_lim_down * T);
     if (v <= 0.0)
@@ -242,7 +251,6 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
     const int64_t k_on = (int64_t)plant[PL_K_ON];
     const int const_dist = (int)plant[PL_MODE] == MODE_CONST_DIST;
     const double set_value = plant[PL_SET];
-    const int d_mode = const_dist && !both;
 
     double ring_static[64];
     double dline_static[64];
@@ -320,8 +328,8 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
         last_s = s;
         has_last_s = 1;
         double d = -s;
-        double surf = act - d;
-        double feedback = d_mode ? d : surf;
+        /* law.feedback_value: a - d (SET_POS), d (CONST_DIST), d + c - a (CONST_DIST, both encoders) */
+        double feedback = !const_dist ? act - d : (both ? d + (pr + o) - act : d);
         double target_dev = 0.0, e = 0.0, u = 0.0, i_cand = integral;
         if (running) {
             if (need_seed) {
@@ -331,7 +339,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
                 f_idx = 0;
                 f_total = feedback * nf;
                 need_seed = 0;
-                m_prev = d_mode ? -feedback : feedback;
+                m_prev = const_dist ? -feedback : feedback;
             }
             /* law.filter_step -> law._push, MOVING_AVERAGE */
             double old = buf[f_idx];
@@ -351,10 +359,6 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
                 target_dev = filtered - set_value;
                 e = target_dev - o;
                 m = filtered;
-            } else if (both) {
-                target_dev = (pr + o - filtered) - set_value;
-                e = (filtered + set_value - pr) - o;
-                m = filtered;
             } else {
                 target_dev = filtered - set_value;
                 e = set_value - filtered;
@@ -362,7 +366,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
             }
             /* law.pid_step */
             i_cand = integral + kp * i_gain * e;
-            u = kp * e + i_cand + kp * d_gain * (m - m_prev);
+            u = kp * e + i_cand + d_gain * (m - m_prev);
             m_prev = m;
             if (!(-HUGE_MM < u && u < HUGE_MM) || !(-HUGE_MM < i_cand && i_cand < HUGE_MM)) {
                 if (u != u)
@@ -373,9 +377,11 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
             }
         }
         double v_lim = v_max * 1.0;
-        double a_lim = a_base;
-        if (adaptive && running)
-            a_lim = adaptive_acceleration(fabs(target_dev), a_min, a_base, dev_a_min, dev_a_max);
+        double a_lim = a_base, a_brake = a_base;
+        if (adaptive && running) {
+            a_lim = adaptive_acceleration(fabs(e), a_min, a_base, dev_a_min, dev_a_max);
+            a_brake = adaptive_braking_acceleration(fabs(e), a_min, a_base, dev_a_min, dev_a_max);
+        }
         double u_lim, e_lim;
         if (running) {
             u_lim = u;
@@ -384,7 +390,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
             u_lim = 0.0;
             e_lim = 0.0;
         }
-        double v = slope_limit(u_lim, e_lim, vel, T, v_lim, a_lim, v_lim * w_v, a_lim * w_a);
+        double v = slope_limit(u_lim, e_lim, vel, T, v_lim, a_lim, a_brake, w_v, w_a);
         double lo = -max_dev, hi = max_dev;
         if (check_sw) {
             double lo_sw = sw_min - pr;

@@ -15,7 +15,7 @@ Per cycle ``k`` (the order of the machine and of the cycle core)::
     core     s = law.encoder_reading(y, ...)               (delayed one cycle without optimized scheduling)
              monitoring 70329 / 70330 / 70576 (from the select on)
              feedback per mode, law.filter_seed (first active cycle), law.filter_step,
-             law.pid_step, law.adaptive_acceleration, law.slope_limit, law.bound_velocity,
+             law.pid_step, law.adaptive_acceleration (and _braking_), law.slope_limit, law.bound_velocity,
              law.advance_offset, 70331 / SW limit, law.integrator_after_limiter
     drive    c = p + o  -> bus delay ring, kv loop, feed-forward, v/a limits, quantisation
 
@@ -325,7 +325,7 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
     and cycle core cannot disagree); the probe from ``inputs.scenario``'s sensor with the set's
     encoder resolution, sign reversal and reference offset (as the machine builds it). Columns of
     ``prm`` (offset ``law.FC_LEN``) that are plain numbers (``Q_KP``, ``Q_I_GAIN`` = T/i_tn,
-    ``Q_D_GAIN`` = d_tv/T, ``Q_V_MAX``, ``Q_A_BASE`` ...) may be edited in the array for a sweep; the
+    ``Q_D_GAIN`` = law.derivative_gain(kp, d_tv, T): edit it with Q_KP, ``Q_V_MAX``, ``Q_A_BASE`` ...) may be edited in the array for a sweep; the
     filter (``fc``) only through this function.
     """
     T = inputs.cycle_time
@@ -428,7 +428,6 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
     z_vel = 0.0
     kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
         plant_constants(plant)
-    d_mode = const_dist and not both          # feedback is the distance d (CONST_DIST, one encoder)
 
     ring = np.empty(nbus + 1)                 # Drive.setpoint_history: starts full of the start position
     for j in range(nbus + 1):
@@ -494,8 +493,7 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         last_s = s
         has_last_s = True
         d = -s
-        surf = act - d
-        feedback = d if d_mode else surf
+        feedback = law.feedback_value(const_dist, both, d, act, pr + o)
         target_dev = 0.0
         e = 0.0
         u = 0.0
@@ -504,25 +502,26 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
             if need_seed:
                 law.filter_seed(fc, fs, buf, feedback)
                 need_seed = False
-                m_prev = -feedback if d_mode else feedback
+                m_prev = -feedback if const_dist else feedback
             filtered = law.filter_step(fc, fs, buf, feedback)
-            target_dev, e, m = law.mode_error(const_dist, both, filtered, set_value, pr, o)
+            target_dev, e, m = law.mode_error(const_dist, filtered, set_value, o)
             u, i_cand = law.pid_step(kp, i_gain, d_gain, integral, m_prev, e, m)
             m_prev = m
             u, i_cand = law.finite_step(u, i_cand, integral)
         # slope limiter and bounds (override 1, no feed hold: hold = not running)
         v_lim = v_max * 1.0
         a_lim = a_base
+        a_brake = a_base
         if adaptive and running:
-            a_lim = law.adaptive_acceleration(abs(target_dev), a_min, a_base, dev_a_min, dev_a_max)
+            a_lim = law.adaptive_acceleration(abs(e), a_min, a_base, dev_a_min, dev_a_max)
+            a_brake = law.adaptive_braking_acceleration(abs(e), a_min, a_base, dev_a_min, dev_a_max)
         if running:
             u_lim = u
             e_lim = e
         else:
             u_lim = 0.0
             e_lim = 0.0
-        v, a_applied, v_applied = law.slope_limit(u_lim, e_lim, vel, T, v_lim, a_lim, v_lim * w_v,
-                                                  a_lim * w_a)
+        v, a_applied, v_applied = law.slope_limit(u_lim, e_lim, vel, T, v_lim, a_lim, a_brake, w_v, w_a)
         lo = -max_dev
         hi = max_dev
         if check_sw:

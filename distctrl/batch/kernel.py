@@ -90,7 +90,7 @@ LAW_CONSTANT_COLUMNS = ("T", "kp", "i_gain", "d_gain", "v_max", "a_base", "w_v",
 P_T = 0            # cycle time, s
 P_KP = 1           # kp
 P_I_GAIN = 2       # T / i_tn (0 = no I part)
-P_D_GAIN = 3       # d_tv / T
+P_D_GAIN = 3       # per-cycle D gain (law.derivative_gain of kp, d_tv, T)
 P_V_LIM = 4        # velocity limit of the offset, mm/s (override 1)
 P_A_BASE = 5       # acceleration limit, mm/s² (a_max, or the axis acceleration when a_max = 0)
 P_W_V = 6          # lowering weight of the velocity (1 = off)
@@ -198,9 +198,11 @@ def _setpos_loop_into(fc, prm, surface_mm, n_cycles, fs, buf, out_offset, out_ve
         u, i_cand = law.pid_step(kp, i_gain, d_gain, integral, m_prev, e, filtered)
         m_prev = filtered
         a_lim = a_base
+        a_brake = a_base
         if adaptive:
-            a_lim = law.adaptive_acceleration(abs(target_dev), a_min, a_base, dev_a_min, dev_a_max)
-        v, a_applied, v_applied = law.slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim * w_v, a_lim * w_a)
+            a_lim = law.adaptive_acceleration(abs(e), a_min, a_base, dev_a_min, dev_a_max)
+            a_brake = law.adaptive_braking_acceleration(abs(e), a_min, a_base, dev_a_min, dev_a_max)
+        v, a_applied, v_applied = law.slope_limit(u, e, v_prev, T, v_lim, a_lim, a_brake, w_v, w_a)
         v = law.bound_velocity(v, o, T, lo, hi, a_floor)
         o_new = law.advance_offset(o, v, T, lo, hi)
         integral = law.integrator_after_limiter(integral, i_cand, u, v, e, T)

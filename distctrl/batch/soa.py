@@ -67,9 +67,9 @@ _E_SW = CL._E_SW
 # Every access in the vector loops is W[<constant row>, b]: one allocation with constant row
 # offsets, so LLVM needs no run-time alias checks (with them it refuses to vectorise). Whatever is
 # indexed per lane or per cycle (the rings, the output buffer) is copied in and out by short loops.
-(Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, INV_2A, S_DELAYED, LAST_S, TOTAL, D_MODE,
+(Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, INV_2A, S_DELAYED, LAST_S, TOTAL, BOTH_ENC,
  Y_OLD, Y_NEW, OLD, FEEDBACK, CMD, C_IN, DIST, ERR_SENSOR, ERR_BOUND, U_LIM, E_LIM, I_CAND, V, V_LIM, A_LIM,
- LO, HI, LOWER, FLAG, TARGET, C_USE, DV_FF, N_ROWS) = range(36)
+ LO, HI, LOWER, FLAG, A_BRAKE, C_USE, DV_FF, N_ROWS) = range(36)
 _INV_N = N_ROWS                  # W[_INV_N, b]: 1/n of the lane's window
 _P = N_ROWS + 1                  # W[_P + Q_*, b]: the set's parameters
 
@@ -158,9 +158,10 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
         a_floor = packed[i, _FC + Q_A_FLOOR]
         W[INV_2A, b] = 0.5 / a_floor if a_floor > 0.0 else 0.0
         W[A_LIM, b] = packed[i, _FC + Q_A_BASE]      # (set per cycle only where adaptive)
+        W[A_BRAKE, b] = packed[i, _FC + Q_A_BASE]
         n_win[b] = int(packed[i, law.FC_N])
-        # the feedback is the distance d (CONST_DIST with one encoder) or the surface
-        W[D_MODE, b] = 1.0 if const_dist and packed[i, _FC + Q_BOTH] == 0.0 else 0.0
+        # both encoders (P-AXIS-00500): the feedback is d + c - a (law.feedback_value)
+        W[BOTH_ENC, b] = 1.0 if packed[i, _FC + Q_BOTH] != 0.0 else 0.0
         W[_INV_N, b] = packed[i, law.FC_INV_N]
         if n_win[b] > ring_len:
             ring_len = n_win[b]
@@ -228,10 +229,10 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
 
         # ---- sensor, encoder reading, monitoring, feedback, the window sum (update() 1-4)
         if push:                                # every cycle after the seed: constant flags
-            n_err = _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, ndel > 0, False, True, True)
+            n_err = _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, ndel > 0, False, True, True, const_dist)
         else:
-            n_err = _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, ndel > 0 and not first, first, running,
-                                  push)
+            n_err = _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, ndel > 0 and not first, first, running,
+                                  push, const_dist)
         if ndel > 0:
             for b in range(n_lanes):
                 dline[dline_i, b] = W[Y_NEW, b]
@@ -250,7 +251,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     for j in range(ring_len):
                         window[j, b] = fb         # the seed fills the window
                     W[TOTAL, b] = law.window_sum_update(fs[law.FS_TOTAL], fb, fb)   # push 0: x0 leaves
-                    W[M_PREV, b] = -fb if W[D_MODE, b] != 0.0 else fb
+                    W[M_PREV, b] = -fb if const_dist else fb
                     to_wrap[b] = n_win[b]
             for b in range(n_lanes):
                 window[win_row, b] = W[FEEDBACK, b]
@@ -288,31 +289,32 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                 o = W[OFS, b]
                 integral = W[INTEG, b]
                 filtered = law.moving_mean(W[TOTAL, b], W[_INV_N, b])
-                both = W[_P + Q_BOTH, b] != 0.0
-                target_dev, e, m = law.mode_error(const_dist, both, filtered, set_value, pr, o)
+                _target_dev, e, m = law.mode_error(const_dist, filtered, set_value, o)
                 u, i_cand = law.pid_step(W[_P + Q_KP, b], W[_P + Q_I_GAIN, b], W[_P + Q_D_GAIN, b], integral,
                                          W[M_PREV, b], e, m)
                 W[M_PREV, b] = m
                 u, i_cand = law.finite_step(u, i_cand, integral)
-                W[TARGET, b] = target_dev
                 W[U_LIM, b] = u
                 W[E_LIM, b] = e
                 W[I_CAND, b] = i_cand
         else:
             for b in range(B):
-                W[TARGET, b] = 0.0
                 W[U_LIM, b] = 0.0
                 W[E_LIM, b] = 0.0
                 W[I_CAND, b] = W[INTEG, b]
-        if any_adaptive:                      # else A_LIM holds a_base from the start
+        if any_adaptive:                      # else A_LIM and A_BRAKE hold a_base from the start
             for b in range(B):
                 W[A_LIM, b] = W[_P + Q_A_BASE, b]
+                W[A_BRAKE, b] = W[_P + Q_A_BASE, b]
         if running and any_adaptive:          # its own loop: the division only where needed
             for b in range(B):
                 if W[_P + Q_ADAPTIVE, b] != 0.0:
-                    W[A_LIM, b] = law.adaptive_acceleration(abs(W[TARGET, b]), W[_P + Q_A_MIN, b],
-                                                            W[_P + Q_A_BASE, b], W[_P + Q_DEV_A_MIN, b],
-                                                            W[_P + Q_DEV_A_MAX, b])
+                    e_abs = abs(W[E_LIM, b])
+                    W[A_LIM, b] = law.adaptive_acceleration(e_abs, W[_P + Q_A_MIN, b], W[_P + Q_A_BASE, b],
+                                                            W[_P + Q_DEV_A_MIN, b], W[_P + Q_DEV_A_MAX, b])
+                    W[A_BRAKE, b] = law.adaptive_braking_acceleration(e_abs, W[_P + Q_A_MIN, b],
+                                                                      W[_P + Q_A_BASE, b], W[_P + Q_DEV_A_MIN, b],
+                                                                      W[_P + Q_DEV_A_MAX, b])
         n_flag = 0
         for b in range(B):
             o = W[OFS, b]
@@ -321,7 +323,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             v_lim = W[_P + Q_V_MAX, b] * 1.0
             a_lim = W[A_LIM, b]
             vel = W[VEL, b]
-            v, lower = law.slope_limit_side(u, e, vel, T, v_lim, a_lim, v_lim * W[_P + Q_W_V, b],
+            v, lower = law.slope_limit_side(u, e, vel, T, v_lim, a_lim, W[A_BRAKE, b], v_lim * W[_P + Q_W_V, b],
                                             a_lim * W[_P + Q_W_A, b])
             max_dev = W[_P + Q_MAX_DEV, b]
             lo = -max_dev
@@ -350,8 +352,8 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
                     if W[LOWER, b] != 0.0:
                         v_lim = W[V_LIM, b]
                         a_lim = W[A_LIM, b]
-                        v = law.slope_limit(W[U_LIM, b], W[E_LIM, b], W[VEL, b], T, v_lim, a_lim,
-                                            v_lim * W[_P + Q_W_V, b], a_lim * W[_P + Q_W_A, b])[0]
+                        v = law.slope_limit(W[U_LIM, b], W[E_LIM, b], W[VEL, b], T, v_lim, a_lim, W[A_BRAKE, b],
+                                            W[_P + Q_W_V, b], W[_P + Q_W_A, b])[0]
                     W[V, b] = law.bound_velocity(v, W[OFS, b], T, W[LO, b], W[HI, b], W[_P + Q_A_FLOOR, b])
 
         # ---- the offset, 70331 / SW limit, anti-windup, then the drive (Drive.step)
@@ -474,10 +476,11 @@ def _stream_lines(out, buf, lanes, group, count, k):
 
 
 @njit(nogil=True, error_model="numpy", inline="always")
-def _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, delayed, first, running, push):
+def _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, delayed, first, running, push, const_dist):
     """update() 1-4 for every lane: the probe's reading of the distance (``delayed``: the dead
     time's older reading is used), the encoder reading, the sensor monitoring (while ``running``),
-    the feedback and the window sum (``push``). Returns the number of lanes with a sensor error.
+    the feedback (``pr``: the programmed position) and the window sum (``push``). Returns the
+    number of lanes with a sensor error.
     Inlined: called with constant flags, its tests vanish from the vector loop."""
     n_err = 0
     for b in range(BLOCK):
@@ -509,8 +512,7 @@ def _sensor_lanes(W, sz, nz, r_min, r_max, has_noise, delayed, first, running, p
         n_err += 1 if err != 0.0 else 0
         W[LAST_S, b] = s
         d = -s
-        surf = W[Z_ACT, b] - d
-        fb = d if W[D_MODE, b] != 0.0 else surf
+        fb = law.feedback_value(const_dist, W[BOTH_ENC, b] != 0.0, d, W[Z_ACT, b], pr + W[OFS, b])
         W[FEEDBACK, b] = fb
         if push:
             W[TOTAL, b] = law.window_sum_update(W[TOTAL, b], fb, W[OLD, b])

@@ -43,7 +43,7 @@ class Command:
     no_move: bool = False
     set_pos: float | None = None        # mm, absolute position of the workpiece surface
     set_dist: float | None = None       # mm, distance to the workpiece surface
-    ref_position: float | None = None   # mm, REF: the current sensor reading is defined to be this
+    ref_position: float | None = None   # mm, REF: position of the workpiece surface now (REF_POS; None: sensor zero)
     # tuning, adopted with the command (bumpless)
     kp: float | None = None
     i_tn: float | None = None           # s

@@ -55,7 +55,7 @@ class Command3D:
     no_move: bool = False
     set_pos: float | None = None        # mm, absolute position of the workpiece surface
     set_dist: float | None = None       # mm, distance to the workpiece surface
-    ref_position: float | None = None   # mm, REF: the current sensor reading is defined to be this
+    ref_position: float | None = None   # mm, REF: position of the workpiece surface now (None: sensor zero)
     mode: CompensationMode | None = None
     direction: str | None = None        # "X", "Y" or "Z"
     kp: float | None = None

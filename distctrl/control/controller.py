@@ -79,6 +79,7 @@ class ControllerState:
     need_seed: bool = True                             # filter (re)starts from the next sample
     filtered: float = 0.0                              # last filtered feedback
     ref_shift: float = 0.0                             # REF referencing offset, mm
+    referenced: bool = False                           # a REF has been taken (needed if the sensor is not absolute)
     last_s: float = 0.0                                # last finite encoder reading s, mm
     has_last_s: bool = False
     s_delayed: float | None = None                     # previous cycle's reading (no optimized scheduling);
@@ -129,7 +130,7 @@ class AxisDistanceController:
         self._a_base = t.a_max if t.a_max > 0 else p.axis_a_max
         # an integral time far below the cycle time is meaningless; bounding T/i_tn keeps it finite
         self._i_gain = min(T / t.i_tn, _MAX_I_GAIN) if t.i_tn > 0 else 0.0
-        self._d_gain = t.d_tv / T
+        self._d_gain = law.derivative_gain(t.kp, t.d_tv, T)     # per-cycle D gain (SPEC §5)
         # hot-path constants (the cycle reads these instead of the parameter object)
         self._jump_limit = p.max_act_value_change * T           # mm per cycle (70329)
         self._s_hi = p.max_pos - p.tolerance                    # 70330 above
@@ -239,16 +240,16 @@ class AxisDistanceController:
         surface = act - d
         o = st.offset
         mode = st.mode
-        both = mode is _CONST_DIST and p.use_both_encoders
-        feedback = d if (mode is _CONST_DIST and not both) else surface
+        const = mode is _CONST_DIST
+        feedback = law.feedback_value(const, p.use_both_encoders, d, act, prog + o)
         if state in _FILTERING:
             if st.need_seed:
                 law.filter_seed(self._fc, self._fs, self._buf, feedback)
                 st.need_seed = False
-                st.m_prev = self._measurement(feedback, mode, both)
+                st.m_prev = -feedback if const else feedback
             filtered = law.filter_step(self._fc, self._fs, self._buf, feedback)
             if state == _FREEZE:
-                st.m_prev = self._measurement(filtered, mode, both)   # no D kick when tracking resumes
+                st.m_prev = -filtered if const else filtered   # no D kick when tracking resumes
         else:
             filtered = feedback
             st.need_seed = True
@@ -263,8 +264,7 @@ class AxisDistanceController:
         if scale != 1.0 and -_HUGE < scale < _HUGE:
             set_dist = set_dist * scale                 # 3D: the orthogonal set distance (SPEC §11)
         if running:
-            const = mode is _CONST_DIST
-            target_dev, e, m = law.mode_error(const, both, filtered, set_dist if const else st.set_pos, prog, o)
+            target_dev, e, m = law.mode_error(const, filtered, set_dist if const else st.set_pos, o)
             u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
             st.m_prev = m
             if not (-_HUGE < u < _HUGE and -_HUGE < i_cand < _HUGE):   # (rare: no call per cycle)
@@ -281,16 +281,21 @@ class AxisDistanceController:
             override = 1.0
         hold = override == 0.0 or state not in (_ACTIVE, _ACTIVE_CD, _TURNING_OFF)
         v_lim = self.tuning.v_max * override
-        a_lim = self._a_base
+        a_lim = a_brake = self._a_base
         if p.use_adaptive_acceleration and state in _TRACKING:
-            a_lim = law.adaptive_acceleration(abs(target_dev), p.a_min, self._a_base, p.dist_error_a_min,
+            # Fig. 31 keyed on the remaining control error e in every mode (SPEC §6); the braking
+            # bound uses the acceleration that is left on the way to e = 0
+            e_abs = abs(e)
+            a_lim = law.adaptive_acceleration(e_abs, p.a_min, self._a_base, p.dist_error_a_min,
                                               p.dist_error_a_max)
+            a_brake = law.adaptive_braking_acceleration(e_abs, p.a_min, self._a_base, p.dist_error_a_min,
+                                                        p.dist_error_a_max)
         if hold:
             u_lim, e_lim = 0.0, 0.0                    # wanted step 0: decelerate and stay
         else:
             u_lim, e_lim = u, e
-        v, a_applied, v_applied = law.slope_limit(u_lim, e_lim, st.velocity, T, v_lim, a_lim,
-                                                  v_lim * self._w_v, a_lim * self._w_a)
+        v, a_applied, v_applied = law.slope_limit(u_lim, e_lim, st.velocity, T, v_lim, a_lim, a_brake,
+                                                  self._w_v, self._w_a)
         lo, hi = -p.max_deviation, p.max_deviation
         sw_active = p.check_sw_limit_switch
         if sw_active:
@@ -364,7 +369,7 @@ class AxisDistanceController:
             t = self.tuning
             out.kp, out.i_tn, out.d_tv = t.kp, t.i_tn, t.d_tv
             out.smoothing_fact, out.kalman_sigma = t.filter.smoothing_factor, t.filter.kalman_sigma
-            out.n_cycles, out.filter_type = t.filter.n_cycles, t.filter.filter_type.name
+            out.n_cycles, out.filter_type = t.filter.effective_n, t.filter.filter_type.name   # n in use
             out.v_max_param, out.a_max_param = t.v_max, t.a_max
             out.tuning_stamp = self._tuning_stamp
         out.surface_position = surface
@@ -415,10 +420,6 @@ class AxisDistanceController:
         if not _finite(s):
             return st.last_s, False
         return s, True
-
-    @staticmethod
-    def _measurement(feedback: float, mode: Mode, both: bool) -> float:
-        return -feedback if (mode == Mode.CONST_DIST and not both) else feedback
 
     # ------------------------------------------------------------------ errors
     def _raise(self, error_id: int, events: list, line: int | None, detail: str = "") -> None:
@@ -481,29 +482,25 @@ class AxisDistanceController:
         if not self.params.enabled:
             self._raise(ErrorId.NOT_AVAILABLE, events, line)
             return 0.0
-        if st.hli_state != _INACTIVE and CommandSource(cmd.source) != st.source:
-            # one active command source: whoever selected distance control owns it until INACTIVE
-            # (reset and axis errors above always act). An NC block is stopped (error), a PLC
-            # transition only refused (warning); the state does not change either way.
-            refused = CommandSource(cmd.source)
-            events.append(make_event(ErrorId.SOURCE_CONFLICT, st.cycle, line,
-                                     f"owned by {st.source.name}, {refused.name} {a.name} refused",
-                                     severity="error" if refused == CommandSource.NC else "warning"))
-            return 0.0
-        if st.hli_state == _INACTIVE:
-            # from INACTIVE the commanding source takes over, also when its command fails into
-            # ERROR (FREEZE, a select without a set value): it must be able to leave it with OFF
-            st.source = CommandSource(cmd.source)
-        problem = _check_command_values(cmd, self.T)
+        problem = _check_command_values(cmd, self.T) or self._check_filter(cmd)
         if problem:
             self._raise(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, events, line, problem)
             return 0.0
+        if a != Action.NONE:
+            # NC and PLC may both command; the last command sets the source state_r shows (SPEC §8)
+            st.source = CommandSource(cmd.source)
         if a != Action.NONE:
             st.pending_dryrun = None
         state = st.hli_state
         if state == _ERROR and not (a == Action.OFF or a == Action.NONE):
             self._raise(ErrorId.INVALID_TRANSITION, events, line,
                         f"{a.name} in ERROR; ERROR is left only by OFF")
+            return 0.0
+        if state == _ERROR and a == Action.OFF and cmd.no_move:
+            # FCT-M3 §8.1: 'Only a transition to TURNING OFF is possible to exit this state'
+            events.append(make_event(ErrorId.NO_MOVE_IN_ERROR, st.cycle, line, "the offset runs out",
+                                     severity="warning"))
+            st.hli_state = _TURNING_OFF
             return 0.0
         # values (given with any command)
         if cmd.set_pos is not None:
@@ -568,9 +565,13 @@ class AxisDistanceController:
             elif not sensor_ok:
                 self._raise(ErrorId.INPUT_NOT_FINITE, events, line, "REF")
             else:
-                ref = 0.0 if cmd.ref_position is None else float(cmd.ref_position)
-                # choose the referencing offset so that the reading equals ref now
-                st.ref_shift += ref - s_now
+                # REF_POS (HLI position) is the position of the workpiece surface now: the reading is
+                # shifted so that the measured surface a + s equals it; NC REF (no value) references
+                # 'sensor zero', s = 0, i.e. REF_POS = a (SPEC §2, FCT-M3 ch. 10)
+                act = self.state.last_a
+                s_ref = 0.0 if cmd.ref_position is None else float(cmd.ref_position) - act
+                st.ref_shift += s_ref - s_now
+                st.referenced = True
                 st.has_last_s = False
                 self._rebased = True
             return 0.0
@@ -588,6 +589,12 @@ class AxisDistanceController:
             self._raise(ErrorId.INVALID_TRANSITION, events, line,
                         f"{state.name} -> {target.name} only through FREEZE or INACTIVE")
             return
+        if not self.params.sensor_absolute and not st.referenced:
+            # HLI DistanceControl transitions 1, 4, 5, 6: 'If no absolute encoder is used, distance
+            # control must first be referenced'
+            self._raise(ErrorId.SENSOR_NOT_REFERENCED, events, line,
+                        "the sensor is not absolute (kenngr.distc.sensor_absolute = 0): REF first")
+            return
         if mode == Mode.SET_POS and st.programmed_set_pos is None:
             self._raise(ErrorId.SELECT_WITHOUT_SET_VALUE, events, line, "SET_POS missing")
             return
@@ -601,9 +608,9 @@ class AxisDistanceController:
         st.source = CommandSource(cmd.source)
         if state == target:
             return                                   # re-select: new set value only
-        # object writes are adopted when tracking starts from a standing offset (INACTIVE, FREEZE,
-        # and DRYRUN, which %DIST_5 leaves directly with ON CONST_DIST), never from a tracking state
-        if state not in _TRACKING:
+        # CNC-object writes are adopted exactly on INACTIVE -> ACTIVE(_CONST_DIST) and FREEZE ->
+        # ACTIVE(_CONST_DIST) (FCT-M3 §7.6, §9.4), not on entering or leaving a DRYRUN state
+        if state in (_INACTIVE, _FREEZE) and target in _TRACKING:
             self._adopt_pending()
         if state == _INACTIVE or mode != st.mode:
             st.need_seed = True                      # the feedback quantity starts (or changes)
@@ -654,6 +661,30 @@ class AxisDistanceController:
             return
         st.pending[w.name] = float(w.value)
 
+    def _new_filter(self, cmd: Command) -> FilterConfig:
+        """The filter configuration after the filter words of ``cmd`` (unchanged ones kept)."""
+        f = self.tuning.filter
+        return FilterConfig(
+            cmd.filter_type if cmd.filter_type is not None else f.filter_type,
+            int(cmd.n_cycles) if cmd.n_cycles is not None else f.n_cycles,
+            float(cmd.smooth_fact) if cmd.smooth_fact is not None else f.smoothing_factor,
+            float(cmd.kalman_sigma) if cmd.kalman_sigma is not None else f.kalman_sigma,
+            int(cmd.order) if cmd.order is not None else f.order,
+            float(cmd.fg_f0) if cmd.fg_f0 is not None else f.fg_f0)
+
+    def _check_filter(self, cmd: Command) -> str:
+        """'' when the filter the block leaves behind can run at this cycle time, else why not (e.g.
+        LOWPASS with FG_F0=0, or LOWPASS selected while the cut-off is at or above Nyquist): the
+        block is refused with 900005, the core never raises on it."""
+        if cmd.filter_type is None and cmd.fg_f0 is None and cmd.order is None and cmd.n_cycles is None \
+                and cmd.smooth_fact is None and cmd.kalman_sigma is None:
+            return ""
+        try:
+            self._new_filter(cmd).check(self.T)
+        except ParameterError as exc:
+            return str(exc)
+        return ""
+
     def _nc_tuning(self, cmd: Command) -> None:
         """Tuning programmed in a DIST_CTRL block takes effect with the block (bumpless)."""
         t = self.tuning
@@ -665,13 +696,7 @@ class AxisDistanceController:
                 self.state.pending.pop(name, None)
                 changed = True
         f = t.filter
-        nf = FilterConfig(
-            cmd.filter_type if cmd.filter_type is not None else f.filter_type,
-            int(cmd.n_cycles) if cmd.n_cycles is not None else f.n_cycles,
-            float(cmd.smooth_fact) if cmd.smooth_fact is not None else f.smoothing_factor,
-            float(cmd.kalman_sigma) if cmd.kalman_sigma is not None else f.kalman_sigma,
-            int(cmd.order) if cmd.order is not None else f.order,
-            float(cmd.fg_f0) if cmd.fg_f0 is not None else f.fg_f0)
+        nf = self._new_filter(cmd)
         if nf != f:
             t.filter = nf
             self._fc = design_coefficients(nf, self.T)
@@ -709,8 +734,6 @@ def _check_command_values(cmd: Command, T: float) -> str:
         spec = BY_FIELD[field_name]
         if not _finite(value) or not spec.check(value) or (spec.type != "REAL64" and int(value) != value):
             return f"{attr.upper()}={value!r} ({spec.id}); allowed: {spec.range_text()}"
-    if cmd.fg_f0 is not None and cmd.fg_f0 >= 0.5 / T:
-        return f"FG_F0={cmd.fg_f0!r} Hz at or above Nyquist {0.5 / T:g} Hz"
     if cmd.filter_type is not None and (not isinstance(cmd.filter_type, FilterType)
                                         or cmd.filter_type == FilterType.PASS):
         return f"FILTER_TYPE={cmd.filter_type!r} unknown"

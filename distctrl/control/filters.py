@@ -86,6 +86,63 @@ class FilterConfig:
         return f"{ft.name}(n_cycles={self.n_cycles}{''.join(', ' + x for x in extra)})"
 
 
+#: Kalman filters: process variance q per cycle, the unit in which ``kalman_sigma`` (the measurement
+#: variance, P-AXIS-00783) is given (SPEC §4)
+KALMAN_PROCESS_VARIANCE = 1.0
+
+
+def expo_weights(n: int, alpha: float) -> np.ndarray:
+    """EXPO_MEAN weights of the last ``n`` values (n >= 2), **oldest first** (SPEC §4, P-AXIS-00784):
+    the newest has exactly ``alpha``; the n-1 older values share ``1 - alpha`` with geometric
+    weights ``rho^k`` (age k = 1 .. n-1, rho = 1 - alpha), so they sum to 1, a smaller alpha smooths
+    more (FCT-M3 §4.2.1) and alpha -> 0 tends to the mean of the older values (docs/control-law.md)."""
+    if n < 2:
+        return np.ones(max(n, 1))
+    age = np.arange(n - 1, 0, -1, dtype=np.float64)          # ages n-1 .. 1, oldest first
+    rho = 1.0 - alpha
+    older = np.power(rho, age - 1.0)
+    older *= (1.0 - alpha) / older.sum() if older.sum() > 0.0 else 0.0
+    return np.r_[older, alpha]
+
+
+@dataclass(frozen=True)
+class KalmanDesign:
+    """The constants of a Kalman filter (SPEC §4) for ``n`` measurements and ``sigma``.
+
+    ``coefficients`` (oldest first) give the prediction of the current measurement as a linear
+    combination of the last n measurements: the (weighted) least-squares line through them,
+    evaluated at the current cycle. ``prediction_variance`` is the variance of that prediction for
+    measurements of unit variance (least-squares theory: the sum of the squared coefficients); the
+    prior variance is ``P- = prediction_variance * sigma + q`` (the uncertainty of a prediction from n
+    measurements of variance sigma, plus the process variance q of one cycle), the gain
+    ``K = P- / (P- + sigma)`` and the posterior variance ``P = (1 - K) P-``.
+    """
+
+    coefficients: np.ndarray
+    prediction_variance: float
+    p_prior: float
+    gain: float
+    p_posterior: float
+
+
+def kalman_design(kind: int, n: int, alpha: float, sigma: float,
+                  q: float = KALMAN_PROCESS_VARIANCE) -> KalmanDesign:
+    """Design the Kalman filter ``kind`` (``law.KALMAN_MA`` or ``law.KALMAN_EXPO``) for n >= 2."""
+    w = np.full(n, 1.0 / n) if kind == law.KALMAN_MA else expo_weights(n, alpha)
+    t = np.arange(n, dtype=np.float64)            # cycle of each measurement, oldest first
+    t_now = float(n)                              # the current cycle, one after the newest
+    t_mean = float(np.dot(w, t))
+    spread = float(np.dot(w, (t - t_mean) ** 2))
+    if spread > 1e-12:
+        c = w * (1.0 + (t - t_mean) * (t_now - t_mean) / spread)
+    else:                                         # all weight on one value (alpha = 1): no slope
+        c = w.copy()
+    v = float(np.dot(c, c))
+    p_prior = v * sigma + q
+    gain = p_prior / (p_prior + sigma)
+    return KalmanDesign(c, v, p_prior, gain, (1.0 - gain) * p_prior)
+
+
 def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
     """The law's coefficient buffer ``fc`` for a configuration (designs the low-pass with scipy)."""
     config.check(cycle_time)
@@ -98,12 +155,21 @@ def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
     fc[law.FC_INV_N] = 1.0 / n if n > 0 else 0.0     # (n = 0: PASS, the mean is not used)
     fc[law.FC_ALPHA] = alpha
     fc[law.FC_SIGMA] = float(config.kalman_sigma)
-    # (1-alpha)^n and the weight sum 1-(1-alpha)^n via log1p/expm1: exact also for a tiny alpha,
-    # where the weights become uniform (the moving average) instead of a 0/0
-    log_decay = n * math.log1p(-alpha) if alpha < 1.0 else -math.inf
-    decay = math.exp(log_decay)
-    fc[law.FC_DECAY_N] = decay
-    fc[law.FC_WSUM] = -math.expm1(log_decay) if kind in (law.EXPO_MEAN, law.KALMAN_EXPO) else 1.0
+    # rho^n, sum_(k<n) rho^k = (1 - rho^n)/alpha and beta = alpha/(1 - rho^(n-1)) (rho = 1 - alpha) via
+    # log1p/expm1: exact also for a tiny alpha, where the older values' weights become uniform
+    # (sum -> n, beta -> 1/(n-1)) instead of a 0/0
+    log_rho = math.log1p(-alpha) if alpha < 1.0 else -math.inf
+    fc[law.FC_DECAY_N] = math.exp(n * log_rho)
+    if kind == law.EXPO_MEAN:
+        fc[law.FC_WSUM] = -math.expm1(n * log_rho) / alpha
+        fc[law.FC_EXPO_OLDER] = alpha / -math.expm1((n - 1) * log_rho)
+    else:
+        fc[law.FC_WSUM] = 1.0
+    if kind in (law.KALMAN_MA, law.KALMAN_EXPO):
+        kd = kalman_design(kind, n, alpha, float(config.kalman_sigma))
+        fc[law.FC_GAIN] = kd.gain
+        fc[law.FC_P_PRIOR] = kd.p_prior
+        fc[law.FC_PRED:law.FC_PRED + n] = [float(v) for v in kd.coefficients]
     if kind == law.LOWPASS:
         from scipy import signal
 

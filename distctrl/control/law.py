@@ -8,11 +8,13 @@ Python ``list`` in the scalar core, a ``numpy`` array in the kernel), no objects
 
 Units: mm, s, Hz. ``T`` is the GEO cycle time in s.
 
-Filter buffers (see :func:`new_filter_buffers`):
-  ``fc`` coefficients: [kind, n, alpha, sigma, (1-alpha)^n, 1-(1-alpha)^n, n_sections, 1/n,
-  sos (3 sections x b0 b1 b2 a0 a1 a2), zi for a unit input (3 sections x 2)]
+Filter buffers (designed by :func:`distctrl.control.filters.design_coefficients`):
+  ``fc`` coefficients: [kind, n, alpha, sigma, rho^n, sum_(k<n) rho^k, n_sections, 1/n,
+  sos (3 sections x b0 b1 b2 a0 a1 a2), zi for a unit input (3 sections x 2),
+  Kalman gain K, Kalman prior variance P-, EXPO weight factor of the older values beta,
+  prediction coefficients c_0..c_(n-1) (oldest first)]    (rho = 1 - alpha)
   ``fs`` state: [ring index, running sum, Kalman P, last output, zi (3 sections x 2)]
-  ``buf`` ring buffer of the last n inputs (averages) or estimates (Kalman), length MAX_N.
+  ``buf`` ring buffer of the last n inputs (measurements), length MAX_N.
 """
 from __future__ import annotations
 
@@ -31,7 +33,11 @@ MAX_SECTIONS = 3       # order <= 6
 FC_KIND, FC_N, FC_ALPHA, FC_SIGMA, FC_DECAY_N, FC_WSUM, FC_NSEC, FC_INV_N = 0, 1, 2, 3, 4, 5, 6, 7
 FC_SOS = 8
 FC_ZI = FC_SOS + 6 * MAX_SECTIONS
-FC_LEN = FC_ZI + 2 * MAX_SECTIONS
+FC_GAIN = FC_ZI + 2 * MAX_SECTIONS       # Kalman gain K (constant for a configuration)
+FC_P_PRIOR = FC_GAIN + 1                 # Kalman prior variance P- of the prediction
+FC_EXPO_OLDER = FC_P_PRIOR + 1           # EXPO_MEAN: beta = alpha / (1 - rho^(n-1)), see filter_step
+FC_PRED = FC_EXPO_OLDER + 1              # n prediction coefficients, oldest measurement first
+FC_LEN = FC_PRED + MAX_N
 FS_IDX, FS_TOTAL, FS_P, FS_LAST, FS_ZI = 0, 1, 2, 3, 4
 FS_LEN = FS_ZI + 2 * MAX_SECTIONS
 
@@ -55,11 +61,6 @@ def encoder_reading(increments, mm_per_increment, sign_reversal, offset_mm, modu
 
 # ----------------------------------------------------------------------------- filters
 
-def kalman_steady_p(sigma):
-    """Stationary error variance of the scalar Kalman filter with process variance 1."""
-    return (-1.0 + sqrt(1.0 + 4.0 * sigma)) / 2.0
-
-
 def _ring_sum(buf, n):
     total = 0.0
     for i in range(n):
@@ -68,15 +69,16 @@ def _ring_sum(buf, n):
 
 
 def _ring_expo_sum(buf, n, idx, alpha):
-    """Sum of alpha(1-alpha)^k x_(newest-k) over the ring, newest at idx-1."""
+    """Sum of rho^k x_(newest-k) (rho = 1 - alpha, k = 0 .. n-1) over the ring, newest at idx-1."""
     total = 0.0
-    w = alpha
+    w = 1.0
+    rho = 1.0 - alpha
     j = idx - 1
     for _ in range(n):
         if j < 0:
             j += n
         total += w * buf[j]
-        w *= 1.0 - alpha
+        w *= rho
         j -= 1
     return total
 
@@ -89,13 +91,13 @@ def filter_seed(fc, fs, buf, x0):
         buf[i] = x0
     fs[FS_IDX] = 0.0
     fs[FS_LAST] = x0
-    if kind == MOVING_AVERAGE or kind == KALMAN_MA:
+    if kind == MOVING_AVERAGE:
         fs[FS_TOTAL] = x0 * n
-    elif kind == EXPO_MEAN or kind == KALMAN_EXPO:
+    elif kind == EXPO_MEAN:
         fs[FS_TOTAL] = x0 * fc[FC_WSUM]
     else:
         fs[FS_TOTAL] = 0.0
-    fs[FS_P] = kalman_steady_p(fc[FC_SIGMA])
+    fs[FS_P] = (1.0 - fc[FC_GAIN]) * fc[FC_P_PRIOR]     # Kalman: the (constant) posterior variance
     nsec = int(fc[FC_NSEC])
     for s in range(nsec):
         fs[FS_ZI + 2 * s] = fc[FC_ZI + 2 * s] * x0
@@ -114,25 +116,41 @@ def moving_mean(total, inv_n):
 
 
 def _push(fc, fs, buf, kind, n, x):
-    """Put x into the ring of the last n values, updating the running (weighted) sum."""
+    """Put x into the ring of the last n values, updating the running sum (MOVING_AVERAGE) or the
+    geometric sum H = sum_(k<n) rho^k x_(newest-k), rho = 1 - alpha, over the window (EXPO_MEAN)."""
     idx = int(fs[FS_IDX])
     old = buf[idx]
     buf[idx] = x
-    if kind == MOVING_AVERAGE or kind == KALMAN_MA:
+    if kind == MOVING_AVERAGE:
         total = window_sum_update(fs[FS_TOTAL], x, old)
     else:
-        alpha = fc[FC_ALPHA]
-        total = alpha * x + (1.0 - alpha) * fs[FS_TOTAL] - alpha * fc[FC_DECAY_N] * old
+        total = x + (1.0 - fc[FC_ALPHA]) * fs[FS_TOTAL] - fc[FC_DECAY_N] * old
     idx += 1
     if idx >= n:
         idx = 0
         # re-sum once per window so rounding of the running sum cannot accumulate
-        if kind == MOVING_AVERAGE or kind == KALMAN_MA:
+        if kind == MOVING_AVERAGE:
             total = _ring_sum(buf, n)
         else:
             total = _ring_expo_sum(buf, n, n, fc[FC_ALPHA])
     fs[FS_IDX] = idx
     fs[FS_TOTAL] = total
+
+
+def kalman_prediction(fc, buf, n, idx):
+    """The Kalman filters' prediction of the current measurement (SPEC §4): the least-squares line
+    through the last n measurements (weighted with the exponential mean's weights for KALMAN_EXPO),
+    evaluated at the current cycle, i.e. the mean extrapolated over its own delay. A fixed linear
+    combination with the coefficients ``fc[FC_PRED:]`` (oldest first); ``idx`` is the ring position
+    of the oldest measurement."""
+    pred = 0.0
+    j = idx
+    for i in range(n):
+        pred += fc[FC_PRED + i] * buf[j]
+        j += 1
+        if j >= n:
+            j = 0
+    return pred
 
 
 def filter_step(fc, fs, buf, x):
@@ -145,8 +163,11 @@ def filter_step(fc, fs, buf, x):
         _push(fc, fs, buf, kind, n, x)
         y = moving_mean(fs[FS_TOTAL], fc[FC_INV_N])
     elif kind == EXPO_MEAN:
+        # the newest value has exactly the weight alpha (P-AXIS-00784); the n-1 older values share
+        # 1 - alpha with geometric weights rho^k (k = 1 .. n-1), i.e. beta rho^k with
+        # beta = alpha / (1 - rho^(n-1)); H - x is their rho-weighted sum
         _push(fc, fs, buf, kind, n, x)
-        y = fs[FS_TOTAL] / fc[FC_WSUM]
+        y = fc[FC_ALPHA] * x + fc[FC_EXPO_OLDER] * (fs[FS_TOTAL] - x)
     elif kind == LOWPASS:
         # cascaded second-order sections, direct form II transposed (as scipy.signal.sosfilt)
         v = x
@@ -159,47 +180,90 @@ def filter_step(fc, fs, buf, x):
             v = y
         y = v
     else:
-        # Kalman: the prediction is the (moving / exponential) mean of the last n estimates
-        if kind == KALMAN_MA:
-            pred = fs[FS_TOTAL] / n
-        else:
-            pred = fs[FS_TOTAL] / fc[FC_WSUM]
-        p_pred = fs[FS_P] + 1.0
-        gain = p_pred / (p_pred + fc[FC_SIGMA])
-        y = pred + gain * (x - pred)
-        fs[FS_P] = (1.0 - gain) * p_pred
-        _push(fc, fs, buf, kind, n, y)
+        # Kalman (KALMAN_MA / KALMAN_EXPO): predict the measurement from the last n measurements,
+        # then refine the prediction by the measurement with the gain K = P-/(P- + sigma)
+        idx = int(fs[FS_IDX])
+        pred = kalman_prediction(fc, buf, n, idx)
+        y = pred + fc[FC_GAIN] * (x - pred)
+        buf[idx] = x
+        idx += 1
+        if idx >= n:
+            idx = 0
+        fs[FS_IDX] = idx
     fs[FS_LAST] = y
     return y
 
 
 # ----------------------------------------------------------------------------- error by mode
 
-def mode_error(const_dist, both, filtered, set_value, programmed, o):
+def feedback_value(const_dist, both, d, act, command):
+    """SPEC §3: the filter input (CNC object ``feedback_value``), mm.
+
+    SET_POS: the measured surface ``a - d``. CONST_DIST: the distance ``d``. CONST_DIST with both
+    encoders (P-AXIS-00500, FCT-M3 §7.1 ``d'act = filter(d'act + Zact - Zcom)``): ``d + c - a``, the
+    distance the tool will have once the drive has reached its command position ``c = p + o``. The
+    documents' d'act is the sensor encoder, which counts against Z (FCT-M3 §5: the two encoders act in
+    opposite directions; SPEC §1: reading ``s = -d``), so ``s + a - c`` is ``-(d + c - a)``: the drive's
+    lag is taken out of the loop, the command (with the controller's own offset) is inside the filter,
+    and the filter's delay stays in the loop."""
+    if not const_dist:
+        return act - d
+    if both:
+        return d + command - act
+    return d
+
+
+def mode_error(const_dist, filtered, set_value, o):
     """SPEC §3: (target deviation, remaining error e, measurement part m of e) for the mode.
 
-    SET_POS: filtered surface against SET_POS; CONST_DIST: filtered distance against SET_DIST;
-    CONST_DIST with both encoders (P-AXIS-00500): filtered surface + SET_DIST against the setpoint.
+    SET_POS: filtered surface against SET_POS, ``e = (sf - SET_POS) - o``; CONST_DIST (one or both
+    encoders): filtered distance against SET_DIST, ``e = SET_DIST - df``.
     """
     if not const_dist:
         target_dev = filtered - set_value
         return target_dev, target_dev - o, filtered
-    if both:
-        return (programmed + o - filtered) - set_value, (filtered + set_value - programmed) - o, filtered
     return filtered - set_value, set_value - filtered, -filtered
 
 
 # ----------------------------------------------------------------------------- PID
 
-def pid_step(kp, t_over_tn, tv_over_t, integral, m_prev, e, m):
-    """Ideal-form PID on the offset step (SPEC §5).
+#: share of the room ``1 - kp`` that the D part may use (see :func:`derivative_gain`)
+D_ROOM_SHARE = 0.3
+
+
+def derivative_gain(kp, d_tv, T):
+    """Per-cycle gain g of the D part on the change of the measurement (SPEC §5, docs/control-law.md).
+
+    The offset step is ``u = kp e + I + g (m - m_prev)``. The P part already integrates (the offset
+    moves by kp e every cycle), so a D term on the step acts on the offset like a proportional
+    feedback of the measurement with the gain g: phase lead, which damps, while g is small. The
+    literal ``g = kp d_tv / T`` (2 at the documents' start values kp 0.2, d_tv 0.01 s, T 1 ms)
+    answers a measured change with twice the change and makes every loop with a dead time
+    oscillate. So the literal gain x = kp d_tv / T is saturated: ``g = x / (1 + x / g_max)`` with
+    ``g_max = D_ROOM_SHARE (1 - kp)``. It is the literal derivative time for small x, a larger d_tv is
+    always a stronger D part, and P and D together never answer a measured change within one cycle
+    with more than the change itself (kp + g < 1; kp = 1 already takes the whole error in one cycle,
+    so from kp = 1 on the D part has no room and no effect). Measured: it never lowers the kp at
+    which a loop becomes unstable, and lowers the overshoot of a P loop that overshoots (kp < 1)."""
+    if not d_tv > 0.0:
+        return 0.0
+    g_max = D_ROOM_SHARE * (1.0 - kp)
+    if not g_max > 0.0:
+        return 0.0
+    x = kp * d_tv / T
+    return x / (1.0 + x / g_max)
+
+
+def pid_step(kp, t_over_tn, d_gain, integral, m_prev, e, m):
+    """PID on the offset step (SPEC §5).
 
     ``e`` is the remaining error, ``m`` its measurement part (derivative on measurement: the
-    controller's own steps cause no kick). Returns (u, integral candidate); the caller keeps the
-    candidate only if the limiter did not clip in the integrator's direction (no wind-up).
+    controller's own steps cause no kick), ``d_gain`` the D part's per-cycle gain
+    (:func:`derivative_gain`). Returns (u, integral candidate); the caller keeps the candidate only
+    if the limiter did not clip in the integrator's direction (no wind-up).
     """
     i_new = integral + kp * t_over_tn * e
-    u = kp * e + i_new + kp * tv_over_t * (m - m_prev)
+    u = kp * e + i_new + d_gain * (m - m_prev)
     return u, i_new
 
 
@@ -248,13 +312,25 @@ def brake_velocity(remaining, a, T):
     return a_t * (j + f)
 
 
-def adaptive_acceleration(deviation_abs, a_min, a_max, dev_a_min, dev_a_max):
-    """Fig. 31: a_min up to dist_error_a_min, a_max from dist_error_a_max, linear in between."""
-    if deviation_abs <= dev_a_min:
+def adaptive_acceleration(error_abs, a_min, a_max, dev_a_min, dev_a_max):
+    """Fig. 31 (P-AXIS-00501..00505): the acceleration limit for the remaining control error
+    ``|e|`` (mm): a_min up to dist_error_a_min, a_max from dist_error_a_max, linear in between."""
+    if error_abs <= dev_a_min:
         return a_min
-    if deviation_abs >= dev_a_max:
+    if error_abs >= dev_a_max:
         return a_max
-    return a_min + (a_max - a_min) * (deviation_abs - dev_a_min) / (dev_a_max - dev_a_min)
+    return a_min + (a_max - a_min) * (error_abs - dev_a_min) / (dev_a_max - dev_a_min)
+
+
+def adaptive_braking_acceleration(error_abs, a_min, a_max, dev_a_min, dev_a_max):
+    """The acceleration the braking bound ``|v| <= sqrt(2 a |e|)`` uses with adaptive acceleration
+    (SPEC §6): the one that applies as e -> 0, a_min (or the current limit, if that is lower: the
+    smallest of Fig. 31 between here and the target). Braking with the larger limit that applies far
+    from the target cannot stop in time once the limit falls to a_min near it: the offset overshoots
+    and the loop falls into a limit cycle, the opposite of the option's documented purpose (FCT-M3
+    §7.2: 'to reduce a possible oscillation'). Measured figures: docs/control-law.md."""
+    a_here = adaptive_acceleration(error_abs, a_min, a_max, dev_a_min, dev_a_max)
+    return a_min if a_min < a_here else a_here
 
 
 def _clamp(x, lo, hi):
@@ -265,17 +341,18 @@ def _clamp(x, lo, hi):
     return x
 
 
-def slope_limit_side(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
+def slope_limit_side(u, e, v_prev, T, v_lim, a_lim, a_brake, v_lim_down, a_lim_down):
     """One pass of the slope limiter with the limits (v_lim, a_lim), in mm/s: the wanted velocity
-    u/T, braked to sqrt(2 a |e|), then clamped into |v| <= v_lim and |v - v_prev| <= a_lim*T; if
-    v_prev is above a lowered v_lim, it decelerates at the full rate rather than steps (the
-    acceleration bound always holds).
+    u/T, braked to sqrt(2 a_brake |e|), then clamped into |v| <= v_lim and |v - v_prev| <= a_lim*T;
+    if v_prev is above a lowered v_lim, it decelerates at the full rate rather than steps (the
+    acceleration bound always holds). ``a_brake`` is a_lim, or less with adaptive acceleration
+    (:func:`adaptive_braking_acceleration`).
 
     Returns (v, lower): ``lower`` is True if v lowers (v < 0) and lowering has its own (weighted)
     limits (v_lim_down, a_lim_down), so that :func:`slope_limit` makes a second pass with those.
     """
     v_wanted = u * (1.0 / T)            # (a kernel computes 1/T once for all sets)
-    vb = sqrt(2.0 * a_lim * abs(e))
+    vb = sqrt(2.0 * a_brake * abs(e))
     if not -vb <= v_wanted <= vb:
         v_wanted = vb if v_wanted > 0.0 else -vb
     a_t = a_lim * T
@@ -296,19 +373,22 @@ def slope_limit_side(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
     return v, v < 0.0 and not (v_lim_down == v_lim and a_lim_down == a_lim)
 
 
-def slope_limit(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down):
+def slope_limit(u, e, v_prev, T, v_lim, a_lim, a_brake, w_v, w_a):
     """Slope limiter (SPEC §6). Returns (v, a_applied, v_lim_applied) in mm/s, mm/s², mm/s.
 
     From the wanted step u: velocity u/T, braked so the offset can stop within the remaining
-    error, |v| <= sqrt(2 a |e|) (SPEC §6; deliberately not the discrete ladder of
+    error, |v| <= sqrt(2 a_brake |e|) (SPEC §6; deliberately not the discrete ladder of
     :func:`brake_velocity`, which would forbid any one-step overshoot and so turn kp > 1 into
-    kp = 1), then acceleration- and velocity-limited. A result towards the workpiece (v < 0) is computed with
-    the lowering limits instead.
+    kp = 1), then acceleration- and velocity-limited. A result towards the workpiece (v < 0) is
+    computed with the lowering limits instead: v_lim, a_lim and a_brake weighted by w_v, w_a, w_a
+    (P-AXIS-00533/00534; 1 = off).
     """
-    v, lower = slope_limit_side(u, e, v_prev, T, v_lim, a_lim, v_lim_down, a_lim_down)
+    v_lim_down = v_lim * w_v
+    a_lim_down = a_lim * w_a
+    v, lower = slope_limit_side(u, e, v_prev, T, v_lim, a_lim, a_brake, v_lim_down, a_lim_down)
     if not lower:
         return v, a_lim, v_lim
-    v = slope_limit_side(u, e, v_prev, T, v_lim_down, a_lim_down, v_lim_down, a_lim_down)[0]
+    v = slope_limit_side(u, e, v_prev, T, v_lim_down, a_lim_down, a_brake * w_a, v_lim_down, a_lim_down)[0]
     if v <= 0.0:
         return v, a_lim_down, v_lim_down
     # the lifting limits say "lower", the lowering limits say "lift": the velocity passes zero this
@@ -376,8 +456,8 @@ def advance_offset(o, v, T, lo, hi):
 
 
 #: the functions numba compiles for the batch kernel (registered by distctrl.batch.kernel)
-LAW_FUNCTIONS = (encoder_reading, kalman_steady_p, _ring_sum, _ring_expo_sum, filter_seed, window_sum_update,
-                 moving_mean, _push, filter_step, mode_error, pid_step, finite_step, integrator_after_limiter,
+LAW_FUNCTIONS = (encoder_reading, _ring_sum, _ring_expo_sum, filter_seed, window_sum_update,
+                 moving_mean, _push, kalman_prediction, filter_step, feedback_value, mode_error, derivative_gain, pid_step, finite_step, integrator_after_limiter,
                  brake_velocity,
-                 adaptive_acceleration, _clamp, slope_limit_side, slope_limit,
+                 adaptive_acceleration, adaptive_braking_acceleration, _clamp, slope_limit_side, slope_limit,
                  _brakes_to_bound, near_bound, bound_velocity, advance_offset)

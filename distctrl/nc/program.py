@@ -359,8 +359,7 @@ class DistCtrlWord(_KeywordCommand):
         """
         action = self.action
         fields, vals = self._argument_fields(lookup, file, _INT_FIELDS)
-        if action == Action.REF:
-            fields["ref_position"] = 0.0   # NC REF: the current reading is "sensor zero"
+        # NC REF has no value: it references "sensor zero" (ref_position None, SPEC §2)
         return Command(action=action, const_dist=self.has("CONST_DIST"), no_move=self.has("NO_MOVE"),
                        vals=tuple(vals), line=self.line if line is None else line, **fields)
 
@@ -416,8 +415,7 @@ class DistCtrl3DWord(_KeywordCommand):
             # "If DEFAULT is selected as the sensor source, the CNC automatically sets to the
             # VARIABLE sensor source internally" (seeds/000 §12.2)
             fields["sensor_source"] = SensorSource.VARIABLE
-        if action == Action.REF:
-            fields["ref_position"] = 0.0   # as the axis command: the current reading is "sensor zero"
+        # REF (no value): "sensor zero", as the axis command (ref_position None)
         return Command3D(action=action, wait=self.wait, const_dist=self.has("CONST_DIST"),
                          no_move=self.has("NO_MOVE"), vals=tuple(vals),
                          line=self.line if line is None else line, **fields)

@@ -92,7 +92,7 @@ class AxisObjectContext:
             return getattr(t, name)
         f = t.filter
         return {"smoothing_fact": f.smoothing_factor, "kalman_sigma": f.kalman_sigma,
-                "n_cycles": f.n_cycles, "filter_type": f.filter_type.name}[name]
+                "n_cycles": f.effective_n, "filter_type": f.filter_type.name}[name]
 
     def pending(self, name: str):
         """The value a CNC-object write is waiting with (internal unit), or None."""
@@ -253,7 +253,7 @@ AXIS_OBJECTS: tuple[ObjectSpec, ...] = (
     _spec("DIST_CTRL::kalman_sigma", 0x310A, "Currently set uncertainty of the included measured values, "
           "analogous to P-AXIS-00783.", **_working_real("kalman_sigma", "-")),
     _spec("DIST_CTRL::n_cycles", 0x310B, "Currently set number of measured values used for filtering "
-          "(P-AXIS-00413).", type="SGN32", length=4, unit="-", source="working value CycleOutput.n_cycles",
+          "(P-AXIS-00413): the n the filter uses, 4 under FILTER_TYPE DEFAULT (P-AXIS-00782).", type="SGN32", length=4, unit="-", source="working value CycleOutput.n_cycles",
           conversion="as is", reader=lambda ctx: int(ctx.working("n_cycles"))),
     _spec("DIST_CTRL::skip_dist_ctrl", 0x310C, "Not in use - in preparation (always False).", type="BOOLEAN",
           length=1, unit="-", source="constant False (not in use)", conversion="as is",

@@ -59,6 +59,7 @@ class AxisParameters:
     filter_type: FilterType = _default(BY_FIELD["filter_type"])
     kalman_sigma: float = _default(BY_FIELD["kalman_sigma"])
     smoothing_factor: float = _default(BY_FIELD["smoothing_factor"])
+    sensor_absolute: bool = _default(BY_FIELD["sensor_absolute"])
     axis_a_max: float = _default(BY_FIELD["axis_a_max"])                    # mm/s²
     sw_limit_max: float = _default(BY_FIELD["sw_limit_max"])                # mm
     sw_limit_min: float = _default(BY_FIELD["sw_limit_min"])                # mm

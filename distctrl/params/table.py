@@ -141,6 +141,12 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
        aliases=("kenngr.distc.sigma",), description="Kalman filter: uncertainty of the measured values"),
     _p("P-AXIS-00784", "kenngr.distc.smoothing_factor", "smoothing_factor", "REAL64", "-", "-", 1, 0.7, 0.0, 1.0,
        lo_open=True, description="Exponential mean: weight of the newest value"),
+    # --- project parameter (the documents name the case, not a parameter) ---
+    _p("PRJ-AXIS-0001", "kenngr.distc.sensor_absolute", "sensor_absolute", "BOOLEAN", "-", "bool", 1, 1,
+       description="The sensor (encoder 2) delivers absolute values; 0: it must be referenced (REF) before a "
+                   "select, else error 900008",
+       note="project parameter: HLI DistanceControl transitions 1, 4, 5, 6 require referencing 'if no absolute "
+            "encoder is used' but name no parameter for it"),
     # --- axis data the controller needs (ISG axis list, not part of the distance-control documents) ---
     _p("P-AXIS-00008", "getriebe[0].amax", "axis_a_max", "UNS32", "mm/s²", "mm/s²", 1, 1000, 0, UNS32_MAX,
        lo_open=True, hi_open=True, description="Maximum axis acceleration (used when a_max = 0)"),

@@ -103,11 +103,15 @@ _RANGES = {
     "fg_f0": "0 < value < Nyquist = 1/(2 cycle time) Hz (P-AXIS-00508)",
 }
 
-#: the comparison ``distctrl filters`` runs without a SPEC
+#: the comparison ``distctrl filters`` runs without a SPEC: the documents' example values (FCT-M3
+#: §4.1 n 20, §4.2 n 30 alpha 0.3, §4.3 order 2 at 30 Hz, §4.4 n 30 sigma 1000, §4.5, §9.3 n 20
+#: sigma 1000) and the default sigma 4, so the plain filters and the Kalman filters of the same n
+#: (shorter dead time, overshoot growing with n and sigma) are side by side
 DEFAULT_SPECS: tuple[str, ...] = (
-    "MOVING_AVERAGE:n_cycles=10,20,40",
-    "EXPO_MEAN:n_cycles=30,smoothing_factor=0.1,0.3",
-    "KALMAN_MA:n_cycles=30,kalman_sigma=10,100",
+    "MOVING_AVERAGE:n_cycles=20,30",
+    "KALMAN_MA:n_cycles=20,30,kalman_sigma=4,1000",
+    "EXPO_MEAN:n_cycles=30,smoothing_factor=0.3",
+    "KALMAN_EXPO:n_cycles=30,smoothing_factor=0.3,kalman_sigma=1000",
     "LOWPASS:order=2,fg_f0=30",
 )
 
@@ -225,7 +229,7 @@ def parse_filter_specs(texts: Sequence[str], cycle_time: float | None = None) ->
 
 
 def default_configs(cycle_time: float | None = None) -> list[FilterConfig]:
-    """The default comparison (:data:`DEFAULT_SPECS`): 8 configs."""
+    """The default comparison (:data:`DEFAULT_SPECS`): 9 configs."""
     return parse_filter_specs(DEFAULT_SPECS, cycle_time)
 
 

@@ -140,9 +140,11 @@ def test_several_sets_equal_one_by_one(tmp_path):
         assert np.array_equal(off[i], o1[0], equal_nan=True)
         assert np.array_equal(dist[i], d1[0], equal_nan=True)
         assert np.array_equal(err[i], e1[0])
-    # packed rows: editing a plain column equals packing the changed parameter set
+    # packed rows: editing the plain columns equals packing the changed parameter set (the D part's
+    # per-cycle gain depends on kp: law.derivative_gain)
     packed = CL.pack_sets(inputs, sets[:1])
     packed[0, CL.law.FC_LEN + CL.Q_KP] = 0.45
+    packed[0, CL.law.FC_LEN + CL.Q_D_GAIN] = CL.law.derivative_gain(0.45, sets[0].d_tv, inputs.cycle_time)
     o2, _ = CL.run_batch(inputs, packed)
     o3, _ = CL.run_batch(inputs, [sets[0].replace(kp=0.45)])
     assert np.array_equal(o2, o3)

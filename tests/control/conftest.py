@@ -35,9 +35,11 @@ INTERNAL_FOR_HLI = {
 }
 SELECTS = (Action.ON, Action.DRYRUN)
 ABSORBING = (Action.RESET, Action.AXIS_ERROR)
-#: states from which a select adopts pending CNC-object writes (SPEC §8: INACTIVE/FREEZE -> active;
+#: states from which a select to ACTIVE / ACTIVE_CONST_DIST adopts pending CNC-object writes (SPEC §8,
+#: FCT-M3 §7.6: exactly INACTIVE -> ACTIVE and FREEZE -> ACTIVE; not on entering or leaving a DRYRUN)
 #: docs/states.md: a DRYRUN state is left like FREEZE)
-ADOPTING = frozenset({HliState.INACTIVE, HliState.FREEZE, HliState.DRYRUN_SETPOS, HliState.DRYRUN_CONST_DIST})
+ADOPTING = frozenset({HliState.INACTIVE, HliState.FREEZE})
+TRACKING = frozenset({HliState.ACTIVE, HliState.ACTIVE_CONST_DIST})
 HELD = frozenset({HliState.FREEZE, HliState.ERROR, HliState.DRYRUN_SETPOS, HliState.DRYRUN_CONST_DIST})
 
 REL, ABS = 1e-9, 1e-12                                  # float slack of the invariant checks
@@ -429,9 +431,9 @@ class InvariantChecker:
                 self._fail(out, f"PROGRAM_END changed the state {pre} -> {state}")
             if (pre not in (S.INACTIVE, S.TURNING_OFF)) != (70332 in ids):      # warning only while active
                 self._fail(out, f"PROGRAM_END in {pre}: events {ids}")
-        # -- tuning adoption (CNC-object writes only on INACTIVE/FREEZE/DRYRUN -> running)
+        # -- tuning adoption (CNC-object writes only on INACTIVE/FREEZE -> ACTIVE / ACTIVE_CONST_DIST)
         if prev is not None:
-            select_from_rest = bool(actions & set(SELECTS)) and pre in ADOPTING
+            select_from_rest = bool(actions & set(SELECTS)) and pre in ADOPTING and state in TRACKING
             for name in ("v_max_param", "a_max_param", "kp", "i_tn", "d_tv"):
                 if getattr(out, name) != getattr(prev, name) and not select_from_rest:
                     nc = name in ("kp", "i_tn", "d_tv") and any(getattr(c, name) is not None for c in cmds)

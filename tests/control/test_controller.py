@@ -121,12 +121,21 @@ def test_dist_5_filter_dryrun_pid_const_dist_filter_change():
     rig.run_until(lambda o: o.hli_state == HliState.INACTIVE)
     out = rig.cycle(Command(ON, const_dist=True, set_dist=1.0, line=50))
     assert out.hli_state == HliState.ACTIVE_CONST_DIST
-    out = rig.cycle(n=3000)
-    assert rig.actual - rig.surface == pytest.approx(1.0, abs=1e-3)
-    before = out.filtered_feedback
+    # KP 0.3 with the 30-value Kalman filter in the plain CONST_DIST loop: the filter's feedback
+    # makes the axis oscillate, as FCT-M3 §4 warns ('an enabled distance controller automatically
+    # causes a feedback on the filter ... even result in oscillations on the axis')
+    distance = [rig.cycle() and rig.actual - rig.surface for _ in range(3000)]
+    assert max(distance[-500:]) - min(distance[-500:]) > 0.1
+    before = rig.out.filtered_feedback
     out = rig.cycle(Command(filter_type=FilterType.KALMAN_EXPO, smooth_fact=0.3, line=60))
     assert out.filter_type == "KALMAN_EXPO" and out.smoothing_fact == 0.3
-    assert out.filtered_feedback == pytest.approx(before, abs=1e-3)   # bumpless change of filter
+    # bumpless: the new filter starts from the last filtered value (its history is filled with it), so
+    # its first output lies between that value and the new measurement
+    lo, hi = sorted((before, out.feedback_value))
+    assert lo - 1e-12 <= out.filtered_feedback <= hi + 1e-12
+    # the exponential model (alpha 0.3) has little delay: the same loop settles at SET_DIST
+    rig.cycle(n=3000)
+    assert rig.actual - rig.surface == pytest.approx(1.0, abs=1e-3)
     out = rig.cycle(Command(Action.OFF, line=70))
     rig.run_until(lambda o: o.hli_state == HliState.INACTIVE)
     out = rig.cycle(Command(Action.PROGRAM_END, line=999))
@@ -139,7 +148,9 @@ def test_chapter_10_reference_set_position_freeze_reactivate_off():
     p = params(max_pos=1000000 * 1e-4, min_pos=-1000000 * 1e-4)
     rig = Rig(p, p=40.0, surface=10.0)            # probe delivers some absolute value (-299999 incr.)
     rig.sensor_extra = -299999 * 1e-4 - rig.reading()
-    out = rig.cycle(Command.from_hli(3, 0.0))     # 1. referencing the sensor, "sensor zero"
+    # 1. referencing the sensor, "sensor zero": REF with the surface where the tool is (REF_POS = the
+    #    axis position, 40 mm; HLI position = reference position of the workpiece surface, SPEC §2)
+    out = rig.cycle(Command.from_hli(3, 40.0))
     assert out.sensor_value == pytest.approx(0.0, abs=1e-12) and out.hli_state == HliState.INACTIVE
     out = rig.cycle(Command.from_hli(1, 400000 * 1e-4))   # 2.-5. position 400000, transition 1 ON
     assert out.hli_state == HliState.ACTIVE and out.command_source == CommandSource.PLC
@@ -480,8 +491,11 @@ def test_both_encoders_const_dist_steady_state_and_target_deviation():
     rig.surface = 40.4
     out = rig.cycle(n=2000)
     assert rig.actual - rig.surface == pytest.approx(0.8, abs=1e-6)
-    assert out.feedback_value == pytest.approx(40.4, abs=1e-9)      # the measured surface
-    assert out.target_deviation == pytest.approx(out.command_position - out.filtered_feedback - 0.8, abs=1e-12)
+    # the filter input d + c - a (SPEC §3): the distance once the drive has reached its command
+    assert out.feedback_value == pytest.approx(out.measured_distance + out.command_position - rig.actual, abs=1e-9)
+    assert out.feedback_value == pytest.approx(0.8, abs=1e-6)
+    assert out.surface_position == pytest.approx(40.4, abs=1e-6)
+    assert out.target_deviation == pytest.approx(out.filtered_feedback - 0.8, abs=1e-12)
 
 
 def test_plc_cyclic_distance_is_read_every_cycle_only_when_plc_commanded():
@@ -522,16 +536,25 @@ def test_cycle_time_is_validated():
         AxisDistanceController(params(filter_type=FilterType.LOWPASS, low_pass_filter_fg_f0=600.0), 0.001)
 
 
-def test_dist_5_path_dryrun_directly_to_on_const_dist_adopting_pending_writes():
+def test_dist_5_path_dryrun_directly_to_on_const_dist_does_not_adopt_pending_writes():
+    """FCT-M3 §7.6 / §9.4: object writes are adopted only on INACTIVE -> ACTIVE and FREEZE -> ACTIVE
+    (SPEC §8: exactly these, not on entering or leaving a DRYRUN state)."""
     rig = Rig(params(), p=41.0, surface=40.0)
     rig.cycle(Command(set_pos=40.0))
+    rig.cycle(ObjectWrite("kp", 0.5))
     assert rig.cycle(Command(Action.DRYRUN)).hli_state == HliState.DRYRUN_SETPOS
+    assert rig.out.kp == 1.0                                          # INACTIVE -> DRYRUN: not adopted
     out = rig.cycle(ObjectWrite("kp", 0.6))
     assert out.kp == 1.0
     out = rig.cycle(Command(ON, const_dist=True, set_dist=1.0))
-    assert out.hli_state == HliState.ACTIVE_CONST_DIST and out.kp == 0.6 and out.events == []
+    assert out.hli_state == HliState.ACTIVE_CONST_DIST and out.events == []
+    assert out.kp == 1.0                                              # DRYRUN -> ACTIVE: not adopted
     out = rig.cycle(Command(Action.DRYRUN, const_dist=True))          # active -> dry run: tracking stops
-    assert out.hli_state == HliState.DRYRUN_CONST_DIST
+    assert out.hli_state == HliState.DRYRUN_CONST_DIST and out.kp == 1.0
+    rig.cycle(n=50)
+    rig.cycle(Command(Action.FREEZE))
+    out = rig.cycle(Command(ON, const_dist=True, set_dist=1.0))       # FREEZE -> ACTIVE_CONST_DIST: adopted
+    assert out.hli_state == HliState.ACTIVE_CONST_DIST and out.kp == 0.6
 
 
 def test_integrator_does_not_wind_up_while_the_limiter_clips():
@@ -562,7 +585,9 @@ def test_derivative_acts_on_the_measurement_not_on_a_set_value_change():
     rig.surface = 40.01                                  # a measured change of 10 µm: D acts
     out = rig.cycle()
     e = out.target_deviation - o_before
-    assert out.delta_deviation_pre_limiter == pytest.approx(0.5 * e + 0.5 * (0.5 / 0.001) * 0.01, rel=1e-9)
+    x = 0.5 * 0.5 / 0.001                                 # kp d_tv / T
+    g = x / (1 + x / (0.3 * (1 - 0.5)))                     # the D part's per-cycle gain (SPEC §5, docs)
+    assert out.delta_deviation_pre_limiter == pytest.approx(0.5 * e + g * 0.01, rel=1e-9)
 
 
 def test_a_max_zero_uses_the_axis_acceleration_p_axis_00008():
@@ -574,22 +599,40 @@ def test_a_max_zero_uses_the_axis_acceleration_p_axis_00008():
     assert abs(out.offset_velocity) <= 777.0 * 0.001 + 1e-12
 
 
-def test_one_active_command_source_nc_and_plc():
+def test_nc_and_plc_both_command_and_the_last_command_sets_the_source():
+    """SPEC §8: NC and PLC may both command; state_r shows the source of the last accepted command
+    (the documents only show the source: no command is refused for coming from the other one)."""
     from distctrl.control import CommandSource
     rig = Rig(params(), surface=40.0)
-    out = rig.cycle(Command.from_hli(1, 40.0))                      # the PLC selects: it owns it
+    out = rig.cycle(Command.from_hli(1, 40.0))                      # the PLC selects
     assert out.hli_state == HliState.ACTIVE and out.command_source == 1
-    out = rig.cycle(Command(Action.OFF, line=12))                   # an NC OFF is refused: error, no change
-    assert out.hli_state == HliState.ACTIVE and [(e.id, e.severity, e.line) for e in out.events] == \
-        [(900007, "error", 12)]
-    out = rig.cycle(Command.from_hli(0))                            # the owner switches it off
+    out = rig.cycle(Command(Action.FREEZE, line=12))                # an NC FREEZE acts
+    assert out.hli_state == HliState.FREEZE and out.command_source == 0 and out.events == []
+    out = rig.cycle(Command.from_hli(1, 40.0))                      # the PLC re-activates
+    assert out.hli_state == HliState.ACTIVE and out.command_source == 1
+    out = rig.cycle(Command(Action.OFF, line=13))                   # an NC OFF switches it off
+    assert out.hli_state in (HliState.TURNING_OFF, HliState.INACTIVE) and out.command_source == 0
+    assert out.events == []
     rig.run_until(lambda o: o.hli_state == HliState.INACTIVE)
-    out = rig.cycle(Command(ON, set_pos=40.0))                      # now NC selects and owns it
-    assert out.command_source == 0
-    out = rig.cycle(Command.from_hli(2))                            # a PLC FREEZE is only a warning
-    assert out.hli_state == HliState.ACTIVE and [(e.id, e.severity) for e in out.events] == [(900007, "warning")]
+    out = rig.cycle(Command(ON, set_pos=40.0))
     out = rig.cycle(Command(Action.RESET, source=CommandSource.PLC))  # reset always acts
     assert out.hli_state == HliState.INACTIVE
+
+
+def test_off_no_move_in_error_runs_the_offset_out_through_turning_off():
+    """FCT-M3 §8.1 ERROR: 'Only a transition to TURNING OFF is possible to exit this state' (SPEC §8):
+    OFF NO_MOVE in ERROR acts as OFF and says so (warning 900009)."""
+    rig = Rig(params(max_deviation=0.5), p=40.0, surface=40.0)
+    rig.cycle(Command(ON, set_pos=40.0))
+    rig.surface = 41.0                                               # the offset runs into max_deviation
+    out = rig.run_until(lambda o: o.hli_state == HliState.ERROR)
+    rig.cycle(n=100)
+    assert abs(rig.out.offset) > 0.4
+    out = rig.cycle(Command(Action.OFF, no_move=True, line=30))
+    assert out.hli_state == HliState.TURNING_OFF and out.absorbed_offset == 0.0
+    assert [(e.id, e.severity, e.line) for e in out.events] == [(900009, "warning", 30)]
+    out = rig.run_until(lambda o: o.hli_state == HliState.INACTIVE)
+    assert out.offset == 0.0
 
 
 def test_review_select_in_the_very_first_cycle_reads_no_phantom_previous_value():
@@ -631,3 +674,30 @@ def test_review_no_derivative_kick_when_tracking_resumes_after_freeze():
     out = rig.cycle(Command(ON, const_dist=True, set_dist=3.0))
     e = 3.0 - out.filtered_feedback
     assert out.delta_deviation_pre_limiter == pytest.approx(0.5 * e, abs=1e-9)   # kp·e, no D kick
+
+
+@pytest.mark.parametrize("cmd, list_fg", [
+    (Command(filter_type=FilterType.LOWPASS, fg_f0=0.0, line=12), 25.0),       # FG_F0=0 with LOWPASS
+    (Command(fg_f0=0.0, filter_type=FilterType.LOWPASS, order=2, line=12), 25.0),
+    (Command(filter_type=FilterType.LOWPASS, line=12), 600.0),                 # the list's fg above Nyquist
+    (Command(fg_f0=500.0, line=12), 25.0),                                      # at Nyquist (LOWPASS listed)
+])
+def test_a_lowpass_that_cannot_run_is_refused_at_the_block_never_raised(cmd, list_fg):
+    """FCT-M3 §6 FG_F0 (P-AXIS-00508, '0 <= fg_f0'): a block leaving a low-pass that cannot run at this
+    cycle time (cut-off 0, or at/above Nyquist 1/(2T)) is refused with 900005 naming the value and the
+    NC line; the filter stays as it was; update() never raises on cycle data."""
+    filter_type = FilterType.LOWPASS if cmd.filter_type is None else FilterType.MOVING_AVERAGE
+    p = params(low_pass_filter_fg_f0=list_fg if list_fg < 500.0 else 25.0, filter_type=filter_type, n_cycles=3)
+    ctrl = AxisDistanceController(p, 0.001)
+    if list_fg >= 500.0:
+        # a list cut-off above Nyquist is allowed while the list's filter is not LOWPASS
+        p = params(low_pass_filter_fg_f0=list_fg, filter_type=FilterType.MOVING_AVERAGE, n_cycles=3)
+        ctrl = AxisDistanceController(p, 0.001)
+    inp, out = CycleInput(programmed_position=40.0, actual_position=40.0), CycleOutput()
+    before = ctrl.tuning.filter
+    inp.commands.append(cmd)
+    result = ctrl.update(inp, out)
+    assert result == Result.ERROR
+    assert [(e.id, e.line) for e in out.events] == [(900005, 12)]
+    assert "P-AXIS-00508" in out.events[0].message and "Nyquist" in out.events[0].message
+    assert ctrl.tuning.filter == before

@@ -109,18 +109,20 @@ def test_error_holds_then_leaves_only_by_off_or_reset(set_pos, run, wait, how):
         out = plant.step(-1.0)
         assert out.hli_state == S.ERROR
     held = out.offset
-    if how == "off":
-        out = plant.step(-1.0, [Command(Action.OFF)])
-        assert out.hli_state in (S.TURNING_OFF, S.INACTIVE)
+    if how in ("off", "off_no_move"):
+        # ERROR is left only through TURNING_OFF (FCT-M3 §8.1): OFF NO_MOVE acts as OFF (warning 900009)
+        out = plant.step(-1.0, [Command(Action.OFF, no_move=how == "off_no_move")])
+        assert out.hli_state in (S.TURNING_OFF, S.INACTIVE) and out.absorbed_offset == 0.0
+        assert [e.id for e in out.events] == ([900009] if how == "off_no_move" else [])
         for _ in range(5000):
             if out.hli_state == S.INACTIVE:
                 break
             out = plant.step(-1.0)
         assert out.hli_state == S.INACTIVE and out.offset == 0.0
     else:
-        action = {"off_no_move": Action.OFF, "reset": Action.RESET, "axis_error": Action.AXIS_ERROR}[how]
+        action = {"reset": Action.RESET, "axis_error": Action.AXIS_ERROR}[how]
         prev_c = out.command_position
-        out = plant.step(-1.0, [Command(action, no_move=how == "off_no_move")])
+        out = plant.step(-1.0, [Command(action)])
         assert out.hli_state == S.INACTIVE and out.offset == 0.0
         assert out.absorbed_offset == held
         assert out.command_position == pytest.approx(prev_c, abs=1e-12)

@@ -146,7 +146,8 @@ EXPECTED: dict[HliState, dict[str, set]] = {
         # "Only a transition to TURNING OFF is possible to exit this state" (seeds/002)
         "ON": {R(ERROR, INV)}, "ON_CD": {R(ERROR, INV)}, "DRY": {R(ERROR, INV)}, "DRY_CD": {R(ERROR, INV)},
         "FREEZE": {R(ERROR, INV)},
-        "OFF": {R(TURNING_OFF)}, "NO_MOVE": {R(INACTIVE)},
+        # OFF NO_MOVE acts as OFF there, with warning 900009 (SPEC §8)
+        "OFF": {R(TURNING_OFF)}, "NO_MOVE": {R(TURNING_OFF, 900009)},
         "REF": {R(ERROR, INV)},
         "CHECK": {R(ERROR), R(ERROR, INV)},         # documents silent: refused or ignored, stays ERROR
         "NONE": {R(ERROR), R(ERROR, INV)},
@@ -216,7 +217,7 @@ def test_state_command_pair(state, cmd):
     outcome = (HliState(out.hli_state), tuple(e.id for e in out.events))
     assert outcome in EXPECTED[state][cmd], f"{state.name} + {cmd}: got {outcome}"
     # details the table does not show
-    if cmd in ("RESET", "AXIS_ERR", "NO_MOVE") and state != INACTIVE:
+    if cmd in ("RESET", "AXIS_ERR", "NO_MOVE") and state != INACTIVE and not (cmd == "NO_MOVE" and state == ERROR):
         assert out.absorbed_offset == before.offset and out.offset == 0.0
         assert out.command_position == pytest.approx(before.command_position, abs=1e-12)
         assert out.state == (5 if cmd == "NO_MOVE" else 0)          # OFF_NO_MOVE / IDLE
@@ -441,8 +442,8 @@ class Model:
                 return self._error(INV)
             if not (self.have_dist if cmd.const_dist else self.have_pos):
                 return self._error(70335)
-            if s in (INACTIVE, FREEZE, DRY_SP, DRY_CD) and s != target:
-                self.tuning.update(self.pending)    # CNC-object writes adopted now
+            if s in (INACTIVE, FREEZE) and target in (ACTIVE, ACTIVE_CD):
+                self.tuning.update(self.pending)    # CNC-object writes adopted now (FCT-M3 §7.6)
                 self.pending.clear()
             self.state = target
             return target, ()
@@ -452,6 +453,9 @@ class Model:
                 return FREEZE, ()
             return self._error(INV)
         if a == Action.OFF:
+            if s == ERROR and cmd.no_move:         # ERROR is left only through TURNING_OFF
+                self.state = TURNING_OFF
+                return TURNING_OFF, (900009,)
             if cmd.no_move or s == INACTIVE:
                 self.state = INACTIVE
                 return INACTIVE, ()

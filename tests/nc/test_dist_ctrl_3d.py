@@ -131,7 +131,7 @@ def test_every_keyword_lands_in_its_field():
 def test_actions(text, action, const_dist, no_move, surface):
     cmd = command(text)
     assert (cmd.action, cmd.const_dist, cmd.no_move, cmd.surface) == (action, const_dist, no_move, surface)
-    assert cmd.ref_position == (0.0 if action == Action.REF else None)
+    assert cmd.ref_position is None                     # NC REF: "sensor zero" (SPEC §2)
     assert cmd.wait is False and cmd.is_select == (action in (Action.ON, Action.DRYRUN))
 
 
@@ -217,7 +217,8 @@ def test_core_command_is_the_axis_command_without_the_3d_options():
     core = cmd.core_command()
     assert core == Command(Action.ON, const_dist=True, set_dist=1.0, kp=0.5, sensor_source=SensorSource.VARIABLE,
                            sensor_var="V.E.S", vals=(None, 4.0, None, None, None), line=1)
-    assert command("#DIST CTRL REF").core_command().ref_position == 0.0
+    assert command("#DIST CTRL REF").core_command().action == Action.REF
+    assert command("#DIST CTRL REF").core_command().ref_position is None
 
 
 # ---------------------------------------------------------------- ranges ("analogous" to the channel parameters)

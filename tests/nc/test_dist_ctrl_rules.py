@@ -50,7 +50,7 @@ def test_action_keywords_map_to_command(text, action, const_dist, no_move):
 
 
 def test_ref_references_sensor_zero():
-    assert command("Z[DIST_CTRL REF]").ref_position == 0.0
+    assert command("Z[DIST_CTRL REF]").ref_position is None         # "sensor zero" (SPEC §2)
     assert command("Z[DIST_CTRL ON SET_POS=1]").ref_position is None
 
 

@@ -428,3 +428,18 @@ def test_docs_objects_md_is_generated_from_the_registry():
     assert (ROOT / "docs" / "objects.md").read_text(encoding="utf-8") == generated
     for name, low, typ, length, access, unit in DOCUMENT_94:
         assert f"`{name}` | {typ} | {length} | {unit} | {access} |" in generated
+
+
+def test_n_cycles_shows_the_n_the_filter_uses_four_under_default():
+    """FCT-M3 §9.4 DIST_CTRL::n_cycles: 'Currently set number of measured values used for filtering';
+    P-AXIS-00782 DEFAULT: 'Moving average filter where P-AXIS-00413 = 4' -- whatever n_cycles says."""
+    params = AxisParameters(enabled=True, n_cycles=20, filter_type="DEFAULT")
+    ctrl = AxisDistanceController(params)
+    ctx = AxisObjectContext(1, "Z", ctrl, None)
+    assert read_value(BY_NAME["DIST_CTRL::n_cycles"], ctx) == 4                 # before the first cycle
+    out = CycleOutput()
+    ctrl.update(CycleInput(), out)
+    assert out.n_cycles == 4
+    assert read_value(BY_NAME["DIST_CTRL::n_cycles"], AxisObjectContext(1, "Z", ctrl, out)) == 4
+    ctrl2 = AxisDistanceController(params.replace(filter_type="MOVING_AVERAGE"))
+    assert read_value(BY_NAME["DIST_CTRL::n_cycles"], AxisObjectContext(1, "Z", ctrl2, None)) == 20

@@ -178,8 +178,9 @@ def test_all_seven_transitions_through_the_unit():
     ax.sensor_zero = 0.3                              # ... but the sensor is not referenced yet
     ax.cycle(n=5)
     assert ax.state_r.actual_distance == 7000
-    # REF (3): the current reading is defined to be -1 mm (d = 1 mm)
-    out = ax.plc(3, -1.0)
+    # REF (3): the position is the reference position of the workpiece surface (REF_POS, HLI
+    # DistanceControl, SPEC §2): the surface is at 40 mm, so the reading becomes -1 mm (d = 1 mm)
+    out = ax.plc(3, 40.0)
     assert out.hli_state == HliState.INACTIVE and ax.state_r.actual_state == 0
     ax.cycle()
     assert ax.state_r.actual_distance == 10000 and ax.state_r.actual_position == 400000
@@ -261,24 +262,37 @@ def test_cyclic_values_are_ignored_while_the_nc_owns_distance_control():
 
 # ----------------------------------------------------------------------------- NC / PLC
 
-def test_the_source_that_selected_owns_distance_control_until_inactive():
+def test_nc_and_plc_both_command_and_state_r_shows_the_last_source():
+    """HLI DistanceControl / FCT-M3 §8.1: state_r shows the active command source (0 = NC, 1 = PLC);
+    NC and PLC may both command, the last accepted command sets it (SPEC §8)."""
     ax = Axis(p=40.0, surface=40.0)
     out = ax.cycle(Command(Action.ON, set_pos=40.0))                   # NC selects
     assert ax.state_r.actual_state == 1 and ax.state_r.command_source == 0
-    out = ax.plc("FREEZE")                                             # PLC refused (warning), consumed
-    assert [(e.id, e.severity) for e in out.events] == [(900007, "warning")]
+    out = ax.plc("FREEZE")                                             # the PLC freezes
+    assert out.events == [] and out.hli_state == HliState.FREEZE
+    ax.cycle()
+    assert ax.state_r.actual_state == 2 and ax.state_r.command_source == 1
+    ax.cycle(Command(Action.ON, set_pos=40.0, line=20))                # the NC re-activates
+    ax.cycle()
     assert ax.state_r.actual_state == 1 and ax.state_r.command_source == 0
-    ax.cycle(Command(Action.OFF))
+    ax.plc("OFF")                                                      # and the PLC switches off
     ax.until(lambda o: o.hli_state == HliState.INACTIVE)
-    out = ax.plc("ON", 40.0)                                           # now the PLC may
-    assert ax.state_r.actual_state == 1 and ax.state_r.command_source == 1
-    out = ax.cycle(Command(Action.FREEZE, line=20))                    # NC refused (error), state unchanged
-    assert [(e.id, e.severity, e.line) for e in out.events] == [(900007, "error", 20)]
-    assert ax.state_r.actual_state == 1 and ax.state_r.command_source == 1
-    ax.plc("OFF")
-    ax.until(lambda o: o.hli_state == HliState.INACTIVE)
-    out = ax.cycle(Command(Action.ON, set_pos=40.0))                   # and the NC again
-    assert ax.state_r.actual_state == 1 and ax.state_r.command_source == 0
+    assert ax.state_r.actual_state == 0 and ax.state_r.command_source == 1
+
+
+def test_ref_position_is_the_reference_position_of_the_workpiece_surface():
+    """HLI DistanceControl: HLI_DIST_CTRL_REF, position = 'Reference position of the workpiece surface
+    (REF_POS)': afterwards state_r.actual_position (the measured surface) is REF_POS."""
+    ax = Axis(p=41.0, surface=40.0)
+    ax.sensor_zero = 0.3                              # the sensor is not referenced: it reads 0.3 mm off
+    ax.cycle(n=3)
+    assert ax.state_r.actual_position == 403000
+    ax.plc(3, 40.0)                                   # REF: the surface is at 40 mm
+    ax.cycle()
+    assert ax.state_r.actual_position == 400000 and ax.state_r.actual_distance == 10000
+    ax.plc(3, 38.5)                                   # referencing to 38.5 mm says: 2.5 mm above it
+    ax.cycle()
+    assert ax.state_r.actual_position == 385000 and ax.state_r.actual_distance == 25000
 
 
 def test_reset_acts_whoever_owns():

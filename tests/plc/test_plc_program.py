@@ -20,7 +20,7 @@ def test_plc_program_references_selects_reads_state_and_switches_off():
         def __call__(self, machine, cycle):
             unit = machine.hli["Z"]
             s = unit.state_r
-            if self.step == 0 and unit.plc_command("REF", 0.0):
+            if self.step == 0 and unit.plc_command("REF", 40.0):    # REF_POS 40 mm (Z): "sensor zero"
                 self.step = 1
             elif self.step == 1 and not unit.command_semaphore_rw and unit.plc_command("ON", 40.0):
                 self.step = 2                        # sent when the CNC has consumed the REF

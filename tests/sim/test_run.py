@@ -61,13 +61,14 @@ def at(trace: Trace, column: str, t: float) -> float:
 
 
 def test_chapter_10_sequence_through_plc_events():
-    """seeds/000 ch. 10: reference the sensor to zero, set position 40 mm and ON (PLC), the surface
+    """FCT-M3 ch. 10: reference the sensor to zero (REF with the reference position of the workpiece
+    surface = where the tool is, 40 mm: "sensor zero"), set position 40 mm and ON (PLC), the surface
     moves (a 1 mm step under the tool), FREEZE ignores a sensor change of -2 mm, re-activation
     restores it, OFF cancels the offset."""
     sc = base_scenario(
         "N10 G90 G0 X0\nN20 #TIME 0.5\nN30 G1 X100 F6000\nN40 #TIME 2.5\nN999 M30\n",
         surface={"base": 37.0, "features": [{"type": "step", "axis": "X", "at": 50.0, "height": 1.0}]},
-        events=[{"t": 0.1, "plc": {"axis": "Z", "transition": "REF", "position": 0.0}},
+        events=[{"t": 0.1, "plc": {"axis": "Z", "transition": "REF", "position": 40.0}},
                 {"t": 0.2, "plc": {"axis": "Z", "transition": "ON", "position": 40.0}},
                 {"t": 1.8, "plc": {"axis": "Z", "transition": "FREEZE"}},
                 {"t": 2.0, "sensor_fault": {"kind": "jump", "value": -2.0}},
@@ -307,3 +308,52 @@ def test_record_extra_object_values_and_parquet_and_errors_in_the_sidecar(tmp_pa
     run(base_scenario("N10 Z[DIST_CTRL ON]\nN20 M30\n"), trace=csv)
     meta = json.loads((tmp_path / "err.csv.meta.json").read_text())["meta"]
     assert [e["id"] for e in meta["errors"]] == [70335]
+
+
+def _probe_list(tmp_path, extra: str) -> str:
+    path = tmp_path / "z.lis"
+    path.write_text((SCN / "z_probe.lis").read_text(encoding="utf-8") + extra, encoding="utf-8")
+    return str(path)
+
+
+@pytest.mark.parametrize("ref_offset_01um, reading_at_contact, wrong_by", [
+    (0, 0.0, 0.0), (10000, 0.0, 1.0), (10000, -1.0, 0.0), (-5000, 0.0, -0.5), (-5000, 0.5, 0.0)])
+def test_p_axis_00418_ref_offset_acts_against_the_probes_own_zero(tmp_path, ref_offset_01um, reading_at_contact,
+                                                                   wrong_by):
+    """P-AXIS-00418: the reference point offset defines 'the sensor position that is adjusted if the
+    spindle touches the ideal workpiece surface'. The simulated probe has its own physical zero (scenario
+    key sensor.reading_at_contact): a ref_offset that does not match it shows as a wrong distance."""
+    params = _probe_list(tmp_path, f"kenngr.distc.ref_offset {ref_offset_01um}\n")
+    sensor = {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0,
+              "reading_at_contact": reading_at_contact}
+    sc = base_scenario("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=2]\nN20 #TIME 1\nN30 Z[DIST_CTRL OFF]\nN40 M30\n",
+                       params=params, sensor=sensor, start_z=43.0, surface={"base": 40.0})
+    r = run(sc)
+    assert r.errors == [], r.errors
+    true_distance = at(r.trace, "Z.act", 0.9) - 40.0
+    assert true_distance == pytest.approx(2.0 + wrong_by, abs=1e-3)   # the core reads d - wrong_by
+
+
+def test_a_sensor_that_is_not_absolute_must_be_referenced_before_a_select(tmp_path):
+    """HLI DistanceControl transitions 1, 4, 5, 6: 'If no absolute encoder is used, distance control must
+    first be referenced' (SPEC §2); REF references 'sensor zero' (FCT-M3 ch. 10)."""
+    params = _probe_list(tmp_path, "kenngr.distc.sensor_absolute 0\n")
+    select = "Z[DIST_CTRL ON CONST_DIST SET_DIST=2]"
+    refused = run(base_scenario(f"N10 {select}\nN20 #TIME 0.2\nN30 M30\n", params=params, start_z=43.0,
+                                surface={"base": 40.0}))
+    assert refused.aborted and [(e["id"], e["line"]) for e in refused.errors] == [(900008, 1)]
+    # referenced at 3 mm above a surface at 40 mm: REF (sensor zero) at Z 40 first, then the select
+    ok = run(base_scenario(f"N10 Z[DIST_CTRL REF]\nN20 G1 Z43 F600\nN30 {select}\nN40 #TIME 1\n"
+                           f"N50 Z[DIST_CTRL OFF]\nN60 M30\n", params=params, start_z=40.0, surface={"base": 40.0}))
+    assert ok.errors == [] and ok.completed
+    assert at(ok.trace, "Z.act", ok.trace["t"][-1] - 1.05) - 40.0 == pytest.approx(2.0, abs=1e-3)
+
+
+def test_lowpass_with_fg_f0_zero_stops_the_program_at_its_block_with_900005():
+    """A block that would leave a low-pass with cut-off 0 (NC FG_F0 accepts 0 <= value, P-AXIS-00508)
+    is refused at its line with 900005: the run reports the error, it does not crash."""
+    sc = base_scenario("N10 Z[DIST_CTRL ON SET_POS=40]\nN20 Z[DIST_CTRL FILTER_TYPE=LOWPASS FG_F0=0]\n"
+                       "N30 #TIME 0.5\nN40 M30\n")
+    r = run(sc)
+    assert r.aborted and [(e["id"], e["line"]) for e in r.errors] == [(900005, 2)]
+    assert "FG_F0" in r.errors[0]["message"] or "P-AXIS-00508" in r.errors[0]["message"]

@@ -68,10 +68,33 @@ def test_lowpass_default_and_unnamed_parameters_keep_the_config_defaults():
     assert ma == FilterConfig(MA)
 
 
-def test_the_default_comparison_has_eight_configs():
+def test_the_default_comparison_has_nine_configs_at_the_documents_values():
     labels = [c.label() for c in default_configs(T)]
-    assert len(labels) == 8 and len(set(labels)) == 8
-    assert len(DEFAULT_SPECS) == 4
+    assert len(labels) == 9 and len(set(labels)) == 9
+    assert "KALMAN_MA(n_cycles=30, kalman_sigma=1000)" in labels          # FCT-M3 §4.4
+    assert "KALMAN_MA(n_cycles=20, kalman_sigma=1000)" in labels          # FCT-M3 §9.3
+    assert "KALMAN_EXPO(n_cycles=30, smoothing_factor=0.3, kalman_sigma=1000)" in labels   # §4.5
+
+
+def test_the_default_comparison_shows_the_documented_kalman_behaviour_on_the_obstacle():
+    """FCT-M3 §4.4.1 / TF5200 §4.4.1 / P-AXIS-00783 on the built-in 2.8 mm obstacle (noise free): each
+    Kalman filter reacts sooner than the moving average of the same n, overshoots, more with n, and
+    more with sigma."""
+    t, x, e = obstacle_signal(noise_std=0.0)
+    r = {res.label: res for res in compare(x, t, default_configs(T), T, e)}
+    for n in (20, 30):
+        ma = r[f"MOVING_AVERAGE(n_cycles={n})"]
+        for sigma in (4, 1000):
+            k = r[f"KALMAN_MA(n_cycles={n}, kalman_sigma={sigma})"]
+            assert k.dead_time_s < ma.dead_time_s and k.delay_s < ma.delay_s
+            assert k.overshoot_mm > 0.5 and ma.overshoot_mm == 0.0
+        assert r[f"KALMAN_MA(n_cycles={n}, kalman_sigma=1000)"].overshoot_mm > \
+            r[f"KALMAN_MA(n_cycles={n}, kalman_sigma=4)"].overshoot_mm
+    assert r["KALMAN_MA(n_cycles=30, kalman_sigma=1000)"].overshoot_mm > \
+        r["KALMAN_MA(n_cycles=20, kalman_sigma=1000)"].overshoot_mm
+    expo = r["EXPO_MEAN(n_cycles=30, smoothing_factor=0.3)"]
+    kexpo = r["KALMAN_EXPO(n_cycles=30, smoothing_factor=0.3, kalman_sigma=1000)"]
+    assert kexpo.delay_s < expo.delay_s and kexpo.overshoot_mm > 0.1
 
 
 @pytest.mark.parametrize("text, words", [

@@ -233,10 +233,24 @@ def slow_drive(tmp_path):
 def test_d_part_damps_the_overshoot_of_a_kp_that_overshoots(slow_drive):
     without, with_d = run_steps(parse_settings("0.2", "0", "0,0.01"), slow_drive, progress=False, **FAST)
     assert without.metrics.overshoot_pct > 30 and without.metrics.oscillation >= 2
-    assert with_d.metrics.overshoot_pct < 0.2 * without.metrics.overshoot_pct
+    assert with_d.metrics.overshoot_pct < 0.9 * without.metrics.overshoot_pct
     assert with_d.metrics.oscillation < without.metrics.oscillation
     assert with_d.metrics.settled and with_d.metrics.settling_time_s < without.metrics.settling_time_s
     assert any("D_TV=0.01 reduces the overshoot" in h for h in hints([without, with_d]))
+
+
+def test_the_chapter_3_start_settings_settle_on_the_default_machine():
+    """FCT-M3 ch. 3 / P-AXIS-00765: D_TV = 0.01 s is 'a low initial value to avoid instability' and the
+    D part 'stabilises controller behaviour and reduces oscillations' (SPEC §5). On the default machine
+    the start settings (KP 0.2, T_n 0 or 5 s, T_v 0.01 s) settle, and where the P loop overshoots
+    (KP 0.3, 0.5) D_TV = 0.01 s lowers the overshoot."""
+    res = run_steps(parse_settings("0.2,0.3,0.5", "0,5", "0,0.01"), progress=False)
+    by = {(r.setting.kp, r.setting.i_tn, r.setting.d_tv): r.metrics for r in res}
+    for (kp, i_tn, d_tv), m in by.items():
+        assert m.settled and m.oscillation <= 4, (kp, i_tn, d_tv)
+    for kp in (0.3, 0.5):
+        assert by[(kp, 0.0, 0.0)].overshoot_pct > 2.0
+        assert by[(kp, 0.0, 0.01)].overshoot_pct < by[(kp, 0.0, 0.0)].overshoot_pct
 
 
 def test_i_part_removes_the_permanent_deviation_of_a_ramp():
