@@ -13,7 +13,8 @@ Filter buffers (designed by :func:`distctrl.control.filters.design_coefficients`
   sos (3 sections x b0 b1 b2 a0 a1 a2), zi for a unit input (3 sections x 2),
   Kalman gain K, Kalman prior variance P-, EXPO weight factor of the older values beta,
   prediction coefficients c_0..c_(n-1) (oldest first)]    (rho = 1 - alpha)
-  ``fs`` state: [ring index, running sum, Kalman P, last output, zi (3 sections x 2)]
+  ``fs`` state: [ring index, running sum, Kalman P, last output, zi (3 sections x 2), running sum of
+  position x value (KALMAN_MA)]
   ``buf`` ring buffer of the last n inputs (measurements), length MAX_N.
 """
 from __future__ import annotations
@@ -39,7 +40,8 @@ FC_EXPO_OLDER = FC_P_PRIOR + 1           # EXPO_MEAN: beta = alpha / (1 - rho^(n
 FC_PRED = FC_EXPO_OLDER + 1              # n prediction coefficients, oldest measurement first
 FC_LEN = FC_PRED + MAX_N
 FS_IDX, FS_TOTAL, FS_P, FS_LAST, FS_ZI = 0, 1, 2, 3, 4
-FS_LEN = FS_ZI + 2 * MAX_SECTIONS
+FS_TSUM = FS_ZI + 2 * MAX_SECTIONS         # KALMAN_MA: sum of j * x_j over the window (j = 0 oldest)
+FS_LEN = FS_TSUM + 1
 
 #: everything the scalar law ever lets through is clipped to this (mm); keeps inf/overflow out
 HUGE = 1e12
@@ -91,8 +93,11 @@ def filter_seed(fc, fs, buf, x0):
         buf[i] = x0
     fs[FS_IDX] = 0.0
     fs[FS_LAST] = x0
-    if kind == MOVING_AVERAGE:
+    fs[FS_TSUM] = 0.0
+    if kind == MOVING_AVERAGE or kind == KALMAN_MA:
         fs[FS_TOTAL] = x0 * n
+        if kind == KALMAN_MA:
+            fs[FS_TSUM] = x0 * (0.5 * n * (n - 1))
     elif kind == EXPO_MEAN:
         fs[FS_TOTAL] = x0 * fc[FC_WSUM]
     else:
@@ -179,9 +184,34 @@ def filter_step(fc, fs, buf, x):
             fs[z + 1] = fc[o + 2] * v - fc[o + 5] * y
             v = y
         y = v
+    elif kind == KALMAN_MA:
+        # the least-squares line through the last n measurements at the current cycle: with
+        # S0 = sum x_j and S1 = sum j x_j (j = 0 oldest .. n-1 newest) it is
+        # (6 S1 - (2n - 2) S0) / (n (n - 1)) (the coefficients FC_PRED); both sums run along with the
+        # ring and are re-summed once per window so that rounding cannot accumulate
+        idx = int(fs[FS_IDX])
+        s0 = fs[FS_TOTAL]
+        s1 = fs[FS_TSUM]
+        pred = (6.0 * s1 - (2.0 * n - 2.0) * s0) / (n * (n - 1.0))
+        y = pred + fc[FC_GAIN] * (x - pred)
+        old = buf[idx]
+        buf[idx] = x
+        s1 = s1 - (s0 - old) + (n - 1.0) * x
+        s0 = s0 - old + x
+        idx += 1
+        if idx >= n:
+            idx = 0
+            s0 = 0.0
+            s1 = 0.0
+            for j in range(n):             # the ring is in order now: buf[0] oldest
+                s0 += buf[j]
+                s1 += j * buf[j]
+        fs[FS_IDX] = idx
+        fs[FS_TOTAL] = s0
+        fs[FS_TSUM] = s1
     else:
-        # Kalman (KALMAN_MA / KALMAN_EXPO): predict the measurement from the last n measurements,
-        # then refine the prediction by the measurement with the gain K = P-/(P- + sigma)
+        # KALMAN_EXPO: predict the measurement from the last n measurements (the weighted line,
+        # coefficients FC_PRED), then refine the prediction by the measurement with K = P-/(P- + sigma)
         idx = int(fs[FS_IDX])
         pred = kalman_prediction(fc, buf, n, idx)
         y = pred + fc[FC_GAIN] * (x - pred)
