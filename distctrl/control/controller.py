@@ -482,14 +482,13 @@ class AxisDistanceController:
         if not self.params.enabled:
             self._raise(ErrorId.NOT_AVAILABLE, events, line)
             return 0.0
-        problem = _check_command_values(cmd, self.T) or self._check_filter(cmd)
+        problem = _check_command_values(cmd) or self._check_filter(cmd)
         if problem:
             self._raise(ErrorId.COMMAND_VALUE_OUT_OF_RANGE, events, line, problem)
             return 0.0
         if a != Action.NONE:
             # NC and PLC may both command; the last command sets the source state_r shows (SPEC §8)
             st.source = CommandSource(cmd.source)
-        if a != Action.NONE:
             st.pending_dryrun = None
         state = st.hli_state
         if state == _ERROR and not (a == Action.OFF or a == Action.NONE):
@@ -725,7 +724,7 @@ _COMMAND_RANGES = (("kp", "kp"), ("i_tn", "i_tn"), ("d_tv", "d_tv"), ("n_cycles"
                    ("kalman_sigma", "kalman_sigma"), ("fg_f0", "low_pass_filter_fg_f0"))
 
 
-def _check_command_values(cmd: Command, T: float) -> str:
+def _check_command_values(cmd: Command) -> str:
     """'' when every value of the command is legal, else a message naming the first bad one."""
     for attr, field_name in _COMMAND_RANGES:
         value = getattr(cmd, attr)
