@@ -4,7 +4,8 @@ Two ADS devices over one :class:`~distctrl.sim.machine.Machine` (the server and 
 lock, so every request sees one consistent cycle):
 
 * AMS port 551 (GEO task): the CNC objects of distance control by index group 0x120300 and index
-  offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md); with 3D distance control also the channel's
+  offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md), the TF5200 manual's ``DISTCTRL::v_max`` /
+  ``a_max`` at 0x20300 / ``(axis_id << 16) | 0x152``, ``0x153``; with 3D distance control also the channel's
   3D objects, index group 0x121301 (docs/objects-3d.md), writes adopted like the axis objects. Writes to the read/write objects are queued
   into the axis's controller and adopted on the next INACTIVE→active or FREEZE→active transition.
 * AMS port 851 (PLC): symbols by name — every field of each axis's HLI DistanceControl control unit
@@ -23,7 +24,7 @@ from .ads import AdsError, AdsServer, SymbolInfo
 from .ads.errors import (ADSERR_DEVICE_INVALIDACCESS, ADSERR_DEVICE_INVALIDDATA, ADSERR_DEVICE_INVALIDGRP,
                          ADSERR_DEVICE_INVALIDOFFSET, ADSERR_DEVICE_INVALIDSIZE)
 from .ads.protocol import ADST_REAL64
-from .objects.registry import (INDEX_GROUP, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
+from .objects.registry import (INDEX_GROUPS, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
                                read_bytes, write_bytes)
 from .objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
 from .objects.channel3d import read_bytes as read_bytes_3d
@@ -59,7 +60,7 @@ class CncObjectDevice:
             if found is None:
                 raise AdsError(ADSERR_DEVICE_INVALIDOFFSET, f"index offset 0x{index_offset:X}")
             return found
-        if index_group != INDEX_GROUP:
+        if index_group not in INDEX_GROUPS:          # 0x120300 and the TF5200 aliases' 0x20300
             raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X}")
         found = find_object(index_group, index_offset, self.contexts)
         if found is None:

@@ -118,6 +118,41 @@ def test_state_and_m_actual_offset_while_running(cnc, plc):
     assert abs(offset_01um * 1e4 - second) < 0.2e8                  # 0.1 µm vs 0.01 nm: same offset (±0.2 mm drift)
 
 
+def test_tf5200_addresses_of_v_max_and_a_max_are_aliases(cnc, plc):
+    """TF5200 Abstandskontrolle §7.5: DISTCTRL::v_max (SGN32, µm/s) / a_max (SGN32, mm/s²) at index group
+    0x20300, offsets 0x10152 / 0x10153 for the first axis (SPEC §10): the same values as
+    DIST_CTRL_PARAM[0]::v_max / a_max (0x13500 / 0x13501), writes adopted on FREEZE -> ACTIVE."""
+    assert cnc.read(0x20300, 0x10152, pyads.PLCTYPE_DINT) == cnc.read(IG, 0x13500, pyads.PLCTYPE_DINT)
+    assert cnc.read(0x20300, 0x10153, pyads.PLCTYPE_DINT) == cnc.read(IG, 0x13501, pyads.PLCTYPE_DINT)
+    if state(plc) != 1:
+        command(plc, 1, 400000)
+        assert wait_for(lambda: state(plc) == 1)
+    cnc.write(0x20300, 0x10152, 77000, pyads.PLCTYPE_DINT)           # 77 mm/s through the TF5200 address
+    assert wait_for(lambda: cnc.read(IG, 0x13500, pyads.PLCTYPE_DINT) == 77000)   # the parameter (pending)
+    command(plc, 2)                                                   # FREEZE
+    command(plc, 1, 400000)                                           # FREEZE -> ACTIVE: adopted
+    assert wait_for(lambda: state(plc) == 1)
+    assert wait_for(lambda: cnc.read(IG, 0x13102, pyads.PLCTYPE_LREAL) <= 77.0 * 1e4 + 1e-6)   # v_max_int, 0.1 µm/s
+    with pytest.raises(pyads.ADSError) as exc:
+        cnc.read(0x20300, 0x10154, pyads.PLCTYPE_DINT)                # nothing else in 0x20300
+    assert exc.value.err_code == 0x703
+
+
+def test_fig_34_general_axis_objects_are_served_beside_distance_control(cnc, served):
+    """FCT-M3 §7.5 Fig. 34: m_sollw_absolut (p), sollw_absolut (p + o), dig cmd pos high_res and dig act
+    pos (drive increments) can be scoped with the distance-control objects (project offsets 0x3A00..)."""
+    m_nm, s_nm = cnc.read(IG, 0x13A00, pyads.PLCTYPE_LINT), cnc.read(IG, 0x13A01, pyads.PLCTYPE_LINT)
+    cmd_inc, act_inc = cnc.read(IG, 0x13A02, pyads.PLCTYPE_LINT), cnc.read(IG, 0x13A03, pyads.PLCTYPE_DINT)
+    offset_nm = cnc.read(IG, 0x13100, pyads.PLCTYPE_LINT)              # m_actual_offset
+    with served.lock:                                                  # (not while reading over ADS)
+        c = served.machine.outputs["Z"].command_position
+        a = served.machine.controllers["Z"].state.last_a
+    assert m_nm == 40 * 10**8                                          # the programmed Z 40 mm, exactly
+    tol_nm = 0.01e8                                                    # the surface drifts 0.2 mm/s between reads
+    assert abs(s_nm - (m_nm + offset_nm)) < tol_nm and abs(s_nm - c * 1e8) < tol_nm
+    assert abs(cmd_inc * 1e-4 - c) < 0.01 and abs(act_inc * 1e-4 - a) < 0.01   # drive resolution 1e-4 mm
+
+
 def test_read_only_objects_and_state_r_refuse_writes(cnc, plc):
     with pytest.raises(pyads.ADSError) as exc:
         cnc.write(IG, 0x13105, 0, pyads.PLCTYPE_UDINT)              # DIST_CTRL::state

@@ -2,7 +2,7 @@
 a test keeps them equal."""
 from __future__ import annotations
 
-from .registry import ADS_PORT, AXIS_OBJECTS, INDEX_GROUP, TASK
+from .registry import ADS_PORT, AXIS_OBJECTS, GENERAL_AXIS_OBJECTS, INDEX_GROUP, INDEX_GROUP_TF5200, TASK, TF5200_OBJECTS
 
 
 def render() -> str:
@@ -12,7 +12,7 @@ def render() -> str:
         "Generated from `distctrl/objects/registry.py` by `python -m distctrl.objects.docgen` — do not edit",
         "by hand.",
         "",
-        "The objects of seeds/000 §9.4 (shown in the ISG object browser, §7.5/§7.6). All of them are in task",
+        "The objects of FCT-M3 §9.4 (shown in the ISG object browser, §7.5/§7.6). All of them are in task",
         f"{TASK} (ADS port {ADS_PORT}), index group `0x{INDEX_GROUP:X}`, index offset",
         "`(axis_id << 16) | low offset` with `axis_id` from 1 (SPEC §10): the first axis's `DIST_CTRL::kp` is",
         "`0x13106`, the third axis's `0x33106`. Raw values are little-endian; the length is in bytes.",
@@ -25,10 +25,40 @@ def render() -> str:
                      f"{s.unit} | {s.access} | {s.source} → {s.conversion} |")
     lines += [
         "",
+        "## General axis objects (FCT-M3 §7.5, Fig. 34)",
+        "",
+        "Fig. 34 shows, next to the distance-control objects, four general axis objects of the position control",
+        "loop that \"remain available\" (`m_sollw_absolut`, `sollw_absolut`, `dig cmd pos high_res`, `dig act pos`).",
+        "The documents give no address or type for them; distctrl serves them in the same index group at the",
+        "project offsets below, so they can be scoped together with the distance-control objects:",
+        "",
+        "| low offset | axis 1 | name | type | length | unit | access | value (internal source → object unit) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for s in GENERAL_AXIS_OBJECTS:
+        lines.append(f"| 0x{s.low_offset:04X} | 0x{(1 << 16) | s.low_offset:X} | `{s.name}` | {s.type} | {s.length} | "
+                     f"{s.unit} | {s.access} | {s.source} → {s.conversion} |")
+    lines += [
+        "",
+        "## The TwinCAT manual's addresses (TF5200 Abstandskontrolle §7.5)",
+        "",
+        f"TF5200 §7.5 (and the first table of FCT-M3 §7.6) documents `DISTCTRL::v_max` / `a_max` at index group",
+        f"`0x{INDEX_GROUP_TF5200:X}`, offsets `0x10152` / `0x10153` + 0x10000·(axis index − 1) (third axis: `0x30152`).",
+        "distctrl serves them there as aliases of `DIST_CTRL_PARAM[0]::v_max` / `a_max` (SPEC §10): the same",
+        "value, the same range check, the same adoption rule, so a client written from the TwinCAT manual works.",
+        "",
+        "| index group | axis 1 | name | type | length | unit | access |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for s in TF5200_OBJECTS:
+        lines.append(f"| 0x{s.index_group:X} | 0x{(1 << 16) | s.low_offset:X} | `{s.name}` | {s.type} | {s.length} | "
+                     f"{s.unit} | {s.access} |")
+    lines += [
+        "",
         "## Descriptions",
         "",
     ]
-    for s in AXIS_OBJECTS:
+    for s in AXIS_OBJECTS + GENERAL_AXIS_OBJECTS + TF5200_OBJECTS:
         lines.append(f"- `{s.name}` (0x{s.low_offset:04X}): {s.description}")
     lines += [
         "",
@@ -62,8 +92,9 @@ def render() -> str:
         "would refuse (kp outside 0 < kp <= 2, i_tn outside 0..50 s, d_tv outside 0..2 s, negative v_max or",
         "a_max, non-finite, non-integer for the SGN32 objects) raise `ObjectValueError` at once (the same",
         "check as the controller's). The controller keeps the write pending and adopts it only on",
-        "INACTIVE → active or FREEZE → active (§7.6 notice, SPEC §8; a DRYRUN state is left like FREEZE,",
-        "docs/states.md). A `KP=` / `I_TN=` / `D_TV=` programmed in a DIST_CTRL block takes effect with the",
+        "INACTIVE → ACTIVE(_CONST_DIST) or FREEZE → ACTIVE(_CONST_DIST), exactly the transitions of the §7.6",
+        "notice (SPEC §8; not when a DRYRUN state is entered or left). A `KP=` / `I_TN=` / `D_TV=` programmed",
+        "in a DIST_CTRL block takes effect with the",
         "block and discards a pending object write of the same parameter.",
         "",
         "What a read returns:",
@@ -78,9 +109,9 @@ def render() -> str:
         "- `DIST_CTRL::skip_dist_ctrl` (\"not in use\") is always FALSE; `DIST_CTRL::max_dist_change` (for the",
         "  not yet available Kalman_DYN filter) is always 0.",
         "",
-        "## Differences between seeds/000 §7.6 and §9.4",
+        "## Differences between FCT-M3 §7.6 and §9.4",
         "",
-        "SPEC §10: §9.4 is followed. The older object-browser table of §7.6 (and seeds/003) differs in:",
+        "SPEC §10: §9.4 is followed. The older object-browser table of §7.6 (and TF5200 §7.5) differs in:",
         "",
         "| low offset | §7.6 | §9.4 (used) |",
         "| --- | --- | --- |",
@@ -94,15 +125,16 @@ def render() -> str:
         "Further:",
         "",
         "- Index-offset scheme: §7.6's footnote says \"+ 0x10000 * axis_index (e.g. 0x30152 for the 3rd axis)\"",
-        "  and seeds/003 lists `DISTCTRL::v_max` / `a_max` at 0x10152 / 0x10153 in index group 0x20300: that",
-        "  older scheme is superseded (SPEC §10); distctrl uses `(axis_id << 16) | 0x3xxx` in 0x120300 only.",
+        "  and TF5200 §7.5 lists `DISTCTRL::v_max` / `a_max` at 0x10152 / 0x10153 in index group 0x20300: the",
+        "  §9.4 scheme `(axis_id << 16) | 0x3xxx` in 0x120300 is the main one (SPEC §10), the two TF5200",
+        "  addresses are served as aliases (above).",
         "- The values in §7.6's browser table (kp 0,3, v_max 500000, ...) are one machine's example values,",
         "  not defaults.",
         "- Fig. 34 writes `DIST_CTRL>::filtered_feedback` (typo) and §9.4 gives `target_deviation` the unit",
         "  \"[0.01 nm] l\" (typo): read as `DIST_CTRL::filtered_feedback` and 0.01 nm.",
         "- Fig. 34 also shows `m_sollw_absolut`, `sollw_absolut`, `dig cmd pos high_res` and `dig act pos`:",
-        "  general axis objects of the kernel, not distance-control objects; they are not in the registry.",
-        "- The 3D distance-control objects (index group `0x121300 | channel_id`, seeds/000 §12.6) are not part",
+        "  general axis objects of the kernel, served at project offsets (above).",
+        "- The 3D distance-control objects (index group `0x121300 | channel_id`, FCT-M3 §12.6) are not part",
         "  of this registry.",
         "",
         "## API",

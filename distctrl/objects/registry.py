@@ -31,6 +31,10 @@ from .units import (INT32_MAX, INT32_MIN, PER_MM_01UM, UINT32_MAX, UM_PER_MM,
 TASK = "GEO"
 ADS_PORT = 551
 INDEX_GROUP = 0x120300
+#: TF5200 Abstandskontrolle §7.5 / FCT-M3 §7.6: DISTCTRL::v_max / a_max at 0x20300, offset
+#: 0x10152 / 0x10153 + 0x10000 (axis index - 1) -- served as aliases of DIST_CTRL_PARAM[0]::v_max / a_max
+INDEX_GROUP_TF5200 = 0x20300
+INDEX_GROUPS = (INDEX_GROUP, INDEX_GROUP_TF5200)
 STRING_LENGTH = 30
 
 READ = "read"
@@ -211,6 +215,29 @@ def _spec(name: str, low: int, description: str, *, access: str = READ, **kw) ->
     return ObjectSpec(name=name, low_offset=low, description=description, access=access, **kw)
 
 
+def _position_01nm(what: str, source: str, get) -> dict:
+    """SGN64 in 0.01 nm of an axis position (mm)."""
+    return dict(type="SGN64", length=8, unit="0.01 nm", source=f"{source} [mm]", conversion=_SGN64_TEXT,
+                reader=lambda ctx: mm_to_nm001(get(ctx)))
+
+
+def _position_incr(source: str, get, high_res: bool) -> dict:
+    """A position in drive increments (drive resolution incl. gear ratio): SGN64 for the high-resolution
+    command position, SGN32 (like DIST_CTRL_IFC::actual_offset) for the actual position."""
+    if high_res:
+        return dict(type="SGN64", length=8, unit="Incr.", source=f"{source} [mm]",
+                    conversion="mm / drive resolution, rounded half away from zero, saturated to SGN64",
+                    reader=lambda ctx: round_saturate(get(ctx) / ctx.drive_resolution_mm, -(1 << 63), (1 << 63) - 1))
+    return dict(type="SGN32", length=4, unit="Incr.", source=f"{source} [mm]",
+                conversion="mm / drive resolution, rounded half away from zero, saturated to SGN32",
+                reader=lambda ctx: mm_to_increments(get(ctx), ctx.drive_resolution_mm))
+
+
+_FIG34 = ("FCT-M3 §7.5 Fig. 34 lists it among the axis-specific objects 'in the position control loop' that "
+          "'remain available' beside distance control, without address or type; distctrl serves it at this "
+          "project offset so it can be scoped with the distance-control objects")
+
+
 _ADOPTION = ("The new value becomes effective only on INACTIVE→ACTIVE or FREEZE→ACTIVE (§9.4 remark); "
              "until then it is pending.")
 
@@ -268,8 +295,9 @@ AXIS_OBJECTS: tuple[ObjectSpec, ...] = (
           conversion="as is", reader=lambda ctx: 0.0),
     _spec("DIST_CTRL::filtered_feedback", 0x310F, "Filtered feedback value.", **_nm("filtered_feedback"),
           old_name="DIST_CTRL::istw_filt", note="§7.6: DIST_CTRL::istw_filt in Incr.; §9.4 (followed): 0.01 nm"),
-    _spec("DIST_CTRL::feedback_value", 0x3110, "Calculated feedback value. SET_DIST mode: measured distance; "
-          "SET_DIST with use_both_encoder and SET_POS: measured position of the real surface.",
+    _spec("DIST_CTRL::feedback_value", 0x3110, "Calculated feedback value (the filter input). SET_DIST mode: "
+          "measured distance d; SET_DIST with use_both_encoder: d + c - a, the distance once the drive has "
+          "reached its command (FCT-M3 §7.1, SPEC §3); SET_POS: measured position of the real surface a - d.",
           **_nm("feedback_value"), old_name="DIST_CTRL::sensor_data",
           note="§7.6: DIST_CTRL::sensor_data in Incr.; §9.4 (followed): feedback_value in 0.01 nm"),
     _spec("DIST_CTRL::target_deviation", 0x3111, "SET_DIST mode: filtered distance minus set distance; "
@@ -294,13 +322,50 @@ AXIS_OBJECTS: tuple[ObjectSpec, ...] = (
           note="not in the §7.6 table; §9.4 prints its offset as 0x<A_D>3901 (typo for A_ID)"),
 )
 
-BY_LOW_OFFSET: dict[int, ObjectSpec] = {s.low_offset: s for s in AXIS_OBJECTS}
-BY_NAME: dict[str, ObjectSpec] = {s.name: s for s in AXIS_OBJECTS}
+#: FCT-M3 §7.5 Fig. 34: the general axis objects next to distance control (project offsets)
+GENERAL_AXIS_OBJECTS: tuple[ObjectSpec, ...] = (
+    _spec("m_sollw_absolut", 0x3A00, "Interpolated command position of the axis (programmed path, before the "
+          "distance-control offset): p.", **_position_01nm("p", "controller.state.last_p (programmed position "
+          "of the cycle)", lambda ctx: ctx.controller.state.last_p), note=_FIG34),
+    _spec("sollw_absolut", 0x3A01, "Command position of the axis including the distance-control offset: "
+          "c = p + o.", **_position_01nm("c", "CycleOutput.command_position", lambda ctx: ctx.out.command_position),
+          note=_FIG34),
+    _spec("dig cmd pos high_res", 0x3A02, "Command position sent to the drive, in drive increments (high "
+          "resolution).", **_position_incr("CycleOutput.command_position", lambda ctx: ctx.out.command_position,
+                                          True), note=_FIG34),
+    _spec("dig act pos", 0x3A03, "Actual position of the drive (motor encoder), in drive increments.",
+          **_position_incr("controller.state.last_a (actual position of the cycle)",
+                           lambda ctx: ctx.controller.state.last_a, False), note=_FIG34),
+)
+
+#: TF5200 Abstandskontrolle §7.5 (and FCT-M3 §7.6): aliases of DIST_CTRL_PARAM[0]::v_max / a_max
+TF5200_OBJECTS: tuple[ObjectSpec, ...] = (
+    _spec("DISTCTRL::v_max", 0x0152, "TF5200 Abstandskontrolle §7.5: maximum velocity when a position offset "
+          "is executed (P-AXIS-00415). The same value as DIST_CTRL_PARAM[0]::v_max (an alias): "
+          + _ADOPTION, index_group=INDEX_GROUP_TF5200, **_param("v_max"),
+          note="TF5200 §7.5 address: index group 0x20300, offset 0x10152 + 0x10000 (axis index - 1); "
+               "SPEC §10: served as an alias so a client written from the TwinCAT manual works"),
+    _spec("DISTCTRL::a_max", 0x0153, "TF5200 Abstandskontrolle §7.5: maximum acceleration when a position "
+          "offset is executed (P-AXIS-00416). The same value as DIST_CTRL_PARAM[0]::a_max (an alias): "
+          + _ADOPTION, index_group=INDEX_GROUP_TF5200, **_param("a_max"),
+          note="TF5200 §7.5 address: index group 0x20300, offset 0x10153 + 0x10000 (axis index - 1)"),
+)
+
+#: every object the GEO port serves per axis: the documented §9.4 objects, Fig. 34's general axis
+#: objects and the TF5200 aliases
+SERVED_OBJECTS: tuple[ObjectSpec, ...] = AXIS_OBJECTS + GENERAL_AXIS_OBJECTS + TF5200_OBJECTS
+#: every served object by (index group, low offset)
+BY_ADDRESS: dict[tuple[int, int], ObjectSpec] = {(s.index_group, s.low_offset): s for s in SERVED_OBJECTS}
+#: the objects of index group 0x120300 by low offset
+BY_LOW_OFFSET: dict[int, ObjectSpec] = {s.low_offset: s for s in SERVED_OBJECTS if s.index_group == INDEX_GROUP}
+BY_NAME: dict[str, ObjectSpec] = {s.name: s for s in SERVED_OBJECTS}
 
 
 def _selfcheck() -> None:
-    assert len(BY_LOW_OFFSET) == len(AXIS_OBJECTS) and len(BY_NAME) == len(AXIS_OBJECTS)
-    for s in AXIS_OBJECTS:
+    assert len(BY_ADDRESS) == len(SERVED_OBJECTS) and len(BY_NAME) == len(SERVED_OBJECTS)
+    assert all(s.index_group in INDEX_GROUPS for s in SERVED_OBJECTS)
+    assert all(s.index_group == INDEX_GROUP for s in AXIS_OBJECTS + GENERAL_AXIS_OBJECTS)
+    for s in SERVED_OBJECTS:
         assert _LENGTH[s.type] == s.length, s.name
         assert s.access in (READ, READ_WRITE), s.name
         assert (s.write_name is not None) == s.writable, s.name
@@ -315,7 +380,7 @@ def find_spec(name: str) -> ObjectSpec:
     """The spec by full name (``DIST_CTRL::kp``) or, when unique, by short name (``kp``)."""
     if name in BY_NAME:
         return BY_NAME[name]
-    hits = [s for s in AXIS_OBJECTS if s.short_name == name]
+    hits = [s for s in SERVED_OBJECTS if "::" in s.name and s.short_name == name]
     if len(hits) == 1:
         return hits[0]
     if hits:
@@ -340,9 +405,7 @@ def find_object(index_group: int, index_offset: int,
                 contexts: Mapping[int, AxisObjectContext] | Iterable[AxisObjectContext]
                 ) -> tuple[ObjectSpec, AxisObjectContext] | None:
     """The object and axis an ADS (index group, index offset) addresses, or None."""
-    if index_group != INDEX_GROUP:
-        return None
-    spec = BY_LOW_OFFSET.get(index_offset & 0xFFFF)
+    spec = BY_ADDRESS.get((index_group, index_offset & 0xFFFF))
     if spec is None:
         return None
     axis_id = index_offset >> 16
@@ -490,7 +553,7 @@ def object_table(contexts: Mapping[int, AxisObjectContext] | Iterable[AxisObject
     ctxs = contexts.values() if isinstance(contexts, Mapping) else contexts
     rows = []
     for ctx in sorted(ctxs, key=lambda c: c.axis_id):
-        for spec in AXIS_OBJECTS:
+        for spec in SERVED_OBJECTS:
             rows.append(object_row(len(rows) + 1, spec.index_group, index_offset(ctx.axis_id, spec), spec,
                                    read_value(spec, ctx), Achse=ctx.axis_name))
     return rows

@@ -407,7 +407,7 @@ def test_object_table_rows_like_the_object_browser():
     loop = Loop()
     loop.cycle(Command(Action.ON, set_pos=40.0, kp=0.3))
     rows = object_table({3: ctx_of(loop, 3), 1: ctx_of(loop, 1)})
-    assert len(rows) == 2 * len(AXIS_OBJECTS)
+    assert len(rows) == 2 * (len(AXIS_OBJECTS) + 6)            # + Fig. 34's four and the two TF5200 aliases
     assert [r["Nr"] for r in rows] == list(range(1, len(rows) + 1))
     kp3 = next(r for r in rows if r["Offset"] == "0x33106")
     assert kp3 == {**kp3, "Gruppe": "0x120300", "Bezeichner": "DIST_CTRL::kp", "Datentyp": "REAL64", "Länge": 8,
@@ -443,3 +443,50 @@ def test_n_cycles_shows_the_n_the_filter_uses_four_under_default():
     assert read_value(BY_NAME["DIST_CTRL::n_cycles"], AxisObjectContext(1, "Z", ctrl, out)) == 4
     ctrl2 = AxisDistanceController(params.replace(filter_type="MOVING_AVERAGE"))
     assert read_value(BY_NAME["DIST_CTRL::n_cycles"], AxisObjectContext(1, "Z", ctrl2, None)) == 20
+
+
+def test_the_tf5200_addresses_are_aliases_of_the_parameter_objects():
+    """TF5200 Abstandskontrolle §7.5: DISTCTRL::v_max (SGN32, µm/s) at 0x20300 / 0x10152, DISTCTRL::a_max
+    (SGN32, mm/s²) at 0x10153, + 0x10000 (axis index - 1); SPEC §10: served as aliases (same value, same
+    write rule)."""
+    from distctrl.objects import INDEX_GROUP_TF5200, TF5200_OBJECTS
+
+    loop = Loop(v_max=12.5, a_max=900.0)
+    loop.cycle()
+    ctxs = {1: ctx_of(loop, 1), 3: ctx_of(loop, 3)}
+    assert INDEX_GROUP_TF5200 == 0x20300 and len(TF5200_OBJECTS) == 2
+    for axis_id, offset_v, offset_a in ((1, 0x10152, 0x10153), (3, 0x30152, 0x30153)):
+        v, ctx = find_object(0x20300, offset_v, ctxs)
+        a, _ = find_object(0x20300, offset_a, ctxs)
+        assert (v.name, v.type, v.length, v.unit, v.access) == ("DISTCTRL::v_max", "SGN32", 4, "µm/s", "read/write")
+        assert (a.name, a.type, a.unit) == ("DISTCTRL::a_max", "SGN32", "mm/s²")
+        assert ctx.axis_id == axis_id
+        assert read_value(v, ctx) == read_value(BY_NAME["DIST_CTRL_PARAM[0]::v_max"], ctx) == 12500
+        assert read_value(a, ctx) == read_value(BY_NAME["DIST_CTRL_PARAM[0]::a_max"], ctx) == 900
+    spec, ctx = find_object(0x20300, 0x10152, ctxs)
+    w = write_value(spec, ctx, 7000)
+    assert (w.name, w.value) == ("v_max", 7.0)                          # the same ObjectWrite as 0x13500
+    assert find_object(0x20300, 0x13106, ctxs) is None                  # only these two live in 0x20300
+    assert find_object(0x120300, 0x10152, ctxs) is None
+
+
+def test_fig_34_general_axis_objects_show_p_c_and_the_drive_positions():
+    """FCT-M3 §7.5 Fig. 34 (m_sollw_absolut, sollw_absolut, dig cmd pos high_res, dig act pos) beside the
+    distance-control objects: programmed p, command c = p + o (0.01 nm), c and a in drive increments."""
+    from distctrl.objects import GENERAL_AXIS_OBJECTS
+
+    loop = Loop(p=40.0, surface=40.3)
+    loop.cycle(Command(Action.ON, set_pos=40.0), n=200)
+    ctx = ctx_of(loop, 2, res=5e-4)
+    names = [s.name for s in GENERAL_AXIS_OBJECTS]
+    assert names == ["m_sollw_absolut", "sollw_absolut", "dig cmd pos high_res", "dig act pos"]
+    addr = {s.name: index_offset(2, s) for s in GENERAL_AXIS_OBJECTS}
+    assert addr["m_sollw_absolut"] == 0x23A00 and addr["dig act pos"] == 0x23A03
+    p, c, a = loop.ctrl.state.last_p, loop.out.command_position, loop.ctrl.state.last_a
+    assert c == pytest.approx(40.3, abs=1e-6) and p == 40.0
+    assert read_value(BY_NAME["m_sollw_absolut"], ctx) == 40 * 10**8
+    assert read_value(BY_NAME["sollw_absolut"], ctx) == half_away(c * 1e8)
+    assert read_value(BY_NAME["dig cmd pos high_res"], ctx) == half_away(c / 5e-4)
+    assert read_value(BY_NAME["dig act pos"], ctx) == half_away(a / 5e-4)
+    for s in GENERAL_AXIS_OBJECTS:
+        assert not s.writable and s.index_group == 0x120300
