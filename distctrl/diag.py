@@ -254,9 +254,14 @@ def format_diag_axis(controller, output, axis_name: str, *, axis_index: int = 0,
         ("sw_limit_max", _f(p.sw_limit_max), "mm"),
     ]
     logged = _events_block(st.error, list(events) + list(out.events if output is not None else []))
-    return _assemble(header, f"DiagData distance control: axis {axis_name}", [
-        ("Distance Control", dc), ("logged events", logged), ("Dist-Ctrl Interface", ifc),
-        ("State", state), ("Values", values), ("Limits", limits)])
+    sections = [("Distance Control", dc), ("logged events", logged), ("Dist-Ctrl Interface", ifc),
+                ("State", state), ("Values", values), ("Limits", limits)]
+    if p.rotary:                        # a rotary axis (P-AXIS-00018): its lengths are degrees
+        sections = [(title, [(n, v, _ROTARY_UNIT.get(u, u)) for n, v, u in lines]) for title, lines in sections]
+    return _assemble(header, f"DiagData distance control: axis {axis_name}", sections)
+
+
+_ROTARY_UNIT = {"mm": "°", "mm/s": "°/s", "mm/s²": "°/s²"}
 
 
 # ============================================================================ 3D variant

@@ -137,7 +137,7 @@ class AxisDistanceController:
         self._s_lo = p.min_pos + p.tolerance                    # 70576 below
         self._wait_tol = max(p.tolerance, _WAIT_WINDOW_MIN)
         self._mm_per_incr = p.sensor_mm_per_increment
-        self._modulo = p.sensor_mode_act_pos == 2
+        self._modulo = p.sensor_modulo                            # P-AXIS-00424 (0: by axis type)
         self._w_v = p.v_weight_down if p.v_weight_down > 0 else 1.0
         self._w_a = p.a_weight_down if p.a_weight_down > 0 else 1.0
         self._tuning_stamp = object()      # identity token: outputs showing older tuning refresh
@@ -220,13 +220,14 @@ class AxisDistanceController:
                 self._raise(ErrorId.INPUT_NOT_FINITE, events, line)
             else:
                 if st.has_last_s and abs(s - st.last_s) > self._jump_limit:
+                    unit = p.length_unit
                     self._raise(ErrorId.SENSOR_JUMP, events, line,
-                                f"|Δs| = {abs(s - st.last_s):.6g} mm in {T:g} s, limit "
-                                f"{p.max_act_value_change:g} mm/s")
+                                f"|Δs| = {abs(s - st.last_s):.6g} {unit} in {T:g} s, limit "
+                                f"{p.max_act_value_change:g} {unit}/s")
                 elif s > self._s_hi:
-                    self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line, f"s = {s:.6g} mm")
+                    self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line, f"s = {s:.6g} {p.length_unit}")
                 elif s < self._s_lo:
-                    self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line, f"s = {s:.6g} mm")
+                    self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line, f"s = {s:.6g} {p.length_unit}")
             state = st.hli_state
             running = state in MONITORED_STATES
         if sensor_ok:
@@ -409,14 +410,14 @@ class AxisDistanceController:
                 return st.last_s, False
             st.last_var = d
             s = -d + st.ref_shift                          # the PLC delivers mm: no ref_offset here
-            if p.sensor_mode_act_pos == 2:
+            if self._modulo:
                 s = p.min_pos + (s - p.min_pos) % (p.max_pos - p.min_pos)
             return s, True
         incr = inp.sensor_increments
         if not _finite(incr) or abs(incr) > law.HUGE:
             return st.last_s, False
         s = law.encoder_reading(incr, p.sensor_mm_per_increment, p.sensor_sign_reversal,
-                                p.ref_offset + st.ref_shift, p.sensor_mode_act_pos == 2, p.min_pos, p.max_pos)
+                                p.ref_offset + st.ref_shift, self._modulo, p.min_pos, p.max_pos)
         if not _finite(s):
             return st.last_s, False
         return s, True

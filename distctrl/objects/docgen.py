@@ -80,6 +80,8 @@ def render() -> str:
         "  cycle, so the deltas sent to the drive add up to `actual_offset` without drift.",
         "- UNS32 `DIST_CTRL::state`: the internal state code (0 IDLE, 2 ACTIVE, 3 FREEZE, 4 OFF,",
         "  5 OFF_NO_MOVE, 6-12 ERROR by cause, 15 DRYRUN; docs/states.md).",
+        "- Rotary axes (P-AXIS-00018 `ACHSTYP_ROTATOR`): the axis's lengths are degrees, so `0.01 nm` reads",
+        "  as 1e-8°, `0.1 µm` as 0.0001°, `µm/s` as 0.001°/s and `mm/s²` as °/s² (the same integer scales).",
         "- STRING (30 bytes): the filter type's name (P-AXIS-00782), ASCII, NUL-padded; at most 29 characters",
         "  so a terminating NUL always remains. BOOLEAN: one byte, 0 or 1 (any non-zero byte decodes as TRUE).",
         "",

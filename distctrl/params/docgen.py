@@ -24,11 +24,17 @@ def render() -> str:
         "*list unit*; distctrl converts them once, at loading, to the internal unit (mm, s). Unknown keys,",
         "values of the wrong type and values outside the range are load errors that name the file, the",
         "line, the key, the ID, the value and the range. Aliases are the legacy/German keys used in the",
-        "documents' examples. The last three rows are axis data from the ISG axis list that the",
-        "controller needs; they are not part of the distance-control documents.",
+        "documents' examples. P-AXIS-00018 and the last three rows are axis data from the ISG axis list",
+        "that the controller needs; they are not part of the distance-control documents.",
         "",
-        "| ID | key | type | list unit | range | default | internal | description |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "**Rotary axes.** Every distance-control parameter is documented for the axis types T and R (FCT-M3",
+        "§9.2, column \"Dimension\"). With `kenngr.achs_typ ACHSTYP_ROTATOR` (P-AXIS-00018) the list units are",
+        "the R column's (0.0001° for 0.1 µm, 0.001°/s for µm/s, °/s² for mm/s², 0.0001°/s for P-AXIS-00417)",
+        "and every internal length is an angle in degrees (the law is the same; `AxisParameters.length_unit`).",
+        "P-AXIS-00424 = 0 (\"depending on axis type\") is then modulo: the reading wraps into [min_pos, max_pos).",
+        "",
+        "| ID | key | type | list unit T | list unit R | range | default | internal | description |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for s in AXIS_PARAMETERS:
         desc = s.description
@@ -36,9 +42,10 @@ def render() -> str:
             desc += " (aliases: " + ", ".join(f"`{a}`" for a in s.aliases) + ")"
         if s.note:
             desc += f". *Resolution:* {s.note}"
-        lines.append(f"| {s.id} | `{s.key}` | {s.type} | {s.unit} | {s.range_text()} | {_default_text(s)} | "
-                     f"`{s.field}` [{s.internal_unit}] | {desc} |")
-    lines += ["", "Typo prefix `kenngnr.distsc.` (seeds/003's overview) is accepted as `kenngr.distc.`.", ""]
+        lines.append(f"| {s.id} | `{s.key}` | {s.type} | {s.unit} | {s.unit_rotary or s.unit} | {s.range_text()} | "
+                     f"{_default_text(s)} | `{s.field}` [{s.internal_unit}] | {desc} |")
+    lines += ["", "Typo prefix `kenngnr.distsc.` (TF5200 Abstandskontrolle's overview) is accepted as `kenngr.distc.`.",
+              ""]
     return "\n".join(lines)
 
 

@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 
 from ..control.kinds import FilterType
 from ..errors import ParameterError
-from .axis import AxisParameters, check_internal, to_internal_value, to_interface_value
+from .axis import AxisParameters, check_internal, parse_axis_type, to_internal_value, to_interface_value
 from .table import AXIS_PARAMETERS, BY_KEY, IGNORED_KEYS, ParamSpec
 
 #: typo prefixes found in seeds/003's parameter overview, accepted as aliases
@@ -42,6 +42,9 @@ def _no_problem(key: str) -> tuple[str, KeyProblem | None]:
 
 
 def _filter_type_name(spec: ParamSpec, text: str) -> object:
+    """A STRING value's list name: the filter type (P-AXIS-00782) or the axis type (P-AXIS-00018)."""
+    if spec.field == "axis_type":
+        return parse_axis_type(text)
     return FilterType.parse(text).name
 
 
@@ -65,6 +68,7 @@ class ListFormat:
     resolve_key: Callable[[str], tuple[str, KeyProblem | None]] = _no_problem
     ignored_keys: frozenset[str] = frozenset()
     docs: str = "docs/parameters.md"
+    rotary_field: str | None = None      # the field whose value makes the list's lengths degrees
     by_key: Mapping[str, ParamSpec] = field(default=None, repr=False)   # type: ignore[assignment]
 
     def __post_init__(self) -> None:
@@ -81,7 +85,7 @@ class ListFormat:
 
 
 AXIS_LIST = ListFormat("axis", AXIS_PARAMETERS, AxisParameters, to_internal_value, to_interface_value,
-                       ignored_keys=IGNORED_KEYS, docs="docs/parameters.md", by_key=BY_KEY)
+                       ignored_keys=IGNORED_KEYS, docs="docs/parameters.md", by_key=BY_KEY, rotary_field="axis_type")
 
 
 @dataclass
@@ -173,8 +177,13 @@ def parse_list_text(text: str, source: str = "<string>", base: Any = None, *,
         values[spec.field] = value
         lines[spec.key] = lineno
     fields = {}
+    rotary = None
+    if fmt.rotary_field is not None:        # lengths of a rotary axis are degrees (P-AXIS-00018)
+        rotary = values.get(fmt.rotary_field, None)
+        rotary = getattr(base, "rotary", False) if rotary is None else parse_axis_type(rotary) == "ACHSTYP_ROTATOR"
     for field_name, value in values.items():
-        fields[field_name] = fmt.to_internal(fmt.spec_of_field(field_name), value)
+        spec = fmt.spec_of_field(field_name)
+        fields[field_name] = fmt.to_internal(spec, value) if rotary is None else fmt.to_internal(spec, value, rotary)
     try:
         params = (base if base is not None else fmt.target()).replace(**fields)
     except ParameterError as exc:
@@ -219,12 +228,18 @@ def format_list(params: Any, *, only_changed: bool = False, comments: bool = Tru
     """Write parameters in the kernel list format (loadable again by :func:`parse_list_text`)."""
     defaults = fmt.target()
     rows = []
+    rotary = fmt.rotary_field is not None and getattr(params, "rotary", False)
+
+    def interface(p, spec):
+        v = getattr(p, spec.field)
+        return fmt.to_interface(spec, v, rotary) if fmt.rotary_field is not None else fmt.to_interface(spec, v)
     for spec in fmt.specs:
-        value = fmt.to_interface(spec, getattr(params, spec.field))
-        if only_changed and value == fmt.to_interface(spec, getattr(defaults, spec.field)):
+        value = interface(params, spec)
+        if only_changed and value == interface(defaults, spec):
             continue
         text = f"{value:.12g}" if isinstance(value, float) else str(value)
-        rows.append(f"{spec.key:<44} {text:<14}" + (f" # {spec.id} [{spec.unit}] {spec.description}"
+        unit = spec.unit_rotary if rotary and spec.unit_rotary else spec.unit
+        rows.append(f"{spec.key:<44} {text:<14}" + (f" # {spec.id} [{unit}] {spec.description}"
                                                     if comments else ""))
     return "\n".join(r.rstrip() for r in rows) + "\n"
 

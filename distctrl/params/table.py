@@ -7,6 +7,7 @@ docs/parameters.md is generated from this table (``make docs``); a test keeps th
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from ..control.kinds import FILTER_TYPE_NAMES
@@ -33,6 +34,12 @@ class ParamSpec:
     aliases: tuple = ()          # legacy / German keys of the documents' examples
     description: str = ""
     note: str = ""               # where the project resolved a contradiction of the documents
+    unit_rotary: str = ""        # list unit on a rotary axis (P-AXIS-00018 ACHSTYP_ROTATOR), if it differs
+    scale_rotary: float | None = None   # internal = value * scale_rotary on a rotary axis (None: scale)
+
+    def scale_for(self, rotary: bool) -> float:
+        """internal = list value * this, on a translatory (``rotary`` False) or rotary axis."""
+        return self.scale_rotary if rotary and self.scale_rotary is not None else self.scale
 
     def range_text(self) -> str:
         if self.choices:
@@ -64,8 +71,13 @@ def _p(id, key, field, type, unit, internal_unit, scale, default, lo=None, hi=No
     return ParamSpec(id, key, field, type, unit, internal_unit, scale, default, lo, hi, **kw)
 
 
-UM = 1e-4       # 0.1 µm -> mm
-UM_S = 1e-3     # µm/s -> mm/s
+UM = 1e-4       # 0.1 µm -> mm (0.0001° -> ° on a rotary axis)
+UM_S = 1e-3     # µm/s -> mm/s (0.001°/s -> °/s)
+
+#: P-AXIS-00018 axis types distance control is documented for ("Axis types T, R" of every parameter)
+AXIS_TYPE_TRANSLATOR = "ACHSTYP_TRANSLATOR"
+AXIS_TYPE_ROTATOR = "ACHSTYP_ROTATOR"
+AXIS_TYPE_NAMES = (AXIS_TYPE_TRANSLATOR, AXIS_TYPE_ROTATOR)
 
 AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
     _p("P-AXIS-00328", "lr_param.distance_control_on", "enabled", "BOOLEAN", "-", "bool", 1, 0,
@@ -141,6 +153,13 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
        aliases=("kenngr.distc.sigma",), description="Kalman filter: uncertainty of the measured values"),
     _p("P-AXIS-00784", "kenngr.distc.smoothing_factor", "smoothing_factor", "REAL64", "-", "-", 1, 0.7, 0.0, 1.0,
        lo_open=True, description="Exponential mean: weight of the newest value"),
+    # --- axis type (ISG axis list): translatory (T, mm) or rotary (R, °) distance-controlled axis ---
+    _p("P-AXIS-00018", "kenngr.achs_typ", "axis_type", "STRING", "-", "-", 1, AXIS_TYPE_TRANSLATOR,
+       choices=AXIS_TYPE_NAMES,
+       description="Axis type: ACHSTYP_TRANSLATOR (T: lengths in mm, list units 0.1 µm, µm/s) or ACHSTYP_ROTATOR "
+                   "(R: angles in °, list units 0.0001°, 0.001°/s; P-AXIS-00424 = 0 is modulo); also 0x0001 / 0x0002",
+       note="ISG axis list; every distance-control parameter is documented for the axis types T and R "
+            "(SPEC §12); a spindle (ACHSTYP_SPINDEL) has no distance control"),
     # --- project parameter (the documents name the case, not a parameter) ---
     _p("PRJ-AXIS-0001", "kenngr.distc.sensor_absolute", "sensor_absolute", "BOOLEAN", "-", "bool", 1, 1,
        description="The sensor (encoder 2) delivers absolute values; 0: it must be referenced (REF) before a "
@@ -155,6 +174,25 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
     _p("P-AXIS-00178", "getriebe[0].swe_neg", "sw_limit_min", "SGN32", "0.1 µm", "mm", UM, SGN32_MIN,
        SGN32_MIN, SGN32_MAX, hi_open=True, description="Negative software limit switch of the axis"),
 )
+
+#: the list unit of a rotary axis (FCT-M3 §9.2, column "Dimension R") where it differs from T; P-AXIS-00417's
+#: R unit 0.0001°/s has a different scale than its T unit µm/s. P-AXIS-00502 documents "mm/s²" for R too,
+#: read as °/s² like a_max.
+_ROTARY_UNITS = {"0.1 µm": ("0.0001°", None), "µm/s": ("0.001°/s", None), "mm/s²": ("°/s²", None)}
+_ROTARY_SPECIAL = {"P-AXIS-00417": ("0.0001°/s", 1e-4), "P-AXIS-00423": ("0.0001°", None)}
+
+
+def _with_rotary_units(spec: ParamSpec) -> ParamSpec:
+    if spec.id in _ROTARY_SPECIAL:
+        unit, scale = _ROTARY_SPECIAL[spec.id]
+    elif spec.unit in _ROTARY_UNITS:
+        unit, scale = _ROTARY_UNITS[spec.unit]
+    else:
+        return spec
+    return dataclasses.replace(spec, unit_rotary=unit, scale_rotary=scale)
+
+
+AXIS_PARAMETERS = tuple(_with_rotary_units(s) for s in AXIS_PARAMETERS)
 
 #: Keys the list format knows but the controller does not use (accepted and ignored, with no error).
 IGNORED_KEYS: frozenset[str] = frozenset()

@@ -384,6 +384,12 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
             raise ConfigError(f"{key}.axis", MISSING, "one of the configured axes " + ", ".join(
                 repr(a) for a in axes) + " (mode 'axis': the sensor measures this axis's height)")
         axis = _axis_ref(cfg["axis"], f"{key}.axis", axes)
+        if axes[axis].params.rotary:
+            raise ConfigError(f"{key}.axis", cfg["axis"], "a translatory axis: the virtual machine measures a "
+                              "height above a surface; a rotary distance-controlled axis (P-AXIS-00018 "
+                              "ACHSTYP_ROTATOR) is supported by the cycle core, parameter lists, PLC interface, "
+                              "CNC objects and NC programs, not by the simulated plant (docs/sim-models.md)",
+                              "rotary axis")
     for k, only in _SENSOR_KIND_ONLY.items():
         if k in cfg and kind != only:
             raise ConfigError(f"{key}.{k}", cfg[k], f"{k!r} only with kind = {only!r}",
