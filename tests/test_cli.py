@@ -45,7 +45,9 @@ def test_objects_lists_the_object_browser_table_for_a_scenario():
     assert lines[0].split()[:4] == ["Nr", "Gruppe", "Offset", "Bezeichner"]
     kp = next(line for line in lines if "DIST_CTRL::kp " in line or line.split()[3] == "DIST_CTRL::kp")
     assert "0x120300" in kp and "0x33106" in kp and "REAL64" in kp and "read/write" in kp
-    assert len([line for line in lines[2:] if line.strip()]) == 25
+    # the 25 objects of FCT-M3 §9.4, Fig. 34's four general axis objects and the two TF5200 aliases
+    assert len([line for line in lines[2:] if line.strip()]) == 31
+    assert any("m_sollw_absolut" in line for line in lines) and any("0x20300" in line for line in lines)
 
 
 def test_objects_without_scenario_and_unknown_axis():
