@@ -105,8 +105,11 @@ def _dint_from_mm(value_mm: float, what: str) -> int:
 class DistanceControlUnit:
     """``gpAx[axis_idx]^.lr_mc_control.distance_control`` of one axis."""
 
-    def __init__(self, axis_index: int = 1):
+    def __init__(self, axis_index: int = 1, distance_control_on: bool = True):
         self.axis_index = axis_index
+        #: P-AXIS-00328 of the axis: state_r's positions are entered only when it is on (HLI
+        #: DistanceControl, state_r "Characteristics"); they stay 0 otherwise
+        self.distance_control_on = distance_control_on
         self.command_w = HliDistanceControlCommand()
         self.enable_w = False
         self.command_semaphore_rw = False
@@ -194,9 +197,12 @@ class DistanceControlUnit:
         return cmd
 
     def publish(self, out: CycleOutput) -> None:
-        """After the controller update: fill ``state_r`` from the output (mm -> 0.1 µm, DINT-saturated)."""
+        """After the controller update: fill ``state_r`` from the output (mm -> 0.1 µm, DINT-saturated).
+        Without distance control in the axis parameters only ``actual_state`` is entered."""
         s = self.state_r
         s.actual_state = int(out.hli_state)
+        if not self.distance_control_on:
+            return
         s.actual_position = mm_to_dint_01um(out.surface_position)
         s.actual_offset = mm_to_dint_01um(out.offset)
         s.command_source = int(out.command_source)

@@ -113,7 +113,8 @@ class Machine:
                        for n, a in axes.items()}
         self.outputs = {n: CycleOutput() for n in axes}
         #: the HLI DistanceControl control unit of each axis (gpAx[i]^.lr_mc_control.distance_control)
-        self.hli = {n: DistanceControlUnit(axis_index=i + 1) for i, n in enumerate(axes)}
+        self.hli = {n: DistanceControlUnit(axis_index=i + 1, distance_control_on=a.params.enabled)
+                    for i, (n, a) in enumerate(axes.items())}
         #: the channel's 3D status (gpCh[1]^.bahn_state: virt_tool_length_r, inclination_r); filled by
         #: the 3D distance control, 0 for the axis variant
         self.channel_status = ChannelDistanceStatus()

@@ -300,3 +300,31 @@ def test_reset_acts_whoever_owns():
     ax.plc("ON", 40.0)
     out = ax.cycle(Command(Action.RESET))
     assert out.hli_state == HliState.INACTIVE and ax.state_r.actual_state == 0
+
+
+def test_positions_are_entered_only_when_distance_control_is_on_in_the_axis_parameters():
+    """HLI DistanceControl, state_r.actual_position / .actual_offset, "Characteristics": the data item
+    is entered only if distance control is activated in the axis parameters (P-AXIS-00328)."""
+    off = Axis(enabled=False)
+    off.unit.distance_control_on = False
+    off.cycle(n=5)
+    assert (off.unit.state_r.actual_position, off.unit.state_r.actual_offset) == (0, 0)
+    assert off.unit.state_r.actual_distance == 0
+    assert off.unit.state_r.actual_state == 0
+    on = Axis()
+    on.cycle(n=5)
+    assert on.unit.state_r.actual_position == 400000
+
+
+def test_the_virtual_machine_tells_each_unit_whether_distance_control_is_on():
+    from pathlib import Path
+
+    from distctrl.sim.machine import Machine
+    from distctrl.sim.scenario import scenario_from_dict
+    scn = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
+    sc = scenario_from_dict({"name": "t", "program_text": "N10 M30", "duration": 0.01,
+                             "axes": {"X": {}, "Z": {"params": "z_probe.lis", "start": 40.0}},
+                             "surface": {"base": 40.0}, "sensor": {"axis": "Z", "kind": "encoder"}}, base_dir=scn)
+    vm = Machine(sc)
+    assert vm.hli["Z"].distance_control_on is True
+    assert vm.hli["X"].distance_control_on is False
