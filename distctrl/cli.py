@@ -112,7 +112,7 @@ def _print_summary(result, trace_path, plot_path) -> None:
 @click.option("--axis", "axis_filter", help="Only this axis (name).")
 @click.option("--cycles", default=0, show_default=True, help="Run the scenario this many cycles first, so the values are live.")
 def objects(scenario: str | None, axis_filter: str | None, cycles: int) -> None:
-    """List the CNC objects of distance control like the object browser (seeds/000 §7.6).
+    """List the CNC objects of distance control like the object browser (FCT-M3 §7.6).
 
     With SCENARIO the axes (axis_id from 1 in X Y Z A B C order) and their parameter lists come from
     it; without, one axis with default parameters. Index group 0x120300, offset (axis_id << 16) | 0x3xxx,
@@ -193,7 +193,7 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
 @click.option("--seconds", default=1.0, show_default=True, help="Run the scenario this long first.")
 @click.option("--axis", "axis_filter", help="Only this axis (name).")
 def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
-    """The diagnosis block of distance control (seeds/000 Fig. 56 layout) after running SCENARIO
+    """The diagnosis block of distance control (FCT-M3 Fig. 56 layout) after running SCENARIO
     for --seconds: parameters in use, state, set values, offset, sensor, filter, limits, last error."""
     from .diag import format_diag_axis
     from .sim.machine import Machine

@@ -1,7 +1,7 @@
 """The demo job: part programs with distance control on the virtual machine.
 
 * a laser head in CONST_DIST 1 mm above a sheet with waviness, a thickness step and the 2.8 mm
-  obstacle of seeds/000 §4, at 6 m/min (examples/scenarios/const_dist_sheet.toml), run with both
+  obstacle of FCT-M3 §4, at 6 m/min (examples/scenarios/const_dist_sheet.toml), run with both
   encoders (P-AXIS-00500, as in the documents' example list) and without;
 * the documents' SET_POS example %DIST_1 (examples/scenarios/dist_1.toml).
 

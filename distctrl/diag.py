@@ -1,4 +1,4 @@
-"""Diagnosis dump of the distance control in the layout of seeds/000 §12.10 (Fig. 54-56).
+"""Diagnosis dump of the distance control in the layout of FCT-M3 §12.10 (Fig. 54-56).
 
 Fig. 56 "Diagnosis data for 3D distance control" shows the kernel's diagnosis text (DiagData,
 channel > Diagnosedaten) with two sections, ``Distance Control:`` (``zstd``, ``tast_offset``,

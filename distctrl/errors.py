@@ -3,7 +3,7 @@
 Two kinds of error exist in distctrl, deliberately separate:
 
 * On the cycle path errors are *values*: an :class:`ErrorEvent` carrying the documented error ID
-  (seeds/000 ch. 11, SPEC §7), the cycle number and, for NC commands, the block's line. The core
+  (FCT-M3 ch. 11, SPEC §7), the cycle number and, for NC commands, the block's line. The core
   never raises on bad cycle input.
 * At the edges (files, parsing, CLI, constructing parameter sets) errors are exceptions derived
   from :class:`DistCtrlError`, each naming file, line, parameter ID, value and allowed range.
@@ -32,7 +32,7 @@ class ErrorId(IntEnum):
     # --- project range (not numbered by the documents) ---
     INPUT_NOT_FINITE = 900001      # a sensor or position input is NaN or infinite
     SW_LIMIT = 900002              # offset would move the axis beyond a software limit (P-AXIS-00428 = 1)
-    INVALID_TRANSITION = 900003    # transition not permitted from the current state (seeds/000 Fig. 35)
+    INVALID_TRANSITION = 900003    # transition not permitted from the current state (FCT-M3 Fig. 35)
     SENSOR_SOURCE_CHANGED = 900004  # sensor source changed while active
     COMMAND_VALUE_OUT_OF_RANGE = 900005  # a programmed/commanded value outside its documented range
     OBJECT_READ_ONLY = 900006      # write to a CNC object that is not read/write

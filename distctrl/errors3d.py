@@ -1,4 +1,4 @@
-"""Error catalogue of the 3D (channel-specific) distance control (seeds/000 §12.7, §12.8, SPEC §7).
+"""Error catalogue of the 3D (channel-specific) distance control (FCT-M3 §12.7, §12.8, SPEC §7).
 
 The 3D variant raises "in principle the same error messages" as the axis variant under its own
 IDs (§12.7): :data:`AXIS_TO_3D` maps each axis ID to its 3D partner as §12.7 / SPEC §7 pair them.
@@ -48,7 +48,7 @@ class Error3D:
     axis_id: int | None = None   # the axis variant's ID for the same condition (§12.7)
 
 
-_S127 = "seeds/000 §12.7"
+_S127 = "FCT-M3 §12.7"
 
 CATALOGUE_3D: dict[int, Error3D] = {e.id: e for e in (
     Error3D(310015, "error", "Function is not available",
@@ -94,18 +94,18 @@ CATALOGUE_3D: dict[int, Error3D] = {e.id: e for e in (
     Error3D(315001, "error", "Maximum acceleration of distance control not specified (P-CHAN-00803)",
             "3D distance control is selected while dist_ctrl[0].a_max (P-CHAN-00803) is 0 (not specified); "
             "the 3D variant has no \"0 = axis acceleration\" (SPEC §6)",
-            "seeds/000 §12.8.2 P-CHAN-00803 (no text documented)"),
+            "FCT-M3 §12.8.2 P-CHAN-00803 (no text documented)"),
     Error3D(20209, "error", "Unknown Nc-command",
             "#DIST CTRL is programmed in a channel without FCT_3D_DIST_CTRL (P-CHAN-00500): the decoder does "
-            "not know the command; the NC program is aborted", "seeds/000 §12.7 notice"),
+            "not know the command; the NC program is aborted", "FCT-M3 §12.7 notice"),
     Error3D(int(ErrorId.KIN98_MAX_INCLINATION), CATALOGUE[int(ErrorId.KIN98_MAX_INCLINATION)][0],
             CATALOGUE[int(ErrorId.KIN98_MAX_INCLINATION)][1],
             "the tool inclination θ exceeds kinematic 98's maximum angle HD4 (V.G.KIN_STEP[1].ID[98].PARAM[3]); "
             "the program aborts (distctrl.kinematics.kin98)",
-            "seeds/000 §12.4.2 (unnumbered); project ID from distctrl.errors"),
+            "FCT-M3 §12.4.2 (unnumbered); project ID from distctrl.errors"),
 )}
 
-#: axis ID -> 3D ID (seeds/000 §12.7, SPEC §7; 70576 and 900004 are the project's pairing)
+#: axis ID -> 3D ID (FCT-M3 §12.7, SPEC §7; 70576 and 900004 are the project's pairing)
 AXIS_TO_3D: dict[int, int] = {
     70329: 310018,
     70330: 310019,
@@ -187,7 +187,7 @@ def render() -> str:
         "",
         "Generated from `distctrl/errors3d.py` by `python -m distctrl.errors3d` — do not edit by hand.",
         "",
-        "seeds/000 §12.7: \"In principle, the same error messages occur with channel-specific distance",
+        "FCT-M3 §12.7: \"In principle, the same error messages occur with channel-specific distance",
         "control and with axis-specific control\", under their own IDs. The axis IDs are in docs/errors.md.",
         "On the cycle path errors are values (`ErrorEvent`, built by `make_event_3d(error_id, cycle, line,",
         "detail)`); an error puts the 3D distance control into ERROR (HLI 5) and holds the offset.",

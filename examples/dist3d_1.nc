@@ -1,5 +1,5 @@
-; seeds/001 "Example 1 - Behaviour as for axis-specific distance control" (3D distance control,
-; seeds/000 §12.2), copied as printed; only these comment lines were added.
+; PROG #DIST CTRL "Example 1 - Behaviour as for axis-specific distance control" (3D distance control,
+; FCT-M3 §12.2), copied as printed; only these comment lines were added.
 N010 G0 Z10
 ;Set the sensor input source
 N020 #DIST CTRL [SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]

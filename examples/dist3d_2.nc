@@ -1,6 +1,6 @@
-; seeds/001 "Example 2 - Distance control with inclined tool and kinematic ID 98" (3D distance
-; control, seeds/000 §12.2). Kinematic-98 values as in seeds/001 (1e-4 mm / 1e-4 degree units;
-; seeds/000 prints them a factor 10 too small, SPEC §12). Changes to the printed text, all in
+; PROG #DIST CTRL "Example 2 - Distance control with inclined tool and kinematic ID 98" (3D distance
+; control, FCT-M3 §12.2). Kinematic-98 values as in PROG #DIST CTRL (1e-4 mm / 1e-4 degree units;
+; FCT-M3 prints them a factor 10 too small, SPEC §12). Changes to the printed text, all in
 ; comments or PDF artefacts: the separator line ": -----" starts with ';' (a ':' is no comment),
 ; "SEN-SOR_VAR" is de-hyphenated to SENSOR_VAR, and the trailing "M30# distctrl ..." of the seed
 ; file (the next document glued on) is just M30. Only these comment lines were added.

@@ -1,4 +1,4 @@
-"""The diagnosis dump (seeds/000 §12.10, Fig. 56 layout) for the axis and the 3D variant."""
+"""The diagnosis dump (FCT-M3 §12.10, Fig. 56 layout) for the axis and the 3D variant."""
 from __future__ import annotations
 
 import math

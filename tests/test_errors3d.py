@@ -1,4 +1,4 @@
-"""The 3D error catalogue against seeds/000 §12.7 / §12.8.2 and SPEC §7."""
+"""The 3D error catalogue against FCT-M3 §12.7 / §12.8.2 and SPEC §7."""
 from __future__ import annotations
 
 import subprocess
@@ -14,7 +14,7 @@ from distctrl.errors3d import (AXIS_TO_3D, CATALOGUE_3D, ERROR_CODE_BY_ID_3D, TH
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# seeds/000 §12.7, verbatim: (axis ID or None, 3D ID, text)
+# FCT-M3 §12.7, verbatim: (axis ID or None, 3D ID, text)
 DOCUMENT_127 = [
     (70329, 310018, "Actual value change of sensor signal greater than limit"),
     (70330, 310019, "Sensor completely run out"),

@@ -80,7 +80,7 @@ class Command:
         return Command(Action.DRYRUN, const_dist=True, set_dist=position_mm, source=plc, line=line)
 
 
-#: CNC objects that accept writes (seeds/000 §7.6); adopted on INACTIVE->active / FREEZE->active
+#: CNC objects that accept writes (FCT-M3 §7.6); adopted on INACTIVE->active / FREEZE->active
 WRITABLE_OBJECTS = ("kp", "i_tn", "d_tv", "v_max", "a_max")
 
 

@@ -1,4 +1,4 @@
-"""Commands of the 3D (channel-specific) distance control (seeds/000 ch. 12, seeds/001).
+"""Commands of the 3D (channel-specific) distance control (FCT-M3 ch. 12, PROG #DIST CTRL).
 
 An NC block ``#DIST CTRL ON [CONST_DIST SET_DIST=1 MODE=ACS DIRECTION=Z]`` becomes one
 :class:`Command3D` (``DistCtrl3DWord.to_command3d(lookup, line)`` in :mod:`distctrl.nc.program`).
@@ -17,7 +17,7 @@ from .states import CommandSource
 
 
 class CompensationMode(IntEnum):
-    """``MODE=<ident>``: where the distance-control offset is superimposed (seeds/000 §12.2, SPEC §11)."""
+    """``MODE=<ident>``: where the distance-control offset is superimposed (FCT-M3 §12.2, SPEC §11)."""
 
     OFF = 0   # computed, not superimposed (the default)
     PCS = 1   # programmed coordinates (an active #CS rotates the direction)
@@ -35,7 +35,7 @@ class CompensationMode(IntEnum):
 
 #: DIRECTION=<axis_name>: the documents support Z and have X/Y "in preparation"
 DIRECTION_NAMES = ("X", "Y", "Z")
-#: SENSOR_SOURCE values of the 3D variant; DEFAULT means VARIABLE (seeds/000 §12.2)
+#: SENSOR_SOURCE values of the 3D variant; DEFAULT means VARIABLE (FCT-M3 §12.2)
 SENSOR_SOURCES_3D = ("DEFAULT", "VARIABLE")
 
 

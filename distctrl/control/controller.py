@@ -585,7 +585,7 @@ class AxisDistanceController:
             self._raise(ErrorId.SELECT_WHILE_TURNING_OFF, events, line)
             return
         if state in _TRACKING and target in _TRACKING and state != target:
-            # seeds/000 §8.1: ACTIVE <-> ACTIVE_CONST_DIST only through FREEZE or INACTIVE
+            # FCT-M3 §8.1: ACTIVE <-> ACTIVE_CONST_DIST only through FREEZE or INACTIVE
             self._raise(ErrorId.INVALID_TRANSITION, events, line,
                         f"{state.name} -> {target.name} only through FREEZE or INACTIVE")
             return

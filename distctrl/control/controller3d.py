@@ -1,8 +1,8 @@
-"""3D (channel-specific) distance control on the shared cycle core (seeds/000 ch. 12, SPEC §11).
+"""3D (channel-specific) distance control on the shared cycle core (FCT-M3 ch. 12, SPEC §11).
 
 One law, not a copy: the channel controller owns an :class:`AxisDistanceController` and runs it on
 *orthogonal* quantities — the PLC supplies the orthogonal distance ``d`` of the tool clamping point
-(laser exit) from the surface (seeds/000 §12.3), the set distance in use is
+(laser exit) from the surface (FCT-M3 §12.3), the set distance in use is
 ``SET_DIST · cos θ`` (times kinematic 98's extension Lv/L, SPEC §11), and the core's offset ``o`` is
 the orthogonal compensation wanted. This layer then superimposes it along the MODE's direction
 ``e`` (ACS/MCS: machine Z, PCS: the programmed Z of an active #CS, ECS: the tool direction u):
@@ -15,7 +15,7 @@ machine Z by default; a channel whose workpiece is inclined (robot example §12.
 Additional rules of the 3D variant: a_max must be > 0 (315001 at select); MODE may not change while
 active (51064); ECS needs kinematic 98 active; FILTER_TIME > 0 blends activation and deactivation
 with sin²(π/2·k/N); reset and program end keep the current offset as a static offset and sensor
-changes no longer act (seeds/000 §12.4.4). Errors of the core are reported with their 3D IDs.
+changes no longer act (FCT-M3 §12.4.4). Errors of the core are reported with their 3D IDs.
 """
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ def _dot(a, b) -> float:
 
 
 class ChannelDistanceController:
-    """The 3D distance control of one channel (one instance per channel, seeds/000 §12.8.1)."""
+    """The 3D distance control of one channel (one instance per channel, FCT-M3 §12.8.1)."""
 
     def __init__(self, params: ChannelParameters, cycle_time: float = 0.001):
         self.params = params
@@ -191,7 +191,7 @@ class ChannelDistanceController:
                                         f"SENSOR_VAR {self.core.state.sensor_var} -> {cmd.sensor_var}"))
             return
         if cmd.action in (Action.RESET, Action.PROGRAM_END):
-            # seeds/000 §12.4.4: the offset stays as a static offset, sensor changes no longer act
+            # FCT-M3 §12.4.4: the offset stays as a static offset, sensor changes no longer act
             if running and not self.static:
                 self.static = True
                 self.static_delta = self._current_delta()

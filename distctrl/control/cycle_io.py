@@ -44,7 +44,7 @@ class CycleInput:
 class CycleOutput:
     """Everything one cycle produces: the drive offset and the values behind every CNC object.
 
-    Names follow the CNC objects of seeds/000 §7.5/§9.4; units are mm, mm/s, mm/s², s.
+    Names follow the CNC objects of FCT-M3 §7.5/§9.4; units are mm, mm/s, mm/s², s.
     """
 
     # to the drive

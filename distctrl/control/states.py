@@ -1,4 +1,4 @@
-"""States, transitions and codes of the axis distance control (seeds/002, seeds/000 §8, SPEC §8)."""
+"""States, transitions and codes of the axis distance control (HLI DistanceControl, FCT-M3 §8, SPEC §8)."""
 from __future__ import annotations
 
 from enum import IntEnum
@@ -30,7 +30,7 @@ class HliTransition(IntEnum):
 
 
 class InternalState(IntEnum):
-    """Values of the CNC object ``DIST_CTRL::state`` (seeds/000 §9.4)."""
+    """Values of the CNC object ``DIST_CTRL::state`` (FCT-M3 §9.4)."""
 
     IDLE = 0
     ACTIVE = 2

@@ -1,4 +1,4 @@
-"""Geometry of the channel-specific 3D distance control (seeds/000 ch. 12, seeds/001, SPEC §11).
+"""Geometry of the channel-specific 3D distance control (FCT-M3 ch. 12, PROG #DIST CTRL, SPEC §11).
 
 Pure functions and small frozen dataclasses; mm and rad internally, degrees and 1e-4 units only at
 the edges (:meth:`Kinematic98Params.from_raw`, :func:`cs_rotation`). See docs/kinematics.md.

@@ -1,6 +1,6 @@
 """5-axis CA head with RTCP: tool direction, inverse orientation, pivot <-> TCP (mm, rad).
 
-SPEC §11; seeds/000 §12.1.2 ("Constant tool centre point", Fig. 38), §12.4.1, §12.4.2.1
+SPEC §11; FCT-M3 §12.1.2 ("Constant tool centre point", Fig. 38), §12.4.1, §12.4.2.1
 ("Inclination of tool via CA kinematic", Fig. 45), §12.4.2.2 (orientations in the plane).
 
 Kinematics (fixed by SPEC §11): C rotates about machine Z, A about X; the tool direction
@@ -54,7 +54,7 @@ def ca_angles_from_direction(u: ArrayLike, c_hint: ArrayLike | None = None) -> t
     ``u`` need not be normalised. Branch (decision, docs/kinematics.md):
 
     * ``A = atan2(sqrt(u_x² + u_y²), u_z) ∈ [0, π]`` — the branch ``A ≥ 0``. (The other solution
-      is ``(C + π, −A)``; e.g. seeds/001's ``A=-45°, C=0`` is returned as ``A=45°, C=180°``.)
+      is ``(C + π, −A)``; e.g. PROG #DIST CTRL's ``A=-45°, C=0`` is returned as ``A=45°, C=180°``.)
     * ``C = atan2(u_x, −u_y) + 2πk`` with ``k`` chosen so that ``C`` is closest to ``c_hint``
       (``|C − c_hint| ≤ π``); without a hint ``C ∈ (−π, π]``.
     * Singular orientation (``sqrt(u_x² + u_y²) ≤ SINGULAR_TOL``, tool along +Z or −Z): ``C`` is
@@ -92,7 +92,7 @@ class CaAxes(NamedTuple):
 
 @dataclass(frozen=True)
 class CaHeadRtcp:
-    """CA head with RTCP (TCP kept constant while the tool inclines, seeds/000 §12.1.2).
+    """CA head with RTCP (TCP kept constant while the tool inclines, FCT-M3 §12.1.2).
 
     ``tool_length`` ``L`` (mm, TCP -> clamping point; = SET_DIST, §12.1.2), ``hd1`` (mm, clamping
     point -> head reference point/pivot), optionally ``kin98`` (then ``L`` becomes ``Lv(θ)`` and
@@ -149,14 +149,14 @@ class CaHeadRtcp:
         return np.asarray(pivot_xyz, dtype=float) - r[..., None] * u
 
     def clamping_point(self, tcp_xyz: ArrayLike, c: ArrayLike, a: ArrayLike) -> np.ndarray:
-        """Tool clamping point (laser exit) ``TCP + L_eff·u`` (seeds/000 §12.4.1)."""
+        """Tool clamping point (laser exit) ``TCP + L_eff·u`` (FCT-M3 §12.4.1)."""
         u = ca_tool_direction(c, a)
         return clamping_point(tcp_xyz, u, self.effective_tool_length(inclination(u)))
 
     def clamping_point_distance(self, tcp_xyz: ArrayLike, c: float, a: float, surface: Any) -> float:
         """Orthogonal distance of the clamping point to ``surface`` (a :class:`Plane`/:class:`HeightField`).
 
-        The idealised sensor value of seeds/000 §12.3.
+        The idealised sensor value of FCT-M3 §12.3.
         """
         return surface.orthogonal_distance(self.clamping_point(tcp_xyz, c, a))
 

@@ -1,8 +1,8 @@
 """Direction of the 3D distance-control compensation for each MODE, and its orthogonal effect.
 
-SPEC §11; seeds/000 §12.1.3 (Fig. 40/41), §12.2 (``MODE=``, ``DIRECTION=``), §12.4.3 with the
+SPEC §11; FCT-M3 §12.1.3 (Fig. 40/41), §12.2 (``MODE=``, ``DIRECTION=``), §12.4.3 with the
 examples §12.4.3.1 (compensation in tool direction), §12.4.3.2 (orthogonal to the surface, i.e. in
-Z) and §12.4.3.3 (robot, workpiece inclined by 30° in the PCS); seeds/001.
+Z) and §12.4.3.3 (robot, workpiece inclined by 30° in the PCS); PROG #DIST CTRL.
 
 The offset ``δ`` (mm, positive = lifting, away from the workpiece, SPEC §1) is superimposed as the
 vector ``δ·e`` with the unit direction ``e``:
@@ -42,7 +42,7 @@ _Z = np.array([0.0, 0.0, 1.0])
 
 
 class CompensationMode(str, Enum):
-    """``#DIST CTRL [MODE=..]`` identifiers (seeds/000 §12.2)."""
+    """``#DIST CTRL [MODE=..]`` identifiers (FCT-M3 §12.2)."""
 
     OFF = "OFF"
     ACS = "ACS"
@@ -95,7 +95,7 @@ def orthogonal_change(delta: ArrayLike, direction: ArrayLike, surface_normal: Ar
 
     Both vectors are normalised (a zero ``direction`` — MODE OFF — gives 0). For ECS on a plane
     with normal Z this is ``δ·cos θ`` (SPEC §11); for MCS on a horizontal plane ``δ``; for MCS on a
-    workpiece inclined by α (seeds/000 §12.4.3.3) ``δ·cos α``.
+    workpiece inclined by α (FCT-M3 §12.4.3.3) ``δ·cos α``.
     """
     d = np.asarray(direction, dtype=float)
     norm = np.linalg.norm(d, axis=-1, keepdims=True)

@@ -11,7 +11,7 @@ Conventions (SPEC §1, §11; docs/kinematics.md):
 * Everything is vectorised over leading axes where natural: a point or vector is an array of shape
   ``(..., 3)``; scalar results of a single input are returned as Python ``float``.
 
-Sources: seeds/000 §12.1.2 (constant TCP), §12.3 (the sensor value is the orthogonal distance of
+Sources: FCT-M3 §12.1.2 (constant TCP), §12.3 (the sensor value is the orthogonal distance of
 the tool clamping point, the laser exit, to the surface), §12.4.1 (Fig. 43, distance to the
 workpiece surface); SPEC §11.
 """
@@ -57,8 +57,8 @@ def inclination(u: ArrayLike) -> Any:
 
     ``θ = arccos(u_z / |u|)`` (SPEC §11), computed as ``atan2(sqrt(u_x² + u_y²), u_z)``, which is
     the same angle but accurate near 0 and π. For the CA head ``θ = |A|`` (|A| ≤ π).
-    This is the angle reported to the PLC as ``bahn_state.inclination_r`` (seeds/000 §12.5) and
-    the one kinematic 98 monitors (seeds/000 §12.4.2).
+    This is the angle reported to the PLC as ``bahn_state.inclination_r`` (FCT-M3 §12.5) and
+    the one kinematic 98 monitors (FCT-M3 §12.4.2).
     """
     u = unit(u, name="tool direction u")
     return _out(np.arctan2(np.hypot(u[..., 0], u[..., 1]), u[..., 2]))
@@ -68,7 +68,7 @@ def angle_between(u: ArrayLike, n: ArrayLike) -> Any:
     """Angle between two directions in ``[0, π]``: ``atan2(|u × n|, u · n)``.
 
     With ``n`` a surface normal this is the tool's inclination *to the surface* (for an inclined
-    workpiece, seeds/000 §12.4.3.3, it differs from :func:`inclination`).
+    workpiece, FCT-M3 §12.4.3.3, it differs from :func:`inclination`).
     """
     u = unit(u, name="u")
     n = unit(n, name="n")
@@ -79,7 +79,7 @@ def orthogonal_distance(point: ArrayLike, plane_point: ArrayLike, plane_normal: 
     """Signed orthogonal distance of ``point`` to the plane ``(plane_point, plane_normal)``.
 
     ``d = n̂ · (p − p0)``; positive on the side the normal points to (above the workpiece).
-    seeds/000 §12.3/§12.4.1: the sensor value is this distance for the tool clamping point.
+    FCT-M3 §12.3/§12.4.1: the sensor value is this distance for the tool clamping point.
     """
     n = unit(plane_normal, name="plane normal")
     p = np.asarray(point, dtype=float)
@@ -94,7 +94,7 @@ def distance_along(point: ArrayLike, direction: ArrayLike, plane_point: ArrayLik
     ``p + t·d̂`` lies on the plane: ``t = n̂ · (p0 − p) / (n̂ · d̂)`` with ``d̂`` normalised, so ``t``
     is a length in mm (negative: the plane lies behind the point). NaN when the ray is parallel to
     the plane (``|n̂·d̂| < PARALLEL_TOL``). Example: from the clamping point along ``−u`` to the
-    surface is the beam length, ``L`` when the TCP lies on the surface (seeds/000 §12.4.1).
+    surface is the beam length, ``L`` when the TCP lies on the surface (FCT-M3 §12.4.1).
     """
     n = unit(plane_normal, name="plane normal")
     d = unit(direction, name="direction")
@@ -123,7 +123,7 @@ class Plane:
     """A plane surface: a point on it and its unit normal (normalised on construction).
 
     The normal points out of the material (towards the tool). An inclined workpiece programmed in a
-    rotated #CS (seeds/000 §12.4.3.3 "Robot", 30°) is ``Plane.from_frame(frame)``.
+    rotated #CS (FCT-M3 §12.4.3.3 "Robot", 30°) is ``Plane.from_frame(frame)``.
     """
 
     point: np.ndarray
@@ -267,9 +267,9 @@ class HeightField:
 
 
 def clamping_point(tcp: ArrayLike, u: ArrayLike, tool_length: ArrayLike) -> np.ndarray:
-    """Tool clamping point (laser exit): ``TCP + L·û`` (seeds/000 §12.4.1: tool length = laser length).
+    """Tool clamping point (laser exit): ``TCP + L·û`` (FCT-M3 §12.4.1: tool length = laser length).
 
-    With kinematic 98 pass the virtual tool length ``Lv`` as ``tool_length`` (seeds/000 §12.5: the
+    With kinematic 98 pass the virtual tool length ``Lv`` as ``tool_length`` (FCT-M3 §12.5: the
     virtual length is the distance between laser exit and focus point).
     """
     u = unit(u, name="tool direction u")
@@ -281,7 +281,7 @@ def clamping_point_distance(tcp: ArrayLike, u: ArrayLike, tool_length: ArrayLike
                             plane_point: ArrayLike, plane_normal: ArrayLike) -> Any:
     """Orthogonal distance of the clamping point to a plane: ``n̂ · (TCP + L·û − p0)``.
 
-    This is the idealised sensor value the PLC delivers (seeds/000 §12.3). With the TCP on the
+    This is the idealised sensor value the PLC delivers (FCT-M3 §12.3). With the TCP on the
     surface it is ``L·cos θ_n`` (``θ_n`` the angle between tool and surface normal): the reduction of
     the orthogonal distance by inclination that 3D distance control takes into account (§12.1.2,
     §12.4.1; SPEC §11 "orthogonal set distance SET_DIST·cos θ").

@@ -1,7 +1,7 @@
 """Kinematic transformation ID 98: minimum-distance monitoring by a virtual tool extension.
 
-seeds/000 §12.4.2 (table "Offset data of kinematics", Fig. 44), §12.4.2.1/§12.4.2.2, §12.5, §12.9;
-seeds/001 example 2; SPEC §11 and §12 (001's values are the correct 1e-4 units).
+FCT-M3 §12.4.2 (table "Offset data of kinematics", Fig. 44), §12.4.2.1/§12.4.2.2, §12.5, §12.9;
+PROG #DIST CTRL example 2; SPEC §11 and §12 (001's values are the correct 1e-4 units).
 
 Parameters (``V.G.KIN_STEP[1].ID[98].PARAM[i]``):
 
@@ -70,7 +70,7 @@ def _bad(i: int, value: float, allowed: str, why: str, unit: str = "deg") -> Par
 
 @dataclass(frozen=True)
 class InclinationViolation:
-    """Description of the error "inclination θ > HD4" (seeds/000 §12.4.2: error message, program abort).
+    """Description of the error "inclination θ > HD4" (FCT-M3 §12.4.2: error message, program abort).
 
     A value, not an exception: the caller (the channel / NC runtime) aborts the program with it.
     """
@@ -93,7 +93,7 @@ class InclinationViolation:
 class Kinematic98Params:
     """Kinematic-98 parameters in internal units (mm, rad); validated on construction.
 
-    Build from the NC values with :meth:`from_raw` (1e-4 mm / 1e-4 °, seeds/001) or from
+    Build from the NC values with :meth:`from_raw` (1e-4 mm / 1e-4 °, PROG #DIST CTRL) or from
     degrees with :meth:`from_degrees`.
     """
 
@@ -126,7 +126,7 @@ class Kinematic98Params:
     # --- construction at the edges --------------------------------------------------------------
     @classmethod
     def from_raw(cls, param0: float, param1: float, param2: float, param3: float) -> "Kinematic98Params":
-        """From ``V.G.KIN_STEP[1].ID[98].PARAM[0..3]`` in 1e-4 mm / 1e-4 ° (seeds/001, seeds/000 §12.4.2).
+        """From ``V.G.KIN_STEP[1].ID[98].PARAM[0..3]`` in 1e-4 mm / 1e-4 ° (PROG #DIST CTRL, FCT-M3 §12.4.2).
 
         ``hd1 = PARAM[0] / 10000`` mm, ``hdk = radians(PARAM[k-1] / 10000)``; dividing by the integer
         10000 is exact for the documented values (1000000 -> 100.0 mm, 300000 -> 30.0°).
@@ -177,7 +177,7 @@ class Kinematic98Params:
         return 1.0 if self.hd3_rad == self.hd2_rad else math.cos(self.hd2_rad) / math.cos(self.hd3_rad)
 
     def virtual_tool_length(self, tool_length: ArrayLike, theta: ArrayLike) -> Any:
-        """Virtual tool length ``Lv(L, θ)`` (SPEC §11; seeds/000 §12.4.2, §12.5 ``virt_tool_length_r``).
+        """Virtual tool length ``Lv(L, θ)`` (SPEC §11; FCT-M3 §12.4.2, §12.5 ``virt_tool_length_r``).
 
         ``L`` in mm (``≥ 0``), ``θ`` in rad. Vectorised (numpy broadcasting).
         """
@@ -195,7 +195,7 @@ class Kinematic98Params:
     def check_inclination(self, theta: float) -> InclinationViolation | None:
         """``None`` if ``|θ| ≤ HD4``, else the error description (ID 900020; the program aborts).
 
-        seeds/000 §12.4.2: "HD4: Maximum inclination angle. When exceeded, an error message is
+        FCT-M3 §12.4.2: "HD4: Maximum inclination angle. When exceeded, an error message is
         output with process abort." Exactly HD4 is still allowed. A non-finite θ is a violation too.
         """
         th = abs(float(theta))

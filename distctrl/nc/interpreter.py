@@ -9,7 +9,7 @@ Runtime problems (an undefined variable, a value out of range once an expression
 stop the program with :class:`NcRuntimeError` recorded in :attr:`NcInterpreter.error` — a value,
 like every error on the cycle path.
 
-3D distance control and kinematics (seeds/000 ch. 12, docs/run-3d.md): a ``#DIST CTRL`` block
+3D distance control and kinematics (FCT-M3 ch. 12, docs/run-3d.md): a ``#DIST CTRL`` block
 hands its :class:`~distctrl.control.commands3d.Command3D` to the channel (``dist_ctrl_3d``) and
 takes its GEO cycle; with WAIT the next block waits for ``dist_ctrl_3d_done``. A channel without
 FCT_3D_DIST_CTRL (``has_dist_ctrl_3d`` false) stops the program with 20209 ("Unknown Nc-command").
@@ -32,7 +32,7 @@ from .program import ExprError, NcSyntaxError, Program
 #: a program that loops through this many blocks without motion in one cycle is stopped
 MAX_BLOCKS_PER_CYCLE = 10_000
 NC_RUNTIME_ERROR = int(ErrorId.NC_RUNTIME)    # 900010
-#: seeds/000 §12.7 notice: #DIST CTRL without FCT_3D_DIST_CTRL (P-CHAN-00500): "Unknown Nc-command"
+#: FCT-M3 §12.7 notice: #DIST CTRL without FCT_3D_DIST_CTRL (P-CHAN-00500): "Unknown Nc-command"
 UNKNOWN_NC_COMMAND = 20209
 
 

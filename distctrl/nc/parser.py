@@ -346,7 +346,7 @@ def _axis_keyword(token: Token) -> None:
 
 
 def _check_dist_ctrl_rules(args: list[DistCtrlArg]) -> None:
-    """Keyword rules of seeds/000 §6 and seeds/003 §6 (order-independent)."""
+    """Keyword rules of FCT-M3 §6 and TF5200 Abstandskontrolle §6 (order-independent)."""
     seen: dict[str, DistCtrlArg] = {}
     for arg in args:
         if arg.keyword in seen:
@@ -355,7 +355,7 @@ def _check_dist_ctrl_rules(args: list[DistCtrlArg]) -> None:
     actions = [arg for arg in args if arg.keyword in ACTION_KEYWORDS]
     for i, second in enumerate(actions):
         for first in actions[:i]:
-            if {first.keyword, second.keyword} != {"ON", "DRYRUN"}:   # ON DRYRUN == DRYRUN (seeds/003)
+            if {first.keyword, second.keyword} != {"ON", "DRYRUN"}:   # ON DRYRUN == DRYRUN (TF5200 Abstandskontrolle)
                 raise _error(f"{second.keyword} cannot be combined with {first.keyword}: ON/OFF, FREEZE, "
                              "DRYRUN, CHECK_POS and REF exclude one another in one command", second)
     if "CONST_DIST" in seen and not ({"ON", "DRYRUN"} & seen.keys()):
@@ -369,7 +369,7 @@ def _check_dist_ctrl_rules(args: list[DistCtrlArg]) -> None:
 
 
 def _check_dist_ctrl_3d_rules(outside: list[DistCtrlArg], inside: list[DistCtrlArg]) -> None:
-    """Keyword rules of ``#DIST CTRL`` (seeds/000 §12.2, seeds/001), order-independent inside [...]."""
+    """Keyword rules of ``#DIST CTRL`` (FCT-M3 §12.2, PROG #DIST CTRL), order-independent inside [...]."""
     args = outside + inside
     seen: dict[str, DistCtrlArg] = {}
     for arg in args:

@@ -180,7 +180,7 @@ NAME_KEYWORDS = ("SENSOR_SOURCE", "SENSOR_VAR", "FILTER_TYPE")
 
 @dataclass(frozen=True, slots=True)
 class ValueRange:
-    """Documented range of a numeric DIST_CTRL value (seeds/000 §6)."""
+    """Documented range of a numeric DIST_CTRL value (FCT-M3 §6)."""
 
     low: float | None = None
     high: float | None = None
@@ -224,7 +224,7 @@ VALUE_RANGES: dict[str, ValueRange] = {
     "SMOOTH_FACT": ValueRange(0.0, 1.0, low_open=True),
     "KALMAN_SIGMA": ValueRange(1.0, 10000.0),
     "FG_F0": ValueRange(0.0, None),
-    # 3D only: sin² blend of activation/deactivation, in interpolator cycles (seeds/000 §12.2)
+    # 3D only: sin² blend of activation/deactivation, in interpolator cycles (FCT-M3 §12.2)
     "FILTER_TIME": ValueRange(0, None, integer=True),
 }
 
@@ -341,7 +341,7 @@ class DistCtrlWord(_KeywordCommand):
 
     @property
     def action(self) -> Action:
-        """ON DRYRUN is DRYRUN (seeds/003 §6); no action keyword only sets values."""
+        """ON DRYRUN is DRYRUN (TF5200 Abstandskontrolle §6); no action keyword only sets values."""
         if self.has("DRYRUN"):
             return Action.DRYRUN
         for keyword in ("ON", "OFF", "FREEZE", "CHECK_POS", "REF"):
@@ -366,7 +366,7 @@ class DistCtrlWord(_KeywordCommand):
 
 # ---------------------------------------------------------------- #DIST CTRL (3D distance control)
 
-#: the 3D command's keywords (seeds/000 §12.2, seeds/001); the actions are ACTION_KEYWORDS
+#: the 3D command's keywords (FCT-M3 §12.2, PROG #DIST CTRL); the actions are ACTION_KEYWORDS
 FLAG_KEYWORDS_3D = ACTION_KEYWORDS + ("NO_MOVE", "SURFACE", "CONST_DIST", "WAIT")
 NUMBER_KEYWORDS_3D = NUMBER_KEYWORDS + ("FILTER_TIME",)
 NAME_KEYWORDS_3D = NAME_KEYWORDS + ("MODE", "DIRECTION")
@@ -413,7 +413,7 @@ class DistCtrl3DWord(_KeywordCommand):
         fields, vals = self._argument_fields(lookup, file, _INT_FIELDS_3D)
         if "sensor_source" in fields:
             # "If DEFAULT is selected as the sensor source, the CNC automatically sets to the
-            # VARIABLE sensor source internally" (seeds/000 §12.2)
+            # VARIABLE sensor source internally" (FCT-M3 §12.2)
             fields["sensor_source"] = SensorSource.VARIABLE
         # REF (no value): "sensor zero", as the axis command (ref_position None)
         return Command3D(action=action, wait=self.wait, const_dist=self.has("CONST_DIST"),
@@ -457,7 +457,7 @@ class KinematicsWord:
     @property
     def reinitialises_channel(self) -> bool:
         """#CS, #TRAFO and #CHANNEL INIT re-initialise the channel position: error 51062 while
-        3D distance control is active (seeds/000 §12.4.5)."""
+        3D distance control is active (FCT-M3 §12.4.5)."""
         return self.kind in ("TRAFO", "CS", "CHANNEL_INIT")
 
     def cs_frame(self, lookup: Lookup = no_variables, *, file: str | None = None) -> tuple[float, ...]:

@@ -1,4 +1,4 @@
-"""CNC objects of the axis-specific distance control (seeds/000 §7.5/§7.6/§9.4, SPEC §10).
+"""CNC objects of the axis-specific distance control (FCT-M3 §7.5/§7.6/§9.4, SPEC §10).
 
 The registry :data:`AXIS_OBJECTS` is declared once in :mod:`distctrl.objects.registry`;
 ``docs/objects.md`` is generated from it (``python -m distctrl.objects.docgen``).

@@ -1,4 +1,4 @@
-"""CNC objects of the 3D (channel-specific) distance control (seeds/000 §12.6, SPEC §10).
+"""CNC objects of the 3D (channel-specific) distance control (FCT-M3 §12.6, SPEC §10).
 
 :data:`CHANNEL3D_OBJECTS` is declared once, in the style of the axis table
 (:data:`distctrl.objects.registry.AXIS_OBJECTS`), and is also the documentation: ``docs/objects-3d.md``
@@ -320,7 +320,7 @@ def _spec(name: str, low: int, description: str, *, access: str = READ, **kw) ->
 _ADOPTION = ("The new value becomes effective only on INACTIVE→ACTIVE or FREEZE→ACTIVE (§12.6 remark); "
              "until then it is pending.")
 
-# ============================================================================ the table (seeds/000 §12.6)
+# ============================================================================ the table (FCT-M3 §12.6)
 
 CHANNEL3D_OBJECTS: tuple[ObjectSpec3D, ...] = (
     _spec("DIST_CTRL_IFC[0]::a_max_int", 0x3000, "Maximum acceleration of the linear slope (the limit the slope "
@@ -516,7 +516,7 @@ def render() -> str:
         "Generated from `distctrl/objects/channel3d.py` by `python -m distctrl.objects.channel3d` — do not",
         "edit by hand.",
         "",
-        "The objects of seeds/000 §12.6. They exist only when the channel has",
+        "The objects of FCT-M3 §12.6. They exist only when the channel has",
         "`configuration.decoder.function FCT_3D_DIST_CTRL` (P-CHAN-00500). All of them are in task",
         f"{TASK} (ADS port {ADS_PORT}), index group `0x{INDEX_GROUP_3D_BASE:X} | channel_id` with `channel_id`",
         "from 1 (channel 1: `0x121301`), index offset = the low offset below, without an axis part",

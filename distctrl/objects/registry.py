@@ -1,7 +1,7 @@
-"""The registry of the axis-specific distance-control CNC objects (seeds/000 §7.5, §7.6, §9.4; SPEC §10).
+"""The registry of the axis-specific distance-control CNC objects (FCT-M3 §7.5, §7.6, §9.4; SPEC §10).
 
 :data:`AXIS_OBJECTS` is declared once and is also the documentation (``docs/objects.md`` is generated
-from it by :mod:`distctrl.objects.docgen`). Every entry names the object as seeds/000 §9.4 does, its
+from it by :mod:`distctrl.objects.docgen`). Every entry names the object as FCT-M3 §9.4 does, its
 low index offset ``0x3xxx``, data type, length, unit, access and where its value comes from.
 
 Addressing (SPEC §10): task GEO, ADS port 551, index group ``0x120300``, index offset
@@ -115,7 +115,7 @@ _OUT_TUNING = {"kp": "kp", "i_tn": "i_tn", "d_tv": "d_tv", "v_max": "v_max_param
 
 @dataclass(frozen=True)
 class ObjectSpec:
-    """One axis-specific CNC object (seeds/000 §9.4)."""
+    """One axis-specific CNC object (FCT-M3 §9.4)."""
 
     name: str                     # as in §9.4, e.g. "DIST_CTRL::kp"
     low_offset: int               # 0x3xxx; the index offset is (axis_id << 16) | low_offset
@@ -241,7 +241,7 @@ _FIG34 = ("FCT-M3 §7.5 Fig. 34 lists it among the axis-specific objects 'in the
 _ADOPTION = ("The new value becomes effective only on INACTIVE→ACTIVE or FREEZE→ACTIVE (§9.4 remark); "
              "until then it is pending.")
 
-# ============================================================================ the table (seeds/000 §9.4)
+# ============================================================================ the table (FCT-M3 §9.4)
 
 AXIS_OBJECTS: tuple[ObjectSpec, ...] = (
     _spec("DIST_CTRL_IFC::a_max_int", 0x3000, "Maximum acceleration of the linear slope (the limit the "
@@ -531,7 +531,7 @@ def _range_problem(name: str, value: float) -> str:
 
 # ============================================================================ object browser
 
-#: the columns of the ISG object browser (seeds/000 §7.6), plus the access
+#: the columns of the ISG object browser (FCT-M3 §7.6), plus the access
 COLUMNS = ("Nr", "Gruppe", "Offset", "Bezeichner", "Datentyp", "Länge", "Einheit", "Wert", "Zugriff")
 
 
@@ -560,7 +560,7 @@ def object_table(contexts: Mapping[int, AxisObjectContext] | Iterable[AxisObject
 
 
 def object_row(nr: int, index_group: int, index_offset_: int, spec: ObjectSpec, value, **extra) -> dict:
-    """One object-browser row (the columns of seeds/000 §7.6), shared by the axis and 3D tables."""
+    """One object-browser row (the columns of FCT-M3 §7.6), shared by the axis and 3D tables."""
     row = {"Nr": nr, "Gruppe": f"0x{index_group:X}", "Offset": f"0x{index_offset_:X}", "Bezeichner": spec.name,
            "Datentyp": spec.type, "Länge": spec.length, "Einheit": spec.unit, "Wert": format_value(spec, value),
            "Zugriff": spec.access}

@@ -1,4 +1,4 @@
-"""Channel parameters of the 3D (channel-specific) distance control (seeds/000 §12.8).
+"""Channel parameters of the 3D (channel-specific) distance control (FCT-M3 §12.8).
 
 :data:`CHANNEL_PARAMETERS` is the declarative table, in the same form as the axis table
 (:mod:`distctrl.params.table`): P-CHAN-00500 ``configuration.decoder.function`` and
@@ -175,7 +175,7 @@ def resolve_channel_key(key: str) -> tuple[str, KeyProblem | None]:
     if index != 0:
         return canonical, KeyProblem(
             f"index i = {index} does not exist: only i = 0 is allowed (one 3D distance control per "
-            "channel, seeds/000 §12.8.1)", canonical)
+            "channel, FCT-M3 §12.8.1)", canonical)
     return canonical, None
 
 

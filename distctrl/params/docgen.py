@@ -50,7 +50,7 @@ def render() -> str:
 
 
 def render_channel() -> str:
-    """docs/parameters-channel.md: the 3D distance control's channel parameters (seeds/000 §12.8)."""
+    """docs/parameters-channel.md: the 3D distance control's channel parameters (FCT-M3 §12.8)."""
     from .channel import AXIS_FIELDS, CHANNEL_PARAMETERS, UNDOCUMENTED_IDS
 
     lines = [
@@ -59,7 +59,7 @@ def render_channel() -> str:
         "Generated from `distctrl/params/channel.py` by `python -m distctrl.params.docgen --channel`",
         "— do not edit by hand.",
         "",
-        "The 3D (channel-specific) distance control is configured in the channel list (seeds/000 §12.8).",
+        "The 3D (channel-specific) distance control is configured in the channel list (FCT-M3 §12.8).",
         "The format is the axis list's (docs/parameters.md): one `key value # comment` per line, values in",
         "the *list unit*, converted once at loading to the internal unit (mm, s) of",
         "`distctrl.params.channel.ChannelParameters`. Unknown keys, values of the wrong type and values",

@@ -24,7 +24,7 @@ from ..errors import ParameterError
 from .axis import AxisParameters, check_internal, parse_axis_type, to_internal_value, to_interface_value
 from .table import AXIS_PARAMETERS, BY_KEY, IGNORED_KEYS, ParamSpec
 
-#: typo prefixes found in seeds/003's parameter overview, accepted as aliases
+#: typo prefixes found in TF5200's parameter overview, accepted as aliases
 _PREFIX_ALIASES = {"kenngnr.distsc.": "kenngr.distc."}
 _INT_RE = re.compile(r"^[+-]?\d+$")
 _FLOAT_RE = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")

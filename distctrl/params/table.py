@@ -19,7 +19,7 @@ UNS32_MAX = 2**32 - 1
 @dataclass(frozen=True)
 class ParamSpec:
     id: str                      # P-AXIS-xxxxx
-    key: str                     # list-file key as in seeds/000 §9
+    key: str                     # list-file key as in FCT-M3 §9
     field: str                   # AxisParameters field
     type: str                    # BOOLEAN, SGN32, UNS32, UNS16, REAL64, STRING
     unit: str                    # interface unit (in the list file)

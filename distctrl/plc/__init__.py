@@ -1,5 +1,5 @@
 """The PLC interface (HLI) of distance control: the DistanceControl control unit and its ADS symbols
-(seeds/002, seeds/000 §8, SPEC §9). See docs/plc.md."""
+(HLI DistanceControl, FCT-M3 §8, SPEC §9). See docs/plc.md."""
 from .hli import (MM_PER_UNIT, ChannelDistanceStatus, DistanceControlUnit, HliCyclicCommand,
                   HliDistanceControlCommand, HliDistanceControlState, RejectedCommand, SemaphoreBusyError,
                   transition_number)

@@ -1,4 +1,4 @@
-"""The HLI DistanceControl control unit of one axis (seeds/002, seeds/000 §8, SPEC §9).
+"""The HLI DistanceControl control unit of one axis (HLI DistanceControl, FCT-M3 §8, SPEC §9).
 
 ``gpAx[i]^.lr_mc_control.distance_control`` is modelled as :class:`DistanceControlUnit`: the PLC
 writes ``command_w`` + ``enable_w`` and sets ``command_semaphore_rw``; the CNC, once per GEO cycle
@@ -30,7 +30,7 @@ MM_PER_UNIT = 1e-4
 
 
 class SemaphoreBusyError(DistCtrlError):
-    """The PLC tried to update ``command_w`` while ``command_semaphore_rw`` is TRUE (seeds/000 §8.2:
+    """The PLC tried to update ``command_w`` while ``command_semaphore_rw`` is TRUE (FCT-M3 §8.2:
     "The commanded values can only be updated by the PLC if this element has the value FALSE")."""
 
 

@@ -122,7 +122,7 @@ def hli_symbols(axis_index: int, unit: DistanceControlUnit) -> dict[str, SymbolS
         lambda: b"\x01" if unit.command_semaphore_rw else b"\x00",
         bool_setter("command_semaphore_rw", f"{base}.command_semaphore_rw"),
         "PLC sets TRUE to hand command_w over; the CNC clears it in the cycle it takes the command "
-        "(seeds/002 spells it command_semaphor_rw)")
+        "(HLI DistanceControl spells it command_semaphor_rw)")
 
     # -- state_r (read-only)
     def state_bytes() -> bytes:

@@ -1,6 +1,6 @@
 """The virtual machine: one channel of axes around the distance-control cycle core.
 
-Per GEO cycle (seeds/000 Fig. 3: the offset is added after interpolation, before the drive):
+Per GEO cycle (FCT-M3 Fig. 3: the offset is added after interpolation, before the drive):
 
 1. timed scenario events (PLC commands, override, reset, sensor faults, variables);
 2. the NC interpreter starts blocks; DIST_CTRL commands are queued for the axis's controller;
@@ -70,7 +70,7 @@ DC3D_COLUMNS: dict[str, tuple[str, str]] = {
 }
 _DEG = math.pi / 180.0
 _Z = (0.0, 0.0, 1.0)
-#: the kinematic ID of the CA head (seeds/000 §12.4.2.1: "#TRAFO [9, 98]" on the CA kinematic)
+#: the kinematic ID of the CA head (FCT-M3 §12.4.2.1: "#TRAFO [9, 98]" on the CA kinematic)
 CA_KIN_ID = 9
 KIN98_ID = 98
 TOOL_LENGTH_VAR = "V.G.WZ_AKT.L"
@@ -278,7 +278,7 @@ class Machine:
             if state != HliState.INACTIVE:
                 name = {"CHANNEL_INIT": "#CHANNEL INIT"}.get(kind, f"#{kind} {word.switch or ''}".strip())
                 raise NcAbort(51062, f"{severity_and_text(51062)[1]}: {name} while 3D distance control is "
-                              f"{state.name} (deselect it first, seeds/000 §12.4.5)")
+                              f"{state.name} (deselect it first, FCT-M3 §12.4.5)")
         if kind == "KIN":
             self.kin_chain = self._chain(word.ids)
             return
@@ -508,7 +508,7 @@ class Machine:
 
     def reset(self) -> None:
         """CNC reset: the program stops, distance control is deselected with its offset absorbed (the
-        3D distance control keeps its offset as a static offset, seeds/000 §12.4.4)."""
+        3D distance control keeps its offset as a static offset, FCT-M3 §12.4.4)."""
         for inp in self.inputs.values():
             inp.commands.append(Command(Action.RESET))
         if self.ch3d is not None:

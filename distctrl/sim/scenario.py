@@ -58,7 +58,7 @@ AXIS_KEYS = ("params", "start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "b
 SENSOR_KINDS = ("encoder", "distance")
 #: what the sensor measures: "axis" - the height of the sensor axis above the surface (vertical, the
 #: axis variant); "orthogonal_clamping_point" - the orthogonal distance of the tool clamping point
-#: from the surface (3D distance control, seeds/000 §12.3)
+#: from the surface (3D distance control, FCT-M3 §12.3)
 SENSOR_MODES = ("axis", "orthogonal_clamping_point")
 SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", "seed", "range_min", "reading_at_contact",
                "range_max", "characteristic", "resolution", "faults")

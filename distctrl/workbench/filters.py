@@ -1,6 +1,6 @@
 """Filter workbench: compare sensor-filter configurations on a recorded or synthetic signal.
 
-The documents (seeds/000 ch. 4, Figs. 9-17) show the filters on one test: a sensor crosses an
+The documents (FCT-M3 ch. 4, Figs. 9-17) show the filters on one test: a sensor crosses an
 obstacle about 2.8 mm high with distance control disabled, and the raw and filtered sensor data are
 overlaid. This module reproduces that test offline for any set of :class:`FilterConfig`:
 
@@ -240,7 +240,7 @@ def obstacle_signal(cycle_time: float = 0.001, *, height: float = 2.8, level: fl
                     flat_before: float = 0.5, top: float = 0.5, flat_after: float = 0.5,
                     ramp_time: float = 0.0, noise_std: float = 0.05, seed: int | None = 1
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The documents' filter test (seeds/000 ch. 4): a sensor crossing an obstacle ``height`` mm high.
+    """The documents' filter test (FCT-M3 ch. 4): a sensor crossing an obstacle ``height`` mm high.
 
     Flat (``flat_before`` s at ``level``), rising edge, top (``top`` s at ``level + height``),
     falling edge, flat (``flat_after`` s), sampled every ``cycle_time`` s, plus Gaussian noise of

@@ -58,7 +58,7 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
             time_unit: str, value_unit: str, mm_per_increment: float | None, cycle_time: float | None,
             edge_values: tuple[str, ...], noise: float, seed: int, plot_path: str | None, csv_path: str | None,
             plain: bool) -> None:
-    """Compare sensor filters on a recorded or synthetic signal (seeds/000 ch. 4, Figs. 9-17).
+    """Compare sensor filters on a recorded or synthetic signal (FCT-M3 ch. 4, Figs. 9-17).
 
     SPEC is TYPE[:key=value[,value...][,key=...]], e.g. MOVING_AVERAGE:n_cycles=10,20,40 or
     KALMAN_MA:n_cycles=30,kalman_sigma=100,1000 (a list of values expands into one configuration

@@ -1,6 +1,6 @@
 """Step-response workbench: the documents' controller-tuning method on the virtual machine.
 
-seeds/000 ch. 3 tunes distance control step by step: first a P controller (I and D off) starting at
+FCT-M3 ch. 3 tunes distance control step by step: first a P controller (I and D off) starting at
 ``K_p = 0.2``; observe the response of the control loop to a *defined change in distance* and raise
 ``K_p`` until there is a recognisable but rapidly decaying oscillation; then the I part (start
 ``T_n = 5`` s, reduce it) only against a permanent control deviation; then the D part (start
@@ -699,7 +699,7 @@ def _overshoot_text(m: StepMetrics) -> str:
 
 
 def hints(results: Sequence[StepResult]) -> list[str]:
-    """Short factual hints along the documents' method (seeds/000 ch. 3), one per setting plus a summary.
+    """Short factual hints along the documents' method (FCT-M3 ch. 3), one per setting plus a summary.
 
     Step 1 (P only): a setting without a recognisable overshoot (< 2 %) is slow but safe (raise KP);
     one with a recognisable overshoot (2 ... 40 %) that decays within 2 periods is what the method

@@ -51,7 +51,7 @@ def _number(option: str, text: str, allowed: str) -> float:
               help="Save the overlaid responses (PNG or SVG by suffix).")
 def step(scenario: str | None, kp: str, i_tn: str, d_tv: str, step_mm: str, mode: str, set_dist: str,
          ramp: str, t_step: str, duration: str, plot_path: str | None) -> None:
-    """Step response of distance control for every KP x I_TN x D_TV setting (seeds/000 ch. 3).
+    """Step response of distance control for every KP x I_TN x D_TV setting (FCT-M3 ch. 3).
 
     The axis holds SET_DIST; at --t-step the sensor sees the surface rise by --step. Each setting is
     programmed as Z[DIST_CTRL ON CONST_DIST SET_DIST=.. KP=.. I_TN=.. D_TV=..]. Without SCENARIO the
@@ -80,7 +80,7 @@ def step(scenario: str | None, kp: str, i_tn: str, d_tv: str, step_mm: str, mode
     title = (f"Step response on {machine}: {mode.upper()}, step {step_v:g} mm at t = {t_step_v:g} s"
              f"{ramp_text}, {duration_v:g} s per run")
     click.echo(format_table(results, title=title), nl=False)
-    click.echo("hints (seeds/000 ch. 3):")
+    click.echo("hints (FCT-M3 ch. 3):")
     for line in hints(results):
         click.echo(f"  - {line}")
     if plot_path:

@@ -1,4 +1,4 @@
-; seeds/000 §12.9 application example 2: monitoring minimum height in the range [0°; -]
+; FCT-M3 §12.9 application example 2: monitoring minimum height in the range [0°; -]
 ; The height of the tool head is kept constant from the start of the inclination: HD2 = 0°.
 ; "-" (no end angle) cannot reach 90° (the extension L/cos θ would be infinite): HD3 = 80°,
 ; above it the extension stops (SPEC §11) and the height falls with cos θ.

@@ -1,5 +1,5 @@
-; seeds/000 §12.9 application example 3: monitoring minimum height in the range [30°; 60°]
-; The height of the tool head is kept constant between 30° and 60° (seeds/001's values).
+; FCT-M3 §12.9 application example 3: monitoring minimum height in the range [30°; 60°]
+; The height of the tool head is kept constant between 30° and 60° (PROG #DIST CTRL's values).
 ; The tool (L = 80 mm, HD1 = 100 mm) is inclined stepwise from 0° to 90° with the TCP kept on
 ; the nominal surface z = 0; 3D distance control (SET_DIST = tool length, MODE=MCS) compensates
 ; the real sheet's height offset orthogonally to the surface (frozen for the last step). docs/run-3d.md

@@ -1,4 +1,4 @@
-; seeds/000 §12.9 application example 1: monitoring minimum height in the range [90°; -]
+; FCT-M3 §12.9 application example 1: monitoring minimum height in the range [90°; -]
 ; No height monitoring during the whole inclination from 0° to 90°: HD2 = HD3 = 90°.
 ; The tool (L = 80 mm, HD1 = 100 mm) is inclined stepwise from 0° to 90° with the TCP kept on
 ; the nominal surface z = 0; 3D distance control (SET_DIST = tool length, MODE=MCS) compensates

@@ -1,4 +1,4 @@
-; seeds/000 §12.4.3.3 "Example: Robot" with the CA head: the workpiece is inclined by 30° (a #CS,
+; FCT-M3 §12.4.3.3 "Example: Robot" with the CA head: the workpiece is inclined by 30° (a #CS,
 ; the PCS), the tool stands normal to it (A=30°), the TCP describes a circle (R = 20 mm) in the
 ; workpiece plane with a short wait at the quadrant transitions, and the real surface carries a
 ; sinusoidal deviation. The circle is run three times, with the compensation in PCS (the #CS's Z,

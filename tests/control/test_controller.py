@@ -176,7 +176,7 @@ def test_chapter_10_reference_set_position_freeze_reactivate_off():
 # ----------------------------------------------------------------------------- Fig. 31, §7.4, KP
 
 def test_fig_31_adaptive_acceleration_rule_with_the_example_values():
-    # seeds/000 §7.2 example: a_min 1000, a_max 10000, dist_error_a_min 250, dist_error_a_max 500 (0.1 µm)
+    # FCT-M3 §7.2 example: a_min 1000, a_max 10000, dist_error_a_min 250, dist_error_a_max 500 (0.1 µm)
     f = law.adaptive_acceleration
     assert f(0.0, 1000, 10000, 0.025, 0.05) == 1000
     assert f(0.025, 1000, 10000, 0.025, 0.05) == 1000
@@ -192,7 +192,7 @@ def test_fig_31_adaptive_acceleration_rule_with_the_example_values():
 
 
 def test_lowering_weighting_halves_velocity_and_weights_acceleration():
-    # seeds/000 §7.4 example: v_weight_down 500, a_weight_down 300 (0.1 %) -> 0.5, 0.3 internally
+    # FCT-M3 §7.4 example: v_weight_down 500, a_weight_down 300 (0.1 %) -> 0.5, 0.3 internally
     p = params(v_max=20.0, a_max=1000.0, v_weight_down=0.5, a_weight_down=0.3)
     rig = Rig(p, p=40.0, surface=40.0)
     rig.cycle(Command(ON, set_pos=40.0))

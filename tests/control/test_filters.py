@@ -13,7 +13,7 @@ T = 0.001
 
 
 def obstacle_signal(noise=0.05, seed=7, n_flat=600, n_high=600, height=2.8):
-    """The documents' test (seeds/000 §4): a ~2.8 mm obstacle crossed by the sensor, with noise."""
+    """The documents' test (FCT-M3 §4): a ~2.8 mm obstacle crossed by the sensor, with noise."""
     rng = np.random.default_rng(seed)
     x = np.r_[np.zeros(n_flat), np.full(n_high, height)]
     return x + rng.normal(0.0, noise, x.size), n_flat

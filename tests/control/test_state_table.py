@@ -1,7 +1,7 @@
-"""The state table of SPEC §8 (seeds/002, seeds/000 §8): every (HLI state, command) pair, and a
+"""The state table of SPEC §8 (HLI DistanceControl, FCT-M3 §8): every (HLI state, command) pair, and a
 hypothesis state machine that checks a model of the HLI state after every step.
 
-The expected table below is written from SPEC §7/§8 and the HLI tables of seeds/002, not from the
+The expected table below is written from SPEC §7/§8 and the HLI tables of HLI DistanceControl, not from the
 implementation. Where the documents are silent, the entry lists the acceptable alternatives and says so.
 """
 from __future__ import annotations
@@ -58,7 +58,7 @@ SELECT_TARGET = {"ON": ACTIVE, "ON_CD": ACTIVE_CD, "DRY": DRY_SP, "DRY_CD": DRY_
 
 # ============================================================================ the expected table (SPEC §8)
 
-INV = 900003      # invalid transition (project range; seeds/002: "ERROR ... due to an incorrect state transition")
+INV = 900003      # invalid transition (project range; HLI DistanceControl: "ERROR ... due to an incorrect state transition")
 
 
 def R(state, *ids):
@@ -138,12 +138,12 @@ EXPECTED: dict[HliState, dict[str, set]] = {
         "CHECK": {R(TURNING_OFF)}, "NONE": {R(TURNING_OFF)},
         "RESET": {R(INACTIVE)}, "AXIS_ERR": {R(INACTIVE)},
         # 70332 is "distance control still active at program end"; TURNING_OFF is "deactivated, the
-        # offset is run out" (seeds/002), so no warning (docs/errors.md)
+        # offset is run out" (HLI DistanceControl), so no warning (docs/errors.md)
         "PEND": {R(TURNING_OFF)},
         "RELEASE": {R(ERROR, 70333)},
     },
     ERROR: {
-        # "Only a transition to TURNING OFF is possible to exit this state" (seeds/002)
+        # "Only a transition to TURNING OFF is possible to exit this state" (HLI DistanceControl)
         "ON": {R(ERROR, INV)}, "ON_CD": {R(ERROR, INV)}, "DRY": {R(ERROR, INV)}, "DRY_CD": {R(ERROR, INV)},
         "FREEZE": {R(ERROR, INV)},
         # OFF NO_MOVE acts as OFF there, with warning 900009 (SPEC §8)
@@ -663,7 +663,7 @@ TestDistCtrlMachine = DistCtrlMachine.TestCase
 # Was BUG (found by the state machine): with optimized_scheduling = 0 (the default, P-AXIS-00509) a REF in
 # INACTIVE (or a SENSOR_SOURCE change) followed by a select in the next or the same cycle raised a spurious
 # 70329: the referencing shift of the reading was taken for a sensor jump (the delayed pre-REF reading
-# was stored as the last reading). REF then ON is the documented order (seeds/002 HLI_DIST_CTRL_ON).
+# was stored as the last reading). REF then ON is the documented order (HLI DistanceControl HLI_DIST_CTRL_ON).
 @pytest.mark.parametrize("change", ["REF", "SOURCE"])
 @pytest.mark.parametrize("same_cycle", [False, True])
 @pytest.mark.parametrize("optimized", [False, True])

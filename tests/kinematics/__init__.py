@@ -1,1 +1,1 @@
-"""Tests of distctrl.kinematics (3D distance control geometry, seeds/000 ch. 12, SPEC §11)."""
+"""Tests of distctrl.kinematics (3D distance control geometry, FCT-M3 ch. 12, SPEC §11)."""

@@ -1,4 +1,4 @@
-"""CA head: tool direction, inverse angles, RTCP pivot <-> TCP (SPEC §11, seeds/000 §12.1.2, §12.4.2)."""
+"""CA head: tool direction, inverse angles, RTCP pivot <-> TCP (SPEC §11, FCT-M3 §12.1.2, §12.4.2)."""
 from __future__ import annotations
 
 import math
@@ -103,7 +103,7 @@ def test_direction_round_trip_any_direction(v, hint):
 
 
 def test_negative_a_comes_back_on_the_a_positive_branch():
-    """seeds/001 example 2 programs A=-45° (C=0): the same direction is A=+45°, C=±180°."""
+    """PROG #DIST CTRL example 2 programs A=-45° (C=0): the same direction is A=+45°, C=±180°."""
     u = ca_tool_direction(0.0, R(-45))
     np.testing.assert_allclose(u, (0, math.sqrt(0.5), math.sqrt(0.5)), atol=1e-15)
     c, a = ca_angles_from_direction(u, c_hint=0.0)
@@ -191,7 +191,7 @@ def test_head_validation():
 
 
 # --- with kinematic 98 (§12.4.2.1 CA example, §12.4.2.2 orientations in the plane) ---------------
-K001 = Kinematic98Params.from_raw(1000000, 300000, 600000, 910000)   # seeds/001: 100 mm, 30°, 60°, 91°
+K001 = Kinematic98Params.from_raw(1000000, 300000, 600000, 910000)   # PROG #DIST CTRL: 100 mm, 30°, 60°, 91°
 
 
 def test_kin98_head_keeps_clamping_point_height_in_the_band():

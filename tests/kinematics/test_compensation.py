@@ -1,4 +1,4 @@
-"""Compensation direction per MODE and its orthogonal effect (SPEC §11; seeds/000 §12.1.3, §12.4.3)."""
+"""Compensation direction per MODE and its orthogonal effect (SPEC §11; FCT-M3 §12.1.3, §12.4.3)."""
 from __future__ import annotations
 
 import math
@@ -54,7 +54,7 @@ def test_example_inclined_30_degrees_ecs_vs_mcs():
 
 
 def test_robot_example_workpiece_inclined_30_degrees():
-    """seeds/000 §12.4.3.3: workpiece inclined by 30° in the PCS, tool perpendicular to it."""
+    """FCT-M3 §12.4.3.3: workpiece inclined by 30° in the PCS, tool perpendicular to it."""
     rot = cs_rotation(30, 0, 0)
     wp = Plane.from_frame(Frame(rot, (0, 0, 0)))
     u = wp.normal                                          # tool normal to the workpiece

@@ -1,4 +1,4 @@
-"""Planes, height fields and distances (seeds/000 §12.3, §12.4.1; SPEC §11)."""
+"""Planes, height fields and distances (FCT-M3 §12.3, §12.4.1; SPEC §11)."""
 from __future__ import annotations
 
 import math
@@ -86,7 +86,7 @@ def test_clamping_point_distance_is_l_cos_theta(L, c, a, xy):
 
 
 def test_clamping_point_on_inclined_workpiece():
-    """seeds/000 §12.4.3.3: workpiece inclined by 30°; tool normal to it -> L; tool vertical -> L·cos 30°."""
+    """FCT-M3 §12.4.3.3: workpiece inclined by 30°; tool normal to it -> L; tool vertical -> L·cos 30°."""
     rot = cs_rotation(30, 0, 0)
     wp = Plane((0, 0, 0), rot[:, 2])
     assert clamping_point_distance((0, 0, 0), rot[:, 2], 80.0, wp.point, wp.normal) == pytest.approx(80.0)

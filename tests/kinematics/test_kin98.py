@@ -1,7 +1,7 @@
 """Kinematic 98: parameter conversion and validation, virtual tool length, maximum inclination.
 
-seeds/000 §12.4.2 (offset data table), §12.4.2.1 (CA example), §12.9 (application examples
-[90°;-], [0°;-], [30°;60°], [10°;31°]); seeds/001 example 2; SPEC §11/§12.
+FCT-M3 §12.4.2 (offset data table), §12.4.2.1 (CA example), §12.9 (application examples
+[90°;-], [0°;-], [30°;60°], [10°;31°]); PROG #DIST CTRL example 2; SPEC §11/§12.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ L = 80.0   # tool length of every document example (V.G.WZ_AKT.L = 80)
 
 # --- raw conversion -------------------------------------------------------------------------------
 def test_seeds_001_values_convert_exactly():
-    """seeds/001: PARAM[0..3] = 1000000, 300000, 600000, 910000 -> 100 mm, 30°, 60°, 91°."""
+    """PROG #DIST CTRL: PARAM[0..3] = 1000000, 300000, 600000, 910000 -> 100 mm, 30°, 60°, 91°."""
     p = Kinematic98Params.from_raw(1000000, 300000, 600000, 910000)
     assert p.hd1_mm == 100.0
     assert p.hd2_rad == math.radians(30.0)
@@ -31,13 +31,13 @@ def test_seeds_001_values_convert_exactly():
 
 
 def test_seeds_000_ca_example_values():
-    """seeds/000 §12.4.2.1: 100000 (HD1 = 10 mm), 500000 (50°), 700000 (70°), 910000 (91°)."""
+    """FCT-M3 §12.4.2.1: 100000 (HD1 = 10 mm), 500000 (50°), 700000 (70°), 910000 (91°)."""
     p = Kinematic98Params.from_raw(100000, 500000, 700000, 910000)
     assert (p.hd1_mm, p.hd2_rad, p.hd3_rad, p.hd4_rad) == (10.0, R(50.0), R(70.0), R(91.0))
 
 
 def test_seeds_000_programming_example_is_decoded_literally():
-    """seeds/000 §12.2 ex. 2 is off by 10 against its comments (SPEC §12): the units are applied
+    """FCT-M3 §12.2 ex. 2 is off by 10 against its comments (SPEC §12): the units are applied
     as documented, the values are not "repaired" — 100000/30000/60000/91000 are 10 mm, 3°, 6°, 9.1°."""
     p = Kinematic98Params.from_raw(100000, 30000, 60000, 91000)
     assert (p.hd1_mm, p.hd2_rad, p.hd3_rad, p.hd4_rad) == (10.0, R(3.0), R(6.0), R(9.1))

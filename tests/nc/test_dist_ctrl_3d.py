@@ -1,4 +1,4 @@
-"""#DIST CTRL (3D distance control) and the kinematics commands: seeds/000 §12.2/§12.4, seeds/001."""
+"""#DIST CTRL (3D distance control) and the kinematics commands: FCT-M3 §12.2/§12.4, PROG #DIST CTRL."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -48,7 +48,7 @@ def commands(program: Program) -> list[tuple[int | None, Command3D]]:
     return [(block.number, w.to_command3d({}, block.line)) for block in program.blocks for w in block.dist_ctrl_3d]
 
 
-# ---------------------------------------------------------------- the two example programs of seeds/001
+# ---------------------------------------------------------------- the two example programs of PROG #DIST CTRL
 
 def test_example_1_behaviour_as_for_axis_specific_distance_control():
     program = parse_file(EXAMPLES_3D[0])
@@ -71,7 +71,7 @@ def test_example_2_inclined_tool_with_kinematic_98():
     program = parse_file(EXAMPLES_3D[1])
     blocks = {b.number: b for b in program.blocks}
     assert sorted(blocks) == [10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 110, 120, 130, 140]
-    # kinematic 98 parameters in 1e-4 mm / 1e-4 ° as seeds/001 prints them (SPEC §12)
+    # kinematic 98 parameters in 1e-4 mm / 1e-4 ° as PROG #DIST CTRL prints them (SPEC §12)
     hd = {kin_param_var(1, 98, i): value for i, value in enumerate([1000000, 300000, 600000, 910000])}
     assigned = {a.var: a.value for n in (10, 20, 30, 40) for a in blocks[n].assignments}
     assert assigned == {name: Num(float(value)) for name, value in hd.items()}
@@ -136,7 +136,7 @@ def test_actions(text, action, const_dist, no_move, surface):
 
 
 @pytest.mark.parametrize("outside, inside", [
-    # seeds/001 writes the action before the brackets, seeds/000 §12.4.4 inside them
+    # PROG #DIST CTRL writes the action before the brackets, FCT-M3 §12.4.4 inside them
     ("#DIST CTRL ON [SURFACE SET_POS=1 MODE=ECS DIRECTION=Z]", "#DIST CTRL [ON SURFACE SET_POS=1 MODE=ECS DIRECTION=Z]"),
     ("#DIST CTRL WAIT OFF", "#DIST CTRL WAIT [OFF]"),
     ("#DIST CTRL WAIT OFF [NO_MOVE]", "#DIST CTRL WAIT [OFF NO_MOVE]"),
@@ -329,7 +329,7 @@ def test_the_axis_command_is_unchanged_next_to_3d_blocks():
     ("#kin id [ 9.98 ]", "KIN", None, (9, 98)),
     ("N070 #TRAFO ON", "TRAFO", "ON", ()),
     ("#TRAFO OFF", "TRAFO", "OFF", ()),
-    ("N220 #TRAFO [ 9, 98]", "TRAFO", "ON", (9, 98)),     # seeds/000 §12.4.2.1: select the chain and switch on
+    ("N220 #TRAFO [ 9, 98]", "TRAFO", "ON", (9, 98)),     # FCT-M3 §12.4.2.1: select the chain and switch on
     ("#TRAFO [98]", "TRAFO", "ON", (98,)),
     ("#CS OFF", "CS", "OFF", ()),
     ("#CHANNEL INIT", "CHANNEL_INIT", None, ()),

@@ -1,4 +1,4 @@
-"""The DIST_CTRL keyword rules of seeds/000 §6 and seeds/003 §6, and what they turn into."""
+"""The DIST_CTRL keyword rules of FCT-M3 §6 and TF5200 Abstandskontrolle §6, and what they turn into."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""The 3D CNC-object table against seeds/000 §12.6 (expected table written from the document)."""
+"""The 3D CNC-object table against FCT-M3 §12.6 (expected table written from the document)."""
 from __future__ import annotations
 
 import math
@@ -21,7 +21,7 @@ from distctrl.objects.registry import (AXIS_OBJECTS, ObjectAccessError, ObjectSp
 
 ROOT = Path(__file__).resolve().parents[2]
 
-# seeds/000 §12.6, one row per object: name, index offset, type, length, access, unit. The document's
+# FCT-M3 §12.6, one row per object: name, index offset, type, length, access, unit. The document's
 # typos are corrected as noted: "0x<3105" -> 0x3105; "DIST_CTRL_PARAM[0]:a_max",
 # "DIST_CTRL_IFC[0]:actual_offset", "DIST_CTRL_IFC[0]:delta_offset" (single colon) -> "::".
 DOCUMENT_126 = [

@@ -1,4 +1,4 @@
-"""The CNC-object registry against seeds/000 §9.4 (expected table written from the document)."""
+"""The CNC-object registry against FCT-M3 §9.4 (expected table written from the document)."""
 from __future__ import annotations
 
 import math
@@ -19,7 +19,7 @@ from distctrl.params import AxisParameters
 
 ROOT = Path(__file__).resolve().parents[2]
 
-# seeds/000 §9.4, one row per object: name, index offset (A_ID part left out), type, length, access, unit
+# FCT-M3 §9.4, one row per object: name, index offset (A_ID part left out), type, length, access, unit
 DOCUMENT_94 = [
     ("DIST_CTRL_IFC::a_max_int", 0x3000, "REAL64", 8, "read", "0.1 µm/s²"),
     ("DIST_CTRL_IFC::sloped_delta_deviation", 0x3001, "SGN64", 8, "read", "0.01 nm"),
@@ -149,7 +149,7 @@ def test_find_object_addresses_axis_and_object():
     assert find_object(0x120300, 0x23106, contexts) is None       # no axis 2
     assert find_object(0x120300, 0x13101, contexts) is None       # no object 0x3101
     assert find_object(0x20300, 0x13106, contexts) is None        # old index group
-    assert find_object(0x120300, 0x10152, contexts) is None       # old offset scheme (seeds/003)
+    assert find_object(0x120300, 0x10152, contexts) is None       # old offset scheme (TF5200 Abstandskontrolle)
     assert find_object(0x120300, 0x33106, [c1, c3])[1] is c3      # a plain list of contexts works too
 
 

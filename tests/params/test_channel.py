@@ -1,4 +1,4 @@
-"""Channel parameters of the 3D distance control (seeds/000 §12.8) and the channel list format."""
+"""Channel parameters of the 3D distance control (FCT-M3 §12.8) and the channel list format."""
 from __future__ import annotations
 
 import dataclasses
@@ -24,7 +24,7 @@ MAX_SGN32, MIN_SGN32, MAX_UNS32 = 2**31 - 1, -(2**31), 2**32 - 1
 # ---------------------------------------------------------------- the document's table (§12.8.2)
 
 #: ID -> (key, data type, list unit, range as documented, default as documented).
-#: Written from seeds/000 §12.8.2; "0.1 10^-3 mm" is written 0.1 µm.
+#: Written from FCT-M3 §12.8.2; "0.1 10^-3 mm" is written 0.1 µm.
 DOCUMENTED = {
     "P-CHAN-00500": ("configuration.decoder.function", "STRING", "-",
                      "FCT_USE_CACHED_FILES FCT_VOL_COMP_COMPUTATION FCT_3D_DIST_CTRL -", ""),

@@ -1,4 +1,4 @@
-"""Parameter table and the kernel list format (seeds/000 §9)."""
+"""Parameter table and the kernel list format (FCT-M3 §9)."""
 from __future__ import annotations
 
 import subprocess

@@ -1,4 +1,4 @@
-"""The HLI DistanceControl control unit (seeds/002, seeds/000 §8 and ch. 10, SPEC §9) driving a real
+"""The HLI DistanceControl control unit (HLI DistanceControl, FCT-M3 §8 and ch. 10, SPEC §9) driving a real
 AxisDistanceController."""
 from __future__ import annotations
 
@@ -172,7 +172,7 @@ def test_state_r_units_and_saturation():
 # ----------------------------------------------------------------------------- the seven transitions
 
 def test_all_seven_transitions_through_the_unit():
-    """seeds/000 ch. 10: reference the sensor, ON with position 400000, surface change, FREEZE,
+    """FCT-M3 ch. 10: reference the sensor, ON with position 400000, surface change, FREEZE,
     then the remaining transitions, OFF -> TURNING_OFF -> INACTIVE."""
     ax = Axis(p=41.0, surface=40.0)                   # tool 1 mm above the surface: s = -1 mm
     ax.sensor_zero = 0.3                              # ... but the sensor is not referenced yet

@@ -13,7 +13,7 @@ from distctrl.plc import (ChannelDistanceStatus, DistanceControlUnit, SemaphoreB
 BASE = "gpAx[1].lr_mc_control.distance_control"
 CYC = "pAC[1].addr.McControlLr_Data.MCControl_DistanceControl.CyclicCommand"
 
-# name -> (size, PLC type, writable), from seeds/002 and seeds/000 §8.2
+# name -> (size, PLC type, writable), from HLI DistanceControl and FCT-M3 §8.2
 EXPECTED = {
     f"{BASE}.command_w": (8, "HLI_DISTANCE_CONTROL_COMMAND", True),
     f"{BASE}.command_w.transition": (4, "UDINT", True),

@@ -1,7 +1,7 @@
 """End to end: 3D (channel-specific) distance control on the virtual machine with the CA head.
 
-seeds/000 ch. 12 (§12.4.2 kinematic 98, §12.4.3 compensation, §12.4.4 reset / program end, §12.4.5
-channel re-initialisation, §12.7 errors, §12.9 application examples), seeds/001's two programs,
+FCT-M3 ch. 12 (§12.4.2 kinematic 98, §12.4.3 compensation, §12.4.4 reset / program end, §12.4.5
+channel re-initialisation, §12.7 errors, §12.9 application examples), PROG #DIST CTRL's two programs,
 SPEC §11. docs/run-3d.md describes the machine and the scenarios.
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ from distctrl.sim.scenario import ScenarioError, load_scenario, scenario_from_di
 ROOT = Path(__file__).resolve().parents[2]
 SCN = ROOT / "examples" / "scenarios"
 CHANNEL_LIST = SCN / "channel_3d.lis"
-L = 80.0             # tool length of the examples (seeds/001)
+L = 80.0             # tool length of the examples (PROG #DIST CTRL)
 HEIGHT_TOL = 2e-3    # mm: clamping-point height at rest against the geometry (drive encoders: 0.1 µm)
 
 
@@ -112,7 +112,7 @@ def only_error(result) -> dict:
     return result.errors[0]
 
 
-# ---------------------------------------------------------------- seeds/001's programs
+# ---------------------------------------------------------------- PROG #DIST CTRL's programs
 def test_seed_001_example_1_runs_acs_on_the_z_axis():
     r = run(SCN / "dist3d_1.toml")
     assert r.completed and r.errors == [] and r.warnings == [] and r.final_state == "INACTIVE"
@@ -175,7 +175,7 @@ def test_application_example_keeps_the_clamping_point_height(name, hd2, hd3):
         assert tr["dc3d.inclination"][k] == pytest.approx(angle, abs=1e-3)
         assert tr["dc3d.offset"][k] == pytest.approx(-1.0, abs=HEIGHT_TOL)     # the sheet's offset
         heights[angle] = h
-    # the phases of kinematic 98 (seeds/000 §12.4.2): L·cos θ below HD2, constant from HD2 to HD3,
+    # the phases of kinematic 98 (FCT-M3 §12.4.2): L·cos θ below HD2, constant from HD2 to HD3,
     # never below the unmonitored L·cos θ
     for angle, h in heights.items():
         if angle < hd2:

@@ -1,4 +1,4 @@
-"""distctrl step: the documents' step-response tuning method (seeds/000 ch. 3) on the virtual machine.
+"""distctrl step: the documents' step-response tuning method (FCT-M3 ch. 3) on the virtual machine.
 
 Metrics are checked on synthetic traces with known answers; the documents' claims on short runs of
 the simulation (a few hundred ms of machine time each).
@@ -342,7 +342,7 @@ def test_cli_prints_the_table_for_all_settings_and_hints():
     for kp in ("0.2", "0.5", "1"):
         for tv in ("0", "0.001"):
             assert f"KP={kp} I_TN=0 D_TV={tv}" in res.output
-    assert "rise 10-90 % [ms]" in res.output and "hints (seeds/000 ch. 3):" in res.output
+    assert "rise 10-90 % [ms]" in res.output and "hints (FCT-M3 ch. 3):" in res.output
     assert "a good P setting" in res.output
 
 
