@@ -129,6 +129,12 @@ def test_tf5200_addresses_of_v_max_and_a_max_are_aliases(cnc, plc):
         assert wait_for(lambda: state(plc) == 1)
     cnc.write(0x20300, 0x10152, 77000, pyads.PLCTYPE_DINT)           # 77 mm/s through the TF5200 address
     assert wait_for(lambda: cnc.read(IG, 0x13500, pyads.PLCTYPE_DINT) == 77000)   # the parameter (pending)
+    assert cnc.read(0x20300, 0x10152, pyads.PLCTYPE_DINT) == 77000   # the alias shows the pending value too
+    assert cnc.read(IG, 0x13102, pyads.PLCTYPE_LREAL) == pytest.approx(100.0 * 1e4)   # not adopted while ACTIVE
+    with pytest.raises(pyads.ADSError) as exc:                        # the same range check as 0x13500
+        cnc.write(0x20300, 0x10153, -1, pyads.PLCTYPE_DINT)
+    assert exc.value.err_code == 0x706                                # ADSERR_DEVICE_INVALIDDATA
+    assert cnc.read(0x20300, 0x10153, pyads.PLCTYPE_DINT) == cnc.read(IG, 0x13501, pyads.PLCTYPE_DINT) == 5000
     command(plc, 2)                                                   # FREEZE
     command(plc, 1, 400000)                                           # FREEZE -> ACTIVE: adopted
     assert wait_for(lambda: state(plc) == 1)

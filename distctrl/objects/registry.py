@@ -31,7 +31,7 @@ from .units import (INT32_MAX, INT32_MIN, PER_MM_01UM, UINT32_MAX, UM_PER_MM,
 TASK = "GEO"
 ADS_PORT = 551
 INDEX_GROUP = 0x120300
-#: TF5200 Abstandskontrolle §7.5 / FCT-M3 §7.6: DISTCTRL::v_max / a_max at 0x20300, offset
+#: TF5200 Abstandskontrolle §7.5: DISTCTRL::v_max / a_max at 0x20300, offset
 #: 0x10152 / 0x10153 + 0x10000 (axis index - 1) -- served as aliases of DIST_CTRL_PARAM[0]::v_max / a_max
 INDEX_GROUP_TF5200 = 0x20300
 INDEX_GROUPS = (INDEX_GROUP, INDEX_GROUP_TF5200)
@@ -338,7 +338,7 @@ GENERAL_AXIS_OBJECTS: tuple[ObjectSpec, ...] = (
                            lambda ctx: ctx.controller.state.last_a, False), note=_FIG34),
 )
 
-#: TF5200 Abstandskontrolle §7.5 (and FCT-M3 §7.6): aliases of DIST_CTRL_PARAM[0]::v_max / a_max
+#: TF5200 Abstandskontrolle §7.5: aliases of DIST_CTRL_PARAM[0]::v_max / a_max
 TF5200_OBJECTS: tuple[ObjectSpec, ...] = (
     _spec("DISTCTRL::v_max", 0x0152, "TF5200 Abstandskontrolle §7.5: maximum velocity when a position offset "
           "is executed (P-AXIS-00415). The same value as DIST_CTRL_PARAM[0]::v_max (an alias): "

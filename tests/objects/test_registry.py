@@ -470,6 +470,29 @@ def test_the_tf5200_addresses_are_aliases_of_the_parameter_objects():
     assert find_object(0x120300, 0x10152, ctxs) is None
 
 
+def test_writes_through_the_tf5200_addresses_follow_the_parameter_objects_rules():
+    """TF5200 Abstandskontrolle §7.5: the new v_max / a_max are adopted only on INACTIVE -> ACTIVE or
+    FREEZE -> ACTIVE; the alias checks the range like DIST_CTRL_PARAM[0]::v_max / a_max (SPEC §10)."""
+    loop = Loop(v_max=20.0, a_max=2000.0)
+    ctxs = {1: ctx_of(loop, 1)}
+    v, ctx = find_object(0x20300, 0x10152, ctxs)
+    a, _ = find_object(0x20300, 0x10153, ctxs)
+    for spec, bad in ((v, -1), (a, -1), (a, 2.5), (v, 2**31), (v, float("nan"))):
+        with pytest.raises(ObjectValueError):
+            write_value(spec, ctx, bad)
+    loop.cycle(write_value(v, ctx, 7000), write_value(a, ctx, 900), n=5)        # INACTIVE: pending
+    assert (loop.out.v_max_param, loop.out.a_max_param) == (20.0, 2000.0)
+    assert read_value(v, ctx) == read_value(BY_NAME["DIST_CTRL_PARAM[0]::v_max"], ctx) == 7000
+    out = loop.cycle(Command(Action.ON, const_dist=True, set_dist=0.0))         # INACTIVE -> ACTIVE_CONST_DIST
+    assert out.hli_state == 4 and (out.v_max_param, out.a_max_param) == (7.0, 900.0)
+    loop.cycle(write_value(v, ctx, 9000), n=50)                                  # ACTIVE_CONST_DIST: pending
+    assert loop.out.v_max_param == 7.0 and read_value(v, ctx) == 9000
+    out = loop.cycle(Command(Action.FREEZE), n=20)                               # FREEZE: still pending
+    assert out.v_max_param == 7.0
+    out = loop.cycle(Command(Action.ON, set_pos=40.0))                           # FREEZE -> ACTIVE: adopted
+    assert out.hli_state == 1 and out.v_max_param == 9.0 and loop.ctrl.state.pending == {}
+
+
 def test_fig_34_general_axis_objects_show_p_c_and_the_drive_positions():
     """FCT-M3 §7.5 Fig. 34 (m_sollw_absolut, sollw_absolut, dig cmd pos high_res, dig act pos) beside the
     distance-control objects: programmed p, command c = p + o (0.01 nm), c and a in drive increments."""
