@@ -102,13 +102,14 @@ class AxisParameters:
             check_internal(spec, getattr(self, spec.field), self.rotary)
         if self.min_pos + self.tolerance >= self.max_pos - self.tolerance:
             raise ParameterError(
-                f"P-AXIS-00419/00420/00421 sensor window is empty: min_pos + tolerance ({self.min_pos + self.tolerance:g} mm) must be "
-                f"below max_pos - tolerance ({self.max_pos - self.tolerance:g} mm)",
+                f"P-AXIS-00419/00420/00421 sensor window is empty: min_pos + tolerance "
+                f"({self.min_pos + self.tolerance:g} {self.length_unit}) must be below max_pos - tolerance "
+                f"({self.max_pos - self.tolerance:g} {self.length_unit})",
                 key="kenngr.distc.min_pos/max_pos/tolerance", param_id="P-AXIS-00419/00420/00421")
         if self.sw_limit_min >= self.sw_limit_max:
             raise ParameterError(
-                f"P-AXIS-00177/00178 software limits: swe_neg ({self.sw_limit_min:g} mm) must be below swe_pos "
-                f"({self.sw_limit_max:g} mm)", param_id="P-AXIS-00177/00178")
+                f"P-AXIS-00177/00178 software limits: swe_neg ({self.sw_limit_min:g} {self.length_unit}) must be "
+                f"below swe_pos ({self.sw_limit_max:g} {self.length_unit})", param_id="P-AXIS-00177/00178")
 
     # ------------------------------------------------------------------ derived values
     @property

@@ -119,3 +119,58 @@ def test_the_virtual_machine_refuses_a_rotary_sensor_axis(tmp_path):
         scenario_from_dict({"program_text": "M30\n", "axes": {"A": {"params": "a.lis"}},
                             "sensor": {"axis": "A", "kind": "encoder"}}, base_dir=tmp_path)
     assert "sensor.axis" in str(exc.value) and "ACHSTYP_ROTATOR" in str(exc.value)
+
+
+# FCT-M3 §9.2, column "Dimension" of every distance-control parameter as printed: (T, R)
+DOCUMENT_DIMENSION = {
+    "P-AXIS-00414": ("0.1 µm", "0.0001°"), "P-AXIS-00415": ("µm/s", "0.001°/s"),   # T printed '0.001 mm/s'
+    "P-AXIS-00416": ("mm/s²", "°/s²"), "P-AXIS-00417": ("µm/s", "0.0001°/s"),
+    "P-AXIS-00418": ("0.1 µm", "0.0001°"), "P-AXIS-00419": ("0.1 µm", "0.0001°"),
+    "P-AXIS-00420": ("0.1 µm", "0.0001°"), "P-AXIS-00421": ("0.1 µm", "0.0001°"),
+    "P-AXIS-00502": ("mm/s²", "mm/s²"),
+    "P-AXIS-00504": ("0.1 µm", "0.0001°"), "P-AXIS-00505": ("0.1 µm", "0.0001°"),
+    "P-AXIS-00508": ("Hz", "Hz"), "P-AXIS-00533": ("0.1 %", "0.1 %"), "P-AXIS-00534": ("0.1 %", "0.1 %"),
+    "P-AXIS-00422": ("increments", "increments"), "P-AXIS-00423": ("0.1 µm", "0.0001°"),
+    "P-AXIS-00764": ("s", "s"), "P-AXIS-00765": ("s", "s"),
+}
+
+
+def test_the_r_units_are_the_documents_dimension_r_column():
+    """Every list unit on a rotary axis is FCT-M3 §9.2's 'Dimension R'; the one the project reads
+    differently (P-AXIS-00502 a_min, printed 'mm/s²' for R too, blended with a_max in °/s²) says so."""
+    from distctrl.params.table import BY_ID
+
+    for pid, (unit_t, unit_r) in DOCUMENT_DIMENSION.items():
+        spec = BY_ID[pid]
+        assert spec.unit == unit_t, pid
+        if pid == "P-AXIS-00502":
+            assert spec.unit_rotary == "°/s²"
+            assert "mm/s²" in spec.note and "°/s²" in spec.note and "P-AXIS-00416" in spec.note
+        else:
+            assert (spec.unit_rotary or spec.unit) == unit_r, pid
+    # every other length-like distance-control parameter is dimensionless ('----' for T and R)
+    for spec in BY_ID.values():
+        if spec.id.startswith("P-AXIS-") and spec.id not in DOCUMENT_DIMENSION and spec.unit != "-":
+            assert spec.id in ("P-AXIS-00008", "P-AXIS-00177", "P-AXIS-00178"), spec.id   # ISG axis data
+
+
+def test_the_generated_list_says_what_p_axis_00424_zero_does_on_each_axis_type():
+    from distctrl.params.docgen import render
+
+    row = next(line for line in render().splitlines() if line.startswith("| P-AXIS-00424 "))
+    assert "linear on a translatory axis" in row and "modulo on a rotary axis" in row
+    row = next(line for line in render().splitlines() if line.startswith("| P-AXIS-00423 "))
+    assert "0.0001°" in row.split("|")[9]                                      # the description names R too
+
+
+def test_load_errors_of_a_rotary_list_give_degrees():
+    """Exceptions at the edge name the value in the axis's unit: a rotary list is read in degrees."""
+    with pytest.raises(ParameterError) as exc:
+        rotary(min_pos=10.0, max_pos=10.0)
+    assert "10 °" in str(exc.value) and "mm" not in str(exc.value)
+    with pytest.raises(ParameterError) as exc:
+        rotary(sw_limit_min=5.0, sw_limit_max=-5.0)
+    assert "5 °" in str(exc.value) and "mm" not in str(exc.value)
+    with pytest.raises(ParameterError) as exc:
+        parse_list_text(ROTARY_LIST.replace("-1800000", "1800000"), "r.lis")
+    assert "r.lis" in str(exc.value) and "180 °" in str(exc.value)
