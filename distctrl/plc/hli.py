@@ -5,7 +5,8 @@ writes ``command_w`` + ``enable_w`` and sets ``command_semaphore_rw``; the CNC, 
 before the controller update, consumes the command (:meth:`DistanceControlUnit.consume`) and clears
 the semaphore in the same cycle; after the update it publishes ``state_r``
 (:meth:`DistanceControlUnit.publish`). Lengths on the HLI are DINT in 0.1 µm; they are converted to
-mm here, once (SPEC §1).
+mm here, once (SPEC §1). On a rotary axis (P-AXIS-00018 ACHSTYP_ROTATOR) the same DINTs are 0.0001°
+("0.1 µm or 0.0001°", HLI DistanceControl) and the controller works in degrees: the factor is the same.
 
 Cyclic command (``pAC[i]^^.addr^.McControlLr_Data.MCControl_DistanceControl.CyclicCommand``):
 ``D_Position`` / ``D_Distance`` (DINT, 0.1 µm). The documents do not say how the CNC knows the PLC is

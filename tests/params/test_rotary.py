@@ -86,7 +86,10 @@ def test_the_plc_interface_and_the_objects_give_a_rotary_axis_in_its_units():
     ctrl = AxisDistanceController(p, 0.001)
     unit = DistanceControlUnit(1)
     inp, out = CycleInput(programmed_position=10.0, actual_position=10.0), CycleOutput()
-    inp.commands.append(Command(Action.ON, set_pos=12.0))         # A[DIST_CTRL ON SET_POS=12]: 12°
+    unit.write_command(transition=1, position=120000)              # command_w: ON, SET_POS 12° in 0.0001°
+    unit.enable_w = unit.command_semaphore_rw = True
+    cmd = unit.prepare(inp)
+    assert (cmd.action, cmd.set_pos) == (Action.ON, pytest.approx(12.0))
     actual = 10.0
     for _ in range(400):
         inp.actual_position = actual
