@@ -1,7 +1,7 @@
 """Kinematic transformation ID 98: minimum-distance monitoring by a virtual tool extension.
 
 FCT-M3 §12.4.2 (table "Offset data of kinematics", Fig. 44), §12.4.2.1/§12.4.2.2, §12.5, §12.9;
-PROG #DIST CTRL example 2; SPEC §11 and §12 (001's values are the correct 1e-4 units).
+PROG #DIST CTRL example 2; SPEC §11 and §12 (PROG #DIST CTRL's values are the correct 1e-4 units).
 
 Parameters (``V.G.KIN_STEP[1].ID[98].PARAM[i]``):
 

@@ -20,7 +20,7 @@ L = 80.0   # tool length of every document example (V.G.WZ_AKT.L = 80)
 
 
 # --- raw conversion -------------------------------------------------------------------------------
-def test_seeds_001_values_convert_exactly():
+def test_prog_dist_ctrl_values_convert_exactly():
     """PROG #DIST CTRL: PARAM[0..3] = 1000000, 300000, 600000, 910000 -> 100 mm, 30°, 60°, 91°."""
     p = Kinematic98Params.from_raw(1000000, 300000, 600000, 910000)
     assert p.hd1_mm == 100.0
@@ -30,13 +30,13 @@ def test_seeds_001_values_convert_exactly():
     assert p.to_raw() == (1000000, 300000, 600000, 910000)
 
 
-def test_seeds_000_ca_example_values():
+def test_fct_m3_ca_example_values():
     """FCT-M3 §12.4.2.1: 100000 (HD1 = 10 mm), 500000 (50°), 700000 (70°), 910000 (91°)."""
     p = Kinematic98Params.from_raw(100000, 500000, 700000, 910000)
     assert (p.hd1_mm, p.hd2_rad, p.hd3_rad, p.hd4_rad) == (10.0, R(50.0), R(70.0), R(91.0))
 
 
-def test_seeds_000_programming_example_is_decoded_literally():
+def test_fct_m3_programming_example_is_decoded_literally():
     """FCT-M3 §12.2 ex. 2 is off by 10 against its comments (SPEC §12): the units are applied
     as documented, the values are not "repaired" — 100000/30000/60000/91000 are 10 mm, 3°, 6°, 9.1°."""
     p = Kinematic98Params.from_raw(100000, 30000, 60000, 91000)
@@ -107,7 +107,7 @@ def test_example_4_10_to_31_degrees():
         assert p.virtual_tool_length(L, R(deg)) * math.cos(R(deg)) == pytest.approx(L * math.cos(R(10)))
 
 
-def test_example_3_30_to_60_degrees_seeds_001():
+def test_example_3_30_to_60_degrees_prog_dist_ctrl():
     p = Kinematic98Params.from_raw(1000000, 300000, 600000, 910000)
     assert p.virtual_tool_length(L, R(20)) == L
     assert p.virtual_tool_length(L, R(45)) == pytest.approx(L * math.cos(R(30)) / math.cos(R(45)))

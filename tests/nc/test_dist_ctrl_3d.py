@@ -151,7 +151,7 @@ def test_keywords_inside_or_outside_the_brackets_mean_the_same(outside, inside):
     assert word(outside).outside and not word(inside).outside[1:]
 
 
-def test_the_forms_of_seeds_000_12_4_4():
+def test_the_forms_of_fct_m3_12_4_4():
     assert command("N220 #DIST CTRL WAIT [ON SET_POS=10]") == Command3D(Action.ON, wait=True, set_pos=10.0, line=1)
     assert command("N240 #DIST CTRL WAIT [OFF NO_MOVE]") == Command3D(Action.OFF, wait=True, no_move=True, line=1)
     assert command("N440 #DIST CTRL WAIT [OFF]") == Command3D(Action.OFF, wait=True, line=1)

@@ -113,7 +113,7 @@ def only_error(result) -> dict:
 
 
 # ---------------------------------------------------------------- PROG #DIST CTRL's programs
-def test_seed_001_example_1_runs_acs_on_the_z_axis():
+def test_prog_dist_ctrl_example_1_runs_acs_on_the_z_axis():
     r = run(SCN / "dist3d_1.toml")
     assert r.completed and r.errors == [] and r.warnings == [] and r.final_state == "INACTIVE"
     tr = r.trace
@@ -126,7 +126,7 @@ def test_seed_001_example_1_runs_acs_on_the_z_axis():
     assert tr["dc3d.offset"][-1] == 0.0
 
 
-def test_seed_001_example_2_inclines_with_kinematic_98_and_selects_ecs():
+def test_prog_dist_ctrl_example_2_inclines_with_kinematic_98_and_selects_ecs():
     r = run(SCN / "dist3d_2.toml")
     assert r.completed and r.errors == [] and r.warnings == [] and r.final_state == "INACTIVE"
     tr = r.trace
@@ -146,7 +146,7 @@ def test_seed_001_example_2_inclines_with_kinematic_98_and_selects_ecs():
     assert clamp == pytest.approx(pivot - 100.0 * u, abs=1e-3)
 
 
-def test_seed_001_example_2_tcp_is_kept_while_the_head_inclines():
+def test_prog_dist_ctrl_example_2_tcp_is_kept_while_the_head_inclines():
     tr = run(SCN / "dist3d_2.toml").trace
     rotating = np.where(np.diff(tr["A.prog"]) != 0)[0]
     assert len(rotating) > 100
