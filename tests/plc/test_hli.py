@@ -328,3 +328,34 @@ def test_the_virtual_machine_tells_each_unit_whether_distance_control_is_on():
     vm = Machine(sc)
     assert vm.hli["Z"].distance_control_on is True
     assert vm.hli["X"].distance_control_on is False
+
+
+@pytest.mark.parametrize("transition, position_mm", [(1, 40.0), (4, 1.0), (5, 40.0), (6, 1.0)])
+def test_a_sensor_that_is_not_absolute_must_be_referenced_before_each_select(transition, position_mm):
+    """HLI DistanceControl, transitions 1, 4, 5, 6: 'If no absolute encoder is used, distance control must
+    first be referenced' (SPEC §2). Refused with 900008 like any invalid transition (ERROR, left through
+    OFF), accepted after REF (3)."""
+    ax = Axis(p=41.0, surface=40.0, sensor_absolute=False)
+    ax.plc(transition, position_mm)
+    assert ax.state_r.actual_state == 5 and ax.state_r.actual_offset == 0
+    assert [e.id for e in ax.events] == [900008]
+    ax.plc(0)
+    ax.until(lambda o: o.hli_state == HliState.INACTIVE)
+    ax.plc(3, 40.0)
+    ax.plc(transition, position_mm)
+    assert ax.state_r.actual_state == {1: 1, 4: 4, 5: 7, 6: 6}[transition]
+    assert [e.id for e in ax.events] == [900008]
+
+
+@pytest.mark.parametrize("surface", [40.2, 39.7])
+def test_in_the_stationary_state_the_offset_is_the_distance_between_surface_and_set_pos(surface):
+    """HLI DistanceControl, state_r.actual_offset: in the stationary state (constant surface, offset run
+    out) |actual_offset| = |SET_POS - actual_position|. distctrl's sign follows the physics (SPEC §3): the
+    axis moved up (+) when the real surface is above SET_POS, so actual_offset = actual_position - SET_POS."""
+    ax = Axis(p=41.0, surface=40.0)
+    ax.plc(1, 40.0)
+    ax.surface = surface
+    ax.cycle(n=800)
+    s = ax.state_r
+    assert s.actual_position == round(surface * 1e4)
+    assert s.actual_offset == s.actual_position - 400000
