@@ -37,6 +37,7 @@ from distctrl.control.states import HliTransition
 from distctrl.errors import ParameterError
 from distctrl.params.axis import AxisParameters
 from distctrl.params.channel import ChannelParameters, load_channel_list
+from distctrl.params.external_variables import load_external_variables
 from distctrl.params.listfile import load_list
 from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, require_int,
                                         require_mapping, require_number)
@@ -52,7 +53,7 @@ __all__ = ["Scenario", "AxisConfig", "SensorConfig", "Event", "ScenarioError", "
 #: axis names a scenario may configure (the order is the display order)
 AXIS_NAMES = ("X", "Y", "Z", "A", "B", "C")
 TOP_LEVEL_KEYS = ("name", "cycle_time", "program", "program_text", "duration", "settle_time", "seed",
-                  "variables", "tool", "axes", "channel", "surface", "sensor", "events")
+                  "variables", "external_variables", "tool", "axes", "channel", "surface", "sensor", "events")
 AXIS_KEYS = ("params", "start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "bus_delay_cycles",
              "resolution", "feedforward")
 SENSOR_KINDS = ("encoder", "distance")
@@ -238,6 +239,10 @@ class Scenario:
     channel_params_warnings: tuple[str, ...] = ()
     #: ``[channel] kinematics``: "CA" (the 5-axis CA head) or None
     kinematics: str | None = None
+    #: ``external_variables``: the V.E. variables declared by the external-variable list (FCT-M3
+    #: §12.8.4), None without a list (then every V.E. name a scenario or program uses exists)
+    external_variables: dict | None = None
+    external_variables_file: Path | None = None
 
     @property
     def has_3d(self) -> bool:
@@ -613,9 +618,35 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
     events = [_event(n, e, axes, sensor, duration) for n, e in enumerate(events_cfg)]
     events.sort(key=lambda e: e.t)  # stable
 
+    extv, extv_file = None, None
+    if "external_variables" in data:
+        extv_file = _file(data["external_variables"], "external_variables", base_dir,
+                          "external-variable list (FCT-M3 §12.8.4)")
+        try:
+            extv = load_external_variables(extv_file)
+        except ParameterError as exc:
+            exc.scenario_key = "external_variables"  # type: ignore[attr-defined]  # see _with_source
+            raise
+        _check_declared(extv, extv_file, variables, sensor, events)
+        for declared in extv:
+            variables.setdefault(declared, 0.0)
+
     return Scenario(path, base_dir, name, cycle_time, program_text, program_file, duration, settle_time, seed,
                     variables, tool_length, axes, surface, dict(surface_cfg), sensor, events, channel_params,
-                    channel_file, channel_warnings, kinematics)
+                    channel_file, channel_warnings, kinematics, extv, extv_file)
+
+
+def _check_declared(extv: dict, extv_file: Path, variables: dict, sensor, events) -> None:
+    """With an external-variable list, every V.E. name of the scenario must be declared in it."""
+    allowed = f"a variable declared in {extv_file.name} ({', '.join(extv) or 'none declared'})"
+    for name in variables:
+        if name not in extv:
+            raise ConfigError(f"variables.{name}", name, allowed, "not declared:")
+    if sensor is not None and sensor.variable is not None and sensor.variable not in extv:
+        raise ConfigError("sensor.variable", sensor.variable, allowed, "not declared:")
+    for ev in events:
+        if ev.kind == "variable" and ev.data["name"] not in extv:
+            raise ConfigError(f"events[{ev.index}].name", ev.data["name"], allowed, "not declared:")
 
 
 def _with_source(source: str, data: object, base_dir: Path, path: Path | None) -> Scenario:
