@@ -59,6 +59,19 @@ enum { PL_Z0, PL_ACT0, PL_KV, PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF,
 
 /* ---- the law (distctrl.control.law), inlined by hand; same expressions, same order ---- */
 
+/* Python's float % (numba: fmod, then the sign of the divisor) */
+static inline double py_mod(double a, double span)
+{
+    double mod = fmod(a, span);
+    if (mod != 0.0) {
+        if ((span < 0.0) != (mod < 0.0))
+            mod += span;
+    } else {
+        mod = copysign(0.0, span);
+    }
+    return mod;
+}
+
 static inline double encoder_reading(double increments, double mm_per_increment, int sign_reversal,
                                      double offset_mm, int modulo, double lo, double hi)
 {
@@ -68,18 +81,21 @@ static inline double encoder_reading(double increments, double mm_per_increment,
     s = s + offset_mm;
     if (modulo) {
         double span = hi - lo;
-        /* Python's float % (numba: fmod, then the sign of the divisor) */
-        double a = s - lo;
-        double mod = fmod(a, span);
-        if (mod != 0.0) {
-            if ((span < 0.0) != (mod < 0.0))
-                mod += span;
-        } else {
-            mod = copysign(0.0, span);
-        }
-        s = lo + mod;
+        s = lo + py_mod(s - lo, span);
     }
     return s;
+}
+
+static inline double modulo_wrap(double s, double lo, double hi)
+{
+    return lo + py_mod(s - lo, hi - lo);
+}
+
+static inline double modulo_unwrap(double s_wrapped, double last_wrapped, double last_unwrapped, double lo,
+                                   double hi)
+{
+    double span = hi - lo;
+    return last_unwrapped + (py_mod(s_wrapped - last_wrapped + 0.5 * span, span) - 0.5 * span);
 }
 
 static inline double brake_velocity(double remaining, double a, double T)
@@ -276,6 +292,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
     double a_bound_state = a_floor;
     double s_delayed = 0.0, last_s = 0.0;
     int has_last_s = 0;
+    double s_wrapped = 0.0, s_unwrapped = 0.0; /* modulo encoder */
     for (int64_t k = 0; k < n; k++) {
         /* ---- probe (EncoderProbe.read) */
         double sz = surface[k];
@@ -302,6 +319,11 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
         double pr = prog[k];
         double act = z_act;
         double s_now = encoder_reading(y, mm_per_incr, sign_rev, ref_off, modulo, min_pos, max_pos);
+        if (modulo) { /* AxisDistanceController._unwrap */
+            s_unwrapped = k > 0 ? modulo_unwrap(s_now, s_wrapped, s_unwrapped, min_pos, max_pos) : s_now;
+            s_wrapped = s_now;
+            s_now = s_unwrapped;
+        }
         double s;
         if (optimized) {
             s = s_now;
@@ -312,11 +334,12 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
         int running = k >= k_on;
         int64_t err_id = 0;
         if (running) {
+            double s_window = modulo ? modulo_wrap(s, min_pos, max_pos) : s;
             if (has_last_s && fabs(s - last_s) > jump_limit)
                 err_id = E_JUMP;
-            else if (s > s_hi)
+            else if (s_window > s_hi)
                 err_id = E_RUN_MAX;
-            else if (s < s_lo)
+            else if (s_window < s_lo)
                 err_id = E_RUN_MIN;
         }
         if (err_id != 0) {

@@ -448,6 +448,8 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
     s_delayed = 0.0
     last_s = 0.0
     has_last_s = False
+    s_wrapped = 0.0                                 # modulo encoder: last wrapped / continuous reading
+    s_unwrapped = 0.0
     for k in range(n):
         # ---- machine: the probe reads the true geometry (EncoderProbe.read)
         sz = surface[k]
@@ -469,6 +471,13 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         pr = prog[k]
         act = z_act
         s_now = law.encoder_reading(y, mm_per_incr, sign_rev, ref_off, modulo, min_pos, max_pos)
+        if modulo:                                  # AxisDistanceController._unwrap
+            if k > 0:
+                s_unwrapped = law.modulo_unwrap(s_now, s_wrapped, s_unwrapped, min_pos, max_pos)
+            else:
+                s_unwrapped = s_now
+            s_wrapped = s_now
+            s_now = s_unwrapped
         if optimized:
             s = s_now
         else:
@@ -477,11 +486,12 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         running = k >= k_on
         err_id = 0
         if running:
+            s_window = law.modulo_wrap(s, min_pos, max_pos) if modulo else s
             if has_last_s and abs(s - last_s) > jump_limit:
                 err_id = _E_JUMP
-            elif s > s_hi:
+            elif s_window > s_hi:
                 err_id = _E_RUN_MAX
-            elif s < s_lo:
+            elif s_window < s_lo:
                 err_id = _E_RUN_MIN
         if err_id != 0:
             out_error[0] = k

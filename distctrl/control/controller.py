@@ -84,6 +84,9 @@ class ControllerState:
     has_last_s: bool = False
     s_delayed: float | None = None                     # previous cycle's reading (no optimized scheduling);
                                                        # None before the first reading
+    s_wrapped: float = 0.0                             # modulo sensor: the last wrapped reading ...
+    s_unwrapped: float = 0.0                           # ... and the continuous one the law uses
+    has_unwrap: bool = False
     last_p: float = 0.0
     last_a: float = 0.0
     last_var: float = 0.0
@@ -183,6 +186,8 @@ class AxisDistanceController:
             sensor_ok = True
         else:
             s_now, sensor_ok = self._read_sensor(inp)
+        if self._modulo and sensor_ok:
+            s_now = self._unwrap(s_now)
         if p.optimized_scheduling:
             s = s_now
         else:
@@ -201,7 +206,10 @@ class AxisDistanceController:
                 # REF or a sensor-source change: the reading has a new reference; use it at once (a
                 # delayed value of the old reference would look like a jump) and restart monitoring
                 self._rebased = False
+                st.has_unwrap = False
                 s_now, sensor_ok = self._read_sensor(inp)
+                if self._modulo and sensor_ok:
+                    s_now = self._unwrap(s_now)
                 s = st.s_delayed = s_now
                 st.has_last_s = False
 
@@ -224,10 +232,15 @@ class AxisDistanceController:
                     self._raise(ErrorId.SENSOR_JUMP, events, line,
                                 f"|Δs| = {abs(s - st.last_s):.6g} {unit} in {T:g} s, limit "
                                 f"{p.max_act_value_change:g} {unit}/s")
-                elif s > self._s_hi:
-                    self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line, f"s = {s:.6g} {p.length_unit}")
-                elif s < self._s_lo:
-                    self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line, f"s = {s:.6g} {p.length_unit}")
+                else:
+                    # the window applies to the reading as the sensor gives it (wrapped if modulo)
+                    s_window = law.modulo_wrap(s, p.min_pos, p.max_pos) if self._modulo else s
+                    if s_window > self._s_hi:
+                        self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line,
+                                    f"s = {s_window:.6g} {p.length_unit}")
+                    elif s_window < self._s_lo:
+                        self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line,
+                                    f"s = {s_window:.6g} {p.length_unit}")
             state = st.hli_state
             running = state in MONITORED_STATES
         if sensor_ok:
@@ -359,7 +372,8 @@ class AxisDistanceController:
         out.sloped_delta_deviation = v * T
         out.delta_offset = o_new - o
         out.offset_velocity = st.velocity
-        out.sensor_value = st.last_var if st.sensor_source is _VARIABLE else s
+        out.sensor_value = st.last_var if st.sensor_source is _VARIABLE else \
+            (law.modulo_wrap(s, p.min_pos, p.max_pos) if self._modulo else s)
         out.feedback_value = feedback
         out.filtered_feedback = filtered
         out.hli_state = _INT[state]
@@ -421,6 +435,17 @@ class AxisDistanceController:
         if not _finite(s):
             return st.last_s, False
         return s, True
+
+    def _unwrap(self, s_wrapped: float) -> float:
+        """P-AXIS-00424 modulo: the continuous reading behind the wrapped one (the first reading, and
+        the first after a REF or a source change, starts it)."""
+        st, p = self.state, self.params
+        if st.has_unwrap:
+            s = law.modulo_unwrap(s_wrapped, st.s_wrapped, st.s_unwrapped, p.min_pos, p.max_pos)
+        else:
+            s, st.has_unwrap = s_wrapped, True
+        st.s_wrapped, st.s_unwrapped = s_wrapped, s
+        return s
 
     # ------------------------------------------------------------------ errors
     def _raise(self, error_id: int, events: list, line: int | None, detail: str = "") -> None:

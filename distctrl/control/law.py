@@ -61,6 +61,18 @@ def encoder_reading(increments, mm_per_increment, sign_reversal, offset_mm, modu
     return s
 
 
+def modulo_wrap(s, lo, hi):
+    """A reading wrapped into [lo, hi) (P-AXIS-00424 modulo)."""
+    return lo + (s - lo) % (hi - lo)
+
+
+def modulo_unwrap(s_wrapped, last_wrapped, last_unwrapped, lo, hi):
+    """The continuous reading behind a modulo one: the last continuous value plus the shortest step
+    on the circle [lo, hi), so a reading crossing the wrap point moves on instead of jumping a span."""
+    span = hi - lo
+    return last_unwrapped + ((s_wrapped - last_wrapped + 0.5 * span) % span - 0.5 * span)
+
+
 # ----------------------------------------------------------------------------- filters
 
 def _ring_sum(buf, n):
@@ -486,7 +498,7 @@ def advance_offset(o, v, T, lo, hi):
 
 
 #: the functions numba compiles for the batch kernel (registered by distctrl.batch.kernel)
-LAW_FUNCTIONS = (encoder_reading, _ring_sum, _ring_expo_sum, filter_seed, window_sum_update,
+LAW_FUNCTIONS = (encoder_reading, modulo_wrap, modulo_unwrap, _ring_sum, _ring_expo_sum, filter_seed, window_sum_update,
                  moving_mean, _push, kalman_prediction, filter_step, feedback_value, mode_error, derivative_gain, pid_step, finite_step, integrator_after_limiter,
                  brake_velocity,
                  adaptive_acceleration, adaptive_braking_acceleration, _clamp, slope_limit_side, slope_limit,

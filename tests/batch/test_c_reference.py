@@ -145,3 +145,20 @@ def test_swept_columns_and_other_filters(tmp_path, cref):
                                                smoothing_factor=0.3)])
     off, _, err = cref.run(inputs, other)
     assert err[0].tolist() == [-2, law.EXPO_MEAN] and np.isnan(off).all()
+
+
+def test_c_reproduces_a_wrapping_modulo_encoder(tmp_path, cref):
+    """P-AXIS-00424 = 2 (modulo) with a 1 mm window starting just below the first reading (-0.3 mm),
+    which the reading (down to -0.33 mm while tracking) leaves again and again: the C reference unwraps
+    like the kernel (AxisDistanceController._unwrap)."""
+    sets = [make_params(kp=0.3, n_cycles=2, sensor_mode_act_pos=2, min_pos=-0.31, max_pos=0.69),
+            make_params(kp=0.9, n_cycles=5, optimized_scheduling=False, sensor_mode_act_pos=2, min_pos=-0.305,
+                        max_pos=0.695)]
+    sc = make_scenario(tmp_path, sets[0], MODES["SET_POS"][0] + PATH)
+    inputs = CL.prepare(sc)
+    packed = CL.pack_sets(inputs, sets)
+    assert (packed[:, law.FC_LEN + CL.Q_MODULO] == 1.0).all()
+    off, err = assert_same(cref, inputs, packed)
+    assert (err[:, 1] == 0).all() and np.ptp(off[0]) > 0.05
+    _, dist, _ = CL.run_batch(inputs, packed, return_errors=True)
+    assert np.count_nonzero(-dist[0] < -0.315) > 10                 # below min_pos: the reading wraps

@@ -193,3 +193,27 @@ def test_run_batch_writes_into_given_outputs(tmp_path):
         CL.run_batch(inputs, sets, cycles=301, out=(np.zeros((20, 300)), out[1]))
     with pytest.raises(CL.ClosedLoopError, match="overlap"):
         CL.run_batch(inputs, sets, cycles=301, out=(out[0], out[0]))
+
+
+def test_a_modulo_encoder_that_wraps_gives_the_continuous_run(tmp_path):
+    """P-AXIS-00424 modulo in the compiled law (AxisDistanceController._unwrap): a 1 mm window that
+    starts just below the first reading, which the reading leaves again and again, gives the same run
+    as the linear encoder (no jump of a span, no error). The window must be wider than twice the
+    largest real step of the reading (this run has steps of 0.29 mm): a modulo reading cannot tell a
+    larger step from a wrap."""
+    sets = option_sets(1, seed=7)
+    sc = make_scenario(tmp_path, sets[0], MODES["CONST_DIST_BOTH"][0] + PATH)
+    inputs = CL.prepare(sc)
+    packed = CL.pack_sets(inputs, sets)
+    off0, dist0, err0 = assert_same(inputs, packed)
+    lo = -float(dist0[0, 0]) - 0.05
+    wrapping = packed[:1].copy()
+    wrapping[0, law.FC_LEN + CL.Q_MODULO] = 1.0
+    wrapping[0, law.FC_LEN + CL.Q_MIN_POS] = lo
+    wrapping[0, law.FC_LEN + CL.Q_MAX_POS] = lo + 1.0
+    off, dist, err = assert_same(inputs, wrapping)
+    valid = ~np.isnan(dist0[0])
+    assert np.count_nonzero(-dist0[0][valid] < lo - 0.1) > 100          # the reading really wraps
+    assert np.array_equal(err[0], err0[0])
+    assert np.nanmax(np.abs(off[0] - off0[0])) < 1e-9
+    assert np.array_equal(np.isnan(off[0]), np.isnan(off0[0]))

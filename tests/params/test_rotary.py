@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from distctrl.control import Action, AxisDistanceController, Command, CycleInput, CycleOutput
+from distctrl.control import Action, AxisDistanceController, Command, CycleInput, CycleOutput, SensorSource
 from distctrl.errors import ParameterError
 from distctrl.nc import parse_program
 from distctrl.objects import BY_NAME, AxisObjectContext, read_value
@@ -177,3 +177,40 @@ def test_load_errors_of_a_rotary_list_give_degrees():
     with pytest.raises(ParameterError) as exc:
         parse_list_text(ROTARY_LIST.replace("-1800000", "1800000"), "r.lis")
     assert "r.lis" in str(exc.value) and "180 °" in str(exc.value)
+
+
+def test_a_modulo_reading_that_crosses_the_wrap_point_is_continuous_for_the_law():
+    """P-AXIS-00424 modulo: the reading wraps into [min_pos, max_pos) = [-180°, 180°), but a reading
+    rising at 20 °/s past 180° is no jump of 360° (70329) and the filter, the target deviation and
+    the feedback see it move on continuously; DIST_CTRL::sensor_value shows the wrapped reading."""
+    p = rotary(filter_type="MOVING_AVERAGE", n_cycles=10)
+    ctrl = AxisDistanceController(p, 0.001)
+    inp, out = CycleInput(programmed_position=0.0, actual_position=0.0), CycleOutput()
+    inp.commands.append(Command(Action.DRYRUN, set_pos=175.0))
+    feedback, events = [], []
+    for k in range(1500):                                  # 170° ... 200°, wraps at k = 500
+        angle = 170.0 + 0.02 * k
+        inp.sensor_increments = angle / p.sensor_mm_per_increment
+        ctrl.update(inp, out)
+        events += out.events
+        feedback.append(out.filtered_feedback)
+    assert events == []
+    assert out.hli_state == 7                                # DRYRUN_SETPOS, no error
+    steps = [b - a for a, b in zip(feedback[20:], feedback[21:])]
+    assert max(abs(s) for s in steps) < 0.03                 # continuous: 0.02° per cycle
+    assert out.filtered_feedback == pytest.approx(170.0 + 0.02 * 1499 - 0.02 * 4.5, abs=1e-6)  # the mean of 10
+    assert out.target_deviation == pytest.approx(out.filtered_feedback - 175.0, abs=1e-9)
+    assert out.sensor_value == pytest.approx(-160.02, abs=1e-6)
+
+
+def test_a_modulo_reading_wraps_continuously_through_the_v_e_variable_too():
+    p = rotary()
+    ctrl = AxisDistanceController(p, 0.001)
+    inp, out = CycleInput(), CycleOutput()
+    inp.commands += [Command(sensor_source=SensorSource.VARIABLE, sensor_var="V.E.GAP"), Command(Action.DRYRUN, set_pos=0.0)]
+    events = []
+    for k in range(1000):                                  # the distance d = -s falls past -180°
+        inp.sensor_variable = 175.0 + 0.02 * k
+        ctrl.update(inp, out)
+        events += out.events
+    assert events == [] and out.feedback_value == pytest.approx(-(175.0 + 0.02 * 999), abs=1e-6)
