@@ -103,6 +103,13 @@ CATALOGUE_3D: dict[int, Error3D] = {e.id: e for e in (
             "the tool inclination θ exceeds kinematic 98's maximum angle HD4 (V.G.KIN_STEP[1].ID[98].PARAM[3]); "
             "the program aborts (distctrl.kinematics.kin98)",
             "FCT-M3 §12.4.2 (unnumbered); project ID from distctrl.errors"),
+    Error3D(int(ErrorId.MODE_OFF_SELECTED), *CATALOGUE[int(ErrorId.MODE_OFF_SELECTED)],
+            "a select with MODE=OFF (the default): the offset is computed but not superimposed; nothing moves "
+            "(SPEC §12)", "FCT-M3 §12.2 MODE (OFF: no superposition); project ID from distctrl.errors"),
+    Error3D(int(ErrorId.SET_DIST_NOT_TOOL_LENGTH), *CATALOGUE[int(ErrorId.SET_DIST_NOT_TOOL_LENGTH)],
+            "a CONST_DIST select while a kinematic transformation is on (#TRAFO ON) with a SET_DIST other than "
+            "the tool length V.G.WZ_AKT.L: the select goes on, but the transformation planned the motion for "
+            "the tool length", "FCT-M3 §12.1.2 (Notice); project ID from distctrl.errors"),
 )}
 
 #: axis ID -> 3D ID (FCT-M3 §12.7, SPEC §7; 70576 and 900004 are the project's pairing)

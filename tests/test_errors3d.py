@@ -50,12 +50,15 @@ def test_the_other_ids_are_present():
     # 900020 is referenced from distctrl.errors, not redefined
     e = CATALOGUE_3D[int(ErrorId.KIN98_MAX_INCLINATION)]
     assert e.id == 900020 and (e.severity, e.text) == CATALOGUE[900020]
-    assert set(CATALOGUE_3D) == {eid for _, eid, _ in DOCUMENT_127} | {315001, 900020}
+    assert set(CATALOGUE_3D) == {eid for _, eid, _ in DOCUMENT_127} | {315001, 900020, 900023, 900024}
+    for eid in (900023, 900024):                     # warnings of the project range, from distctrl.errors
+        assert (CATALOGUE_3D[eid].severity, CATALOGUE_3D[eid].text) == CATALOGUE[eid]
 
 
 def test_severities():
-    assert CATALOGUE_3D[310021].severity == "warning"                      # like 70332
-    assert all(e.severity == "error" for e in CATALOGUE_3D.values() if e.id != 310021)
+    warnings = {310021, 900023, 900024}                                   # 310021 like 70332
+    assert all(CATALOGUE_3D[eid].severity == "warning" for eid in warnings)
+    assert all(e.severity == "error" for e in CATALOGUE_3D.values() if e.id not in warnings)
     for axis, three_d in SPEC_7_PAIRS.items():
         assert CATALOGUE_3D[three_d].severity == CATALOGUE[axis][0]
 

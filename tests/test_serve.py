@@ -220,3 +220,21 @@ def test_3d_objects_are_readable_on_the_cnc_port_without_network():
     for _ in range(3):
         machine.step()
     assert machine.ch3d.core.state.pending.get("kp") == 0.5 or machine.ch3d.core.tuning.kp == 0.5
+
+
+def test_3d_objects_exist_only_with_fct_3d_dist_ctrl():
+    """FCT-M3 §12.6: the channel-specific objects 'are only available if they are configured by'
+    configuration.decoder.function FCT_3D_DIST_CTRL (P-CHAN-00500): an axis-only machine refuses them."""
+    from distctrl.ads import AdsError
+    from distctrl.serve import CncObjectDevice
+    from distctrl.sim.machine import Machine
+    from distctrl.sim.runner import load_program
+    from distctrl.sim.scenario import load_scenario
+
+    sc = load_scenario(SCN / "dist_1.toml")
+    machine = Machine(sc, load_program(sc))
+    machine.step()
+    device = CncObjectDevice(machine)
+    with pytest.raises(AdsError):
+        device.read(0x121301, 0x3100, 8)
+    device.read(0x120300, 0x13100, 8)                          # the axis objects are there

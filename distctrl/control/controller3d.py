@@ -95,6 +95,7 @@ class ChannelDistanceController:
         self.static = False                 # reset / program end: offset kept, no sensor changes
         self.static_delta = 0.0
         self._kin98_active = False
+        self._trafo_tool_length: float | None = None   # tool length while a kinematic transformation is on
         self._last_delta = 0.0                # the compensation superimposed in the last cycle, mm
         self._core_in = CycleInput()
         self._core_in.commands = []
@@ -226,13 +227,27 @@ class ChannelDistanceController:
             if self.mode == CompensationMode.OFF:
                 # SPEC §12: MODE=OFF (the default) is kept, but the user is told nothing moves
                 events.append(make_event_3d(900023, cycle, cmd.line))
+            self._check_tool_length(cmd, events, cycle)
         if cmd.action == Action.OFF:
             self.static = False
         core_cmds.append(cmd.core_command())
 
-    def set_kinematics(self, kin98_active: bool) -> None:
-        """The channel tells whether kinematic 98 is active (#KIN ID[..98] with #TRAFO ON)."""
+    def set_kinematics(self, kin98_active: bool, tool_length: float | None = None) -> None:
+        """The channel tells whether kinematic 98 is active (#KIN ID[..98] with #TRAFO ON) and, while a
+        kinematic transformation is on, its tool length (mm; None: no transformation)."""
         self._kin98_active = bool(kin98_active)
+        self._trafo_tool_length = tool_length
+
+    def _check_tool_length(self, cmd, events: list, cycle: int) -> None:
+        """FCT-M3 §12.1.2: with a kinematic transformation the set distance must equal the tool length
+        (the transformation plans the motion for it); a CONST_DIST select with another one warns."""
+        length = self._trafo_tool_length
+        if length is None or not cmd.const_dist:
+            return
+        set_dist = cmd.set_dist if cmd.set_dist is not None else self.core.state.programmed_set_dist
+        if set_dist is not None and abs(set_dist - length) > 1e-9 * max(1.0, abs(length)):
+            events.append(make_event_3d(900024, cycle, cmd.line,
+                                        f"SET_DIST {set_dist:g} mm, tool length {length:g} mm"))
 
     def _current_delta(self) -> float:
         return self._last_delta

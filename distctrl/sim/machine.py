@@ -368,7 +368,7 @@ class Machine:
         else:
             self.kin98 = None
         if self.ch3d is not None:
-            self.ch3d.set_kinematics(self.trafo and self.kin98 is not None)
+            self.ch3d.set_kinematics(self.trafo and self.kin98 is not None, self.tool_length if self.trafo else None)
 
     def _set_frame(self, frame: Frame | None) -> None:
         self.frame = frame

@@ -149,3 +149,37 @@ def test_sensor_variable_change_while_active_is_310028():
     lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS, sensor_var="V.E.SENSOR"))
     out = lp.cycle(Command3D(sensor_var="V.E.OTHER", line=9))
     assert [(e.id, e.line) for e in out.events] == [(310028, 9)]
+
+
+def test_3d_object_writes_are_adopted_only_on_inactive_or_freeze_to_active():
+    """FCT-M3 §12.6, DIST_CTRL[0]::kp / i_tn / d_tv and DIST_CTRL_PARAM[0]::v_max / a_max: 'The new values
+    only become effective with the following transitions: from INACTIVE to ACTIVE, from FREEZE to ACTIVE'."""
+    from distctrl.control.commands import ObjectWrite
+    lp = Loop(params(kp=0.5), z=41.0, surface=40.0)
+    lp.cycle(ObjectWrite("kp", 0.8))
+    assert lp.ctrl.core.tuning.kp == 0.5                       # INACTIVE: pending
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.ACS, direction="Z"))
+    assert lp.ctrl.core.tuning.kp == 0.8 and out.core.kp == 0.8   # INACTIVE -> ACTIVE_CONST_DIST
+    lp.cycle(ObjectWrite("kp", 0.3), n=50)
+    assert lp.ctrl.core.tuning.kp == 0.8                       # ACTIVE: pending
+    lp.cycle(Command3D(Action.FREEZE), n=5)
+    assert lp.ctrl.core.tuning.kp == 0.8                       # FREEZE: still pending
+    lp.cycle(Command3D(Action.ON, const_dist=True), n=2)
+    assert lp.ctrl.core.tuning.kp == 0.3                       # FREEZE -> ACTIVE_CONST_DIST
+
+
+@pytest.mark.parametrize("set_dist, tool_length, warned", [(80.0, 80.0, False), (1.0, 80.0, True),
+                                                           (1.0, None, False)])
+def test_const_dist_with_a_set_distance_other_than_the_tool_length_warns_900024(set_dist, tool_length, warned):
+    """FCT-M3 §12.1.2 (Notice): 'The distance control set distance must be identical to the tool length
+    for kinematic transformation' (else the transformation cannot plan within the dynamic limits). A
+    CONST_DIST select with a kinematic transformation on (``tool_length`` given) and another SET_DIST
+    warns 900024 at its line; the select goes on. Without a transformation there is nothing to match."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.ctrl.set_kinematics(True, tool_length)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=set_dist, mode=M.ECS, line=40))
+    got = [(e.id, e.severity, e.line) for e in out.events]
+    assert got == ([(900024, "warning", 40)] if warned else [])
+    assert out.core.hli_state == 4
+    if warned:
+        assert "SET_DIST 1 mm" in out.events[0].message and "tool length 80 mm" in out.events[0].message

@@ -40,3 +40,17 @@ def test_310028_sensor_variable_changed_while_active():
     sc = head_scenario(TRAFO + SELECT + "#DIST CTRL [SENSOR_VAR=V.E.OTHER]\nM30\n")
     err = only_error(run(sc))
     assert err["id"] == 310028 and err["line"] == 9
+
+
+def test_900024_set_distance_other_than_the_tool_length_with_a_transformation():
+    """FCT-M3 §12.1.2: 'Tool length = set distance' with a kinematic transformation. SET_DIST=60 with
+    V.G.WZ_AKT.L = 80 and #TRAFO ON warns 900024 at the select's line; the run goes on. After the tool
+    length is set to 60 (the transformation is re-planned) the same select is silent."""
+    select = "#DIST CTRL WAIT ON [CONST_DIST SET_DIST=60 MODE=MCS SENSOR_VAR=V.E.SENSOR]\n"
+    r = run(head_scenario(TRAFO + select + "#DIST CTRL WAIT OFF\nM30\n"))
+    assert r.completed and r.errors == []
+    assert [(w["id"], w["line"]) for w in r.warnings] == [(900024, 8)]
+    assert "SET_DIST 60 mm, tool length 80 mm" in r.warnings[0]["message"]
+    same = KIN98.replace("V.G.WZ_AKT.L = 80", "V.G.WZ_AKT.L = 60")
+    r = run(head_scenario(same + "#KIN ID[9.98]\n#TRAFO ON\n" + select + "#DIST CTRL WAIT OFF\nM30\n"))
+    assert r.completed and r.errors == [] and r.warnings == []
