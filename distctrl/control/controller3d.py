@@ -13,8 +13,8 @@ machine Z by default; a channel whose workpiece is inclined (robot example §12.
 #CS) passes the #CS's Z, and θ in ``SET_DIST·cos θ`` and ``δ = o / e_z`` are then taken against it.
 
 Additional rules of the 3D variant: a_max must be > 0 (315001 at select); MODE may not change while
-active (51064); ECS needs kinematic 98 active; FILTER_TIME > 0 blends activation and deactivation
-with sin²(π/2·k/N); reset and program end keep the current offset as a static offset and sensor
+active (51064); ECS needs kinematic 98 active; FILTER_TIME = N > 0 blends activation (weight sin²(π/2·k/N))
+and deactivation by OFF (cos²(π/2·k/N) times the core's run-out; not OFF NO_MOVE); reset and program end keep the current offset as a static offset and sensor
 changes no longer act (FCT-M3 §12.4.4). Errors of the core are reported with their 3D IDs.
 """
 from __future__ import annotations
@@ -92,6 +92,9 @@ class ChannelDistanceController:
         self.filter_time = 0
         self.blend_k = 0                    # cycles into the current blend
         self.blending_in = False
+        self.blending_out = False           # FILTER_TIME blend of a deactivation (OFF) running
+        self.blend_from = 1.0               # the weight the deactivation blend starts from
+        self._last_weight = 1.0
         self.static = False                 # reset / program end: offset kept, no sensor changes
         self.static_delta = 0.0
         self._kin98_active = False
@@ -148,16 +151,23 @@ class ChannelDistanceController:
         e_z = _dot(e, n)                                 # δ along e changes it by δ·e_z
         o = out.core.offset
         delta = o / e_z if abs(e_z) >= _MIN_EZ else 0.0
-        # FILTER_TIME: sin² blend of activation (deactivation runs out within the limits)
+        # FILTER_TIME: activation and deactivation "smoothed by a sin² filter" (PROG #DIST CTRL): the
+        # compensation is weighted by sin²(π/2·k/N) after a select and by cos²(π/2·k/N) after OFF (the
+        # core runs its offset out within the limits meanwhile; the product falls to 0 in N cycles)
         w = 1.0
-        if self.filter_time > 0 and self.blending_in:
+        if self.blending_out:
+            self.blend_k += 1
+            k_n = self.blend_k / self.filter_time
+            w = self.blend_from * math.cos(0.5 * math.pi * k_n) ** 2 if k_n < 1.0 else 0.0
+        elif self.filter_time > 0 and self.blending_in:
             self.blend_k += 1
             w = math.sin(0.5 * math.pi * min(1.0, self.blend_k / self.filter_time)) ** 2
             if self.blend_k >= self.filter_time:
                 self.blending_in = False
         if state == int(HliState.INACTIVE) and not self.static:
             w = 1.0
-            self.blending_in = False
+            self.blending_in = self.blending_out = False
+        self._last_weight = w
         delta *= w
         if self.static:
             delta = self.static_delta
@@ -230,6 +240,10 @@ class ChannelDistanceController:
             self._check_tool_length(cmd, events, cycle)
         if cmd.action == Action.OFF:
             self.static = False
+            if self.filter_time > 0 and running and not cmd.no_move and not self.blending_out:
+                self.blend_from = self._last_weight
+                self.blend_k = 0
+                self.blending_in, self.blending_out = False, True
         core_cmds.append(cmd.core_command())
 
     def set_kinematics(self, kin98_active: bool, tool_length: float | None = None) -> None:

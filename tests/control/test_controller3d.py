@@ -183,3 +183,35 @@ def test_const_dist_with_a_set_distance_other_than_the_tool_length_warns_900024(
     assert out.core.hli_state == 4
     if warned:
         assert "SET_DIST 1 mm" in out.events[0].message and "tool length 80 mm" in out.events[0].message
+
+
+def test_filter_time_blends_deactivation_with_sin2_too():
+    """PROG #DIST CTRL, FILTER_TIME: 'distance control activation and deactivation are smoothed by a
+    sin² filter'. After OFF the superimposed compensation is the core's run-out times a weight falling
+    as cos²(π/2·k/N) from 1 to 0 over N cycles: no jump at OFF, nothing left after N cycles."""
+    lp = Loop(params(v_max=1.0, a_max=100.0), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS, filter_time=100))
+    before = lp.cycle(n=2000).delta
+    assert before == pytest.approx(0.5, abs=1e-6)
+    out = lp.cycle(Command3D(Action.OFF))
+    weights, deltas = [out.blend], [out.delta]
+    for _ in range(150):
+        out = lp.cycle()
+        weights.append(out.blend)
+        deltas.append(out.delta)
+    assert weights[0] == pytest.approx(math.cos(math.pi / 2 / 100) ** 2)
+    assert weights[49] == pytest.approx(0.5, abs=0.02)
+    assert all(b <= a for a, b in zip(weights[:100], weights[1:100]))
+    assert abs(deltas[0] - before) < 0.01                       # continuous at OFF
+    assert deltas[99] == 0.0 and deltas[-1] == 0.0
+    assert max(abs(b - a) for a, b in zip(deltas, deltas[1:])) < 0.02
+    # the core runs its offset out within v_max 1 mm/s: it still turns off while the blend is done
+    assert out.core.hli_state in (3, 0)
+
+
+def test_off_no_move_is_not_blended():
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS, filter_time=100))
+    lp.cycle(n=600)
+    out = lp.cycle(Command3D(Action.OFF, no_move=True))
+    assert out.blend == 1.0
