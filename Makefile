@@ -43,6 +43,7 @@ docs: $(STAMP)
 	$(PY) -m distctrl.objects.channel3d > docs/objects-3d.md
 	$(PY) -m distctrl.errors3d > docs/errors-3d.md
 	$(PY) tools/law_figures.py --write
+	$(PY) tools/traceability.py --write
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis

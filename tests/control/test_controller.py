@@ -701,3 +701,15 @@ def test_a_lowpass_that_cannot_run_is_refused_at_the_block_never_raised(cmd, lis
     assert [(e.id, e.line) for e in out.events] == [(900005, 12)]
     assert "P-AXIS-00508" in out.events[0].message and "Nyquist" in out.events[0].message
     assert ctrl.tuning.filter == before
+
+
+def test_sensor_source_default_is_the_second_encoder_on_an_axis():
+    """FCT-M3 §6 SENSOR_SOURCE: 'IF "DEFAULT" is selected as the sensor source, the CNC automatically
+    sets to the "SECOND_ENCODER" sensor source internally' (the axis variant)."""
+    rig = Rig(params(), p=41.0, surface=40.0)
+    rig.cycle(Command(sensor_source=SensorSource.VARIABLE, sensor_var="V.E.D"))
+    assert rig.ctrl.state.sensor_source == SensorSource.VARIABLE
+    out = rig.cycle(Command(sensor_source=SensorSource.DEFAULT))
+    assert rig.ctrl.state.sensor_source == SensorSource.SECOND_ENCODER and out.events == []
+    out = rig.cycle(Command(ON, const_dist=True, set_dist=1.0), n=3)
+    assert out.sensor_value == pytest.approx(-1.0) and out.measured_distance == pytest.approx(1.0)

@@ -215,3 +215,31 @@ def test_off_no_move_is_not_blended():
     lp.cycle(n=600)
     out = lp.cycle(Command3D(Action.OFF, no_move=True))
     assert out.blend == 1.0
+
+
+@pytest.mark.parametrize("axis", ["X", "Y"])
+def test_direction_x_or_y_is_in_preparation_310015(axis):
+    """FCT-M3 §12.2 DIRECTION: 'At present, DIRECTION = Z is supported (DIRECTION=X/Y are in
+    preparation.)': 310015 'Function is not available' at the block, nothing selected."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.0, mode=M.MCS, direction=axis, line=7))
+    assert [(e.id, e.line) for e in out.events] == [(310015, 7)] and out.core.hli_state == 0
+
+
+def test_dryrun_freeze_check_pos_and_ref_through_the_channel():
+    """FCT-M3 §12.2: DRYRUN evaluates without tracking, FREEZE keeps the compensation, CHECK_POS checks
+    the window, REF references the sensor; the shared core does each, the channel superimposes it."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    out = lp.cycle(Command3D(Action.REF))
+    assert out.events == [] and lp.ctrl.core.state.referenced
+    out = lp.cycle(Command3D(Action.DRYRUN, const_dist=True, set_dist=1.5, mode=M.MCS), n=200)
+    assert out.core.hli_state == 6 and out.delta == 0.0 and out.core.target_deviation != 0.0
+    lp.cycle(Command3D(Action.OFF), n=5)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5), n=600)
+    assert out.delta == pytest.approx(0.5, abs=1e-6)
+    out = lp.cycle(Command3D(Action.FREEZE), n=5)
+    lp.surface = 40.3                                    # the sheet rises: FREEZE does not follow
+    out = lp.cycle(n=300)
+    assert out.core.hli_state == 2 and out.delta == pytest.approx(0.5, abs=1e-6)
+    out = lp.cycle(Command3D(Action.CHECK_POS))
+    assert out.events == []                              # the reading is inside the sensor window

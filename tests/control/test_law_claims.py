@@ -272,3 +272,20 @@ def test_adaptive_braking_stops_at_the_target_without_overshoot():
     y, _ = step_response(p, step=0.5, cycles=2000)
     assert settles(y, 0.5)
     assert overshoot_pct(y, 0.5) < 1.0                     # % of the step: 5 µm
+
+
+@pytest.mark.parametrize("both_encoders", [True, False])
+def test_in_const_dist_programming_z_does_not_change_the_distance(both_encoders):
+    """FCT-M3 §5.2 / TF5200 §5.2: 'If distance control is activated in "constant distance" mode, no further
+    changes in distance to the workpiece can be specified for this axis in the NC program by explicit
+    programming of the Z axis': a programmed Z move of 4 mm is taken back by the offset."""
+    p = fast(kp=0.5, n_cycles=4, use_both_encoders=both_encoders, max_deviation=10.0)
+    loop = Loop(p, lag=0.005, p=41.0, surface=40.0)
+    loop.cycle(Command(ON, const_dist=True, set_dist=1.0))
+    loop.run(500)
+    for k in range(400):                          # the program lifts Z by 4 mm at 10 mm/s
+        loop.p = 41.0 + min(4.0, 0.01 * (k + 1))
+        loop.cycle()
+    loop.run(1500)
+    assert loop.actual - loop.surface == pytest.approx(1.0, abs=1e-3)
+    assert loop.out.offset == pytest.approx(-4.0, abs=1e-3)

@@ -200,3 +200,20 @@ def test_range_function_rejects_non_finite_values_for_every_keyword():
 
 def test_nc_syntax_error_is_a_dist_ctrl_error():
     assert issubclass(NcSyntaxError, DistCtrlError)
+
+
+@pytest.mark.parametrize("text, action, field, value", [
+    ("Z[DIST_CTRL OFF SET_POS=30]", Action.OFF, "set_pos", 30.0),
+    ("Z[DIST_CTRL FREEZE SET_DIST=2.5]", Action.FREEZE, "set_dist", 2.5),
+    ("Z[DIST_CTRL OFF NO_MOVE SET_DIST=3]", Action.OFF, "set_dist", 3.0),
+    ("Z[DIST_CTRL CHECK_POS SET_POS=12]", Action.CHECK_POS, "set_pos", 12.0),
+    ("Z[DIST_CTRL REF SET_DIST=1]", Action.REF, "set_dist", 1.0),
+    ("Z[DIST_CTRL SET_POS=30 SET_DIST=10]", Action.NONE, "set_dist", 10.0),
+])
+def test_set_values_combine_with_every_command(text, action, field, value):
+    """TF5200 Abstandskontrolle §6: 'Die Schlüsselworte SET_POS, SET_DIST und VAL1-VAL5 können immer in
+    Kombination mit programmiert werden' (SET_POS, SET_DIST and VAL1-VAL5 may be programmed with any
+    command)."""
+    cmd = command(text)
+    assert cmd.action == action and getattr(cmd, field) == value
+    assert command(text.replace("]", " VAL2=3 VAL5=-1]")).vals == (None, 3.0, None, None, -1.0)

@@ -161,3 +161,18 @@ def test_channel_sensor_window_error_names_its_line():
     with pytest.raises(ParameterError) as info:
         parse_list_text(text, "c.lis", fmt=CHANNEL_LIST)
     assert info.value.line == 2 and "sensor window" in str(info.value)
+
+
+def test_the_remaining_defaults_are_the_documented_ones():
+    """FCT-M3 §9.2 'Default value' of every parameter the test above does not cover."""
+    p = AxisParameters()
+    assert p.a_max == 0.0                                              # P-AXIS-00416: 0 = axis acceleration
+    assert p.ref_offset == 0.0 and p.tolerance == 0.0                  # P-AXIS-00418, P-AXIS-00421
+    assert p.check_sw_limit_switch is False                            # P-AXIS-00428
+    assert p.use_both_encoders is False and p.use_adaptive_acceleration is False   # P-AXIS-00500, 00501
+    assert p.dist_error_a_min == pytest.approx(0.1) and p.dist_error_a_max == pytest.approx(0.5)  # 1000, 5000 x 0.1 µm
+    assert p.optimized_scheduling is False                             # P-AXIS-00509
+    assert p.v_weight_down == 0.0 and p.a_weight_down == 0.0           # P-AXIS-00533, 00534 (0 = off)
+    assert (p.encoder_resolution_num, p.encoder_resolution_denom) == (1, 1)   # P-AXIS-00422, 00423
+    assert p.sensor_sign_reversal is False and p.sensor_mode_act_pos == 0     # P-AXIS-00230, 00424
+    assert p.axis_type == "ACHSTYP_TRANSLATOR"                         # P-AXIS-00018 (ISG axis list)

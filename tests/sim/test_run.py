@@ -357,3 +357,37 @@ def test_lowpass_with_fg_f0_zero_stops_the_program_at_its_block_with_900005():
     r = run(sc)
     assert r.aborted and [(e["id"], e["line"]) for e in r.errors] == [(900005, 2)]
     assert "FG_F0" in r.errors[0]["message"] or "P-AXIS-00508" in r.errors[0]["message"]
+
+
+def test_tf5200_dist_4_both_set_values_in_one_block_the_distance_reused_after_off():
+    """TF5200 Abstandskontrolle §6 %DIST_4: SET_POS and SET_DIST in N10; ON (surface), OFF, then
+    ON CONST_DIST uses the SET_DIST of N10 (set values are forgotten only at reset and program end)."""
+    prog = ("%DIST_4\nN10 Z[DIST_CTRL SET_POS=30 SET_DIST=10]\nN20 Z[DIST_CTRL ON]\nN25 #TIME 0.5\n"
+            "N30 Z[DIST_CTRL OFF]\nN35 #TIME 0.5\nN40 Z[DIST_CTRL ON CONST_DIST]\nN45 #TIME 1\n"
+            "N50 Z[DIST_CTRL OFF]\nN999 M30\n")
+    r = run(base_scenario(prog, start_z=42.0, surface={"base": 30.5}))
+    tr = r.trace
+    assert r.completed and r.errors == []
+    states = [int(s) for s in tr["Z.dc.state"]]
+    assert 1 in states and 4 in states                                # ACTIVE, then ACTIVE_CONST_DIST
+    k = states.index(4) + 900
+    assert tr["Z.act"][k] - 30.5 == pytest.approx(10.0, abs=1e-3)     # SET_DIST 10 from N10
+    assert at(tr, "Z.dc.offset", 0.45) == pytest.approx(0.5, abs=1e-3)   # SET_POS 30: surface 0.5 higher
+
+
+def test_tf5200_dist_5_kalman_filter_selected_changed_and_the_head_stays_above_the_sheet():
+    """TF5200 Abstandskontrolle §6 %DIST_5 (no DRYRUN; the trailing '.' of the PDF dropped): KALMAN_MA n 30
+    sigma 1000, ON CONST_DIST SET_DIST=1, a filter change to KALMAN_EXPO while active, OFF. With both
+    encoders (the example list's P-AXIS-00500 = 1) the 0.5 mm step under the head is followed without
+    oscillation into the sheet."""
+    prog = ("%DIST_5\nN10 Z[DIST_CTRL FILTER_TYPE=KALMAN_MA]\nN20 Z[DIST_CTRL N_CYCLES=30 KALMAN_SIGMA=1000]\n"
+            "N30 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\nN40 G1 X100 F6000\n"
+            "N50 Z[DIST_CTRL FILTER_TYPE=KALMAN_EXPO SMOOTH_FACT=0.3]\nN60 G1 X200\nN70 Z[DIST_CTRL OFF]\nN999 M30\n")
+    sc = base_scenario(prog, start_z=41.0, duration=10.0,
+                       surface={"base": 40.0, "features": [{"type": "step", "axis": "X", "at": 50.0, "height": 0.5}]})
+    r = run(sc)
+    d = r.trace["true.distance"]
+    assert r.completed and r.errors == []
+    active = r.trace["Z.dc.state"] == 4
+    assert d[active].min() > 0.45 and d[active].max() < 1.2
+    assert d[active][-200:] == pytest.approx(1.0, abs=2e-3)
