@@ -94,6 +94,16 @@ def make_event(error_id: int, cycle: int, line: int | None, detail: str = "",
                       severity or default_severity)
 
 
+class ExitCode(IntEnum):
+    """The exit codes of every ``distctrl`` command, whichever layer detects the condition (docs/run.md)."""
+
+    OK = 0                  # done: the program ran to its end, the command did what it was asked
+    INVALID_INPUT = 1       # a file, value or option is invalid (also click usage errors); nothing ran
+    ABORTED = 2             # a control error (ID, NC line, time) aborted the NC program
+    TIME_LIMIT = 3          # stopped at the run's time limit (duration) before the program ended
+    INTERRUPTED = 130       # Ctrl-C / SIGINT (128 + 2, the shell's convention)
+
+
 class DistCtrlError(Exception):
     """Base of every exception distctrl raises at its edges (files, parsing, CLI, construction)."""
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 from distctrl.cli import main
@@ -77,3 +78,48 @@ def test_params_checks_the_low_pass_cut_off_against_the_cycle_time(tmp_path):
     res = CliRunner().invoke(main, ["params", str(f)])
     assert res.exit_code == 1 and f"{f}:2:" in res.output and "P-AXIS-00508" in res.output
     assert CliRunner().invoke(main, ["params", str(f), "--cycle-time", "0.0005"]).exit_code == 0
+
+
+# ----------------------------------------------------------------------------- one exit-code table
+
+@pytest.mark.parametrize("args", [
+    ["run", "--bogus", "x.toml"],                              # unknown option (click: 2)
+    ["sweep", "examples/scenarios/tune_sheet.toml", "--metric", "foo"],   # bad choice (click: 2)
+    ["params", "examples"],                                    # a directory (click: 2)
+    ["nosuchcommand"],                                         # unknown command (click: 2)
+    ["--bogus"],                                               # unknown option of the group
+    ["step", "--kp", "abc"],                                   # refused by distctrl (1)
+])
+def test_invalid_input_exits_1_whichever_layer_detects_it(args):
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 1, (r.exit_code, r.output)
+
+
+def test_ctrl_c_in_any_command_exits_130_not_clicks_aborted_1():
+    import click
+
+    from distctrl.cli.common import DistctrlGroup
+
+    @click.group(cls=DistctrlGroup)
+    def group():
+        pass
+
+    @group.command()
+    def slow():
+        raise KeyboardInterrupt
+
+    r = CliRunner().invoke(group, ["slow"])
+    assert r.exit_code == 130 and "Aborted" not in r.output
+
+
+def test_the_exit_codes_are_one_table():
+    from distctrl.errors import ExitCode
+
+    assert {c.name: int(c) for c in ExitCode} == {"OK": 0, "INVALID_INPUT": 1, "ABORTED": 2, "TIME_LIMIT": 3,
+                                                   "INTERRUPTED": 130}
+
+
+def test_the_command_list_shows_whole_short_helps():
+    r = CliRunner().invoke(main, ["--help"])
+    diag_line = next(line for line in r.output.splitlines() if line.strip().startswith("diag"))
+    assert "Fig. 56" in diag_line

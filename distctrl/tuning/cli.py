@@ -1,4 +1,4 @@
-"""``distctrl sweep`` and ``distctrl tune`` (click commands; distctrl/cli.py registers them)."""
+"""``distctrl sweep`` and ``distctrl tune`` (click commands; distctrl/cli/__init__.py registers them (LAZY_COMMANDS))."""
 from __future__ import annotations
 
 import sys

@@ -1,6 +1,6 @@
 """``distctrl filters``: compare sensor-filter configurations (docs/workbench-filters.md).
 
-The lead registers the command with ``main.add_command(filters)`` in :mod:`distctrl.cli`.
+:mod:`distctrl.cli` registers the command (LAZY_COMMANDS).
 """
 from __future__ import annotations
 

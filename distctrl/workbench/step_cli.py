@@ -1,6 +1,6 @@
 """``distctrl step``: the documents' step-response tuning method on the virtual machine (click command).
 
-The lead registers it with ``main.add_command(step)`` in ``distctrl/cli.py``. Bad input (a KP / I_TN /
+distctrl/cli/__init__.py registers it (LAZY_COMMANDS). Bad input (a KP / I_TN /
 D_TV out of its range, an unreadable scenario, a step that does not fit the sensor, a plot suffix)
 is a message on stderr and exit code 1. docs/workbench-step.md describes the output.
 """

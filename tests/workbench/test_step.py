@@ -371,6 +371,6 @@ def test_the_command_registers_as_step_on_a_group():
     import click
 
     group = click.Group("distctrl")
-    group.add_command(step_cmd)                        # what distctrl/cli.py does with main.add_command(step)
+    group.add_command(step_cmd)                        # as distctrl.cli registers it (LAZY_COMMANDS)
     res = CliRunner().invoke(group, ["step", "--help"])
     assert res.exit_code == 0 and "--kp" in res.output and "--plot" in res.output

@@ -1,14 +1,25 @@
-"""Command-line interface: ``distctrl COMMAND`` (click). Errors at this edge are messages, exit 1."""
+"""Command-line interface: ``distctrl COMMAND`` (click). Errors at this edge are messages; the exit
+codes are one table for every command (:class:`~distctrl.errors.ExitCode`, docs/run.md)."""
 from __future__ import annotations
 
 import sys
 
 import click
 
-from .errors import DistCtrlError
+from ..errors import DistCtrlError
+from .common import DistctrlGroup
+
+#: the commands that live beside what they serve, imported when used
+LAZY_COMMANDS = {
+    "filters": "distctrl.workbench.filters_cli:filters",
+    "plot": "distctrl.workbench.plot_cli:plot",
+    "step": "distctrl.workbench.step_cli:step",
+    "sweep": "distctrl.tuning.cli:sweep",
+    "tune": "distctrl.tuning.cli:tune_cmd",
+}
 
 
-@click.group()
+@click.group(cls=DistctrlGroup, lazy_commands=LAZY_COMMANDS)
 @click.version_option(package_name="distctrl")
 def main() -> None:
     """distctrl: CNC distance (height) control — the ISG-kernel control law as a pure cycle core."""
@@ -21,9 +32,9 @@ def main() -> None:
               help="GEO cycle time (s) the list is checked against (the low-pass cut-off must lie below 1/(2T)).")
 def params(list_file: str, show_all: bool, cycle_time: float) -> None:
     """Load and validate an axis parameter LIST_FILE (kernel format) and print it back."""
-    from .control.controller import AxisDistanceController
-    from .errors import ParameterError
-    from .params import format_list, load_list
+    from ..control.controller import AxisDistanceController
+    from ..errors import ParameterError
+    from ..params import format_list, load_list
 
     try:
         pl = load_list(list_file)
@@ -61,7 +72,7 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     """
     import json
 
-    from .sim.runner import run as run_scenario
+    from ..sim.runner import run as run_scenario
 
     try:
         result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None or report_dir is not None,
@@ -72,7 +83,7 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     if plot_path:
         result.plot(plot_path)
     if report_dir:
-        from .workbench.report import write_report
+        from ..workbench.report import write_report
 
         page = write_report(result, scenario, report_dir)
         if not as_json:
@@ -118,18 +129,18 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int) -> None:
     it; without, one axis with default parameters. Index group 0x120300, offset (axis_id << 16) | 0x3xxx,
     task GEO, ADS port 551.
     """
-    from .control import AxisDistanceController, CycleOutput
-    from .objects.registry import AxisObjectContext, format_object_table, object_table
+    from ..control import AxisDistanceController, CycleOutput
+    from ..objects.registry import AxisObjectContext, format_object_table, object_table
 
     try:
         if scenario is None:
-            from .params import AxisParameters
+            from ..params import AxisParameters
 
             contexts = {1: AxisObjectContext(1, "Z", AxisDistanceController(AxisParameters()), CycleOutput())}
         else:
-            from .sim.machine import Machine
-            from .sim.runner import load_program
-            from .sim.scenario import load_scenario
+            from ..sim.machine import Machine
+            from ..sim.runner import load_program
+            from ..sim.scenario import load_scenario
 
             sc = load_scenario(scenario)
             machine = Machine(sc, load_program(sc))
@@ -163,8 +174,8 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
     import logging
     import time
 
-    from .serve import ServedMachine
-    from .sim.scenario import load_scenario
+    from ..serve import ServedMachine
+    from ..sim.scenario import load_scenario
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     try:
@@ -188,17 +199,17 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
                                            for k, v in stats.items()))
 
 
-@main.command()
+@main.command(short_help="The diagnosis block of distance control (layout of FCT-M3 Fig. 56).")
 @click.argument("scenario", type=click.Path(dir_okay=False))
 @click.option("--seconds", default=1.0, show_default=True, help="Run the scenario this long first.")
 @click.option("--axis", "axis_filter", help="Only this axis (name).")
 def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
     """The diagnosis block of distance control (FCT-M3 Fig. 56 layout) after running SCENARIO
     for --seconds: parameters in use, state, set values, offset, sensor, filter, limits, last error."""
-    from .diag import format_diag_axis
-    from .sim.machine import Machine
-    from .sim.runner import load_program
-    from .sim.scenario import load_scenario
+    from ..diag import format_diag_axis
+    from ..sim.machine import Machine
+    from ..sim.runner import load_program
+    from ..sim.scenario import load_scenario
 
     try:
         sc = load_scenario(scenario)
@@ -209,7 +220,7 @@ def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)
     if machine.ch3d is not None and axis_filter is None:
-        from .diag import format_diag_3d
+        from ..diag import format_diag_3d
 
         click.echo(format_diag_3d(machine.channel3d_values(), sc.channel_params, channel=1,
                                   events=[ev for _, ev in machine.events]))
@@ -228,28 +239,10 @@ def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
 @main.command()
 def demo() -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, with a summary table."""
-    from .demo import main as run_demo
+    from ..demo import main as run_demo
 
     run_demo()
 
-
-def _register_workbench() -> None:
-    """The commissioning workbench's commands live in distctrl/workbench/."""
-    from .workbench.filters_cli import filters
-    from .workbench.plot_cli import plot
-    from .workbench.step_cli import step
-
-    main.add_command(filters)
-    main.add_command(plot)
-    main.add_command(step)
-    # batch tuning (issue 7): numba and dask are imported only when these commands run
-    from .tuning.cli import sweep, tune_cmd
-
-    main.add_command(sweep)
-    main.add_command(tune_cmd)
-
-
-_register_workbench()
 
 if __name__ == "__main__":
     main()
