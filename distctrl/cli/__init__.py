@@ -67,8 +67,9 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
         record: str) -> None:
     """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
 
-    Exit code 0 when the program ran to its end, 2 when an error aborted it, 1 for invalid input
-    files (the message names the file, line or key and what is allowed).
+    Exit codes (docs/run.md): 0 the program ran to its end, 1 invalid input (the message names the
+    file, line or key and what is allowed), 2 a control error aborted it, 3 stopped at the time limit
+    (duration) before the program ended, 130 Ctrl-C.
     """
     import json
 
@@ -92,14 +93,12 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
         click.echo(json.dumps(result.to_dict(), indent=2))
     else:
         _print_summary(result, trace_path, plot_path)
-    if result.interrupted:
-        sys.exit(130)
     sys.exit(result.exit_code)
 
 
 def _print_summary(result, trace_path, plot_path) -> None:
     m = result.metrics
-    status = "completed" if result.completed else "ABORTED by an error"
+    status = result.outcome_text
     click.echo(f"{result.name}: {status} after {result.cycles} cycles ({result.cycles * result.cycle_time:.3f} s), "
                f"distance control {result.final_state}")
     if m.get("distance_error_rms") is not None:

@@ -29,6 +29,8 @@ class Action(IntEnum):
     AXIS_ERROR = 8    # axis error: as reset for this axis
     PROGRAM_END = 9   # M30/M2: stays active (warning 70332), set values forgotten for the next select
     AXIS_RELEASE = 10  # the axis is to be released from the channel (70333 while active)
+    CHANNEL_ERROR = 11  # the channel stopped with an error (NC run-time error): a running distance
+    #                     control goes to ERROR holding its offset (the channel reports the error)
 
 
 @dataclass(frozen=True, slots=True)

@@ -505,6 +505,14 @@ class AxisDistanceController:
             if st.hli_state != _INACTIVE:
                 self._raise(ErrorId.AXIS_RELEASED_WHILE_ACTIVE, events, line)
             return 0.0
+        if a == Action.CHANNEL_ERROR:
+            if st.hli_state not in (_INACTIVE, _ERROR):
+                # docs/run.md: an NC run-time error stops the program and distance control holds its
+                # offset in ERROR; the event is the channel's (no second one here)
+                st.hli_state = _ERROR
+                st.error = make_event(ErrorId.NC_RUNTIME, st.cycle, line, "the NC program stopped with an error")
+                st.error_code = InternalState.ERROR_OTHER
+            return 0.0
         if not self.params.enabled:
             self._raise(ErrorId.NOT_AVAILABLE, events, line)
             return 0.0

@@ -154,6 +154,7 @@ class Machine:
         self._drive_y = self.drives.get("Y")
         self._next_event_t = scenario.events[0].t if scenario.events else math.inf
         self._program_end_sent = False
+        self._nc_error_reported = False
         self._event_index = 0
         self.true_surface = 0.0
         self.true_distance = 0.0
@@ -515,6 +516,20 @@ class Machine:
             self.in3d.commands.append(Command3D(Action.RESET))
         self.stop_program(None)
 
+    def _report_nc_error(self, k: int, t: float) -> None:
+        """An NC run-time error stopped the program in cycle ``k`` (docs/run.md): the error is an
+        event of that cycle, the motion stops, and a running distance control holds its offset in
+        ERROR."""
+        err = self.nc.error
+        self._nc_error_reported = True
+        self.events.append((t, ErrorEvent(id=int(err.id), cycle=k, line=err.line, message=err.message,
+                                          severity="error")))
+        self.stop_program(None)
+        for name in self.dc_axes:
+            self.inputs[name].commands.append(Command(Action.CHANNEL_ERROR, line=err.line))
+        if self.ch3d is not None:
+            self.in3d.commands.append(Command3D(Action.CHANNEL_ERROR, line=err.line))
+
     def stop_program(self, error) -> None:
         """Stop reading blocks; the running motion decelerates and holds."""
         if self.nc is not None and self.nc.running:
@@ -546,6 +561,8 @@ class Machine:
             if self.kinematic_path:
                 self._take_shift3d()
             nc.tick()
+            if nc.error is not None and not self._nc_error_reported:
+                self._report_nc_error(k, t)
             if nc.ended and not self._program_end_sent:
                 self._program_end_sent = True
                 for inp in self.inputs.values():
@@ -777,23 +794,41 @@ class Machine:
 
     # ------------------------------------------------------------------ status
     def settled(self) -> bool:
-        """Motion at rest and no distance-control offset moving."""
+        """At rest once the program has ended: the path stopped, no deselection still running out its
+        offset, and every drive at rest. A distance control left tracking (ACTIVE, ACTIVE_CONST_DIST,
+        the dry runs) or FREEZE after the program is a steady state that never ends by itself: its
+        axis follows the sensor noise and is not waited for. Otherwise an offset still moving (e.g.
+        braking into FREEZE or ERROR) is."""
         if not self.interp.done and self.interp.path_velocity != 0.0:
             return False
+        tracking = set()
         for name in self.dc_axes:
             out = self.outputs[name]
-            if out.offset_velocity != 0.0 or out.hli_state == int(HliState.TURNING_OFF):
+            state = out.hli_state
+            if state == _TURNING_OFF_CODE:
+                return False
+            if state in _STEADY_CODES:
+                tracking.add(name)
+            elif out.offset_velocity != 0.0:
                 return False
         if self.ch3d is not None:
             core = self.out3d.core
-            if core.offset_velocity != 0.0 or core.hli_state == int(HliState.TURNING_OFF):
+            if core.hli_state == _TURNING_OFF_CODE:
                 return False
-        if self.kinematic_path:
-            # transformed setpoints are arbitrary reals: a drive with encoder quantisation may toggle
-            # by one increment around them for ever; within one increment of its setpoint it is at rest
-            return all(abs(d.velocity) < 1e-3 or abs(d.following_error) <= d.resolution + 1e-9
-                       for d in self.drives.values())
-        return all(abs(d.velocity) < 1e-3 for d in self.drives.values())     # 1 µm/s: at rest
+            if core.hli_state in _STEADY_CODES:
+                tracking.update(self.drives)             # the compensation may move X, Y and Z
+            elif core.offset_velocity != 0.0:
+                return False
+        # a drive with encoder quantisation may toggle by one increment around a setpoint that is not
+        # on its grid for ever: within one increment of its setpoint it is at rest
+        return all(name in tracking or abs(d.velocity) < 1e-3 or abs(d.following_error) <= d.resolution + 1e-9
+                   for name, d in self.drives.items())
+
+
+_TURNING_OFF_CODE = int(HliState.TURNING_OFF)
+#: states distance control stays in after the program until something commands it
+_STEADY_CODES = frozenset(int(s) for s in (HliState.ACTIVE, HliState.ACTIVE_CONST_DIST, HliState.FREEZE,
+                                           HliState.DRYRUN_CONST_DIST, HliState.DRYRUN_SETPOS))
 
 
 def _direction(c: float, a: float) -> tuple[float, float, float]:

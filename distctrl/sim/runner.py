@@ -12,12 +12,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..control import HliState
+from ..errors import ExitCode
 from ..nc.parser import parse_file, parse_program
 from .config_errors import ConfigError
 from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
 
 #: safety cap when a scenario has no duration: one hour of machine time
 MAX_RUN_SECONDS = 3600.0
+#: what a run can end with: outcome -> (exit code, words); docs/run.md
+OUTCOMES = {
+    "completed": (ExitCode.OK, "completed"),
+    "aborted": (ExitCode.ABORTED, "ABORTED by an error"),
+    "time_limit": (ExitCode.TIME_LIMIT, "stopped at the time limit before the program ended"),
+    "interrupted": (ExitCode.INTERRUPTED, "interrupted (Ctrl-C)"),
+}
 SETTLE_BAND_MM = 0.01           # settle_time: |distance error| within this band ...
 SETTLE_HOLD_S = 0.1             # ... for this long
 #: default plot signals of a 3D run (one panel per unit)
@@ -41,16 +49,29 @@ class RunResult:
     trace_path: str | None = None
     interrupted: bool = False
     notes: list[str] = field(default_factory=list)
+    #: what happened, one of :data:`OUTCOMES`
+    outcome: str = "completed"
+    time_limit: float | None = None       # the run's time limit (s): duration, or MAX_RUN_SECONDS
 
     @property
     def exit_code(self) -> int:
-        return 0 if self.completed else 2
+        return int(OUTCOMES[self.outcome][0])
+
+    @property
+    def outcome_text(self) -> str:
+        """The outcome in words, as the summary prints it."""
+        if self.outcome == "aborted" and not self.errors:
+            return "aborted (the program was stopped by a reset)"
+        if self.outcome == "time_limit":
+            return f"stopped at the time limit (duration {self.time_limit:g} s) before the program ended"
+        return OUTCOMES[self.outcome][1]
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "completed": self.completed, "errors": self.errors,
+        return {"name": self.name, "outcome": self.outcome, "exit_code": self.exit_code,
+                "completed": self.completed, "errors": self.errors,
                 "warnings": self.warnings, "final_state": self.final_state, "cycles": self.cycles,
                 "cycle_time": self.cycle_time, "metrics": self.metrics, "trace": self.trace_path,
-                "interrupted": self.interrupted}
+                "interrupted": self.interrupted, "notes": self.notes}
 
     def export_csv(self, path) -> None:
         if self.trace is None:
@@ -236,12 +257,12 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         for t, ev in machine.events:
             item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
             (warnings if ev.severity == "warning" else errors).append(item)
-        if nc is not None and nc.error is not None:
-            errors.append({"id": nc.error.id, "line": nc.error.line, "t": round(machine.cycle * T, 9),
-                           "message": nc.error.message})
         # the sidecar keeps them: `distctrl plot` marks them without the run's JSON
         recorder.meta["errors"], recorder.meta["warnings"] = errors, warnings
-        kept = recorder.close()
+        program_done = nc is not None and nc.ended and not nc.aborted
+        recorder.meta["outcome"] = _outcome(interrupted, bool(errors) or (nc is not None and nc.aborted),
+                                            program_done)
+        kept = recorder.close(complete=not interrupted)
         machine.publish_all()
         if bar is not None:
             bar.close()
@@ -249,17 +270,25 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         from ..workbench.parquet import to_parquet
         to_parquet(kept, parquet_path)
         trace = parquet_path
-    program_done = nc is not None and nc.ended and not nc.aborted
     if out3d is not None:
         final_state = HliState(out3d.core.hli_state).name
     else:
         final_state = HliState(outputs[dc_axis].hli_state).name if dc_axis is not None else "n/a"
     notes = list(machine.notes)
-    if nc is not None and nc.running:
-        notes.append(f"the program had not ended after {limit_s:g} s")
+    aborted = bool(errors) or (nc is not None and nc.aborted)
+    outcome = _outcome(interrupted, aborted, program_done)
     return RunResult(scenario.name or Path(str(scenario.path or "scenario")).stem, program_done and not errors,
-                     bool(errors) or (nc is not None and nc.aborted), errors, warnings, final_state,
-                     machine.cycle, T, metrics.result(), kept, str(trace) if trace else None, interrupted, notes)
+                     aborted, errors, warnings, final_state,
+                     machine.cycle, T, metrics.result(), kept, str(trace) if trace else None, interrupted, notes,
+                     outcome, limit_s)
+
+
+def _outcome(interrupted: bool, aborted: bool, program_done: bool) -> str:
+    if interrupted:
+        return "interrupted"
+    if aborted:
+        return "aborted"
+    return "completed" if program_done else "time_limit"
 
 
 class _Metrics:

@@ -586,9 +586,11 @@ class TraceRecorder:
         raise ValueError(f"trace row {index} is not {self._ncol} numbers ({shown}); the row was dropped")
 
     # --- closing --------------------------------------------------------------------------------------
-    def close(self) -> Trace | None:
+    def close(self, complete: bool = True) -> Trace | None:
         """Flush, finish the CSV and sidecar; return the kept :class:`Trace` (None with keep=False).
 
+        ``complete=False``: the recording was cut short (e.g. Ctrl-C); the file is whole up to its last
+        row, but the sidecar says ``"complete": false`` so tools know the run did not end there.
         Idempotent: later calls return the same result. Safe in ``finally`` and signal handlers.
         """
         if self._closed:
@@ -610,7 +612,7 @@ class TraceRecorder:
                         f.truncate()
                 finally:
                     f.close()
-                _write_sidecar(self.csv_path, self.columns, self.units, self.meta, self._flushed, True)
+                _write_sidecar(self.csv_path, self.columns, self.units, self.meta, self._flushed, bool(complete))
             if self.keep:
                 chunks, self._chunks = self._chunks, []
                 data = np.concatenate(chunks) if chunks else np.empty((0, self._ncol))
