@@ -42,6 +42,7 @@ class ErrorId(IntEnum):
     KIN98_MAX_INCLINATION = 900020  # 3D: tool inclination above kinematic 98's HD4 (the program aborts)
     MODE_OFF_SELECTED = 900023     # 3D warning: select with MODE=OFF, the offset is computed, not superimposed
     SET_DIST_NOT_TOOL_LENGTH = 900024  # 3D warning: CONST_DIST with a transformation on and SET_DIST != tool length
+    COLLISION = 900030             # simulator: the tool went into the surface (true distance <= -collision_depth)
 
 
 #: ID -> (severity, short text). Severity "error" puts the controller into ERROR, "warning" does not.
@@ -66,6 +67,8 @@ CATALOGUE: dict[int, tuple[str, str]] = {
     900010: ("error", "NC program stopped at run time"),
     900020: ("error", "Tool inclination exceeds the maximum angle of kinematic 98 (HD4, PARAM[3])"),
     900023: ("warning", "3D distance control selected with MODE=OFF: the offset is computed, not superimposed"),
+    900030: ("warning", "Collision: the tool went into the surface (the simulator's true distance reached "
+                        "-sensor.collision_depth)"),
     900024: ("warning", "3D distance control: the set distance differs from the tool length of the kinematic "
                         "transformation (FCT-M3 §12.1.2: tool length = set distance)"),
 }

@@ -38,6 +38,20 @@ def test_demo_runs_the_scenarios_and_writes_traces_and_plots(tmp_path):
         assert (tmp_path / f"{stem}.csv").stat().st_size > 0 and (tmp_path / f"{stem}.png").stat().st_size > 10_000
 
 
+def test_demo_output_shows_units_oscillation_and_every_collision(tmp_path, capsys):
+    """make demo may not show a crashing head as "completed, no warnings" (issue 13): the plain
+    CONST_DIST case is labelled as the warning example with its oscillation and collisions, every
+    header keeps its [mm] (rich would swallow it as markup)."""
+    from distctrl.demo import main as demo
+
+    both, plain, _ = demo(tmp_path)
+    out = capsys.readouterr().out
+    assert "[mm]" in out and "WARNING EXAMPLE" in out
+    assert plain.metrics["collisions"] > 0 and plain.metrics["oscillation_frequency_hz"] is not None
+    assert f"900030×{plain.metrics['collisions']}" in out and " Hz, ±" in out
+    assert both.metrics["collisions"] == 1 and "X = 250 mm" in out
+
+
 def test_objects_lists_the_object_browser_table_for_a_scenario():
     res = CliRunner().invoke(main, ["objects", str(ROOT / "examples" / "scenarios" / "dist_1.toml"), "--axis", "Z",
                                     "--cycles", "300"])

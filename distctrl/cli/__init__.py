@@ -63,8 +63,11 @@ def params(list_file: str, show_all: bool, cycle_time: float) -> None:
 @click.option("--record", "record", default="",
               help="Also record these values behind the CNC objects per axis, comma-separated "
                    "(e.g. a_max_int,v_max_int,kp,m_actual_offset); columns <axis>.dc.<name>.")
+@click.option("--stop-on-collision", is_flag=True,
+              help="End the run at the first collision (true distance at or below -sensor.collision_depth) "
+                   "with error 900030 and exit code 2, instead of recording it as a warning.")
 def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None, report_dir: str | None,
-        record: str) -> None:
+        record: str, stop_on_collision: bool) -> None:
     """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
 
     Exit codes (docs/run.md): 0 the program ran to its end, 1 invalid input (the message names the
@@ -77,7 +80,8 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
 
     try:
         result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None or report_dir is not None,
-                              progress=not as_json, record=tuple(record.split(",")) if record else ())
+                              progress=not as_json, record=tuple(record.split(",")) if record else (),
+                              stop_on_collision=stop_on_collision)
     except DistCtrlError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)
@@ -96,6 +100,11 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     sys.exit(result.exit_code)
 
 
+#: collision warnings printed in the summary (a limit cycle hits the sheet every period)
+MAX_COLLISIONS_SHOWN = 5
+COLLISION_ID = 900030
+
+
 def _print_summary(result, trace_path, plot_path) -> None:
     m = result.metrics
     status = result.outcome_text
@@ -105,10 +114,24 @@ def _print_summary(result, trace_path, plot_path) -> None:
         settle = "not reached" if m["settle_time"] is None else f"{m['settle_time']:.3f} s"
         click.echo(f"  distance error while tracking: RMS {m['distance_error_rms']:.4f} mm, "
                    f"max {m['distance_error_max']:.4f} mm, settle time {settle}")
+        if m.get("oscillation_frequency_hz") is not None:
+            click.echo(f"  OSCILLATING in the last second of tracking: {m['oscillation_frequency_hz']:.1f} Hz, "
+                       f"amplitude {m['oscillation_amplitude_mm']:.3f} mm")
+    if m.get("min_distance_mm") is not None:
+        click.echo(f"  true tool distance: min {m['min_distance_mm']:.3f} mm, {m['time_below_zero_s']:.3f} s "
+                   f"at or below 0 mm, {m['collisions']} collision(s)")
     for e in result.errors:
         click.echo(f"  error {e['id']} at t = {e['t']:.3f} s, line {e['line']}: {e['message']}")
+    shown_collisions = 0
     for w in result.warnings:
+        if w["id"] == COLLISION_ID:
+            shown_collisions += 1
+            if shown_collisions > MAX_COLLISIONS_SHOWN:
+                continue
         click.echo(f"  warning {w['id']} at t = {w['t']:.3f} s, line {w['line']}: {w['message']}")
+    if shown_collisions > MAX_COLLISIONS_SHOWN:
+        click.echo(f"  ... and {shown_collisions - MAX_COLLISIONS_SHOWN} more collision warnings (all of them in "
+                   "--json, the trace's .meta.json and the report)")
     for n in result.notes:
         click.echo(f"  note: {n}")
     if trace_path:

@@ -12,13 +12,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..control import HliState
-from ..errors import ExitCode
+from ..errors import CATALOGUE, ErrorId, ExitCode
 from ..nc.parser import parse_file, parse_program
 from .config_errors import ConfigError
 from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
 
 #: safety cap when a scenario has no duration: one hour of machine time
 MAX_RUN_SECONDS = 3600.0
+COLLISION_ID = int(ErrorId.COLLISION)
+COLLISION_TEXT = "Collision"
 #: what a run can end with: outcome -> (exit code, words); docs/run.md
 OUTCOMES = {
     "completed": (ExitCode.OK, "completed"),
@@ -173,12 +175,14 @@ def load_program(scenario):
 
 
 def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, progress: bool = False,
-        plc_program=None, record=()) -> RunResult:
+        plc_program=None, record=(), stop_on_collision: bool = False) -> RunResult:
     """Run ``scenario`` (a Scenario, or a path to a TOML file). Invalid files raise DistCtrlError.
 
     ``trace``: a CSV path (streamed, with a ``.meta.json`` units sidecar) or a ``.parquet`` path
     (kept in memory and written at the end; needs pyarrow). ``record``: extra values behind the CNC
     objects to record per distance-controlled axis (:data:`RECORDABLE`, e.g. ``("a_max_int", "kp")``).
+    ``stop_on_collision``: a collision (900030) is an error that ends the run in its cycle, instead of
+    a warning.
 
     ``plc_program(machine, cycle)``, if given, runs every cycle before the CNC reads the PLC
     interface: it may write ``machine.hli[axis]`` (command_w + semaphore, cyclic values) and read
@@ -208,6 +212,11 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     dc_axis = scenario.sensor.axis if scenario.sensor is not None and scenario.sensor.axis in machine.dc_axes \
         else (machine.dc_axes[0] if machine.dc_axes else None)
     metrics = _Metrics(SETTLE_BAND_MM, int(round(SETTLE_HOLD_S / T)), T)
+    # the ground truth of the tool's distance exists with a sensor (axis variant) or a kinematic path
+    has_truth = scenario.sensor is not None or machine.kinematic_path
+    contact = _Contact(T, scenario.sensor.collision_depth if scenario.sensor is not None else 0.0)
+    kinematic = machine.kinematic_path
+    drive_x, drive_y = machine.drives.get("X"), machine.drives.get("Y")
     bar = _Progress(max_cycles if scenario.duration is not None else None, T) if progress else None
     interrupted = False
     settled_for = 0
@@ -231,19 +240,32 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                 # CONST_DIST, the programmed clamping-point height above SET_POS in SURFACE mode
                 state = out3d.core.hli_state
                 if state == 4:
-                    add_metric(k * T, machine.true_distance_orth - out3d.orthogonal_set_distance)
+                    add_metric(k, machine.true_distance_orth - out3d.orthogonal_set_distance)
                 elif state == 1:
-                    add_metric(k * T, machine.true_distance - (in3d.programmed_z - out3d.core.set_pos))
+                    add_metric(k, machine.true_distance - (in3d.programmed_z - out3d.core.set_pos))
                 elif metrics.inside:
                     metrics.gap()
             elif dc_out is not None:
                 state = dc_out.hli_state
                 if state == 4:
-                    add_metric(k * T, machine.true_distance - dc_out.set_distance)
+                    add_metric(k, machine.true_distance - dc_out.set_distance)
                 elif state == 1:
-                    add_metric(k * T, machine.true_distance - (dc_inp.programmed_position - dc_out.set_pos))
+                    add_metric(k, machine.true_distance - (dc_inp.programmed_position - dc_out.set_pos))
                 elif metrics.inside:
                     metrics.gap()
+            if has_truth:
+                d_true = machine.true_distance
+                if d_true <= 0.0 or d_true < contact.min:
+                    if kinematic:
+                        cx, cy = machine.true_clamp[0], machine.true_clamp[1]
+                    else:
+                        cx = drive_x.position if drive_x is not None else 0.0
+                        cy = drive_y.position if drive_y is not None else 0.0
+                    if contact.add(k, d_true, cx, cy, line) and stop_on_collision:
+                        contact.finish()
+                        break
+                elif contact.current is not None:
+                    contact.add(k, d_true, 0.0, 0.0, line)
             if bar is not None and k % 2000 == 0:
                 bar.update(k)
             if nc is None or not nc.running:
@@ -257,6 +279,12 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         for t, ev in machine.events:
             item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
             (warnings if ev.severity == "warning" else errors).append(item)
+        contact.finish()
+        for item in contact.warnings("error" if stop_on_collision else "warning"):
+            del item["severity"]
+            (errors if stop_on_collision else warnings).append(item)
+        errors.sort(key=lambda e: e["t"])
+        warnings.sort(key=lambda e: e["t"])
         # the sidecar keeps them: `distctrl plot` marks them without the run's JSON
         recorder.meta["errors"], recorder.meta["warnings"] = errors, warnings
         program_done = nc is not None and nc.ended and not nc.aborted
@@ -276,10 +304,11 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         final_state = HliState(outputs[dc_axis].hli_state).name if dc_axis is not None else "n/a"
     notes = list(machine.notes)
     aborted = bool(errors) or (nc is not None and nc.aborted)
+    run_metrics = {**metrics.result(), **contact.result()}
     outcome = _outcome(interrupted, aborted, program_done)
     return RunResult(scenario.name or Path(str(scenario.path or "scenario")).stem, program_done and not errors,
                      aborted, errors, warnings, final_state,
-                     machine.cycle, T, metrics.result(), kept, str(trace) if trace else None, interrupted, notes,
+                     machine.cycle, T, run_metrics, kept, str(trace) if trace else None, interrupted, notes,
                      outcome, limit_s)
 
 
@@ -292,47 +321,147 @@ def _outcome(interrupted: bool, aborted: bool, program_done: bool) -> str:
 
 
 class _Metrics:
-    """Distance error while distance control tracks (ACTIVE / ACTIVE_CONST_DIST): RMS, max, and the
-    settle time: from the first tracking cycle until the error entered ±band and stayed there for
-    the hold time."""
+    """Distance error while distance control tracks (ACTIVE / ACTIVE_CONST_DIST): RMS, max, the
+    settle time and the oscillation of the last second.
 
-    __slots__ = ("T", "n", "sq", "max", "band", "hold", "t_start", "inside", "settle_time")
+    The settle time counts whole cycles from the first tracking cycle to the *last* entry into
+    ±band, and only if the error then stayed inside for the hold time until tracking ended (a loop
+    that leaves the band again, or ends outside it, has not settled: null). The oscillation is taken
+    over the last second of tracking: amplitude = half the peak-to-peak distance error; frequency from
+    the crossings of its mean (null when the amplitude is inside the band or it does not make two
+    whole periods)."""
+
+    __slots__ = ("T", "n", "sq", "max", "band", "hold", "k", "k_start", "inside", "k_entry", "recent",
+                 "paused")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
+        from collections import deque
+
         self.T = T
         self.n = 0
         self.sq = 0.0
         self.max = 0.0
         self.band, self.hold = band, hold_cycles
-        self.t_start = None
-        self.inside = 0
-        self.settle_time = None
+        self.k = -1                   # the cycle of the last sample
+        self.k_start = None           # the first tracking cycle
+        self.inside = 0               # cycles inside the band since the last entry
+        self.k_entry = None           # the cycle of the last entry into the band
+        self.recent = deque(maxlen=max(2, int(round(1.0 / T))))     # the last second of tracking
+        self.paused = False
 
-    def add(self, t: float, err: float) -> None:
-        if self.t_start is None:
-            self.t_start = t
+    def add(self, k: int, err: float) -> None:
+        self.k = k
+        if self.k_start is None:
+            self.k_start = k
+        if self.paused:             # tracking resumed: the band has to be entered anew
+            self.paused = False
+            self.inside = 0
         if err == err:
             self.n += 1
             self.sq += err * err
             a = abs(err)
             if a > self.max:
                 self.max = a
-            if self.settle_time is None:
-                if a <= self.band:
-                    self.inside += 1
-                    if self.inside >= self.hold:
-                        self.settle_time = t - (self.hold - 1) * self.T - self.t_start
-                else:
-                    self.inside = 0
+            self.recent.append(err)
+            if a <= self.band:
+                if self.inside == 0:
+                    self.k_entry = k
+                self.inside += 1
+            else:
+                self.inside = 0
 
     def gap(self) -> None:
-        self.inside = 0
+        """Tracking paused (FREEZE, a deselection). If it resumes, the band has to be entered anew;
+        if it never does, the settle time is that of the last tracking stretch."""
+        self.paused = True
+
+    def settle_time(self) -> float | None:
+        if self.k_start is None or self.inside < self.hold:
+            return None
+        return (self.k_entry - self.k_start) * self.T
+
+    def oscillation(self) -> tuple[float | None, float | None]:
+        if len(self.recent) < 2:
+            return None, None
+        e = list(self.recent)
+        amplitude = 0.5 * (max(e) - min(e))
+        if amplitude <= self.band:
+            return None, amplitude
+        # crossings of the mean with a hysteresis of a quarter of the amplitude (noise does not count);
+        # two whole periods at least, so a settling transient's overshoot is not an oscillation
+        mean = sum(e) / len(e)
+        h = 0.25 * amplitude
+        side, crossings = 0, 0
+        for x in e:
+            s = 1 if x > mean + h else (-1 if x < mean - h else 0)
+            if s and s != side:
+                crossings += side != 0
+                side = s
+        if crossings < 4:
+            return None, amplitude
+        return crossings / (2.0 * len(e) * self.T), amplitude
 
     def result(self) -> dict:
+        freq, amp = self.oscillation()
         return {"distance_error_rms": math.sqrt(self.sq / self.n) if self.n else None,
                 "distance_error_max": self.max if self.n else None,
-                "settle_time": self.settle_time, "tracking_cycles": self.n,
-                "settle_band_mm": self.band, "settle_hold_s": SETTLE_HOLD_S}
+                "settle_time": self.settle_time(), "tracking_cycles": self.n,
+                "settle_band_mm": self.band, "settle_hold_s": SETTLE_HOLD_S,
+                "oscillation_frequency_hz": freq, "oscillation_amplitude_mm": amp}
+
+
+class _Contact:
+    """The true distance of the tool to the surface over the whole run: its minimum, the time at or
+    below zero, and the collisions (the true distance at or below ``-depth``): one warning 900030 per
+    contact, stamped when it began, with the place and the deepest point."""
+
+    __slots__ = ("T", "depth", "min", "below", "hits", "current")
+
+    def __init__(self, T: float, depth: float):
+        self.T, self.depth = T, depth
+        self.min = math.inf
+        self.below = 0
+        self.hits: list[dict] = []
+        self.current: dict | None = None
+
+    def add(self, k: int, d: float, x: float, y: float, line) -> bool:
+        """Record one cycle; True when a collision begins in it."""
+        if d < self.min:
+            self.min = d
+        if d <= 0.0:
+            self.below += 1
+        cur = self.current
+        if d <= -self.depth:
+            if cur is None:
+                self.current = {"k": k, "x": x, "y": y, "line": line, "deepest": d, "cycles": 1}
+                return True
+            cur["cycles"] += 1
+            if d < cur["deepest"]:
+                cur["deepest"] = d
+        elif cur is not None:
+            self.hits.append(cur)
+            self.current = None
+        return False
+
+    def finish(self) -> None:
+        if self.current is not None:
+            self.hits.append(self.current)
+            self.current = None
+
+    def warnings(self, severity: str = "warning") -> list[dict]:
+        out = []
+        for h in self.hits:
+            limit = f" (collision depth {self.depth:g} mm)" if self.depth else ""
+            out.append({"id": COLLISION_ID, "line": None if h["line"] in (None, -1) else h["line"],
+                        "t": round(h["k"] * self.T, 9), "severity": severity,
+                        "message": f"{COLLISION_TEXT}: at X={h['x']:.3f} mm Y={h['y']:.3f} mm the tool went "
+                                   f"{-h['deepest']:.3f} mm into the surface for {h['cycles'] * self.T:.3f} s"
+                                   f"{limit}"})
+        return out
+
+    def result(self) -> dict:
+        return {"min_distance_mm": self.min if math.isfinite(self.min) else None,
+                "time_below_zero_s": self.below * self.T, "collisions": len(self.hits)}
 
 
 class _Progress:

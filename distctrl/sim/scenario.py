@@ -62,7 +62,7 @@ SENSOR_KINDS = ("encoder", "distance")
 #: from the surface (3D distance control, FCT-M3 §12.3)
 SENSOR_MODES = ("axis", "orthogonal_clamping_point")
 SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", "seed", "range_min", "reading_at_contact",
-               "range_max", "characteristic", "resolution", "faults")
+               "range_max", "characteristic", "resolution", "faults", "collision_depth")
 #: sensor keys that only one kind accepts
 _SENSOR_KIND_ONLY = {"variable": "distance", "characteristic": "distance", "resolution": "distance",
                      "range_min": "encoder", "reading_at_contact": "encoder"}
@@ -178,6 +178,9 @@ class SensorConfig:
     #: tool touches the surface -- the probe's own physical zero. The list's ref_offset (P-AXIS-00418)
     #: must be its negative for the core to read the true distance (a wrong one shows as a wrong distance)
     reading_at_contact: float = 0.0
+    #: how far the tool may be below the surface before the run records a collision (mm, >= 0): 0 for a
+    #: nozzle that must never touch the sheet; a tactile probe's stroke for a probe that rides on it
+    collision_depth: float = 0.0
 
     @property
     def orthogonal(self) -> bool:
@@ -436,8 +439,9 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
         if "start_time" not in fcfg and "start_cycle" not in fcfg:
             raise ConfigError(f"{fkey}.start_time", MISSING, "start_time (s) or start_cycle")
         faults.append(_fault(fcfg, fkey))
+    collision_depth = require_number(cfg.get("collision_depth", 0.0), f"{key}.collision_depth", lo=0.0)
     sc = SensorConfig(axis, kind, variable, noise_std, delay, sensor_seed, range_min, range_max,
-                      characteristic, resolution, tuple(faults), mode, reading_at_contact)
+                      characteristic, resolution, tuple(faults), mode, reading_at_contact, collision_depth)
     try:  # anything the models check beyond the keys above (combinations)
         sc.make_sensor(cycle_time, axes[axis].params if axis is not None else None)
     except ConfigError as exc:

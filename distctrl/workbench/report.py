@@ -42,12 +42,18 @@ REPORT_FILE = "index.html"
 #: units of the runner's metrics (others: guessed from the name's suffix)
 METRIC_UNITS = {
     "distance_error_rms": "mm", "distance_error_max": "mm", "settle_time": "s", "tracking_cycles": "cycles",
-    "settle_band_mm": "mm", "settle_hold_s": "s",
+    "settle_band_mm": "mm", "settle_hold_s": "s", "oscillation_frequency_hz": "Hz",
+    "oscillation_amplitude_mm": "mm", "min_distance_mm": "mm", "time_below_zero_s": "s", "collisions": "",
 }
 METRIC_TEXT = {
     "distance_error_rms": "RMS of the distance error while distance control tracks",
     "distance_error_max": "largest |distance error| while distance control tracks",
-    "settle_time": "from the first tracking cycle until the error stays within the settle band",
+    "settle_time": "from the first tracking cycle to the last entry into the settle band (null: never settled)",
+    "oscillation_frequency_hz": "oscillation of the distance error in the last second of tracking (null: none)",
+    "oscillation_amplitude_mm": "half the peak-to-peak distance error in the last second of tracking",
+    "min_distance_mm": "smallest true distance of the tool to the surface (negative: in the surface)",
+    "time_below_zero_s": "time with the true distance at or below 0 mm",
+    "collisions": "contacts beyond the collision depth (warning 900030 each)",
     "tracking_cycles": "cycles with distance control ACTIVE or ACTIVE_CONST_DIST",
     "settle_band_mm": "settle band (± this error)",
     "settle_hold_s": "time the error must stay in the band",
@@ -501,7 +507,12 @@ def _result_section(result: "RunResult") -> str:
         badge = '<span class="badge ok">completed</span>'
     else:
         badge = '<span class="badge bad">aborted</span>' if result.aborted or result.errors \
-            else '<span class="badge warn">not completed</span>'
+            else f'<span class="badge warn">{_e(result.outcome_text)}</span>'
+    hits = (result.metrics or {}).get("collisions") or 0
+    if hits:
+        badge += f' <span class="badge bad">{hits} collision{"s" if hits != 1 else ""}</span>'
+    if (result.metrics or {}).get("oscillation_frequency_hz") is not None:
+        badge += ' <span class="badge warn">oscillating</span>'
     duration = result.cycles * result.cycle_time
     pairs = [("final state", result.final_state), ("cycles", result.cycles),
              ("duration", f"{duration:.4g} s"), ("cycle time", f"{result.cycle_time * 1000:g} ms"),

@@ -51,7 +51,9 @@ def base_scenario(program_text, *, events=(), surface=None, params=PROBE, start_
     data = {"name": "test", "program_text": program_text, "duration": duration,
             "axes": {"X": {"v_max": 300.0, "a_max": 3000.0}, "Z": {"params": params, "start": start_z, "kv": 50.0}},
             "surface": surface or {"base": start_z},
-            "sensor": sensor or {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0},
+            # a tactile probe riding on the surface (pressed in by up to 1 mm: no collision)
+            "sensor": sensor or {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0,
+                                 "collision_depth": 1.0},
             "events": list(events)}
     return scenario_from_dict(data, base_dir=SCN)
 
@@ -97,7 +99,7 @@ def test_const_dist_over_sine_and_obstacle_and_cli(tmp_path):
     data = json.loads(res.output)
     assert data["completed"] and data["errors"] == [] and data["final_state"] == "INACTIVE"
     m = data["metrics"]
-    assert m["distance_error_rms"] < 0.3 and m["distance_error_max"] < 3.0 and m["settle_time"] < 0.5
+    assert m["distance_error_rms"] < 0.3 and m["distance_error_max"] < 3.0 and 2.8 < m["settle_time"] < 4.0   # the last entry: after the obstacle
     tr = Trace.from_csv(out_csv)
     for col in ("t", "line", "X.prog", "X.cmd", "X.act", "Z.prog", "Z.cmd", "Z.act", "Z.dc.state", "Z.dc.offset",
                 "Z.dc.sensor", "Z.dc.feedback", "Z.dc.filtered", "Z.dc.target_deviation", "Z.dc.pre_limiter",

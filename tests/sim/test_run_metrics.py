@@ -1,0 +1,146 @@
+"""Metrics that cannot lie, and a collision is an event (issue 13, docs/run.md)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from distctrl.cli import main
+from distctrl.demo import _plain_const_dist
+from distctrl.errors import ExitCode
+from distctrl.sim.runner import run
+from distctrl.sim.scenario import load_scenario
+
+from .test_run import SCN, base_scenario
+
+QUIET = {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0}
+
+
+def test_settle_time_is_the_last_entry_into_the_band_in_whole_cycles():
+    """CONST_DIST settles, then the sheet steps up by 0.5 mm at t = 1 s: the settle time is measured
+    to the last entry into ±0.01 mm, not the first, and is a whole number of cycles (no 8.7e-19)."""
+    sc = base_scenario("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\nN20 #TIME 2\nN30 Z[DIST_CTRL OFF]\nN40 M30\n",
+                       start_z=41.0, surface={"base": 40.0}, sensor=QUIET)
+    first = run(sc).metrics["settle_time"]
+    assert first is not None and first == round(first / 0.001) * 0.001
+    # the same select, then a move over a 0.5 mm step at X = 50 mm: the last entry comes after it
+    stepped = base_scenario("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\nN20 #TIME 0.5\nN30 G1 X100 F6000\n"
+                            "N40 #TIME 0.5\nN50 Z[DIST_CTRL OFF]\nN60 M30\n", start_z=41.0, sensor=QUIET,
+                            surface={"base": 40.0, "features": [{"type": "step", "axis": "X", "at": 50.0,
+                                                                 "height": 0.5}]})
+    r = run(stepped)
+    settle = r.metrics["settle_time"]
+    tr = r.trace
+    t_step = float(tr["t"][np.argmax(tr["X.act"] >= 50.0)])
+    t_on = float(tr["t"][np.argmax(tr["Z.dc.state"] == 4)])
+    assert settle is not None and settle > t_step - t_on > first
+    assert abs(settle / r.cycle_time - round(settle / r.cycle_time)) < 1e-6
+
+
+def test_a_loop_in_a_limit_cycle_never_settles_and_shows_its_oscillation():
+    """The demo's plain CONST_DIST run (without P-AXIS-00500) oscillates into the sheet: settle_time is
+    null, the oscillation of the last second of tracking is measured (frequency, amplitude)."""
+    r = run(_plain_const_dist())
+    m = r.metrics
+    assert m["settle_time"] is None
+    assert m["oscillation_amplitude_mm"] > 0.5 and 3.0 < m["oscillation_frequency_hz"] < 30.0
+    settled = run(base_scenario("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\nN20 #TIME 1.5\nN30 M30\n",
+                                start_z=41.0, surface={"base": 40.0}, sensor=QUIET)).metrics
+    assert settled["settle_time"] is not None
+    assert settled["oscillation_amplitude_mm"] < 0.01 and settled["oscillation_frequency_hz"] is None
+
+
+def test_every_run_has_the_minimum_true_distance_and_the_time_below_zero():
+    m = run(base_scenario("N10 G1 X5 F600\nN20 M30\n", start_z=42.0, surface={"base": 40.0})).metrics
+    assert m["min_distance_mm"] == pytest.approx(2.0, abs=1e-6) and m["time_below_zero_s"] == 0.0
+    assert m["distance_error_rms"] is None                      # no tracking: null, not 0
+
+
+def test_a_collision_is_a_warning_with_time_place_and_depth():
+    r = run(_plain_const_dist())
+    hits = [w for w in r.warnings if w["id"] == 900030]
+    assert hits, r.warnings
+    first = hits[0]
+    assert first["line"] == 5 and 0.0 < first["t"] < r.cycles * r.cycle_time
+    assert "X=" in first["message"] and "Y=" in first["message"] and "mm into the surface" in first["message"]
+    assert r.metrics["min_distance_mm"] < -1.0 and r.metrics["time_below_zero_s"] > 0.1
+    assert r.metrics["collisions"] == len(hits)
+    assert r.outcome == "completed"                              # a warning: the run goes on
+
+
+def test_stop_on_collision_ends_the_run_there_with_an_error(tmp_path):
+    sc = _plain_const_dist()
+    r = run(sc, stop_on_collision=True)
+    assert r.outcome == "aborted" and r.exit_code == ExitCode.ABORTED
+    assert [e["id"] for e in r.errors] == [900030]
+    free = run(sc)
+    t_hit = next(w["t"] for w in free.warnings if w["id"] == 900030)
+    assert r.errors[0]["t"] == pytest.approx(t_hit, abs=1e-9)
+    assert r.cycles * r.cycle_time < t_hit + 1.0
+
+
+PRESSED = """name = "pressed into the sheet"
+program_text = "N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=-0.2]\\nN20 #TIME 0.5\\nN30 Z[DIST_CTRL OFF]\\nN40 M30\\n"
+duration = 3.0
+[axes.X]
+[axes.Z]
+params = "{params}"
+start = 41.0
+[surface]
+base = 40.0
+[sensor]
+axis = "Z"
+kind = "encoder"
+range_min = -20.0
+range_max = 20.0
+"""
+
+
+def test_stop_on_collision_from_the_command_line(tmp_path):
+    import json
+
+    from .test_run import PROBE
+
+    scn = tmp_path / "pressed.toml"
+    scn.write_text(PRESSED.format(params=(SCN / PROBE).as_posix()), encoding="utf-8")
+    free = CliRunner().invoke(main, ["run", str(scn)])
+    assert free.exit_code == 0, free.output
+    assert "warning 900030" in free.output and "collision(s)" in free.output and "min -0.2" in free.output
+    res = CliRunner().invoke(main, ["run", str(scn), "--stop-on-collision", "--json"])
+    assert res.exit_code == ExitCode.ABORTED, res.output
+    js = json.loads(res.output)
+    assert js["outcome"] == "aborted" and [e["id"] for e in js["errors"]] == [900030]
+    assert js["metrics"]["collisions"] == 1
+
+
+def test_collision_depth_lets_a_tactile_probe_be_pressed_in():
+    """sensor.collision_depth: how far the tool may be below the surface (a tactile probe's stroke)
+    before it counts as a collision; the time below zero is still reported."""
+    prog = "N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=-0.2]\nN20 #TIME 0.5\nN30 Z[DIST_CTRL OFF]\nN40 M30\n"
+    pressed = run(base_scenario(prog, start_z=41.0, surface={"base": 40.0}, sensor=QUIET))
+    assert [w["id"] for w in pressed.warnings if w["id"] == 900030]
+    probe = run(base_scenario(prog, start_z=41.0, surface={"base": 40.0}, sensor={**QUIET, "collision_depth": 1.0}))
+    assert not [w for w in probe.warnings if w["id"] == 900030]
+    assert probe.metrics["time_below_zero_s"] > 0.3 and probe.metrics["collisions"] == 0
+
+
+def test_the_example_scenarios_do_not_collide_except_at_the_obstacle_wall():
+    """The tactile-probe examples ride on the sheet within the probe's stroke; the laser sheet's head
+    hits the 2.8 mm obstacle's vertical wall (1 mm distance cannot clear it) and the run says so."""
+    for name in ("dist_1", "dist_2", "dist_3", "dist_4", "dist_5", "tune_sheet"):
+        r = run(SCN / f"{name}.toml")
+        assert r.metrics["collisions"] == 0, (name, r.warnings)
+    sheet = run(SCN / "const_dist_sheet.toml")
+    hits = [w for w in sheet.warnings if w["id"] == 900030]
+    assert len(hits) == sheet.metrics["collisions"] == 1
+    assert "X=250." in hits[0]["message"]
+    assert math.isfinite(run(load_scenario(SCN / "app_30_60.toml")).metrics["min_distance_mm"])
+
+
+def test_metrics_are_documented_with_units():
+    text = (SCN.parents[1] / "docs" / "run.md").read_text(encoding="utf-8")
+    for key in ("oscillation_frequency_hz", "oscillation_amplitude_mm", "min_distance_mm", "time_below_zero_s",
+                "collisions", "collision_depth", "--stop-on-collision"):
+        assert key in text, key
