@@ -66,22 +66,37 @@ def params(list_file: str, show_all: bool, cycle_time: float) -> None:
 @click.option("--stop-on-collision", is_flag=True,
               help="End the run at the first collision (true distance at or below -sensor.collision_depth) "
                    "with error 900030 and exit code 2, instead of recording it as a warning.")
+@click.option("--decimate", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Record every N-th cycle only (metrics and events still see every cycle).")
+@click.option("--max-rows", type=click.IntRange(min=1), default=None,
+              help="Keep only the last N rows, like a scope's ring buffer (the trace file is written at the end).")
 def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None, report_dir: str | None,
-        record: str, stop_on_collision: bool) -> None:
+        record: str, stop_on_collision: bool, decimate: int, max_rows: int | None) -> None:
     """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
 
     Exit codes (docs/run.md): 0 the program ran to its end, 1 invalid input (the message names the
     file, line or key and what is allowed), 2 a control error aborted it, 3 stopped at the time limit
     (duration) before the program ended, 130 Ctrl-C.
     """
-    import json
-
+    from ..sim.runner import estimate_trace
     from ..sim.runner import run as run_scenario
+    from ..sim.scenario import load_scenario
+    from .common import check_writable, emit_json
 
+    records = tuple(record.split(",")) if record else ()
+    for path, what, is_dir in ((trace_path, "trace", False), (plot_path, "plot", False),
+                               (report_dir, "report folder", True)):
+        if path:
+            check_writable(path, what, directory=is_dir)
     try:
-        result = run_scenario(scenario, trace=trace_path, keep_trace=plot_path is not None or report_dir is not None,
-                              progress=not as_json, record=tuple(record.split(",")) if record else (),
-                              stop_on_collision=stop_on_collision)
+        sc = load_scenario(scenario)
+        if trace_path:
+            _say_trace_size(estimate_trace(sc, record=records, decimate=decimate, max_rows=max_rows), trace_path)
+        # a plot or a report needs the trace in memory: thinned to PLOT_ROWS rows, never the whole run
+        wants_trace = plot_path is not None or report_dir is not None
+        result = run_scenario(sc, trace=trace_path, keep_trace=wants_trace, progress=not as_json, record=records,
+                              stop_on_collision=stop_on_collision, decimate=decimate, max_rows=max_rows,
+                              keep_at_most=PLOT_ROWS if wants_trace and max_rows is None else None)
     except DistCtrlError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)
@@ -90,14 +105,43 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     if report_dir:
         from ..workbench.report import write_report
 
-        page = write_report(result, scenario, report_dir)
+        page = write_report(result, sc, report_dir)
         if not as_json:
             click.echo(f"  report: {page}")
     if as_json:
-        click.echo(json.dumps(result.to_dict(), indent=2))
+        emit_json(result.to_dict())
     else:
         _print_summary(result, trace_path, plot_path)
     sys.exit(result.exit_code)
+
+
+#: rows of the trace kept for --plot / --report (thinned evenly beyond: bounded memory for any run)
+PLOT_ROWS = 200_000
+#: a trace estimate above this is announced before the run
+TRACE_NOTICE_BYTES = 100e6
+
+
+def _say_trace_size(est: dict, trace_path: str) -> None:
+    """The size of the trace before the run: always when large, a warning when the disk is smaller."""
+    import shutil
+    from pathlib import Path
+
+    from .common import human_bytes
+
+    parquet = str(trace_path).lower().endswith(".parquet")
+    size = est["memory_bytes"] if parquet else est["csv_bytes"]
+    text = (f"trace {trace_path}: up to {est['rows']:,} rows x {est['columns']} columns, about "
+            f"{human_bytes(size)} ({'in memory until the end' if parquet else 'CSV'}) if the run goes "
+            f"to its time limit of {est['time_limit_s']:g} s")
+    try:
+        free = shutil.disk_usage(Path(trace_path).resolve().parent).free
+    except OSError:
+        free = None
+    if free is not None and size > free:
+        click.echo(f"warning: {text}: more than the {human_bytes(free)} free there; --decimate N or "
+                   "--max-rows N make it smaller", err=True)
+    elif size > TRACE_NOTICE_BYTES:
+        click.echo(f"note: {text}; --decimate N or --max-rows N make it smaller", err=True)
 
 
 #: collision warnings printed in the summary (a limit cycle hits the sheet every period)

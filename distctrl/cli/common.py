@@ -6,7 +6,9 @@
 * :func:`emit_json`: one JSON object on stdout; NaN and infinities become ``null`` (a metric that
   cannot be computed is null, never a number that is wrong).
 * :class:`DistctrlGroup`: the top-level group; subcommands are imported when used (the numba, dask
-  and matplotlib parts load only for the commands that need them).
+  and matplotlib parts load only for the commands that need them). An ``OSError`` that reaches it (a
+  full disk, a read-only place) ends with one ``error:`` line naming the path and exit code 1.
+* :func:`check_writable`: an output path is tried before a long run, not after it.
 """
 from __future__ import annotations
 
@@ -49,6 +51,45 @@ def emit_json(obj: Any) -> None:
     click.echo(json_text(obj))
 
 
+def check_writable(path: str, what: str, directory: bool = False) -> None:
+    """Fail at once (exit 1, one line naming the path) when ``path`` cannot be written, before a
+    long run is wasted on an output that cannot be saved. Creates missing parent folders like the
+    writers do."""
+    import os
+    from pathlib import Path
+
+    p = Path(path)
+    target = p if directory else p.parent
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        if directory:
+            probe = target / ".distctrl-write-test"
+            probe.write_bytes(b"")
+            probe.unlink()
+        else:
+            existed = p.exists()
+            with open(p, "ab"):
+                pass
+            if not existed:
+                os.unlink(p)
+    except OSError as exc:
+        fail(f"cannot write the {what} {path}: {exc.strerror or exc}")
+
+
+def os_error_text(exc: OSError) -> str:
+    """One line for an OSError: the path and the system's words."""
+    where = exc.filename if exc.filename is not None else "an output"
+    return f"cannot use {where}: {exc.strerror or exc}"
+
+
+def human_bytes(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n < 1000 or unit == "TB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000.0
+    return f"{n:.1f} TB"  # pragma: no cover
+
+
 class DistctrlGroup(click.Group):
     """The ``distctrl`` group: lazy subcommands and one exit-code table for every command.
 
@@ -86,3 +127,15 @@ class DistctrlGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("interrupted (Ctrl-C)", err=True)
             raise click.exceptions.Exit(int(ExitCode.INTERRUPTED)) from None
+        except BrokenPipeError:
+            # the reader of stdout went away (`| head`): nothing more to say to it
+            import os
+
+            try:
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            except (OSError, ValueError):
+                pass
+            raise click.exceptions.Exit(int(ExitCode.OK)) from None
+        except OSError as exc:
+            # an output that cannot be written (a full disk, a read-only place): one line, no traceback
+            fail(os_error_text(exc))

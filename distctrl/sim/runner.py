@@ -175,7 +175,8 @@ def load_program(scenario):
 
 
 def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, progress: bool = False,
-        plc_program=None, record=(), stop_on_collision: bool = False) -> RunResult:
+        plc_program=None, record=(), stop_on_collision: bool = False, decimate: int = 1,
+        max_rows: int | None = None, keep_at_most: int | None = None) -> RunResult:
     """Run ``scenario`` (a Scenario, or a path to a TOML file). Invalid files raise DistCtrlError.
 
     ``trace``: a CSV path (streamed, with a ``.meta.json`` units sidecar) or a ``.parquet`` path
@@ -183,6 +184,11 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     objects to record per distance-controlled axis (:data:`RECORDABLE`, e.g. ``("a_max_int", "kp")``).
     ``stop_on_collision``: a collision (900030) is an error that ends the run in its cycle, instead of
     a warning.
+
+    Trace size (docs/run.md "Trace size"): ``decimate=N`` records every N-th cycle; ``max_rows=N`` keeps
+    only the last N rows (a ring buffer like a scope; the CSV is written at the end);
+    ``keep_at_most=N`` thins the kept ``result.trace`` (not the CSV) to at most N rows, for a plot or
+    report of a long run in bounded memory. Metrics and events always see every cycle.
 
     ``plc_program(machine, cycle)``, if given, runs every cycle before the CNC reads the PLC
     interface: it may write ``machine.hli[axis]`` (command_w + semaphore, cyclic values) and read
@@ -202,10 +208,16 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         from ..workbench.parquet import require_pyarrow
         require_pyarrow()                       # fail before the run, not after it
         trace, keep_trace = None, True
+        keep_at_most = None                     # the Parquet file is written from the kept rows: all of them
     # rows packed as they are built (no Python floats kept alive) in 1024-row chunks (~190 kB), which
     # stay in the CPU caches: buffering 8192 rows of floats (~6 MB) cost ~7 % of the cycle time
+    decimate = _check_count(decimate, "decimate")
+    meta = {"scenario": scenario.name, "cycle_time": T}
+    if decimate > 1:
+        meta["decimate"] = decimate
     recorder = TraceRecorder(columns, units, csv_path=trace, keep=keep_trace, chunk_rows=1024, packed=True,
-                             meta={"scenario": scenario.name, "cycle_time": T})
+                             meta=meta, max_rows=None if max_rows is None else _check_count(max_rows, "max_rows"),
+                             keep_at_most=None if keep_at_most is None else _check_count(keep_at_most, "keep_at_most"))
     limit_s = scenario.duration if scenario.duration is not None else MAX_RUN_SECONDS
     max_cycles = int(round(limit_s / T))
     settle_cycles = max(1, int(round(scenario.settle_time / T)))
@@ -234,7 +246,8 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         for k in range(max_cycles):
             step()
             line = nc.line if nc is not None else None
-            append(build_row(k * T, -1 if line is None else line))
+            if decimate == 1 or k % decimate == 0:
+                append(build_row(k * T, -1 if line is None else line))
             if out3d is not None:
                 # 3D: the orthogonal distance of the clamping point; wanted = SET_DIST·cos θ·Lv/L in
                 # CONST_DIST, the programmed clamping-point height above SET_POS in SURFACE mode
@@ -310,6 +323,36 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                      aborted, errors, warnings, final_state,
                      machine.cycle, T, run_metrics, kept, str(trace) if trace else None, interrupted, notes,
                      outcome, limit_s)
+
+
+def _check_count(value, name: str) -> int:
+    from ..errors import DistCtrlError
+
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise DistCtrlError(f"{name} = {value!r}: must be a whole number >= 1")
+    return value
+
+
+#: CSV bytes per value the estimate assumes: '%.17g' numbers average 14-19 characters plus the comma
+CSV_BYTES_PER_VALUE = 19
+
+
+def estimate_trace(scenario, *, record=(), decimate: int = 1, max_rows: int | None = None) -> dict:
+    """What the trace of ``scenario`` will hold at most: rows (the time limit's cycles, decimated, or
+    the ring buffer), columns, and the CSV and in-memory bytes; the run may end sooner."""
+    from .scenario import Scenario, load_scenario
+
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    machine = Machine(scenario, load_program(scenario))
+    columns, _ = trace_columns(machine, check_record(record))
+    limit_s = scenario.duration if scenario.duration is not None else MAX_RUN_SECONDS
+    rows = -(-int(round(limit_s / scenario.cycle_time)) // max(1, decimate))
+    if max_rows is not None:
+        rows = min(rows, max_rows)
+    n = len(columns)
+    return {"rows": rows, "columns": n, "csv_bytes": rows * n * CSV_BYTES_PER_VALUE, "memory_bytes": rows * n * 8,
+            "time_limit_s": limit_s}
 
 
 def _outcome(interrupted: bool, aborted: bool, program_done: bool) -> str:

@@ -442,11 +442,20 @@ class TraceRecorder:
     ``len(columns)`` native float64). A producer that packs each row at once keeps no Python floats
     alive between flushes: for the simulator's row of ~25 numbers that is ~0.5 µs a cycle less than
     buffering tuples (their floats leave the CPU caches before the flush packs them).
+
+    ``max_rows``: a ring buffer like a scope's: only the last ``max_rows`` rows are kept, and the CSV
+    is written at :meth:`close` (it holds those rows; the sidecar's meta says how many were dropped).
+    ``keep_at_most``: the kept :class:`Trace` (not the CSV) is thinned to at most this many rows by
+    doubling the stride whenever it would grow beyond (every row ``i`` with ``i % stride == 0`` is
+    kept): enough for a plot or a report of a run of any length, in bounded memory.
+
+    A file that cannot be written raises ``OSError`` naming the CSV path.
     """
 
     def __init__(self, columns: list[str], units: dict[str, str] | None = None,
                  csv_path: str | os.PathLike | None = None, keep: bool = True, chunk_rows: int = 65536,
-                 meta: dict | None = None, packed: bool = False):
+                 meta: dict | None = None, packed: bool = False, max_rows: int | None = None,
+                 keep_at_most: int | None = None):
         self.columns: list[str] = _check_columns(columns)
         self.packed = bool(packed)
         self.units: dict[str, str] = {c: str(u) for c, u in (units or {}).items() if c in self.columns}
@@ -456,6 +465,14 @@ class TraceRecorder:
         if chunk_rows < 1:
             raise ValueError(f"chunk_rows must be >= 1, got {chunk_rows}")
         self.chunk_rows = chunk_rows
+        if max_rows is not None and int(max_rows) < 1:
+            raise ValueError(f"max_rows must be >= 1, got {max_rows}")
+        if keep_at_most is not None and int(keep_at_most) < 2:
+            raise ValueError(f"keep_at_most must be >= 2, got {keep_at_most}")
+        self.max_rows = None if max_rows is None else int(max_rows)
+        self.keep_at_most = None if keep_at_most is None else int(keep_at_most)
+        self.stride = 1                     # with keep_at_most: every stride-th row is kept
+        self._kept = 0
         self.csv_path: Path | None = Path(csv_path) if csv_path is not None else None
         self._ncol = len(self.columns)
         self._pack = struct.Struct(f"={self._ncol}d").pack
@@ -470,15 +487,30 @@ class TraceRecorder:
         self._file = None
         self._good_pos = 0
         if self.csv_path is not None:
-            self.csv_path.parent.mkdir(parents=True, exist_ok=True)
-            _write_sidecar(self.csv_path, self.columns, self.units, self.meta, 0, False)
-            self._file = open(self.csv_path, "wb")
-            self._file.write((",".join(self.columns) + "\n").encode())
-            self._file.flush()
-            self._good_pos = self._file.tell()
+            with self._naming_the_file():
+                self.csv_path.parent.mkdir(parents=True, exist_ok=True)
+                _write_sidecar(self.csv_path, self.columns, self.units, self.meta, 0, False)
+                self._file = open(self.csv_path, "wb")
+                self._file.write((",".join(self.columns) + "\n").encode())
+                self._file.flush()
+                self._good_pos = self._file.tell()
         #: the bare ``list.append`` of the row buffer: call :meth:`tick` yourself to bound memory
         self.append_raw: Callable[[Any], None] = self._buf.append
         self.append: Callable[[Any], None] = self._make_append()
+
+    def _naming_the_file(self):
+        """Re-raise an OSError of the CSV or its sidecar with the CSV's path (a full disk names none)."""
+        import contextlib
+
+        @contextlib.contextmanager
+        def naming():
+            try:
+                yield
+            except OSError as exc:
+                if exc.filename is None:
+                    raise OSError(exc.errno, exc.strerror or str(exc), str(self.csv_path)) from exc
+                raise
+        return naming()
 
     def _make_append(self) -> Callable[[Any], None]:
         def append(row, _append=self._buf.append, _len=len, _buf=self._buf, _limit=self.chunk_rows,
@@ -501,7 +533,7 @@ class TraceRecorder:
 
     @property
     def kept_rows(self) -> int:
-        """Rows held in kept float64 chunks (0 with ``keep=False``)."""
+        """Rows held in float64 chunks (0 with ``keep=False``, except the ring buffer's rows)."""
         return sum(c.shape[0] for c in self._chunks)
 
     @property
@@ -540,20 +572,51 @@ class TraceRecorder:
     def _take(self, arr: np.ndarray, n: int) -> None:
         """Write and keep the first n buffered rows, converted to arr; then drop them from the buffer."""
         f = self._file
-        if f is not None:
+        if f is not None and self.max_rows is None:
             text = format_rows(arr)
-            if f.tell() != self._good_pos:   # an earlier write was interrupted: cut its partial rows
-                f.seek(self._good_pos)
-                f.truncate()
-            f.write(text)
-            f.flush()
-            pos = f.tell()
+            with self._naming_the_file():
+                if f.tell() != self._good_pos:   # an earlier write was interrupted: cut its partial rows
+                    f.seek(self._good_pos)
+                    f.truncate()
+                f.write(text)
+                f.flush()
+                pos = f.tell()
             self._good_pos = pos
+        first = self._flushed
         # no calls (and so no signal handlers) between these two stores: buffer and count agree
         del self._buf[:n]
         self._flushed += n
-        if self.keep:
-            self._chunks.append(arr)
+        if self.max_rows is not None:
+            self._keep_ring(arr)
+        elif self.keep:
+            if self.keep_at_most is not None:
+                self._keep_thinned(arr, first)
+            else:
+                self._chunks.append(arr)
+
+    def _keep_ring(self, arr: np.ndarray) -> None:
+        self._chunks.append(arr)
+        self._kept += arr.shape[0]
+        if self._kept >= 2 * self.max_rows:          # trim now and then: amortised O(1) per row
+            self._chunks = [np.concatenate(self._chunks)[-self.max_rows:]]
+            self._kept = self.max_rows
+
+    def _keep_thinned(self, arr: np.ndarray, first: int) -> None:
+        stride = self.stride
+        part = arr[(-first) % stride::stride]
+        self._chunks.append(part)
+        self._kept += part.shape[0]
+        while self._kept > self.keep_at_most:
+            # kept rows are those with i % stride == 0, from row 0 on: every other one has i % 2·stride == 0
+            kept = np.concatenate(self._chunks)[::2]
+            self._chunks = [kept]
+            self._kept = kept.shape[0]
+            self.stride *= 2
+
+    @property
+    def dropped_rows(self) -> int:
+        """Rows the ring buffer (``max_rows``) has dropped so far."""
+        return 0 if self.max_rows is None else max(0, self._flushed - self.max_rows)
 
     def _row_bytes_of(self, row) -> bytes:
         """One buffered row as packed bytes; raises for a malformed one."""
@@ -596,6 +659,7 @@ class TraceRecorder:
         if self._closed:
             return self._trace
         problems: list[str] = []
+        ring = None
         try:
             while self._buf:
                 try:
@@ -604,15 +668,33 @@ class TraceRecorder:
                     problems.append(str(exc))
         finally:
             self._closed = True
+            if self.max_rows is not None:
+                ring = np.concatenate(self._chunks)[-self.max_rows:] if self._chunks \
+                    else np.empty((0, self._ncol))
+                self._chunks = [ring]
+                self.meta["ring_buffer_rows"] = self.max_rows
+                self.meta["dropped_rows"] = self.dropped_rows
+            if self.stride > 1:
+                self.meta["kept_every"] = self.stride
             f, self._file = self._file, None
             if f is not None:
-                try:
-                    if f.tell() != self._good_pos:
-                        f.seek(self._good_pos)
-                        f.truncate()
-                finally:
-                    f.close()
-                _write_sidecar(self.csv_path, self.columns, self.units, self.meta, self._flushed, bool(complete))
+                with self._naming_the_file():
+                    try:
+                        if ring is not None:            # the scope's last rows, written once
+                            f.seek(self._good_pos)
+                            f.truncate()
+                            step = 65536
+                            for i in range(0, ring.shape[0], step):
+                                f.write(format_rows(ring[i:i + step]))
+                            f.flush()
+                            self._good_pos = f.tell()
+                        elif f.tell() != self._good_pos:
+                            f.seek(self._good_pos)
+                            f.truncate()
+                    finally:
+                        f.close()
+                    rows = ring.shape[0] if ring is not None else self._flushed
+                    _write_sidecar(self.csv_path, self.columns, self.units, self.meta, rows, bool(complete))
             if self.keep:
                 chunks, self._chunks = self._chunks, []
                 data = np.concatenate(chunks) if chunks else np.empty((0, self._ncol))
