@@ -10,7 +10,7 @@ import pytest
 
 pyads = pytest.importorskip("pyads")
 
-from distctrl.serve import ServedMachine  # noqa: E402
+from distctrl.ads.machine import ServedMachine  # noqa: E402
 from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
 from tests.ads import wait_for  # noqa: E402
 
@@ -199,7 +199,7 @@ def test_3d_objects_are_readable_on_the_cnc_port_without_network():
     import struct
 
     from distctrl.ads import AdsError
-    from distctrl.serve import CncObjectDevice
+    from distctrl.ads.machine import CncObjectDevice
     from distctrl.sim.machine import Machine
     from distctrl.sim.runner import load_program
     from distctrl.sim.scenario import load_scenario
@@ -226,7 +226,7 @@ def test_3d_objects_exist_only_with_fct_3d_dist_ctrl():
     """FCT-M3 §12.6: the channel-specific objects 'are only available if they are configured by'
     configuration.decoder.function FCT_3D_DIST_CTRL (P-CHAN-00500): an axis-only machine refuses them."""
     from distctrl.ads import AdsError
-    from distctrl.serve import CncObjectDevice
+    from distctrl.ads.machine import CncObjectDevice
     from distctrl.sim.machine import Machine
     from distctrl.sim.runner import load_program
     from distctrl.sim.scenario import load_scenario

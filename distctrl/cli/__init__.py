@@ -240,7 +240,7 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
     import logging
     import time
 
-    from ..serve import ServedMachine
+    from ..ads.machine import ServedMachine
     from ..sim.scenario import load_scenario
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")

@@ -20,17 +20,17 @@ import logging
 import struct
 import threading
 
-from .ads import AdsError, AdsServer, SymbolInfo
-from .ads.errors import (ADSERR_DEVICE_INVALIDACCESS, ADSERR_DEVICE_INVALIDDATA, ADSERR_DEVICE_INVALIDGRP,
+from . import AdsError, AdsServer, SymbolInfo
+from .errors import (ADSERR_DEVICE_INVALIDACCESS, ADSERR_DEVICE_INVALIDDATA, ADSERR_DEVICE_INVALIDGRP,
                          ADSERR_DEVICE_INVALIDOFFSET, ADSERR_DEVICE_INVALIDSIZE)
-from .ads.protocol import ADST_REAL64
-from .objects.registry import (INDEX_GROUPS, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
+from .protocol import ADST_REAL64
+from ..objects.registry import (INDEX_GROUPS, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
                                read_bytes, write_bytes)
-from .objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
-from .objects.channel3d import read_bytes as read_bytes_3d
-from .objects.channel3d import write_bytes as write_bytes_3d
-from .plc.hli import SemaphoreBusyError
-from .plc.symbols import channel_status_symbols, hli_symbols
+from ..objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
+from ..objects.channel3d import read_bytes as read_bytes_3d
+from ..objects.channel3d import write_bytes as write_bytes_3d
+from ..plc.hli import SemaphoreBusyError
+from ..plc.symbols import channel_status_symbols, hli_symbols
 
 log = logging.getLogger("distctrl.serve")
 
@@ -154,7 +154,7 @@ class PlcDevice:
 
 
 def _variable_symbol(variables: dict, name: str):
-    from .plc.symbols import SymbolSpec
+    from ..plc.symbols import SymbolSpec
 
     def get() -> bytes:
         return struct.pack("<d", float(variables.get(name, 0.0)))
@@ -173,9 +173,9 @@ class ServedMachine:
 
     def __init__(self, scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
                  net_id: str = "127.0.0.1.1.1"):
-        from .sim.machine import Machine
-        from .sim.realtime import RealTimeLoop
-        from .sim.runner import load_program
+        from ..sim.machine import Machine
+        from ..sim.realtime import RealTimeLoop
+        from ..sim.runner import load_program
 
         self.scenario = scenario
         self.machine = Machine(scenario, load_program(scenario), publish_hli=True)
