@@ -168,6 +168,62 @@ def _variable_symbol(variables: dict, name: str):
     return SymbolSpec(name, 8, ADST_REAL64, "LREAL", get, set_, "V.E. variable (mm or as the program uses it)")
 
 
+class SessionLog:
+    """What a served session tells its console (logger ``distctrl.serve``): per axis the HLI commands
+    the CNC took from the PLC and the distance-control state changes, every error and warning with its
+    ID (e.g. 70336 for a command to an axis without distance control, P-AXIS-00328 = 0), and the end of
+    the NC program. Checked after every cycle; it costs a few comparisons unless something changed."""
+
+    def __init__(self, machine, logger: logging.Logger = log):
+        from ..trace.recorder import HLI_STATE_NAMES
+
+        self.machine, self.log, self.names = machine, logger, HLI_STATE_NAMES
+        self.units = [(n, machine.hli[n], machine.outputs[n]) for n in machine.axis_names]
+        self.states = {n: out.hli_state for n, _, out in self.units}
+        self.consumed = {n: unit.consumed for n, unit, _ in self.units}
+        self.rejected = {n: len(unit.rejected) for n, unit, _ in self.units}
+        self.events_seen = len(machine.events)
+        self.program_ended = False
+
+    def axis_lines(self) -> list[str]:
+        """``axis 1 = X (no distance control, P-AXIS-00328 = 0)`` ...: the gpAx index of every axis."""
+        m = self.machine
+        return [f"axis {unit.axis_index} = {n} "
+                + ("(distance control)" if m.scenario.axes[n].params.enabled else
+                   "(no distance control, P-AXIS-00328 = 0: PLC commands are refused with 70336)")
+                for n, unit, _ in self.units]
+
+    def after_cycle(self) -> None:
+        m, log_ = self.machine, self.log
+        t = m.cycle * m.T
+        for n, unit, out in self.units:
+            if unit.consumed != self.consumed[n]:
+                self.consumed[n] = unit.consumed
+                c = unit.command_w
+                log_.info("t=%.3f s axis %s (gpAx[%d]): PLC command transition %d, position %.4f mm taken",
+                          t, n, unit.axis_index, c.transition, c.position * 1e-4)
+            if len(unit.rejected) != self.rejected[n]:
+                for r in unit.rejected[self.rejected[n]:]:
+                    log_.warning("t=%.3f s axis %s: PLC command refused: %s", t, n, r.reason)
+                self.rejected[n] = len(unit.rejected)
+            state = out.hli_state
+            if state != self.states[n]:
+                log_.info("t=%.3f s axis %s: distance control %s -> %s", t, n,
+                          self.names.get(int(self.states[n]), self.states[n]), self.names.get(int(state), state))
+                self.states[n] = state
+        events = m.events
+        if len(events) != self.events_seen:
+            for when, ev in events[self.events_seen:]:
+                level = logging.ERROR if ev.severity == "error" else logging.WARNING
+                line = f", NC line {ev.line}" if ev.line not in (None, -1) else ""
+                log_.log(level, "t=%.3f s %s %d%s: %s", when, ev.severity, ev.id, line, ev.message)
+            self.events_seen = len(events)
+        nc = m.nc
+        if nc is not None and not self.program_ended and (nc.ended or nc.aborted):
+            self.program_ended = True
+            log_.info("t=%.3f s NC program %s", t, "aborted" if nc.aborted else "ended (M30)")
+
+
 class ServedMachine:
     """A machine stepped in real time in a background thread, with an ADS server over it."""
 
@@ -184,13 +240,21 @@ class ServedMachine:
         self.plc = PlcDevice(self.machine)
         self.server = AdsServer({CNC_PORT: self.cnc, PLC_PORT: self.plc}, host=host, port=port, net_id=net_id,
                                 allowed=list(allowed), lock=self.lock)
-        self.loop = RealTimeLoop(self.machine.step, scenario.cycle_time, lock=self.lock)
+        self.session = SessionLog(self.machine)
+        self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock)
+
+    def step(self) -> None:
+        """One cycle of the machine, then the session log (under the loop's lock)."""
+        self.machine.step()
+        self.session.after_cycle()
 
     def start(self) -> None:
         self.server.start()
         self.loop.start()
         log.info("serving %s on %s:%d (AMS ports %d, %d)", self.scenario.name, self.server.host, self.server.port,
                  CNC_PORT, PLC_PORT)
+        for line in self.session.axis_lines():
+            log.info("%s", line)
 
     def stop(self) -> dict:
         self.loop.stop()
