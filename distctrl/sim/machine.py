@@ -146,6 +146,11 @@ class Machine:
                 self.sensor_variable = f"V.E.{sc.variable}"
                 self.variables.setdefault(self.sensor_variable, 0.0)
         self.nc = NcInterpreter(program, self, file=scenario.program_file) if program is not None else None
+        #: the axis whose sensor writes a V.E. variable (axis variant): a select that keeps reading the
+        #: second encoder is warned about once (900031)
+        self._variable_sensor_axis = sc.axis if sc is not None and sc.kind != "encoder" and not sc.orthogonal \
+            else None
+        self._unread_sensor_warned = False
         #: per axis, everything one cycle touches, resolved once (the loop runs 10^5 times a second)
         self._axes = [(n, self.inputs[n], self.outputs[n], self.controllers[n], self.drives[n], n in self.dc_axes,
                        self.hli[n]) for n in self.axis_names]
@@ -516,6 +521,18 @@ class Machine:
             self.in3d.commands.append(Command3D(Action.RESET))
         self.stop_program(None)
 
+    def _warn_unread_sensor(self, axis: str, t: float, line) -> None:
+        if self._unread_sensor_warned:
+            return
+        self._unread_sensor_warned = True
+        var = self.sensor_variable
+        self.events.append((t, ErrorEvent(
+            id=int(ErrorId.SENSOR_NOT_READ), cycle=self.cycle, line=line, severity="warning",
+            message=f"the distance sensor writes {var}, but axis {axis} reads the second encoder "
+                    f"(SENSOR_SOURCE={self.controllers[axis].state.sensor_source.name}): nobody reads the sensor; "
+                    f"program {axis}[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR={var}] before the select "
+                    f"(FCT-M3 §6, PROG DIST_CTRL), or give the scenario's sensor kind = \"encoder\"")))
+
     def _report_nc_error(self, k: int, t: float) -> None:
         """An NC run-time error stopped the program in cycle ``k`` (docs/run.md): the error is an
         event of that cycle, the motion stops, and a running distance control holds its offset in
@@ -590,7 +607,10 @@ class Machine:
                     var = ctrl.state.sensor_var or self.sensor_variable
                     if var is not None:
                         inp.sensor_variable = self.variables.get(self._var_name(var), float("nan"))
+                selecting = name == self._variable_sensor_axis and bool(inp.commands)
                 ctrl.update(inp, out)
+                if selecting and out.hli_state and ctrl.state.sensor_source is not _VARIABLE:
+                    self._warn_unread_sensor(name, t, line)
                 if out.events:
                     for ev in out.events:
                         self.events.append((t, ev))
