@@ -272,7 +272,7 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
 def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
     """The diagnosis block of distance control (FCT-M3 Fig. 56 layout) after running SCENARIO
     for --seconds: parameters in use, state, set values, offset, sensor, filter, limits, last error."""
-    from ..diag import format_diag_axis
+    from ..objects.diag import format_diag_axis
     from ..sim.machine import Machine
     from ..sim.runner import load_program
     from ..sim.scenario import load_scenario
@@ -286,7 +286,7 @@ def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
         click.echo(f"error: {exc}", err=True)
         sys.exit(1)
     if machine.ch3d is not None and axis_filter is None:
-        from ..diag import format_diag_3d
+        from ..objects.diag import format_diag_3d
 
         click.echo(format_diag_3d(machine.channel3d_values(), sc.channel_params, channel=1,
                                   events=[ev for _, ev in machine.events]))

@@ -26,10 +26,10 @@ from __future__ import annotations
 import math
 from typing import Iterable
 
-from .control.commands3d import CompensationMode
-from .control.states import CommandSource, HliState, InternalState, Mode
-from .errors import ErrorEvent
-from .objects.channel3d import Channel3DValues
+from ..control.commands3d import CompensationMode
+from ..control.states import CommandSource, HliState, InternalState, Mode
+from ..errors import ErrorEvent
+from .channel3d import Channel3DValues
 
 __all__ = ["format_diag_axis", "format_diag_3d", "state_name", "hli_state_name"]
 
@@ -153,7 +153,7 @@ def format_diag_axis(controller, output, axis_name: str, *, axis_index: int = 0,
     events (e.g. a run's event log) listed under ``logged events:`` with this cycle's events and
     the error that holds the controller in ERROR.
     """
-    from .control.cycle_io import CycleOutput
+    from ..control.cycle_io import CycleOutput
     out = output if output is not None else CycleOutput()
     p, t, st = controller.params, controller.tuning, controller.state
     f = t.filter
@@ -394,5 +394,5 @@ def format_diag_3d(values: Channel3DValues, params=None, *, channel: int = 1,
 
 
 def _round(x: float) -> int:
-    from .objects.units import INT32_MAX, INT32_MIN, round_saturate
+    from .units import INT32_MAX, INT32_MIN, round_saturate
     return round_saturate(x, INT32_MIN, INT32_MAX)

@@ -7,7 +7,7 @@ import re
 import pytest
 
 from distctrl.control import Action, AxisDistanceController, Command, CycleInput, CycleOutput, ObjectWrite
-from distctrl.diag import format_diag_3d, format_diag_axis
+from distctrl.objects.diag import format_diag_3d, format_diag_axis
 from distctrl.errors3d import make_event_3d
 from distctrl.objects.channel3d import Channel3DValues
 from distctrl.params import AxisParameters
@@ -239,7 +239,7 @@ def test_unknown_state_codes_are_named(bad_state):
 
 def test_docs_diag_md_explains_every_field_of_fig_56():
     from pathlib import Path
-    doc = (Path(__file__).resolve().parents[1] / "docs" / "diag.md").read_text(encoding="utf-8")
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "diag.md").read_text(encoding="utf-8")
     for name in FIG56_DISTANCE_CONTROL + FIG56_INTERFACE:
         assert f"`{name}`" in doc, name
 
