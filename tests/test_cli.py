@@ -57,8 +57,8 @@ def test_objects_lists_the_object_browser_table_for_a_scenario():
                                     "--cycles", "300"])
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
-    assert lines[0].split()[:4] == ["Nr", "Gruppe", "Offset", "Bezeichner"]
-    kp = next(line for line in lines if "DIST_CTRL::kp " in line or line.split()[3] == "DIST_CTRL::kp")
+    assert lines[0].split()[:5] == ["No", "Axis", "Group", "Offset", "Name"]
+    kp = next(line for line in lines if "DIST_CTRL::kp " in line)
     assert "0x120300" in kp and "0x33106" in kp and "REAL64" in kp and "read/write" in kp
     # the 25 objects of FCT-M3 §9.4, Fig. 34's four general axis objects and the two TF5200 aliases
     assert len([line for line in lines[2:] if line.strip()]) == 31

@@ -25,31 +25,71 @@ def main() -> None:
     """distctrl: CNC distance (height) control — the ISG-kernel control law as a pure cycle core."""
 
 
+#: keys that only a channel list (3D distance control, FCT-M3 §12.8) has
+_CHANNEL_KEY_PREFIXES = ("dist_ctrl[", "configuration.")
+
+
+def _list_kind(path: str) -> str:
+    """'channel' when the list's first parameter key is a channel key, else 'axis'."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            for raw in f:
+                line = raw.split("#", 1)[0].strip()
+                if line:
+                    return "channel" if line.startswith(_CHANNEL_KEY_PREFIXES) else "axis"
+    except OSError:
+        pass
+    return "axis"
+
+
 @main.command()
 @click.argument("list_file", type=click.Path(dir_okay=False))
 @click.option("--all", "show_all", is_flag=True, help="Show every parameter, not only the ones that differ from the defaults.")
 @click.option("--cycle-time", default=0.001, show_default=True, type=float,
               help="GEO cycle time (s) the list is checked against (the low-pass cut-off must lie below 1/(2T)).")
-def params(list_file: str, show_all: bool, cycle_time: float) -> None:
-    """Load and validate an axis parameter LIST_FILE (kernel format) and print it back."""
+@click.option("--kind", type=click.Choice(["auto", "axis", "channel"]), default="auto", show_default=True,
+              help="An axis list (P-AXIS-, FCT-M3 §9) or a channel list of 3D distance control (P-CHAN-, "
+                   "FCT-M3 §12.8); auto: by the first key (dist_ctrl[..] or configuration.* = channel).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object: kind, file, parameters, warnings.")
+def params(list_file: str, show_all: bool, cycle_time: float, kind: str, as_json: bool) -> None:
+    """Load and validate a parameter LIST_FILE (kernel format, axis or channel list) and print it back."""
     from ..control.controller import AxisDistanceController
     from ..errors import ParameterError
     from ..params import format_list, load_list
+    from ..params.channel import CHANNEL_LIST, load_channel_list
+    from ..params.listfile import AXIS_LIST, list_entries
+    from .common import emit_json, fail
 
+    kind = _list_kind(list_file) if kind == "auto" else kind
     try:
-        pl = load_list(list_file)
+        if kind == "channel":
+            pl = load_channel_list(list_file)
+            checked, fmt = pl.params.to_axis_parameters(), CHANNEL_LIST
+            key, fg_id = "dist_ctrl[0].low_pass_filter_fg_f0", "P-CHAN-00817"
+        else:
+            pl = load_list(list_file)
+            checked, fmt = pl.params, AXIS_LIST
+            key, fg_id = "kenngr.distc.low_pass_filter_fg_f0", "P-AXIS-00508"
         try:
-            AxisDistanceController(pl.params, cycle_time)        # what only the cycle time can decide
+            AxisDistanceController(checked, cycle_time)        # what only the cycle time can decide
         except ParameterError as exc:
-            line = pl.lines.get("kenngr.distc.low_pass_filter_fg_f0") if exc.param_id == "P-AXIS-00508" else None
-            raise ParameterError(str(exc), file=list_file, line=line, key=exc.key, param_id=exc.param_id,
+            fg = exc.param_id == "P-AXIS-00508"        # the low-pass cut-off against Nyquist
+            message = str(exc).replace("P-AXIS-00508", fg_id) if fg else str(exc)
+            raise ParameterError(message, file=list_file, line=pl.lines.get(key) if fg else None,
+                                 key=key if fg else exc.key, param_id=fg_id if fg else exc.param_id,
                                  value=exc.value, allowed=exc.allowed) from None
     except DistCtrlError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(1)
+        fail(str(exc))
+    except OSError as exc:
+        fail(f"cannot read {list_file}: {exc.strerror or exc}")
+    if as_json:
+        emit_json({"file": list_file, "kind": kind, "cycle_time_s": cycle_time, "valid": True,
+                   "only_changed": not show_all, "warnings": list(pl.warnings),
+                   "parameters": list_entries(pl.params, only_changed=not show_all, fmt=fmt)})
+        return
     for w in pl.warnings:
         click.echo(f"warning: {w}", err=True)
-    click.echo(format_list(pl.params, only_changed=not show_all), nl=False)
+    click.echo(format_list(pl.params, only_changed=not show_all, fmt=fmt), nl=False)
 
 
 @main.command()
@@ -187,16 +227,36 @@ def _print_summary(result, trace_path, plot_path) -> None:
 @main.command()
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
 @click.option("--axis", "axis_filter", help="Only this axis (name).")
-@click.option("--cycles", default=0, show_default=True, help="Run the scenario this many cycles first, so the values are live.")
-def objects(scenario: str | None, axis_filter: str | None, cycles: int) -> None:
-    """List the CNC objects of distance control like the object browser (FCT-M3 §7.6).
+@click.option("--cycles", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Run the scenario this many cycles first, so the values are live.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object (with --watch: one object per line and refresh).")
+@click.option("--watch", is_flag=True,
+              help="Read the objects over ADS from a running `distctrl serve` and refresh the table "
+                   "(SCENARIO, if given, names the axes; Ctrl-C stops).")
+@click.option("--host", default="127.0.0.1", show_default=True, help="--watch: address of the served machine.")
+@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="--watch: its AMS NetId.")
+@click.option("--interval", default=0.5, show_default=True, type=click.FloatRange(min=0.02),
+              help="--watch: seconds between refreshes.")
+@click.option("--count", default=0, show_default=True, type=click.IntRange(min=0),
+              help="--watch: stop after this many refreshes (0: until Ctrl-C).")
+def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json: bool, watch: bool, host: str,
+            net_id: str, interval: float, count: int) -> None:
+    """List the CNC objects of distance control like the object browser (FCT-M3 §7.6): per axis the
+    raw value in the object's unit, the value in mm / mm/s / mm/s² and the state names.
 
     With SCENARIO the axes (axis_id from 1 in X Y Z A B C order) and their parameter lists come from
     it; without, one axis with default parameters. Index group 0x120300, offset (axis_id << 16) | 0x3xxx,
-    task GEO, ADS port 551.
+    task GEO, ADS port 551. With --watch the values are read over ADS from `distctrl serve`.
     """
+    from ..objects.browser import format_rows, json_rows, local_rows
+    from .common import emit_json, fail
+
+    if watch:
+        _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count)
+        return
     from ..control import AxisDistanceController, CycleOutput
-    from ..objects.registry import AxisObjectContext, format_object_table, object_table
+    from ..objects.registry import AxisObjectContext
 
     try:
         if scenario is None:
@@ -216,14 +276,75 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int) -> None:
                                                  sc.axes[n].resolution or 1e-4)
                         for i, n in enumerate(machine.axis_names)}
     except DistCtrlError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(1)
+        fail(str(exc))
     if axis_filter:
         contexts = {k: c for k, c in contexts.items() if c.axis_name == axis_filter}
         if not contexts:
-            click.echo(f"error: no axis {axis_filter!r}", err=True)
-            sys.exit(1)
-    click.echo(format_object_table(object_table(contexts)), nl=False)
+            fail(f"no axis {axis_filter!r}")
+    rows = local_rows(contexts)
+    if as_json:
+        emit_json({"scenario": scenario, "cycles": cycles, "objects": json_rows(rows)})
+    else:
+        click.echo(format_rows(rows), nl=False)
+
+
+def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count) -> None:
+    """``objects --watch``: the table of a served machine, refreshed every ``interval`` seconds."""
+    import time
+
+    from ..objects.browser import format_rows, json_rows, remote_rows
+    from ..objects.registry import BY_NAME, index_offset
+    from .common import fail, json_text
+
+    try:
+        import pyads
+    except ImportError:
+        fail("--watch needs pyads (pip install pyads), the ADS client it reads the served machine with")
+    names: dict[int, str] = {}
+    resolution = 1e-4
+    if scenario is not None:
+        from ..sim.scenario import load_scenario
+
+        try:
+            sc = load_scenario(scenario)
+        except DistCtrlError as exc:
+            fail(str(exc))
+        order = [n for n in "XYZABC" if n in sc.axes] + [n for n in sc.axes if n not in "XYZABC"]
+        names = {i + 1: n for i, n in enumerate(order)}
+        resolution = next((sc.axes[n].resolution for n in order if sc.axes[n].resolution), 1e-4)
+    conn = pyads.Connection(net_id, 551, host)
+    try:
+        conn.open()
+        if not names:                        # ask the server: axis ids answer until 0x703 (no such axis)
+            kp = BY_NAME["DIST_CTRL::kp"]
+            for axis_id in range(1, 33):
+                try:
+                    conn.read(kp.index_group, index_offset(axis_id, kp), pyads.PLCTYPE_LREAL)
+                except pyads.ADSError:
+                    break
+                names[axis_id] = f"axis{axis_id}"
+        if axis_filter:
+            names = {i: n for i, n in names.items() if n == axis_filter}
+            if not names:
+                fail(f"no axis {axis_filter!r}")
+        shown = 0
+        while count == 0 or shown < count:
+            rows = remote_rows(conn, names, resolution)
+            shown += 1
+            if as_json:
+                click.echo(json_text({"host": host, "net_id": net_id, "refresh": shown,
+                                      "objects": json_rows(rows)}).replace("\n", " "))
+            else:
+                if sys.stdout.isatty():
+                    click.echo("\x1b[2J\x1b[H", nl=False)         # clear the terminal, like watch(1)
+                click.echo(f"{net_id} at {host}, refresh {shown} (every {interval:g} s; Ctrl-C stops)")
+                click.echo(format_rows(rows), nl=False)
+            if count == 0 or shown < count:
+                time.sleep(interval)
+    except pyads.ADSError as exc:
+        fail(f"ADS {host} ({net_id}): {exc}")
+    finally:
+        conn.close()
 
 
 @main.command()
@@ -267,15 +388,19 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
 
 @main.command(short_help="The diagnosis block of distance control (layout of FCT-M3 Fig. 56).")
 @click.argument("scenario", type=click.Path(dir_okay=False))
-@click.option("--seconds", default=1.0, show_default=True, help="Run the scenario this long first.")
+@click.option("--seconds", default=1.0, show_default=True, type=click.FloatRange(min=0.0),
+              help="Run the scenario this long first [s].")
 @click.option("--axis", "axis_filter", help="Only this axis (name).")
-def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object: the blocks with every value as a number and its unit.")
+def diag(scenario: str, seconds: float, axis_filter: str | None, as_json: bool) -> None:
     """The diagnosis block of distance control (FCT-M3 Fig. 56 layout) after running SCENARIO
     for --seconds: parameters in use, state, set values, offset, sensor, filter, limits, last error."""
-    from ..objects.diag import format_diag_axis
+    from ..objects.diag import diag_3d, diag_axis
     from ..sim.machine import Machine
     from ..sim.runner import load_program
     from ..sim.scenario import load_scenario
+    from .common import emit_json, fail
 
     try:
         sc = load_scenario(scenario)
@@ -283,23 +408,21 @@ def diag(scenario: str, seconds: float, axis_filter: str | None) -> None:
         for _ in range(int(round(seconds / sc.cycle_time))):
             machine.step()
     except DistCtrlError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(1)
+        fail(str(exc))
+    events = [ev for _, ev in machine.events]
+    blocks = []
     if machine.ch3d is not None and axis_filter is None:
-        from ..objects.diag import format_diag_3d
-
-        click.echo(format_diag_3d(machine.channel3d_values(), sc.channel_params, channel=1,
-                                  events=[ev for _, ev in machine.events]))
+        blocks.append(diag_3d(machine.channel3d_values(), sc.channel_params, channel=1, events=events))
     axes = [n for n in machine.dc_axes if axis_filter in (None, n)]
-    if not axes and machine.ch3d is not None:
+    if not axes and not blocks:
+        fail(f"no distance-controlled axis {axis_filter or ''}".rstrip())
+    blocks += [diag_axis(machine.controllers[n], machine.outputs[n], n,
+                         axis_index=machine.axis_names.index(n) + 1, events=events) for n in axes]
+    if as_json:
+        emit_json({"scenario": scenario, "seconds": seconds, "blocks": [b.to_dict() for b in blocks]})
         return
-    if not axes:
-        click.echo(f"error: no distance-controlled axis {axis_filter or ''}".rstrip(), err=True)
-        sys.exit(1)
-    for n in axes:
-        events = [ev for _, ev in machine.events]
-        click.echo(format_diag_axis(machine.controllers[n], machine.outputs[n], n,
-                                    axis_index=machine.axis_names.index(n) + 1, events=events))
+    for b in blocks:
+        click.echo(b.text())
 
 
 @main.command()

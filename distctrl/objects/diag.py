@@ -128,23 +128,60 @@ def _last_error_lines(ev: ErrorEvent | None) -> list[_Line]:
             ("last_error_text", ev.message, "-")]
 
 
-def _assemble(header: list[_Line], title: str, blocks: list[tuple[str, list[_Line] | list[str]]]) -> str:
-    text = [title]
-    text += [f"{n}: {v} [{u}]" for n, v, u in header]
-    for name, lines in blocks:
-        text.append("")
-        if name == "logged events":
-            text.append("logged events:")
-            text += list(lines)          # already formatted
-        else:
-            text += _section(name, lines)   # type: ignore[arg-type]
-    return "\n".join(text) + "\n"
+class DiagBlock:
+    """One diagnosis block: a title, header lines and sections of ``(name, value, unit)`` lines (the
+    ``logged events`` section: formatted event lines). ``text()`` is the Fig. 56 layout,
+    ``to_dict()`` what ``distctrl diag --json`` prints (numbers as numbers, units beside them)."""
+
+    def __init__(self, title: str, header: list[_Line], blocks: list[tuple[str, list]]):
+        self.title, self.header, self.blocks = title, header, blocks
+
+    def text(self) -> str:
+        text = [self.title]
+        text += [f"{n}: {v} [{u}]" for n, v, u in self.header]
+        for name, lines in self.blocks:
+            text.append("")
+            if name == "logged events":
+                text.append("logged events:")
+                text += list(lines)          # already formatted
+            else:
+                text += _section(name, lines)   # type: ignore[arg-type]
+        return "\n".join(text) + "\n"
+
+    @staticmethod
+    def _value(v: str):
+        try:
+            x = float(v)
+        except (TypeError, ValueError):
+            return None if v == "-" else v
+        return int(x) if x.is_integer() and "." not in v and "e" not in v.lower() else x
+
+    def to_dict(self) -> dict:
+        def fields(lines):
+            return {n: {"value": self._value(v), "unit": u} for n, v, u in lines}
+        out: dict = {"title": self.title, **fields(self.header), "sections": {}}
+        for name, lines in self.blocks:
+            if name == "logged events":
+                out["logged_events"] = [] if list(lines) == ["(none)"] else list(lines)
+            else:
+                out["sections"][name] = fields(lines)
+        return out
+
+
+def _assemble(header: list[_Line], title: str, blocks: list[tuple[str, list[_Line] | list[str]]]) -> DiagBlock:
+    return DiagBlock(title, header, blocks)
 
 
 # ============================================================================ axis variant
 
 def format_diag_axis(controller, output, axis_name: str, *, axis_index: int = 0,
                      events: Iterable[ErrorEvent] = ()) -> str:
+    """The text of :func:`diag_axis`."""
+    return diag_axis(controller, output, axis_name, axis_index=axis_index, events=events).text()
+
+
+def diag_axis(controller, output, axis_name: str, *, axis_index: int = 0,
+              events: Iterable[ErrorEvent] = ()) -> DiagBlock:
     """The diagnosis dump of one axis's distance control (Fig. 56 layout, axis variant).
 
     ``controller`` is the axis's :class:`~distctrl.control.AxisDistanceController`, ``output`` its
@@ -268,6 +305,12 @@ _ROTARY_UNIT = {"mm": "°", "mm/s": "°/s", "mm/s²": "°/s²"}
 
 def format_diag_3d(values: Channel3DValues, params=None, *, channel: int = 1,
                    events: Iterable[ErrorEvent] = ()) -> str:
+    """The text of :func:`diag_3d`."""
+    return diag_3d(values, params, channel=channel, events=events).text()
+
+
+def diag_3d(values: Channel3DValues, params=None, *, channel: int = 1,
+            events: Iterable[ErrorEvent] = ()) -> DiagBlock:
     """The diagnosis dump of a channel's 3D distance control (Fig. 55/56 layout).
 
     ``values`` is the channel's :class:`Channel3DValues` (or any object with its attributes);

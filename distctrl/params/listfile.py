@@ -223,26 +223,36 @@ def load_list(path: str | Path, base: Any = None, *, fmt: ListFormat = AXIS_LIST
     return parse_list_text(text, str(p), base, fmt=fmt)
 
 
-def format_list(params: Any, *, only_changed: bool = False, comments: bool = True,
-                fmt: ListFormat = AXIS_LIST) -> str:
-    """Write parameters in the kernel list format (loadable again by :func:`parse_list_text`)."""
+def list_entries(params: Any, *, only_changed: bool = False, fmt: ListFormat = AXIS_LIST) -> list[dict]:
+    """The list's parameters as ``{key, id, value, unit, description}`` in the list's units (what
+    :func:`format_list` writes and ``distctrl params --json`` prints)."""
     defaults = fmt.target()
-    rows = []
     rotary = fmt.rotary_field is not None and getattr(params, "rotary", False)
 
     def interface(p, spec):
         v = getattr(p, spec.field)
         return fmt.to_interface(spec, v, rotary) if fmt.rotary_field is not None else fmt.to_interface(spec, v)
+    out = []
     for spec in fmt.specs:
         value = interface(params, spec)
         if only_changed and value == interface(defaults, spec):
             continue
-        text = f"{value:.12g}" if isinstance(value, float) else str(value)
         unit = spec.unit_rotary if rotary and spec.unit_rotary else spec.unit
-        rows.append(f"{spec.key:<44} {text:<14}" + (f" # {spec.id} [{unit}] {spec.description}"
+        out.append({"key": spec.key, "id": spec.id, "value": value, "unit": unit, "description": spec.description})
+    return out
+
+
+def format_list(params: Any, *, only_changed: bool = False, comments: bool = True,
+                fmt: ListFormat = AXIS_LIST) -> str:
+    """Write parameters in the kernel list format (loadable again by :func:`parse_list_text`)."""
+    rows = []
+    for e in list_entries(params, only_changed=only_changed, fmt=fmt):
+        value = e["value"]
+        text = f"{value:.12g}" if isinstance(value, float) else str(value)
+        rows.append(f"{e['key']:<44} {text:<14}" + (f" # {e['id']} [{e['unit']}] {e['description']}"
                                                     if comments else ""))
     return "\n".join(r.rstrip() for r in rows) + "\n"
 
 
 __all__ = ["ParameterList", "ListFormat", "KeyProblem", "AXIS_LIST", "parse_list_text", "load_list",
-           "format_list", "parse_value", "canonical_key", "check_internal"]
+           "format_list", "list_entries", "parse_value", "canonical_key", "check_internal"]

@@ -207,12 +207,17 @@ def figure_bytes(fig: "Figure", fmt: str = "png", dpi: int = 100) -> bytes:
     return buf.getvalue()
 
 
+#: what ``distctrl plot -o`` writes (matplotlib formats by suffix; .jpg is JPEG)
+OUTPUT_FORMATS = ("png", "svg", "pdf", "jpeg")
+
+
 def plot_trace_file(trace_csv: str | os.PathLike, out: str | os.PathLike | None = None,
                     signals: list[str] | None = None, t0: float | None = None, t1: float | None = None,
                     errors_path: str | os.PathLike | None = None, title: str | None = None) -> Path:
-    """Load a trace CSV (with its sidecar), draw it and save the figure; returns the output path.
+    """Load a trace (a CSV with its sidecar, or the ``.parquet`` file ``distctrl run`` writes), draw it
+    and save the figure; returns the output path.
 
-    Default ``out``: the CSV's path with the suffix ``.png``. Raises :class:`PlotError`.
+    Default ``out``: the trace's path with the suffix ``.png``. Raises :class:`PlotError`.
     """
     from ..trace import Trace
     from ..trace.plot import plot_trace
@@ -221,7 +226,12 @@ def plot_trace_file(trace_csv: str | os.PathLike, out: str | os.PathLike | None 
     if not src.is_file():
         raise PlotError(f"{src}: no such trace file" if not src.exists() else f"{src}: not a file")
     try:
-        trace = Trace.from_csv(src)
+        if src.suffix.lower() == ".parquet":
+            from .parquet import from_parquet
+
+            trace = from_parquet(src)
+        else:
+            trace = Trace.from_csv(src)
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         raise PlotError(f"{src}: cannot read the trace: {exc}") from None
     sigs = resolve_signals(trace, signals, str(src)) if signals is not None else None
@@ -234,8 +244,9 @@ def plot_trace_file(trace_csv: str | os.PathLike, out: str | os.PathLike | None 
         raise PlotError(f"{src}: no rows between --from {t0} and --to {t1} (the trace covers {span})")
     out_path = Path(out) if out is not None else src.with_suffix(".png")
     fmt = out_path.suffix.lstrip(".").lower()
-    if fmt not in ("png", "svg", "pdf"):
-        raise PlotError(f"{out_path}: the output must end in .png, .svg or .pdf")
+    fmt = "jpeg" if fmt == "jpg" else fmt
+    if fmt not in OUTPUT_FORMATS:
+        raise PlotError(f"{out_path}: the output must end in .png, .svg, .pdf, .jpg or .jpeg")
     heading = title
     if heading is None:
         heading = part.meta.get("title") or part.meta.get("program") or part.meta.get("scenario") or src.name
@@ -256,20 +267,21 @@ def _split_signals(value: str | None) -> list[str] | None:
 
 
 @click.command("plot")
-@click.argument("trace_csv", metavar="TRACE.csv", type=click.Path(dir_okay=False))
+@click.argument("trace_csv", metavar="TRACE", type=click.Path(dir_okay=False))
 @click.option("--signals", help="Comma-separated columns to plot (one panel per unit); default: the "
               "standard panels (positions, distance-control signals, distance).")
 @click.option("--from", "t_from", type=float, default=None, help="Start of the time window [s].")
 @click.option("--to", "t_to", type=float, default=None, help="End of the time window [s].")
 @click.option("-o", "--output", "out", type=click.Path(dir_okay=False),
-              help="Output file (.png, .svg or .pdf); default: TRACE with the suffix .png.")
+              help="Output file (.png, .svg, .pdf, .jpg); default: TRACE with the suffix .png.")
 @click.option("--errors", "errors_path", type=click.Path(dir_okay=False),
               help="JSON of 'distctrl run --json' whose errors/warnings are marked (default: the "
               "trace sidecar's meta, if it lists them).")
 @click.option("--title", default=None, help="Figure title (default: the trace's program/scenario).")
 def plot(trace_csv: str, signals: str | None, t_from: float | None, t_to: float | None, out: str | None,
          errors_path: str | None, title: str | None) -> None:
-    """Plot a saved trace TRACE.csv scope-style: signals over time, state bands, error markers.
+    """Plot a saved trace TRACE (.csv with its sidecar, or .parquet, as `distctrl run --trace` writes
+    them) scope-style: signals over time, state bands, error markers.
 
     Exit code 0 when the plot was written, 1 for a missing file, an unknown signal (the message
     names the closest column), an empty time window or an unsupported output format.
