@@ -434,6 +434,11 @@ class InvariantChecker:
         # -- tuning adoption (CNC-object writes only on INACTIVE/FREEZE -> ACTIVE / ACTIVE_CONST_DIST)
         if prev is not None:
             select_from_rest = bool(actions & set(SELECTS)) and pre in ADOPTING and state in TRACKING
+            # a select that was taken (adopting the writes) and hit a monitoring error in the same cycle
+            monitoring = {70329, 70330, 70576, 70331, 900001, 900002}
+            select_from_rest = select_from_rest or (bool(actions & set(SELECTS)) and pre in ADOPTING
+                                                    and state == S.ERROR
+                                                    and any(e.id in monitoring for e in out.events))
             for name in ("v_max_param", "a_max_param", "kp", "i_tn", "d_tv"):
                 if getattr(out, name) != getattr(prev, name) and not select_from_rest:
                     nc = name in ("kp", "i_tn", "d_tv") and any(getattr(c, name) is not None for c in cmds)
