@@ -67,6 +67,8 @@ POLE_TOLERANCE = 1e-9
 #: the machine time a scenario is run at most to find the first select (s)
 SELECT_SEARCH_S = 60.0
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+#: crossings listed in the text (all of them in to_dict)
+MAX_CROSSINGS_SHOWN = 8
 #: one cycle: the machine's sensor reads the axis position the drive reached in the previous cycle
 READ_DELAY_CYCLES = 1
 
@@ -413,6 +415,9 @@ class MarginResult:
     gain following KP as the core computes it) reaches the stability limit, searched up to
     :data:`KP_SEARCH_MAX`; ``limit_frequency_hz`` the oscillation there (the critical closed-loop pole).
     ``kp_times_gain_margin`` is KP x gain margin (equal to ``kp_limit`` when the D part is off).
+    ``spectral_radius`` is the largest |z| of the closed loop's poles and ``pole_frequency_hz`` that
+    pole's frequency: a small disturbance decays (or grows) by the factor |z| per cycle, oscillating
+    at that frequency.
     """
 
     model: LoopModel
@@ -422,8 +427,13 @@ class MarginResult:
     phase_crossover_hz: float | None
     gain_crossover_hz: float | None
     spectral_radius: float
+    pole_frequency_hz: float
     kp_limit: float | None
     limit_frequency_hz: float | None
+    #: every crossing python-control found: (gain margin, phase crossover in Hz) and (phase margin in
+    #: deg, gain crossover in Hz), lowest frequency first
+    gain_margins: tuple[tuple[float, float], ...] = ()
+    phase_margins: tuple[tuple[float, float], ...] = ()
 
     @property
     def stable(self) -> bool:
@@ -465,7 +475,9 @@ class MarginResult:
                 "phase_crossover_hz": self.phase_crossover_hz, "gain_crossover_hz": self.gain_crossover_hz,
                 "kp": self.model.kp, "kp_limit": self.kp_limit, "kp_times_gain_margin": self.kp_times_gain_margin,
                 "limit_frequency_hz": self.limit_frequency_hz,
-                "closed_loop_pole_max_abs": r,
+                "all_gain_margins": [{"gain_margin": g, "phase_crossover_hz": f} for g, f in self.gain_margins],
+                "all_phase_margins": [{"phase_margin_deg": p, "gain_crossover_hz": f} for p, f in self.phase_margins],
+                "closed_loop_pole_max_abs": r, "closed_loop_pole_hz": self.pole_frequency_hz,
                 "closed_loop_growth_per_s": math.log(r) / self.model.cycle_time if r > 0 else None}
 
     # -- text -------------------------------------------------------------------------------------------
@@ -502,6 +514,18 @@ class MarginResult:
                                                    self.gain_crossover_hz is not None else "")))
         lines.append(f"  phase crossover:  {_hz(self.phase_crossover_hz)} (-180 deg)")
         lines.append(f"  gain crossover:   {_hz(self.gain_crossover_hz)} (|L| = 1)")
+        n_cross = len(self.gain_margins) + len(self.phase_margins)
+        if n_cross > 2:
+            lines.append(f"  {n_cross} crossings in all (the figures above are the ones closest to the limit, as "
+                         f"python-control chooses them" + ("; --json lists every one)" if n_cross > MAX_CROSSINGS_SHOWN
+                                                            else "):"))
+            if n_cross <= MAX_CROSSINGS_SHOWN:
+                lines.extend(f"    gain margin {g:.4g} ({20 * math.log10(g):+.2f} dB) at {_hz(f)}"
+                             for g, f in self.gain_margins)
+                lines.extend(f"    phase margin {p:.2f} deg at {_hz(f)}" for p, f in self.phase_margins)
+            elif self.phase_margins and self.phase_margins[0][1] != self.gain_crossover_hz:
+                p, f = self.phase_margins[0]
+                lines.append(f"    the lowest gain crossover: phase margin {p:.2f} deg at {_hz(f)}")
         if self.kp_limit is None:
             lines.append(f"  KP at the stability limit: - (none up to KP = {KP_SEARCH_MAX:g})")
         else:
@@ -514,9 +538,14 @@ class MarginResult:
             lines.append(f"  KP at the stability limit: {self.kp_limit:.4g}{beyond}, oscillating there at "
                          f"{_hz(self.limit_frequency_hz)}{extra}")
         r = self.spectral_radius
-        lines.append(f"  closed loop: largest pole |z| = {r:.6f} per cycle "
-                     f"({math.log(r) / T if r > 0 else -math.inf:+.1f} 1/s: "
-                     f"{'decays' if r < 1 - 1e-6 else 'grows' if r > 1 + 1e-6 else 'neither grows nor decays'})")
+        rate = math.log(r) / T if r > 0 else -math.inf
+        if r == 0.0:
+            lines.append("  closed loop: every pole at z = 0: a small disturbance is gone after a few cycles "
+                         "(dead-beat)")
+            return "\n".join(lines) + "\n"
+        lines.append(f"  closed loop: largest pole |z| = {r:.6f} per cycle at {_hz(self.pole_frequency_hz)}: a small "
+                     f"disturbance {'decays' if r < 1 - 1e-6 else 'grows' if r > 1 + 1e-6 else 'neither grows nor decays'}"
+                     + ("" if abs(r - 1.0) <= 1e-6 else f" ({rate:+.1f} 1/s, time constant {abs(1.0 / rate) * 1e3:.1f} ms)"))
         return "\n".join(lines) + "\n"
 
     # -- plot -------------------------------------------------------------------------------------------
@@ -532,7 +561,7 @@ class MarginResult:
             path = check_plot_path(path)
         m = self.model
         T = m.cycle_time
-        loop = m.loop()
+        loop = control.tf(m.loop(), name="L")
         fig = Figure(figsize=(13.0 if nyquist else 8.5, 6.4), layout="constrained")
         FigureCanvasAgg(fig)
         if nyquist:
@@ -561,7 +590,7 @@ class MarginResult:
                                      unit_circle=True)
             ax_ny.set_xlim(-3.0, 1.5)
             ax_ny.set_ylim(-2.5, 2.5)
-            ax_ny.set_aspect("equal", adjustable="datalim")
+            ax_ny.set_aspect("equal", adjustable="box")
             ax_ny.set_xlabel("Re L")
             ax_ny.set_ylabel("Im L")
             ax_ny.set_title("Nyquist (zoom on -1)", fontsize="medium")
@@ -636,16 +665,54 @@ def analyse(model: LoopModel) -> MarginResult:
     import control
 
     loop = model.loop()
+    T = model.cycle_time
     with warnings.catch_warnings():
         # python-control falls back from its polynomial to its frequency-response method for some
         # discrete loops and says so; the fallback is what we want
         warnings.simplefilter("ignore")
-        gm, pm, sm, wpc, wgc, _ = control.stability_margins(loop)
-    radius, _ = _critical(model)
-    kpl, f_lim = kp_limit(model)
+        _, _, sms, wpcs, wgcs, _ = (np.atleast_1d(np.asarray(v, dtype=float))
+                                    for v in control.stability_margins(loop, returnall=True))
+    # python-control's polynomial method can report a crossing that is none (seen: a "phase crossover"
+    # at 2e-4 Hz next to the offset integrator's pole, where the phase is -90 deg); every crossing is
+    # checked on the frequency response itself, duplicates are dropped, and a phase crossover exactly at
+    # the Nyquist frequency (z = -1, e.g. KP / (z - 1)), which python-control does not report, is added
+    w_nyq = math.pi / T
+
+    def response(w: float) -> complex:
+        return complex(loop(complex(math.cos(w * T), math.sin(w * T))))
+
+    phase_x: dict[float, float] = {}          # frequency (rad/s) -> gain margin
+    for w in list(wpcs) + [w_nyq]:
+        if not (math.isfinite(w) and 0.0 < w <= w_nyq * (1.0 + 1e-9)):
+            continue
+        resp = response(w)
+        if resp.real < 0.0 and abs(resp.imag) <= 1e-6 * abs(resp) and \
+                not any(math.isclose(w, v, rel_tol=1e-6) for v in phase_x):
+            phase_x[w] = 1.0 / abs(resp)
+    gain_x: dict[float, float] = {}           # frequency (rad/s) -> phase margin (deg)
+    for w in wgcs:
+        if not (math.isfinite(w) and 0.0 < w <= w_nyq * (1.0 + 1e-9)):
+            continue
+        resp = response(w)
+        if abs(abs(resp) - 1.0) <= 1e-6 and not any(math.isclose(w, v, rel_tol=1e-6) for v in gain_x):
+            gain_x[w] = float(np.remainder(np.angle(resp, deg=True), 360.0) - 180.0)
+    # as python-control's own choice: the gain margin closest to 1, the smallest |phase margin|
+    gm = wpc = pm = wgc = math.inf
+    if phase_x:
+        wpc = min(phase_x, key=lambda w: abs(math.log(phase_x[w])))
+        gm = phase_x[wpc]
+    if gain_x:
+        wgc = min(gain_x, key=lambda w: abs(gain_x[w]))
+        pm = gain_x[wgc]
+    sm = float(np.min(sms)) if sms.size else math.inf
     to_hz = 1.0 / (2.0 * math.pi)
+    all_gm = tuple((float(phase_x[w]), float(w) * to_hz) for w in sorted(phase_x))
+    all_pm = tuple((float(gain_x[w]), float(w) * to_hz) for w in sorted(gain_x))
+    radius, f_pole = _critical(model)
+    kpl, f_lim = kp_limit(model)
     return MarginResult(model=model, gain_margin=_finite(gm), phase_margin_deg=_finite(pm),
                         stability_margin=_finite(sm),
                         phase_crossover_hz=None if _finite(gm) is None or _finite(wpc) is None else wpc * to_hz,
                         gain_crossover_hz=None if _finite(pm) is None or _finite(wgc) is None else wgc * to_hz,
-                        spectral_radius=radius, kp_limit=kpl, limit_frequency_hz=f_lim)
+                        spectral_radius=radius, pole_frequency_hz=f_pole, kp_limit=kpl, limit_frequency_hz=f_lim,
+                        gain_margins=all_gm, phase_margins=all_pm)
