@@ -345,6 +345,7 @@ def loop_model(scenario: "Scenario | str | os.PathLike", axis: str | None = None
     scenario's duration (at most 60 s) is modelled with the list's values in CONST_DIST, with a note.
     ``kp`` overrides KP (0 < KP <= 2). 3D (channel) distance control is not supported.
     """
+    from ..control.kinds import SensorSource
     from ..control.states import HliState, Mode
     from ..sim.machine import Machine
     from ..sim.runner import load_program
@@ -361,6 +362,10 @@ def loop_model(scenario: "Scenario | str | os.PathLike", axis: str | None = None
                 or not KP_RANGE[0] < kp <= KP_RANGE[1]:
             raise MarginsError(f"KP = {kp!r} is out of range; allowed: {KP_RANGE[0]:g} < KP <= {KP_RANGE[1]:g} "
                                f"(P-AXIS-00759)")
+    if sc.sensor is None or sc.sensor.axis != name:
+        what = "no [sensor]" if sc.sensor is None else f"the sensor measures axis {sc.sensor.axis}"
+        raise MarginsError(f"scenario {sc.name!r}: {what}, so nothing closes the loop of axis {name}; allowed: "
+                           f"a scenario whose [sensor] axis is {name}")
     ax = sc.axes[name]
     notes: list[str] = []
     machine = Machine(sc, load_program(sc))
@@ -378,6 +383,9 @@ def loop_model(scenario: "Scenario | str | os.PathLike", axis: str | None = None
         tuning = ctrl.tuning
         source = f"in force at the first select (t = {machine.cycle * sc.cycle_time:.3f} s)"
         distance = ctrl.state.set_dist if mode == "CONST_DIST" else machine.outputs[name].measured_distance
+        if sc.sensor.kind == "distance" and ctrl.state.sensor_source != SensorSource.VARIABLE:
+            notes.append(f"the sensor writes V.E.{sc.sensor.variable} but {name} reads encoder 2 (no "
+                         f"SENSOR_SOURCE=VARIABLE): in the simulator the loop is open; the model assumes it is read")
     else:
         mode, tuning, distance = "CONST_DIST", None, 0.0
         source = "parameter list"

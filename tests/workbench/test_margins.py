@@ -173,6 +173,32 @@ def test_offset_response_matches_the_simulator_cycle_by_cycle(name):
     np.testing.assert_allclose(y[:150], predicted, atol=2e-6)
 
 
+def test_distance_sensor_with_a_characteristic_matches_the_simulator():
+    """A distance sensor read as a variable (SENSOR_SOURCE=VARIABLE), dead time 1 cycle, whose
+    characteristic has the slope 2 mm/mm: the loop gain doubles, and the model knows it."""
+    from distctrl.sim.scenario import scenario_from_dict
+    from distctrl.workbench.step import DEFAULT_AXIS
+
+    base = scenario_from_dict({
+        "name": "distance sensor", "program_text": "%X\nN10 M30\n",
+        "axes": {"Z": dict(DEFAULT_AXIS, params=str(SCENARIOS / "z_laser.lis"), start=1.0)},
+        "surface": {"base": 0.0},
+        "sensor": {"axis": "Z", "kind": "distance", "variable": "SENSOR", "range_max": 10.0, "delay_cycles": 1,
+                   "characteristic": [[0.0, -1.0], [10.0, 19.0]]}}, base_dir=".")
+    sc, tt, y, clip = step_run(base, StepSetting(0.2), 0.01, duration=0.3, exact=True,
+                               param_changes={"use_both_encoders": False})
+    model = loop_model(sc)
+    assert model.sensor_gain == 2.0 and model.dead_time_cycles == 2
+    assert not clip[:150].any()
+    np.testing.assert_allclose(y[:150], model.offset_response(0.01, 150), atol=1e-9)
+
+
+def test_a_scenario_whose_sensor_is_not_on_the_axis_is_refused():
+    sc = load_scenario(SHEET)
+    with pytest.raises(MarginsError, match="no \\[sensor\\], so nothing closes the loop of axis Z"):
+        loop_model(dataclasses.replace(sc, sensor=None))
+
+
 def test_loop_is_the_product_of_the_blocks_for_plain_const_dist():
     import control
 
