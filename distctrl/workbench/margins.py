@@ -192,48 +192,70 @@ class LoopModel:
         return {"filter": _zinv(self.filter_b, self.filter_a, T), "pi": pi, "d": d, "pid": pi + d,
                 "integration": integ, "dead_time": _delay(self.dead_time_cycles, T), "drive": drive}
 
-    def _paths(self):
-        """(L, G_w): the loop gain around the offset (negative feedback: the closed loop's
-        characteristic is 1 + L) and the path from the surface the sensor sees (a rise w, mm) to the
-        offset, so that o = G_w / (1 + L) w."""
+    def _polynomials(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(L_num, den, G_w_num): the open loop ``L = L_num / den`` and the path from the surface the
+        sensor sees (a rise w, mm) to the offset, ``G_w = G_w_num / den``, as polynomials in ``z^-1``
+        (ascending powers) over **one** denominator, so that ``o = G_w_num / (den + L_num) w`` and the
+        closed loop's poles are the roots of ``den + L_num``. (Adding transfer functions multiplies
+        their denominators: a pole and a zero would cancel only up to rounding and leave spurious
+        closed-loop poles, e.g. on the unit circle.)
+
+        With ``Delta = 1 - z^-1``, the drive ``P = Pn / Pd``, the filter ``F = Fb / Fa``, the dead time
+        ``z^-N`` and the PID ``C = Cn / Cd`` (``Cd = Delta`` with an I part, else 1):
+
+        * the filter input (law.feedback_value) is ``fb = Hn / Pd o + Hw w``: one encoder
+          ``Hn = ks z^-N Pn`` (the distance d), both encoders ``ks z^-N Pn + z^-1 (Pd - Pn)`` (d + c - a,
+          c = p + o_(k-1), a = z^-1 X), SET_POS ``z^-1 Pn - ks z^-N Pn`` (a - d); ``Hw = -+ks z^-(N-1)``;
+        * law.mode_error: CONST_DIST ``e = m = -F fb``, so ``Delta o = -C F fb``; SET_POS ``e = F fb -
+          z^-1 o``, ``m = F fb``, so ``Delta o = C F fb - C_PI z^-1 o`` (the D part is on m only).
+        """
+        P = np.polynomial.polynomial
         T = self.cycle_time
-        b = self.blocks()
-        F, P, integ = b["filter"], b["drive"], b["integration"]
-        n = self.dead_time_cycles
-        ks = self.sensor_gain
-        z1 = _delay(1, T)
-        # the filter input fb = H_o o + H_w w (law.feedback_value)
-        d_o, d_w = ks * _delay(n, T) * P, -ks * _delay(n - 1, T)        # the measured distance d
-        if self.mode == "SET_POS":
-            h_o, h_w, sign = z1 * P - d_o, -d_w, -1.0                       # a - d
-        elif self.both_encoders:
-            h_o, h_w, sign = d_o + z1 - z1 * P, d_w, 1.0                    # d + c - a, c = p + o_(k-1)
+        kvT, ff = self.kv * T, self.feedforward
+        n, ks = self.dead_time_cycles, self.sensor_gain
+        delta = np.array([1.0, -1.0])
+        z1 = np.array([0.0, 1.0])
+        zn = np.r_[np.zeros(n), 1.0]
+        zn1 = np.r_[np.zeros(n - 1), 1.0]
+        pn = np.r_[np.zeros(self.bus_delay_cycles), kvT + ff, -ff]
+        pd = np.array([1.0, -(1.0 - kvT)])
+        fb, fa = np.asarray(self.filter_b, dtype=float), np.asarray(self.filter_a, dtype=float)
+        kp, ti, g = self.kp, self.i_gain, self.d_gain
+        if ti > 0.0:
+            cpi = kp * P.polyadd(delta, [ti])                           # KP (Delta + T/T_n) / Delta
+            cd = delta
+            cn = P.polyadd(cpi, g * P.polymul(delta, delta))
         else:
-            h_o, h_w, sign = d_o, d_w, 1.0                                  # d
-        # law.mode_error: CONST_DIST e = m = -f; SET_POS e = f - o_(k-1), m = f
-        k = b["pid"] * F
-        loop = sign * k * h_o * integ
+            cpi, cd = np.array([kp]), np.array([1.0])
+            cn = P.polyadd([kp], g * delta)
+        d_o = ks * P.polymul(zn, pn)
         if self.mode == "SET_POS":
-            loop = loop + b["pi"] * z1 * integ
-        g_w = -sign * k * h_w * integ
-        return loop, g_w
+            hn, hw, sign = P.polysub(P.polymul(z1, pn), d_o), ks * zn1, -1.0
+        elif self.both_encoders:
+            hn, hw, sign = P.polyadd(d_o, P.polymul(z1, P.polysub(pd, pn))), -ks * zn1, 1.0
+        else:
+            hn, hw, sign = d_o, -ks * zn1, 1.0
+        den = P.polymul(P.polymul(cd, fa), P.polymul(pd, delta))
+        forward = P.polymul(cn, fb)                                     # C F over Cd Fa
+        l_num = sign * P.polymul(forward, hn)
+        if self.mode == "SET_POS":
+            l_num = P.polyadd(l_num, P.polymul(P.polymul(cpi, z1), P.polymul(fa, pd)))
+        g_num = -sign * P.polymul(P.polymul(forward, hw), pd)
+        return l_num, den, g_num
 
     def loop(self) -> "control.TransferFunction":
         """The open loop L(z) (negative feedback): filter x PID x offset integration x dead time x drive
-        in the mode's feedback. For plain CONST_DIST it is exactly that product."""
-        return self._paths()[0]
+        in the mode's feedback. For plain CONST_DIST it is exactly the product of :meth:`blocks`."""
+        l_num, den, _ = self._polynomials()
+        return _zinv(l_num, den, self.cycle_time)
 
     def closed_loop(self) -> "control.TransferFunction":
         """From a rise of the surface the sensor sees (mm) to the offset (mm)."""
-        import control
-
-        loop, g_w = self._paths()
-        return control.minreal(g_w * control.feedback(1, loop), verbose=False)
+        l_num, den, g_num = self._polynomials()
+        return _zinv(g_num, np.polynomial.polynomial.polyadd(den, l_num), self.cycle_time)
 
     def closed_loop_poles(self) -> np.ndarray:
-        import control
-
-        return np.asarray(control.feedback(self.loop(), 1).poles())
+        return np.asarray(self.closed_loop().poles())
 
     def spectral_radius(self) -> float:
         """The largest |z| of the closed loop's poles (> 1: unstable)."""
