@@ -524,11 +524,11 @@ class MarginResult:
                  (f"{m.i_tn:g} s" if m.i_tn > 0 else "0 s (no I part)") +
                  f", D_TV = {m.d_tv:g} s (D gain {m.d_gain:.4g} per cycle)",
                  "    offset       integration of the PID output, 1/(1 - z^-1), no slope limiter",
-                 f"    dead time    {m.dead_time_cycles} cycles = {m.dead_time_cycles * T * 1e3:g} ms (machine read 1, "
-                 f"sensor delay_cycles {m.sensor_delay_cycles}, optimized_scheduling "
+                 f"    dead time    {_cycles(m.dead_time_cycles)} = {m.dead_time_cycles * T * 1e3:g} ms "
+                 f"(machine read 1, sensor delay_cycles {m.sensor_delay_cycles}, optimized_scheduling "
                  f"{'on: 0' if m.optimized_scheduling else 'off: 1'})",
                  f"    drive        kv = {m.kv:g} 1/s, feed-forward {m.feedforward:g}, bus delay "
-                 f"{m.bus_delay_cycles} cycle{'s' if m.bus_delay_cycles != 1 else ''}"
+                 f"{_cycles(m.bus_delay_cycles)}"
                  + (f"; sensor gain {m.sensor_gain:.4g} mm/mm" if m.sensor_gain != 1.0 else "")]
         for note in m.notes:
             lines.append(f"    note: {note}")
@@ -573,9 +573,11 @@ class MarginResult:
             lines.append("  closed loop: every pole at z = 0: a small disturbance is gone after a few cycles "
                          "(dead-beat)")
             return "\n".join(lines) + "\n"
-        lines.append(f"  closed loop: largest pole |z| = {r:.6f} per cycle at {_hz(self.pole_frequency_hz)}: a small "
-                     f"disturbance {'decays' if r < 1 - 1e-6 else 'grows' if r > 1 + 1e-6 else 'neither grows nor decays'}"
-                     + ("" if abs(r - 1.0) <= 1e-6 else f" ({rate:+.1f} 1/s, time constant {abs(1.0 / rate) * 1e3:.1f} ms)"))
+        how = "decays" if r < 1 - 1e-6 else "grows" if r > 1 + 1e-6 else "neither grows nor decays"
+        rate_text = "" if abs(r - 1.0) <= 1e-6 else \
+            f" ({rate:+.1f} 1/s, time constant {abs(1.0 / rate) * 1e3:.1f} ms)"
+        lines.append(f"  closed loop: largest pole |z| = {r:.6f} per cycle at {_hz(self.pole_frequency_hz)}: "
+                     f"a small disturbance {how}{rate_text}")
         return "\n".join(lines) + "\n"
 
     # -- plot -------------------------------------------------------------------------------------------
@@ -626,7 +628,7 @@ class MarginResult:
             ax_ny.set_title("Nyquist (zoom on -1)", fontsize="medium")
         gm = self.gain_margin
         head = (f"axis {m.axis} {m.mode}{' both encoders' if m.both_encoders else ''}, KP = {m.kp:g}, "
-                f"{m.filter_label}, dead time {m.dead_time_cycles} cycles, kv = {m.kv:g} 1/s")
+                f"{m.filter_label}, dead time {_cycles(m.dead_time_cycles)}, kv = {m.kv:g} 1/s")
         tail = (f"gain margin {'-' if gm is None else f'{gm:.3g} ({self.gain_margin_db:+.1f} dB)'}, "
                 f"phase margin {'-' if self.phase_margin_deg is None else f'{self.phase_margin_deg:.1f} deg'}, "
                 f"KP limit {'-' if self.kp_limit is None else f'{self.kp_limit:.3g}'} at "
@@ -636,6 +638,10 @@ class MarginResult:
             path.parent.mkdir(parents=True, exist_ok=True)
             fig.savefig(path, dpi=110)
         return fig
+
+
+def _cycles(n: int) -> str:
+    return f"{n} cycle" if n == 1 else f"{n} cycles"
 
 
 def _hz(f: float | None) -> str:
