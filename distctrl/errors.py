@@ -43,6 +43,7 @@ class ErrorId(IntEnum):
     MODE_OFF_SELECTED = 900023     # 3D warning: select with MODE=OFF, the offset is computed, not superimposed
     SET_DIST_NOT_TOOL_LENGTH = 900024  # 3D warning: CONST_DIST with a transformation on and SET_DIST != tool length
     COLLISION = 900030             # simulator: the tool went into the surface (true distance <= -collision_depth)
+    OSCILLATION = 900032           # simulator warning: the distance error oscillated for whole seconds of tracking
     SENSOR_NOT_READ = 900031       # simulator warning: the distance sensor writes a V.E. variable the axis does not read
 
 
@@ -70,6 +71,8 @@ CATALOGUE: dict[int, tuple[str, str]] = {
     900023: ("warning", "3D distance control selected with MODE=OFF: the offset is computed, not superimposed"),
     900030: ("warning", "Collision: the tool went into the surface (the simulator's true distance reached "
                         "-sensor.collision_depth)"),
+    900032: ("warning", "Oscillation: the distance error oscillated (two whole periods or more above the "
+                        "settle band) in a whole second of tracking"),
     900031: ("warning", "The distance sensor writes a V.E. variable, but the axis reads the second encoder "
                         "(SENSOR_SOURCE is not VARIABLE): nobody reads the sensor"),
     900024: ("warning", "3D distance control: the set distance differs from the tool length of the kinematic "

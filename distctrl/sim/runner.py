@@ -21,6 +21,8 @@ from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
 MAX_RUN_SECONDS = 3600.0
 COLLISION_ID = int(ErrorId.COLLISION)
 COLLISION_TEXT = "Collision"
+OSCILLATION_ID = int(ErrorId.OSCILLATION)
+OSCILLATION_TEXT = "Oscillation"
 #: what a run can end with: outcome -> (exit code, words); docs/run.md
 OUTCOMES = {
     "completed": (ExitCode.OK, "completed"),
@@ -253,17 +255,21 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                 # CONST_DIST, the programmed clamping-point height above SET_POS in SURFACE mode
                 state = out3d.core.hli_state
                 if state == 4:
-                    add_metric(k, machine.true_distance_orth - out3d.orthogonal_set_distance)
+                    add_metric(k, line, machine.true_distance_orth - out3d.orthogonal_set_distance,
+                               machine.true_surface)
                 elif state == 1:
-                    add_metric(k, machine.true_distance - (in3d.programmed_z - out3d.core.set_pos))
+                    add_metric(k, line, machine.true_distance - (in3d.programmed_z - out3d.core.set_pos),
+                               machine.true_surface)
                 elif metrics.inside:
                     metrics.gap()
             elif dc_out is not None:
                 state = dc_out.hli_state
                 if state == 4:
-                    add_metric(k, machine.true_distance - dc_out.set_distance)
+                    add_metric(k, line, machine.true_distance - dc_out.set_distance,
+                               machine.true_surface)
                 elif state == 1:
-                    add_metric(k, machine.true_distance - (dc_inp.programmed_position - dc_out.set_pos))
+                    add_metric(k, line, machine.true_distance - (dc_inp.programmed_position - dc_out.set_pos),
+                               machine.true_surface)
                 elif metrics.inside:
                     metrics.gap()
             if has_truth:
@@ -292,6 +298,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         for t, ev in machine.events:
             item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
             (warnings if ev.severity == "warning" else errors).append(item)
+        warnings.extend(metrics.oscillation_warnings())
         contact.finish()
         for item in contact.warnings("error" if stop_on_collision else "warning"):
             del item["severity"]
@@ -375,7 +382,7 @@ class _Metrics:
     whole periods)."""
 
     __slots__ = ("T", "n", "sq", "max", "band", "hold", "k", "k_start", "inside", "k_entry", "recent",
-                 "paused")
+                 "paused", "since_window", "episode", "episodes", "surface")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
         from collections import deque
@@ -390,9 +397,13 @@ class _Metrics:
         self.inside = 0               # cycles inside the band since the last entry
         self.k_entry = None           # the cycle of the last entry into the band
         self.recent = deque(maxlen=max(2, int(round(1.0 / T))))     # the last second of tracking
+        self.surface = deque(maxlen=self.recent.maxlen)               # the surface under the tool then
         self.paused = False
+        self.since_window = 0         # tracking samples since the last whole-second window was judged
+        self.episode: dict | None = None      # the oscillation going on (whole seconds of tracking)
+        self.episodes: list[dict] = []
 
-    def add(self, k: int, err: float) -> None:
+    def add(self, k: int, line, err: float, surface: float = 0.0) -> None:
         self.k = k
         if self.k_start is None:
             self.k_start = k
@@ -406,6 +417,10 @@ class _Metrics:
             if a > self.max:
                 self.max = a
             self.recent.append(err)
+            self.surface.append(surface)
+            self.since_window += 1
+            if self.since_window == self.recent.maxlen:
+                self._judge_window(k, line)
             if a <= self.band:
                 if self.inside == 0:
                     self.k_entry = k
@@ -418,31 +433,51 @@ class _Metrics:
         if it never does, the settle time is that of the last tracking stretch."""
         self.paused = True
 
+    def _judge_window(self, k: int, line) -> None:
+        """Every whole second of tracking: is the error oscillating? Consecutive oscillating seconds
+        are one episode (a warning 900032 with its start, end, frequency and largest amplitude)."""
+        self.since_window = 0
+        freq, amp = self.oscillation()
+        ep = self.episode
+        if freq is not None:
+            if ep is None:
+                self.episode = {"k0": k - len(self.recent) + 1, "k1": k, "line": line, "freq": freq, "amp": amp}
+            else:
+                ep["k1"] = k
+                if amp > ep["amp"]:
+                    ep["amp"], ep["freq"] = amp, freq
+        elif ep is not None:
+            self.episodes.append(ep)
+            self.episode = None
+
+    def oscillation_warnings(self) -> list[dict]:
+        eps = self.episodes + ([self.episode] if self.episode is not None else [])
+        return [{"id": OSCILLATION_ID, "line": None if e["line"] in (None, -1) else e["line"],
+                 "t": round(e["k0"] * self.T, 9),
+                 "message": f"{OSCILLATION_TEXT}: the distance error oscillated at {e['freq']:.1f} Hz, up to "
+                            f"±{e['amp']:.3f} mm, from t = {e['k0'] * self.T:.3f} s to {e['k1'] * self.T:.3f} s "
+                            f"(whole seconds of tracking)"} for e in eps]
+
     def settle_time(self) -> float | None:
         if self.k_start is None or self.inside < self.hold:
             return None
         return (self.k_entry - self.k_start) * self.T
 
     def oscillation(self) -> tuple[float | None, float | None]:
+        """(frequency or None, amplitude) of the distance error over the last second of tracking.
+
+        An oscillation: the amplitude is above the band, the error makes two whole periods around its
+        mean, and it is not the surface's own waviness followed with a lag: the error swings more than
+        the surface under the tool does, or at more than twice the surface's frequency."""
         if len(self.recent) < 2:
             return None, None
-        e = list(self.recent)
-        amplitude = 0.5 * (max(e) - min(e))
-        if amplitude <= self.band:
+        amplitude, crossings = _swing(self.recent)
+        if amplitude <= self.band or crossings < 4:
             return None, amplitude
-        # crossings of the mean with a hysteresis of a quarter of the amplitude (noise does not count);
-        # two whole periods at least, so a settling transient's overshoot is not an oscillation
-        mean = sum(e) / len(e)
-        h = 0.25 * amplitude
-        side, crossings = 0, 0
-        for x in e:
-            s = 1 if x > mean + h else (-1 if x < mean - h else 0)
-            if s and s != side:
-                crossings += side != 0
-                side = s
-        if crossings < 4:
-            return None, amplitude
-        return crossings / (2.0 * len(e) * self.T), amplitude
+        surface_amplitude, surface_crossings = _swing(self.surface)
+        if amplitude <= surface_amplitude and crossings <= 2 * surface_crossings:
+            return None, amplitude              # the loop follows a wavy surface: a tracking error
+        return crossings / (2.0 * len(self.recent) * self.T), amplitude
 
     def result(self) -> dict:
         freq, amp = self.oscillation()
@@ -450,7 +485,24 @@ class _Metrics:
                 "distance_error_max": self.max if self.n else None,
                 "settle_time": self.settle_time(), "tracking_cycles": self.n,
                 "settle_band_mm": self.band, "settle_hold_s": SETTLE_HOLD_S,
-                "oscillation_frequency_hz": freq, "oscillation_amplitude_mm": amp}
+                "oscillation_frequency_hz": freq, "oscillation_amplitude_mm": amp,
+                "oscillations": len(self.episodes) + (self.episode is not None)}
+
+
+def _swing(values) -> tuple[float, int]:
+    """(half the peak-to-peak, crossings of the mean): crossings count with a hysteresis of a quarter
+    of the amplitude (noise does not count)."""
+    e = list(values)
+    amplitude = 0.5 * (max(e) - min(e))
+    mean = sum(e) / len(e)
+    h = 0.25 * amplitude
+    side, crossings = 0, 0
+    for x in e:
+        s = 1 if x > mean + h else (-1 if x < mean - h else 0)
+        if s and s != side:
+            crossings += side != 0
+            side = s
+    return amplitude, crossings
 
 
 class _Contact:

@@ -141,6 +141,25 @@ def test_the_example_scenarios_do_not_collide_except_at_the_obstacle_wall():
 
 def test_metrics_are_documented_with_units():
     text = (SCN.parents[1] / "docs" / "run.md").read_text(encoding="utf-8")
-    for key in ("oscillation_frequency_hz", "oscillation_amplitude_mm", "min_distance_mm", "time_below_zero_s",
+    for key in ("oscillation_frequency_hz", "oscillation_amplitude_mm", "oscillations", "900032",
+                "min_distance_mm", "time_below_zero_s",
                 "collisions", "collision_depth", "--stop-on-collision"):
         assert key in text, key
+
+
+def test_an_oscillation_in_the_middle_of_a_run_is_a_warning_not_hidden_by_the_last_second():
+    """%DIST_5 (KALMAN_MA, n = 30) runs N60-N70 in a 20 Hz limit cycle; N80 changes the filter and the
+    last second is calm: warning 900032 says when and how much it oscillated."""
+    r = run(SCN / "dist_5.toml")
+    osc = [w for w in r.warnings if w["id"] == 900032]
+    assert len(osc) == 1 == r.metrics["oscillations"]
+    assert r.metrics["oscillation_frequency_hz"] is None                  # the last second is calm
+    assert "at 20.0 Hz" in osc[0]["message"] and 1.5 < osc[0]["t"] < 3.0
+
+
+def test_a_wavy_surface_followed_with_a_lag_is_not_an_oscillation():
+    """tune_sheet: the untuned loop follows the 2.5 Hz waviness (±0.3 mm) with ±0.25 mm of error: a
+    tracking error, not an oscillation of the loop."""
+    r = run(SCN / "tune_sheet.toml")
+    assert r.metrics["oscillations"] == 0 and not [w for w in r.warnings if w["id"] == 900032]
+    assert r.metrics["oscillation_amplitude_mm"] > 0.2
