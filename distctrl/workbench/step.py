@@ -922,8 +922,15 @@ def hints(results: Sequence[StepResult]) -> list[str]:
             limited += " until it settled)" if m.settled else " after the step)"
         if m.limiter_bound and kind in ("good", "damped", "large", "slow"):
             # the shape is the limiter's: KP cannot be judged from it
-            out.append(head + f"{_overshoot_text(m)} — {limited} — use {_step_advice([r])} to see KP's own "
-                              f"response")
+            lin = _linear_step(r)
+            if lin is not None and abs(m.step_mm) <= lin:
+                # the step's first cycle was inside the limiter: something else drove the offset there
+                out.append(head + f"{_overshoot_text(m)} — {limited}, although the step's first cycle was inside "
+                                  f"it: the ramp, the I part or the loop's own swing drove the offset to the limit; "
+                                  f"not a setting to judge by this response")
+            else:
+                out.append(head + f"{_overshoot_text(m)} — {limited} — use {_step_advice([r])} to see KP's own "
+                                  f"response")
             continue
         if kind == "oscillating":
             remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
