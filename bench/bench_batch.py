@@ -339,3 +339,8 @@ def main(argv=None) -> dict:
 
 if __name__ == "__main__":
     main()
+    if "--quick" not in sys.argv:
+        # the sweep's start-up, first and second call (numba's disk cache): bench/bench_startup.py
+        import bench_startup
+
+        bench_startup.main(["--out", sys.argv[sys.argv.index("--out") + 1]] if "--out" in sys.argv else [])

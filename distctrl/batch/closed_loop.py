@@ -66,6 +66,7 @@ from ..control.states import CommandSource
 from ..errors import ErrorId
 from ..params.axis import AxisParameters
 from ..sim import physics
+from .jitcache import cached
 from . import kernel as _kernel  # registers law.* with numba; the law-constant columns
 
 __all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "closed_loop", "run_batch",
@@ -379,7 +380,8 @@ def plant_constants(plant):
             int(plant[PL_MODE]) == MODE_CONST_DIST, plant[PL_SET])
 
 
-@njit(nogil=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, error_model="numpy")
 def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, out_error):
     """The closed loop of one parameter set over ``len(out_offset)`` cycles.
 
@@ -580,7 +582,8 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         z_act = physics.quantise(z_pos, res, 1.0 / res) if res != 0.0 else z_pos
 
 
-@njit(nogil=True, parallel=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def _closed_loop_batch(packed, plant, prog, surface, noise, out_offset, out_distance, out_error):
     for i in prange(packed.shape[0]):
         closed_loop(packed[i, :law.FC_LEN], packed[i, law.FC_LEN:], plant, prog, surface, noise,

@@ -37,6 +37,7 @@ except ImportError as exc:          # pragma: no cover - exercised only without 
         "Use distctrl.batch.numba_available() to check before importing.") from exc
 
 from ..control import law
+from .jitcache import cached
 
 # ----------------------------------------------------------------------------- registration
 
@@ -153,7 +154,8 @@ def pack_params(params, cycle_time: float, set_pos: float, programmed_position: 
 # error_model="numpy": the kernels' own divisions (by T > 0) are not checked for zero
 
 
-@njit(nogil=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, error_model="numpy")
 def _setpos_loop_into(fc, prm, surface_mm, n_cycles, fs, buf, out_offset, out_velocity):
     """The closed loop of one parameter set; fills out_offset[:n] and out_velocity[:n]."""
     T = prm[P_T]
@@ -212,7 +214,8 @@ def _setpos_loop_into(fc, prm, surface_mm, n_cycles, fs, buf, out_offset, out_ve
         out_velocity[k] = v_prev
 
 
-@njit(nogil=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, error_model="numpy")
 def run_setpos_loop(fc, prm, surface_mm, n_cycles):
     """SET_POS distance control of one parameter set over ``n_cycles`` cycles (ON at cycle 0).
 
@@ -229,7 +232,8 @@ def run_setpos_loop(fc, prm, surface_mm, n_cycles):
     return out_offset, out_velocity
 
 
-@njit(nogil=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, error_model="numpy")
 def run_setpos_loop_into(fc, prm, surface_mm, out_offset, out_velocity):
     """:func:`run_setpos_loop` into caller-owned outputs (no allocation): as many cycles as
     ``out_offset`` is long (at most ``len(surface_mm)``); returns that number."""
@@ -240,7 +244,8 @@ def run_setpos_loop_into(fc, prm, surface_mm, out_offset, out_velocity):
     return n
 
 
-@njit(nogil=True, parallel=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def run_setpos_batch(fc2, prm2, surface_mm, n_cycles):
     """:func:`run_setpos_loop` for many parameter sets on the same surface, in parallel.
 

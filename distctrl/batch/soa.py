@@ -44,6 +44,7 @@ from numba import njit, prange
 from ..control import law
 from ..sim import physics
 from . import closed_loop as CL
+from .jitcache import cached
 from .stream import store_fence, store_stream
 from .closed_loop import (PL_ACT0, PL_Z0, Q_A_BASE, Q_A_FLOOR, Q_A_MIN, Q_ADAPTIVE, Q_BOTH, Q_CHECK_SW, Q_D_GAIN,
                           Q_DEV_A_MAX, Q_DEV_A_MIN, Q_I_GAIN, Q_JUMP, Q_KP, Q_LEN, Q_MAX_DEV, Q_MAX_POS, Q_MIN_POS,
@@ -118,7 +119,8 @@ def plan_blocks(packed: np.ndarray, block: int = BLOCK) -> tuple[np.ndarray, np.
     return np.zeros((0, block), dtype=np.int64), np.zeros(0, dtype=np.int64), rest
 
 
-@njit(nogil=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, error_model="numpy")
 def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, out_distance, out_error):
     """The closed loop of the rows ``lanes[:count]`` of ``packed`` (MOVING_AVERAGE, no modulo
     encoder; ``len(lanes) == BLOCK``), written to their rows of the outputs.
@@ -431,7 +433,8 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
             out_distance[i, j] = np.nan
 
 
-@njit(nogil=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, error_model="numpy")
 def _line_groups(out, lanes, count):
     """Where the lanes' rows of ``out`` lie in 64-byte lines: ``(group, counts, tail)``, with
     ``group[r, :counts[r]]`` the lanes whose line ends in a cycle k with k % 8 == r and ``tail[b]``
@@ -532,7 +535,8 @@ def _window_sum(window, b, newest_row, nb, scratch):
     return law._ring_sum(scratch, nb)
 
 
-@njit(nogil=True, parallel=True, error_model="numpy")
+@cached
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def run_blocks(packed, lanes, counts, rest, plant, prog, surface, noise, out_offset, out_distance, out_error):
     """All blocks (``block_loop``) and then the other rows (``closed_loop``), in parallel."""
     for j in prange(lanes.shape[0]):

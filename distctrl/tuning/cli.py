@@ -1,11 +1,16 @@
-"""``distctrl sweep`` and ``distctrl tune`` (click commands; distctrl/cli/__init__.py registers them (LAZY_COMMANDS))."""
+"""``distctrl sweep`` and ``distctrl tune`` (click commands; distctrl/cli/__init__.py registers them (LAZY_COMMANDS)).
+
+Progress and notes (``compiling the batch kernels ...``, the tuner's rounds) go to stderr; with ``--json`` stdout
+carries one JSON object and nothing else (docs/tuning.md).
+"""
 from __future__ import annotations
 
-import sys
+import math
 from pathlib import Path
 
 import click
 
+from ..cli.common import emit_json, fail
 from ..errors import DistCtrlError
 
 
@@ -14,18 +19,33 @@ def _errors() -> tuple:
 
     return (DistCtrlError, ClosedLoopError)
 
+
 __all__ = ["sweep", "tune_cmd"]
 
 
-def _fail(exc: Exception) -> None:
-    click.echo(f"error: {exc}", err=True)
-    sys.exit(1)
+def _say(message: str) -> None:
+    click.echo(message, err=True)
 
 
 def _mode(local: bool, scheduler: str | None) -> dict:
     if local and scheduler:
         raise click.UsageError("--local and --scheduler exclude each other")
     return {"mode": "local" if local else "cluster", "scheduler": scheduler}
+
+
+def _weights(sat_weight: float | None, chatter_weight: float | None) -> dict:
+    out = {}
+    for name, v in (("sat_weight", sat_weight), ("chatter_weight", chatter_weight)):
+        if v is not None:
+            if not (math.isfinite(v) and v >= 0):
+                raise click.UsageError(f"--{name.replace('_', '-')} {v!r}: a finite number >= 0")
+            out[name] = float(v)
+    return out
+
+
+_SAT_HELP = ("Weight (mm) of sat_share, the share of cycles the offset runs at the limiter's velocity / "
+             "acceleration limit (P-AXIS-00415/00416), in the cost [default: 0.05].")
+_CHATTER_HELP = "Weight of offset_hf_rms, the offset's motion above 20 Hz, in the cost [default: 0.25]."
 
 
 @click.command()
@@ -40,12 +60,17 @@ def _mode(local: bool, scheduler: str | None) -> dict:
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Save a heatmap (two swept parameters) or parallel-coordinates plot (PNG/SVG).")
 @click.option("--metric", default="rms_error", show_default=True, help="Metric of the plot and the ranking.")
+@click.option("--sat-weight", type=float, default=None, help=_SAT_HELP)
+@click.option("--chatter-weight", type=float, default=None, help=_CHATTER_HELP)
 @click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
 @click.option("--local", is_flag=True, help="Run in this process without dask.")
 @click.option("--workers", type=int, help="Workers of the embedded LocalCluster (default: all cores).")
 @click.option("--chunk", default=256, show_default=True, type=int, help="Parameter sets per chunk.")
 @click.option("--top", default=10, show_default=True, type=int, help="Rows of the summary table.")
-def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, scheduler, local, workers, chunk, top):
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object (the best --top rows with units, throughput, files) instead of the table.")
+def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_weight, chatter_weight, scheduler,
+          local, workers, chunk, top, as_json):
     """Evaluate a grid (--grid) or a random sample (--random N) of filter/PID settings on SCENARIO.toml
     with the closed-loop batch kernel; write the metrics table and optionally a plot."""
     from ..batch.closed_loop import prepare
@@ -58,30 +83,46 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, schedu
     if metric not in METRIC_NAMES + ("cost",):
         raise click.UsageError(f"--metric {metric!r}: one of cost, {', '.join(METRIC_NAMES)}")
     opts = _mode(local, scheduler)
+    weights = _weights(sat_weight, chatter_weight)
     try:
         inputs = prepare(scenario, cycles)
-        points = grid_points(parse_grid(grid)) if grid is not None else \
-            random_sample(n_random, seed, cycle_time=inputs.cycle_time)
-        sets, points, rejected = build_sets(inputs.params, points, inputs.cycle_time)
-        if rejected:
-            click.echo(f"warning: {len(rejected)} of {len(rejected) + len(sets)} combinations rejected; "
-                       f"first: {rejected[0][1]}", err=True)
-        if not sets:
-            raise DistCtrlError("no valid parameter set to evaluate")
-        with Evaluator(inputs, cycles=cycles, n_workers=workers, chunk_size=chunk, **opts) as ev:
+        # the cluster starts (in the background) while the sets are built
+        with Evaluator(inputs, cycles=cycles, n_workers=workers, chunk_size=chunk, log=_say,
+                       progress=False if as_json else None, cost_weights=weights, **opts) as ev:
+            points = grid_points(parse_grid(grid)) if grid is not None else \
+                random_sample(n_random, seed, cycle_time=inputs.cycle_time)
+            sets, points, rejected = build_sets(inputs.params, points, inputs.cycle_time)
+            if rejected:
+                _say(f"warning: {len(rejected)} of {len(rejected) + len(sets)} combinations rejected; "
+                     f"first: {rejected[0][1]}")
+            if not sets:
+                raise DistCtrlError("no valid parameter set to evaluate")
             res = ev.evaluate(sets, points)
+            compile_s = ev.stats["compile_s"]
         path = res.write(out)
         if plot_path:
             plot_sweep(res, plot_path, metric)
     except _errors() as exc:
-        _fail(exc)
+        fail(str(exc))
     info = res.info
     rate = info["sets"] * info["cycles"] / max(info["seconds"], 1e-9)
+    if as_json:
+        emit_json({"command": "sweep", "scenario": scenario, "metric": metric, "sets": info["sets"],
+                   "cycles": info["cycles"], "seconds": info["seconds"], "compile_seconds": compile_s,
+                   "set_cycles_per_s": rate, "mode": info["mode"], "workers": info["workers"],
+                   "rejected": len(rejected), "table": str(path), "plot": plot_path,
+                   "best": res.best_rows(top, key=metric), "units": res.units()})
+        return
     click.echo(res.render(top, key=metric, plain=True,
                           title=f"best {min(top, len(res))} of {len(res)} sets by {metric}"), nl=False)
     click.echo(f"{info['sets']} sets x {info['cycles']} cycles in {info['seconds']:.2f} s "
-               f"({rate / 1e6:.1f} M set-cycles/s, {info['mode']}, {info['workers']} worker(s)); "
-               f"table: {path}" + (f"; plot: {plot_path}" if plot_path else ""))
+               f"({_rate_text(rate)} set-cycles/s, {info['mode']}, {info['workers']} worker(s)"
+               + (f"; compiling took {compile_s:.1f} s before" if compile_s else "")
+               + f"); table: {path}" + (f"; plot: {plot_path}" if plot_path else ""))
+
+
+def _rate_text(rate: float) -> str:
+    return f"{rate / 1e6:.1f} M" if rate >= 1e6 else f"{rate / 1e3:.0f} k"
 
 
 @click.command("tune")
@@ -93,22 +134,31 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, schedu
               help="Folder for tuned.lis, tuned.nc.txt, sweep.csv, before_after.png, report.txt.")
 @click.option("--osc-weight", default=1.0, show_default=True, type=float,
               help="Weight of the oscillation penalty (hf_rms) in the cost.")
+@click.option("--sat-weight", type=float, default=None, help=_SAT_HELP)
+@click.option("--chatter-weight", type=float, default=None, help=_CHATTER_HELP)
 @click.option("--no-robustness", is_flag=True, help="Skip the re-check on perturbed scenarios.")
 @click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
 @click.option("--local", is_flag=True, help="Run in this process without dask.")
 @click.option("--workers", type=int, help="Workers of the embedded LocalCluster (default: all cores).")
-def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, no_robustness, scheduler, local, workers):
-    """Find good filter/PID settings for SCENARIO.toml: a coarse sweep, a local refinement, a robustness
-    check; print them as an axis parameter list and an NC DIST_CTRL block."""
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object (metrics with units before/after, tuned values, list, NC block, files) "
+                   "instead of the report.")
+def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, chatter_weight, no_robustness,
+             scheduler, local, workers, as_json):
+    """Find good filter/PID settings for SCENARIO.toml: a coarse sweep, a local refinement, the rounded set
+    run again, a robustness check; print them as an axis parameter list and an NC DIST_CTRL block."""
+    from ..cli.common import check_writable
     from .tune import plot_before_after, tune
 
     opts = _mode(local, scheduler)
+    weights = _weights(sat_weight, chatter_weight)
     if budget < 2:
         raise click.UsageError("--budget: at least 2")
+    check_writable(out_dir, "output folder", directory=True)
     try:
         res = tune(scenario, budget=budget, seed=seed, cycles=cycles, osc_weight=osc_weight,
-                   robustness=not no_robustness, n_workers=workers,
-                   log=lambda m: click.echo(m, err=True), **opts)
+                   robustness=not no_robustness, n_workers=workers, log=_say,
+                   progress=False if as_json else None, **weights, **opts)
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         (out / "tuned.lis").write_text(res.param_list)
@@ -118,6 +168,11 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, no_robustness,
         text = res.report()
         (out / "report.txt").write_text(text)
     except _errors() as exc:
-        _fail(exc)
+        fail(str(exc))
+    files = [str(out / f) for f in ("tuned.lis", "tuned.nc.txt", "sweep.csv", "before_after.png", "report.txt")]
+    if as_json:
+        emit_json({"command": "tune", "scenario": scenario, "budget": budget, "seed": seed, **res.to_dict(),
+                   "files": files})
+        return
     click.echo(text, nl=False)
     click.echo(f"written: {out}/tuned.lis, tuned.nc.txt, sweep.csv, before_after.png, report.txt")

@@ -149,18 +149,53 @@ class SweepResult:
             return self.to_parquet(path)
         return self.to_csv(path)
 
+    def units(self) -> dict:
+        """The unit of every column that has one (metrics: :data:`~distctrl.tuning.metrics.METRIC_UNITS`;
+        parameters: internal units)."""
+        from .metrics import METRIC_UNITS
+
+        units = {"i_tn": "s", "d_tv": "s", "low_pass_filter_fg_f0": "Hz", "v_max": "mm/s", "a_max": "mm/s²"}
+        return {c: units.get(c) or METRIC_UNITS.get(c) for c in self.data if units.get(c) or METRIC_UNITS.get(c)}
+
+    def best_rows(self, n: int = 10, key: str = "cost") -> list[dict]:
+        """The best ``n`` rows by ``key`` as dicts: the parameters the row's filter uses and every metric."""
+        from .space import filter_fields
+
+        out = []
+        for i in self.order(key)[:n]:
+            i = int(i)
+            ft = _plain(self.data["filter_type"][i]) if "filter_type" in self.data else None
+            used = set(filter_fields(FilterType[ft])) if isinstance(ft, str) and ft in FilterType.__members__ else None
+            row = {}
+            for c, v in self.data.items():
+                if c in PARAM_COLUMNS and c not in ("kp", "i_tn", "d_tv", "filter_type") and used is not None \
+                        and c not in used:
+                    continue
+                row[c] = _plain(v[i])
+            out.append(row)
+        return out
+
     def render(self, n: int = 10, key: str = "cost", plain: bool = False, title: str | None = None) -> str:
         """The best ``n`` rows as a text table."""
         from ..workbench.tables import render_table
 
         params = [c for c in PARAM_COLUMNS if c in self.data and len(set(map(str, self.data[c]))) > 1] \
             or [c for c in ("kp", "filter_type") if c in self.data]
-        mets = ["cost", "rms_error", "max_error", "overshoot", "osc_index", "settling_time", "sat_share"]
+        mets = ["cost", "rms_error", "max_error", "overshoot", "osc_index", "hf_rms", "offset_hf_rms",
+                "settle_time_50um", "sat_share"]
         cols = params + [m for m in mets if m in self.data]
+        from .space import filter_fields
+
         rows = []
         for i in self.order(key)[:n]:
-            rows.append([_fmt(self.data[c][i]) for c in cols])
-        return render_table(cols, rows, title=title, plain=plain)
+            ft = _plain(self.data["filter_type"][i]) if "filter_type" in self.data else None
+            used = set(filter_fields(FilterType[ft])) if isinstance(ft, str) and ft in FilterType.__members__ else None
+            # a filter parameter the row's filter does not use is "-", not a value that does nothing
+            rows.append(["-" if c in PARAM_COLUMNS and c not in ("kp", "i_tn", "d_tv", "filter_type")
+                         and used is not None and c not in used else _fmt(self.data[c][i]) for c in cols])
+        units = self.units()
+        heads = [f"{c} [{units[c]}]" if c in units else c for c in cols]
+        return render_table(heads, rows, title=title, plain=plain)
 
 
 def _plain(x):
@@ -211,7 +246,7 @@ class Evaluator:
                  n_workers: int | None = None, chunk_size: int = DEFAULT_CHUNK,
                  chunk_bytes: int = DEFAULT_CHUNK_BYTES, retries: int = 2, progress: bool | None = None,
                  cycles: int | None = None, metric_options: dict | None = None, osc_weight: float = 1.0,
-                 chunk_fn=None, threads: int | None = None):
+                 chunk_fn=None, threads: int | None = None, log=None, cost_weights: dict | None = None):
         if scheduler:
             mode = "cluster"
         if mode not in ("local", "cluster"):
@@ -234,19 +269,50 @@ class Evaluator:
         self._client = None
         self._cluster = None
         self._remote_inputs = None
-        self.stats = {"sets": 0, "set_cycles": 0, "seconds": 0.0, "chunks": 0, "retried": 0}
+        self.stats = {"sets": 0, "set_cycles": 0, "seconds": 0.0, "chunks": 0, "retried": 0, "compile_s": 0.0}
+        self.log = log or (lambda message: None)
+        self.cost_weights = dict(cost_weights or {})
+        self._opening = None           # the thread that opens the cluster (open(wait=False))
+        self._open_error = None
+        self._kernels_ready = False
 
     # -- lifecycle
     def __enter__(self) -> "Evaluator":
-        self.open()
+        self.open(wait=False)
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def open(self) -> None:
-        if self.mode != "cluster" or self._client is not None:
+    def open(self, wait: bool = True) -> None:
+        """Start the cluster (cluster mode). ``wait=False``: in a background thread, so that the caller
+        prepares its parameter sets meanwhile; :meth:`evaluate` waits for it."""
+        if self.mode != "cluster":
             return
+        if self._opening is None and self._client is None:
+            import threading
+
+            self._open_error = None
+            self._opening = threading.Thread(target=self._open_now, name="distctrl-cluster-start", daemon=True)
+            self._opening.start()
+        if wait:
+            self._wait_open()
+
+    def _wait_open(self) -> None:
+        if self._opening is not None:
+            self._opening.join()
+            self._opening = None
+        if self._open_error is not None:
+            exc, self._open_error = self._open_error, None
+            raise exc
+
+    def _open_now(self) -> None:
+        try:
+            self._open_cluster()
+        except BaseException as exc:          # noqa: BLE001 - raised again in the caller's thread
+            self._open_error = exc
+
+    def _open_cluster(self) -> None:
         try:
             from distributed import Client, LocalCluster
         except ImportError:
@@ -272,6 +338,13 @@ class Evaluator:
         return self._client.submit(_hold, self._slim, pure=False)
 
     def close(self) -> None:
+        import threading
+
+        if self._opening is not None and self._opening is not threading.current_thread():
+            try:
+                self._wait_open()
+            except Exception:                 # noqa: BLE001 - closing anyway
+                pass
         if self._client is not None:
             self._client.close()
             self._client = None
@@ -295,11 +368,12 @@ class Evaluator:
         from ..batch.closed_loop import pack_sets
 
         param_sets = list(param_sets)
-        t0 = time.perf_counter()
         if not param_sets:
             return SweepResult(self._table([], [], {}))
         packed = pack_sets(self.inputs, param_sets)
         chunks = [packed[i:i + self.chunk_size] for i in range(0, len(packed), self.chunk_size)]
+        self.prepare_kernels(packed[:1])
+        t0 = time.perf_counter()
         if self.mode == "local":
             parts = self._run_local(chunks, description)
         else:
@@ -316,13 +390,64 @@ class Evaluator:
                                 "mode": self.mode, "workers": self.n_workers if self.mode == "cluster" else 1})
         return res
 
+    def prepare_kernels(self, packed_one=None) -> None:
+        """Compile the batch kernels once, before the sets run, and say so (the first use on a machine,
+        or after a change of distctrl's sources, takes tens of seconds; afterwards the kernels load
+        from numba's disk cache, :mod:`distctrl.batch.jitcache`). In local mode and with the embedded
+        cluster this process compiles them (the workers, on the same machine, then load them from the
+        cache); with ``scheduler`` the workers compile on their first chunk, which is only announced."""
+        if self._kernels_ready:
+            return
+        self._kernels_ready = True
+        from ..batch import soa
+        from ..batch.jitcache import cache_dir, is_cached
+
+        entry = soa.run_blocks
+        if is_cached(entry):
+            if self.mode == "local" and not entry.signatures:
+                # load the cached code now (about 0.5 s), so that the sweep's time is the sweep's
+                from ..batch.closed_loop import pack_sets, run_batch
+
+                packed = packed_one if packed_one is not None and len(packed_one) else \
+                    pack_sets(self.inputs, [self.inputs.params])
+                run_batch(self.inputs, packed, cycles=min(8, self.n_cycles), threads=self.threads)
+            return
+        where = cache_dir(entry) or "memory only (no writable cache folder)"
+        if self.scheduler:
+            self.log("note: the workers compile the batch kernels on their first chunk if they have not "
+                     "yet (about 30 s per machine, cached on disk afterwards)")
+            return
+        from ..batch.closed_loop import pack_sets, run_batch
+
+        packed = packed_one if packed_one is not None and len(packed_one) else pack_sets(self.inputs,
+                                                                                         [self.inputs.params])
+        text = (f"compiling the batch kernels (first use on this machine or after a change of distctrl; "
+                f"about 30 s, then cached in {where})")
+        t0 = time.perf_counter()
+        status = None
+        if self.progress:
+            from rich.console import Console
+
+            status = Console(stderr=True).status(text)
+            status.start()
+        else:
+            self.log(text)
+        try:
+            run_batch(self.inputs, packed, cycles=min(8, self.n_cycles), threads=self.threads)
+        finally:
+            if status is not None:
+                status.stop()
+        dt = time.perf_counter() - t0
+        self.stats["compile_s"] += dt
+        self.log(f"compiled in {dt:.1f} s")
+
     def _table(self, sets, points, m) -> dict:
         data: dict[str, object] = {}
         for f in PARAM_COLUMNS:
             vals = [getattr(p, f) for p in sets]
             data[f] = [v.name for v in vals] if f == "filter_type" else np.asarray(vals)
         if sets:
-            data["cost"] = cost(m, self.osc_weight)
+            data["cost"] = cost(m, self.osc_weight, **self.cost_weights)
             for name in METRIC_NAMES:
                 data[name] = m[name]
             data["failed"] = m["failed"]

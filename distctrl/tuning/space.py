@@ -32,7 +32,8 @@ from ..params.axis import AxisParameters, check_internal
 from ..params.table import BY_FIELD
 
 __all__ = ["SpaceError", "Dim", "DEFAULT_SPACE", "ALIASES", "NC_WORDS", "canonical", "parse_grid",
-           "grid_points", "random_sample", "to_params", "build_sets", "point_label", "filter_fields"]
+           "grid_points", "random_sample", "to_params", "build_sets", "point_label", "filter_fields",
+           "REAL_RESOLUTION", "resolution", "round_value", "round_point"]
 
 
 class SpaceError(DistCtrlError, ValueError):
@@ -129,6 +130,48 @@ DEFAULT_SPACE: tuple[Dim, ...] = (
     Dim("i_tn", "log", 0.005, 2.0, zero_share=0.5),
     Dim("d_tv", "log", 0.0002, 0.05, zero_share=0.3),
 )
+
+
+# ----------------------------------------------------------------------------- resolution
+
+#: the steps the tuner gives its REAL64 parameters (internal units), so that what it prints is what an
+#: engineer types into the list and the NC block: gains and the smoothing factor to 0.001, times to
+#: 0.1 ms (a tenth of a 1 ms cycle: finer steps do not change the per-cycle gains measurably), the
+#: Kalman sigma to 0.1, the low-pass cut-off to 0.1 Hz. Integer parameters keep the list's own step
+#: (one interface unit, e.g. 1 µm/s of v_max). The list and the NC accept more digits; nobody needs them.
+REAL_RESOLUTION = {"kp": 0.001, "i_tn": 0.0001, "d_tv": 0.0001, "smoothing_factor": 0.001,
+                   "kalman_sigma": 0.1, "low_pass_filter_fg_f0": 0.1}
+_INTEGER_TYPES = ("SGN32", "UNS32", "UNS16")
+
+
+def resolution(field: str) -> float | None:
+    """The step a tuned value of ``field`` is rounded to (internal units), None: not rounded."""
+    if field in REAL_RESOLUTION:
+        return REAL_RESOLUTION[field]
+    spec = BY_FIELD.get(field)
+    if spec is not None and spec.type in _INTEGER_TYPES:
+        return float(spec.scale)
+    return None
+
+
+def round_value(field: str, value):
+    """``value`` rounded to :func:`resolution` (kept inside an open lower bound: kp never rounds to 0)."""
+    if isinstance(value, (bool, np.bool_, FilterType)) or field in _INT_FIELDS or field in _BOOL_FIELDS:
+        return value
+    step = resolution(field)
+    if step is None:
+        return value
+    v = float(value)
+    r = round(round(v / step) * step, 10)
+    spec = BY_FIELD.get(field)
+    if spec is not None and spec.lo_open and spec.lo is not None and r <= spec.lo * spec.scale and v > r:
+        r = round(r + step, 10)
+    return r
+
+
+def round_point(point: dict) -> dict:
+    """Every value of ``point`` rounded (:func:`round_value`)."""
+    return {k: round_value(k, v) for k, v in point.items()}
 
 
 # ----------------------------------------------------------------------------- values
@@ -232,7 +275,8 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
                   cycle_time: float | None = None) -> list[dict]:
     """``n`` random points of ``space``; each point sets only the filter parameters its filter type uses.
 
-    With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin).
+    With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin). Values are
+    rounded to :func:`resolution` (what the tuner prints is what it evaluated).
     """
     if n < 0:
         raise SpaceError(f"random sample size {n}: must be >= 0")
@@ -252,7 +296,7 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
             if f == "low_pass_filter_fg_f0" and cycle_time:
                 v = min(v, 0.45 / cycle_time)
             p[f] = v
-        points.append(p)
+        points.append(round_point(p))
     return points
 
 

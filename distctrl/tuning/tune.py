@@ -33,9 +33,10 @@ import numpy as np
 from ..control.kinds import FilterType
 from ..params.axis import AxisParameters
 from ..sim.surface import Surface
-from .metrics import METRIC_NAMES, wanted_distance
+from .metrics import METRIC_NAMES, METRIC_UNITS, wanted_distance
 from .runner import Evaluator, SweepResult
-from .space import DEFAULT_SPACE, NC_WORDS, Dim, build_sets, filter_fields, random_sample
+from .space import (DEFAULT_SPACE, NC_WORDS, Dim, SpaceError, build_sets, filter_fields, random_sample, resolution,
+                    round_point, round_value, to_params)
 
 __all__ = ["TuneResult", "tune", "nc_block", "param_list", "perturbed_scenarios", "ScaledSurface",
            "plot_before_after", "PERTURBATIONS"]
@@ -152,6 +153,7 @@ def _neighbours(point: dict, dims: list[Dim], scale: float) -> list[dict]:
             c = d.clip(c)
             if d.kind == "log" and 0 < c < d.lo and not d.zero_share:
                 c = d.lo
+            c = round_value(d.field, c)
             if c != v:
                 q = dict(point)
                 q[d.field] = c
@@ -186,6 +188,11 @@ class TuneResult:
     evaluations: int = 0
     seconds: float = 0.0
     stats: dict = field(default_factory=dict)
+    #: the search's best set before rounding and its metrics (``best`` is rounded to the resolutions of
+    #: :func:`~distctrl.tuning.space.resolution` and ``best_metrics`` come from a run of that set)
+    unrounded: AxisParameters | None = None
+    unrounded_metrics: dict = field(default_factory=dict)
+    cost_weights: dict = field(default_factory=dict)
 
     @property
     def param_list(self) -> str:
@@ -201,13 +208,49 @@ class TuneResult:
         vals = [r["margin"] for r in self.robustness if math.isfinite(r["margin"])]
         return min(vals) if vals else float("nan")
 
+    def tuned_values(self, params: AxisParameters | None = None) -> dict:
+        """The tuned parameters as plain values (internal units: s, Hz): kp, i_tn, d_tv, filter_type
+        and the filter's own parameters."""
+        p = params if params is not None else self.best
+        out = {}
+        for k, v in _point_of(p).items():
+            out[k] = v.name if isinstance(v, FilterType) else (int(v) if isinstance(v, (int, np.integer))
+                                                                and not isinstance(v, bool) else float(v))
+        return out
+
+    def to_dict(self) -> dict:
+        """One JSON-able object (``distctrl tune --json``)."""
+        def metrics(m: dict) -> dict:
+            return {n: _plain(m.get(n)) for n in ["cost"] + list(METRIC_NAMES) + ["failed"] if n in m}
+
+        return {"axis": self.axis, "evaluations": self.evaluations, "seconds": self.seconds,
+                "cost_weights": dict(self.cost_weights), "metric_units": dict(METRIC_UNITS),
+                "resolution": {k: resolution(k) for k in self.tuned_values()},
+                "scenario_params": {"values": self.tuned_values(self.base), "metrics": metrics(self.base_metrics)},
+                "tuned": {"values": self.tuned_values(), "metrics": metrics(self.best_metrics),
+                          "unrounded_values": self.tuned_values(self.unrounded) if self.unrounded is not None else None,
+                          "unrounded_metrics": metrics(self.unrounded_metrics)},
+                "robustness": [{k: _plain(v) for k, v in r.items()} for r in self.robustness],
+                "margin": _plain(self.margin), "param_list": self.param_list, "nc_block": self.nc_block}
+
     def report(self, plain: bool = True) -> str:
         from ..workbench.tables import render_table
 
         names = ["cost"] + list(METRIC_NAMES)
-        rows = [[n, _num(self.base_metrics.get(n)), _num(self.best_metrics.get(n))] for n in names]
+        rows = [[n, METRIC_UNITS.get(n, "-"), _num(self.base_metrics.get(n)), _num(self.best_metrics.get(n))]
+                for n in names]
         out = [f"evaluated {self.evaluations} parameter sets in {self.seconds:.1f} s",
-               render_table(["metric", "scenario params", "tuned"], rows, title="nominal scenario", plain=plain)]
+               render_table(["metric", "unit", "scenario params", "tuned"], rows, title="nominal scenario",
+                            plain=plain)]
+        if self.unrounded is not None:
+            steps = ", ".join(f"{k} {resolution(k):g}" for k in self.tuned_values() if resolution(k) is not None)
+            out.append(f"tuned values rounded to what one types into the list and the NC ({steps}) and run "
+                       f"again: the table shows that run (cost before rounding "
+                       f"{_num(self.unrounded_metrics.get('cost'))} mm)")
+        sat = self.best_metrics.get("sat_share")
+        if sat is not None and math.isfinite(float(sat)) and float(sat) > 0.1:
+            out.append(f"warning: the tuned set runs at the limiter (P-AXIS-00415/00416) {float(sat):.0%} of the "
+                       "time; raise --sat-weight")
         if self.robustness:
             rrows = [[r["name"], _num(r["base_cost"]), _num(r["best_cost"]), _num(r["best_rms"]),
                       f"{r['degradation']:.2f}x" if math.isfinite(r["degradation"]) else "-",
@@ -235,15 +278,31 @@ def _num(x) -> str:
     return f"{x:.4g}"
 
 
+def _plain(x):
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x)
+    if isinstance(x, FilterType):
+        return x.name
+    return x
+
+
 def _row(res: SweepResult, i: int) -> dict:
     return {k: (v[i] if not isinstance(v, list) else v[i]) for k, v in res.data.items()}
 
 
 def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = None, coarse_share: float = 0.6,
          top: int = 3, osc_weight: float = 1.0, space: tuple[Dim, ...] = DEFAULT_SPACE,
-         robustness: bool = True, evaluator: Evaluator | None = None, log=None, **evaluator_options) -> TuneResult:
+         robustness: bool = True, evaluator: Evaluator | None = None, log=None, sat_weight: float | None = None,
+         chatter_weight: float | None = None, **evaluator_options) -> TuneResult:
     """Tune the scenario's distance-controlled axis (module docstring). ``budget``: parameter sets to
-    evaluate in the search (the robustness runs come on top: 2 per perturbation). ``evaluator_options``
+    evaluate in the search (the re-run of the rounded set and the robustness runs come on top: 1, and 2
+    per perturbation). ``sat_weight`` / ``chatter_weight``: the chatter terms of
+    :func:`~distctrl.tuning.metrics.cost` (default :data:`~distctrl.tuning.metrics.SAT_WEIGHT`,
+    :data:`~distctrl.tuning.metrics.CHATTER_WEIGHT`). ``evaluator_options``
     go to :class:`Evaluator` (``mode``, ``scheduler``, ``n_workers``, ``progress`` ...)."""
     import time
 
@@ -258,8 +317,12 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     T = inputs.cycle_time
     base = inputs.params
     own = evaluator is None
-    ev = evaluator or Evaluator(inputs, cycles=cycles, osc_weight=osc_weight, **evaluator_options)
+    ev = evaluator or Evaluator(inputs, cycles=cycles, osc_weight=osc_weight, log=log, **evaluator_options)
     ev.osc_weight = osc_weight
+    if sat_weight is not None:
+        ev.cost_weights["sat_weight"] = float(sat_weight)
+    if chatter_weight is not None:
+        ev.cost_weights["chatter_weight"] = float(chatter_weight)
     try:
         ev.open()
         # 1. coarse
@@ -328,9 +391,21 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
             rounds += 1
             say(f"refine round {rounds}: best cost {min(s[1] for s in starts):.5g} mm ({used}/{budget} sets)")
         ib = res.best("cost")
-        best = res.params[ib]
+        unrounded = res.params[ib]
+        unrounded_metrics = _row(res, ib)
         base_metrics = _row(res, 0)
-        best_metrics = _row(res, ib)
+        # 3. round to what the list and the NC take, and run the rounded set again: its metrics are reported
+        best = unrounded
+        try:
+            best = to_params(unrounded, round_point(_point_of(unrounded)), T)
+        except SpaceError:            # pragma: no cover - rounding left the valid range: keep the values
+            pass
+        vr = ev.evaluate([best], [_point_of(best)], description="verify rounded")
+        best_metrics = _row(vr, 0)
+        if not math.isfinite(float(best_metrics["cost"])) and math.isfinite(float(unrounded_metrics["cost"])):
+            best, best_metrics = unrounded, unrounded_metrics      # pragma: no cover - rounding broke the set
+        say(f"rounded set re-run: cost {float(best_metrics['cost']):.5g} mm "
+            f"(before rounding {float(unrounded_metrics['cost']):.5g} mm)")
         # 4. robustness
         rob = []
         if robustness:
@@ -355,8 +430,13 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     finally:
         if own:
             ev.close()
+    from .metrics import CHATTER_WEIGHT, SAT_WEIGHT
+
+    weights = {"osc_weight": osc_weight, "sat_weight": SAT_WEIGHT, "chatter_weight": CHATTER_WEIGHT,
+               **getattr(ev, "cost_weights", {})}
     return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
-                      time.perf_counter() - t0, stats)
+                      time.perf_counter() - t0, stats, unrounded=unrounded, unrounded_metrics=unrounded_metrics,
+                      cost_weights=weights)
 
 
 # ----------------------------------------------------------------------------- plot

@@ -737,6 +737,23 @@ def write_results_csv(results: Sequence[FilterResult], path: str | os.PathLike) 
                         num(r.dead_time_s), num(r.overshoot_mm), num(r.overshoot_pct)])
 
 
+def results_dicts(results: Sequence[FilterResult]) -> list[dict]:
+    """One dict per config (``distctrl filters --json``): label, filter type, the parameters the type
+    uses, and the metrics with their units in the names (NaN where not measurable)."""
+    out = []
+    for r in results:
+        c = r.config
+        used = KEYS_BY_TYPE.get(c.filter_type, ())
+        params = {k: getattr(c, k) for k in KEY_ORDER if k in used}
+        if c.filter_type == FilterType.DEFAULT:
+            params["n_cycles"] = c.effective_n
+        out.append({"label": r.label, "filter_type": c.filter_type.name, "params": params,
+                    "noise_rms_mm": float(r.noise_rms), "delay_s": float(r.delay_s),
+                    "dead_time_s": float(r.dead_time_s), "overshoot_mm": float(r.overshoot_mm),
+                    "overshoot_pct": float(r.overshoot_pct)})
+    return out
+
+
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
 

@@ -54,10 +54,12 @@ def _edges_option(values: tuple[str, ...]) -> list[float] | str | None:
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), default=None,
               help="Write the metrics table as CSV (one row per configuration).")
 @click.option("--plain", is_flag=True, help="Plain fixed-width table instead of rich.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object (signal, edges, metrics per configuration) instead of the table.")
 def filters(specs: tuple[str, ...], recording: str | None, time_column: str | None, value_column: str | None,
             time_unit: str, value_unit: str, mm_per_increment: float | None, cycle_time: float | None,
             edge_values: tuple[str, ...], noise: float, seed: int, plot_path: str | None, csv_path: str | None,
-            plain: bool) -> None:
+            plain: bool, as_json: bool) -> None:
     """Compare sensor filters on a recorded or synthetic signal (FCT-M3 ch. 4, Figs. 9-17).
 
     SPEC is TYPE[:key=value[,value...][,key=...]], e.g. MOVING_AVERAGE:n_cycles=10,20,40 or
@@ -71,8 +73,9 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
     Gaussian noise. Prints noise RMS, delay (50 %), dead time (10 %) and overshoot per
     configuration. Exit code 1 with a message for invalid input.
     """
+    from ..cli.common import emit_json
     from .filters import (DEFAULT_SPECS, WorkbenchError, check_plot_path, compare, find_edges, format_table, load_recording,
-                          obstacle_signal, parse_filter_specs, plot_overlay, signal_noise_rms,
+                          obstacle_signal, parse_filter_specs, plot_overlay, results_dicts, signal_noise_rms,
                           write_results_csv)
 
     caught: list[warnings.WarningMessage] = []
@@ -115,21 +118,29 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
         _fail(str(exc), caught)
     for w in caught:
         click.echo(f"warning: {w.message}", err=True)
-
+    # the files first: a reader that stops early (`| head`) must not cost them
+    try:
+        if plot_path:
+            plot_overlay(t, x, results, path=plot_path, edges=edges or None, title=title)
+        if csv_path:
+            write_results_csv(results, csv_path)
+    except (DistCtrlError, OSError) as exc:
+        _fail(str(exc), [])
+    if as_json:
+        emit_json({"command": "filters", "source": source, "recording": recording, "cycle_time_s": T,
+                   "edges_s": list(edges) if edges else [], "raw_noise_rms_mm": raw,
+                   "results": results_dicts(results), "plot": plot_path, "csv": csv_path,
+                   "warnings": [str(w.message) for w in caught]})
+        return
     click.echo(source)
     edge_txt = ", ".join(f"{e:g}" for e in edges) + " s" if edges else "none (delay and overshoot need --edge)"
     click.echo(f"cycle time {T * 1e3:g} ms; edges: {edge_txt}; raw noise RMS "
                f"{'-' if not math.isfinite(raw) else f'{raw:.4f}'} mm")
     click.echo(format_table(results, plain=plain), nl=False)
-    try:
-        if plot_path:
-            plot_overlay(t, x, results, path=plot_path, edges=edges or None, title=title)
-            click.echo(f"plot: {plot_path}")
-        if csv_path:
-            write_results_csv(results, csv_path)
-            click.echo(f"table: {csv_path}")
-    except (DistCtrlError, OSError) as exc:
-        _fail(str(exc), [])
+    if plot_path:
+        click.echo(f"plot: {plot_path}")
+    if csv_path:
+        click.echo(f"table: {csv_path}")
 
 
 def _fail(message: str, caught) -> None:

@@ -52,7 +52,8 @@ __all__ = [
     "StepError", "StepSettingError", "StepSetting", "StepMetrics", "StepResult",
     "KP_RANGE", "I_TN_RANGE", "D_TV_RANGE", "MODES", "BAND", "RECOGNISABLE_PCT", "RAPID_CROSSINGS",
     "LARGE_PCT", "DEFAULT_AXIS_LIST", "DEFAULT_AXIS", "DEFAULT_SENSOR", "parse_settings", "step_scenario",
-    "measure", "run_steps", "format_table", "hints", "plot_steps", "check_plot_path",
+    "measure", "run_steps", "format_table", "hints", "plot_steps", "check_plot_path", "auto_step",
+    "suggested_kp", "LIMITED_SHARE", "NOISE_SIGMAS", "results_json",
 ]
 
 # ------------------------------------------------------------------------------------------------------
@@ -72,6 +73,19 @@ RECOGNISABLE_PCT = 2.0
 RAPID_CROSSINGS = 4
 #: above this overshoot (% of the step) it is called large, however fast it decays
 LARGE_PCT = 40.0
+#: a response is "limiter-bound" when the slope limiter (P-AXIS-00415 v_max, P-AXIS-00416 a_max and the
+#: braking it implies) changed the PID's offset step in at least this share of the cycles from the step
+#: until it settled (the whole run after the step when it did not settle)
+LIMITED_SHARE = 0.1
+#: the settling band is widened to this many standard deviations of the offset's noise before the step
+#: (a probe with noise never stays inside +-2 % of a small step)
+NOISE_SIGMAS = 5.0
+#: the automatic step (``--step auto``) keeps the first cycle's demand of every setting within this share
+#: of the limiter's reach, and is not smaller than this many probe noise standard deviations
+AUTO_MARGIN = 0.5
+AUTO_NOISE_FLOOR = 20.0
+#: the automatic step is never larger than this (mm)
+AUTO_MAX_MM = 1.0
 #: longest run one setting may ask for (s of machine time)
 MAX_DURATION = 60.0
 #: the step may use at most this share of the sensor's measuring range
@@ -413,7 +427,15 @@ class StepMetrics:
     * ``oscillation``: zero crossings of the error (response - reference) after the first peak, a
       crossing counted once the error reaches beyond +-1 % of the step on the other side (2 crossings
       = 1 period); 0 without overshoot;
-    * ``peak_time_s``: time of the largest excursion beyond the reference (``None`` without one).
+    * ``peak_time_s``: time of the largest excursion beyond the reference (``None`` without one);
+    * ``band_mm``: the half-width of the settling band actually used: +-2 % of the step, or
+      :data:`NOISE_SIGMAS` standard deviations of the offset's noise before the step where that is
+      larger (``None`` from an old caller that built the metrics by hand);
+    * ``limited_share``: the share (0..1) of the cycles from the step until it settled (the whole run
+      after the step if it did not) in which the slope limiter changed the PID's offset step
+      (``|u - v·T|``: P-AXIS-00415 v_max, P-AXIS-00416 a_max and its braking, the offset bounds);
+      ``None`` when the trace lacks ``<axis>.dc.pre_limiter`` / ``<axis>.dc.sloped_delta``.
+      :attr:`limiter_bound` (at least :data:`LIMITED_SHARE`): the limiter, not KP, shaped the response.
     """
 
     step_mm: float
@@ -424,10 +446,22 @@ class StepMetrics:
     steady_state_error_mm: float
     oscillation: int
     peak_time_s: float | None = None
+    band_mm: float | None = None
+    limited_share: float | None = None
 
     @property
     def settled(self) -> bool:
         return self.settling_time_s is not None
+
+    @property
+    def limiter_bound(self) -> bool:
+        """The slope limiter changed the PID's step in at least :data:`LIMITED_SHARE` of the transient."""
+        return self.limited_share is not None and self.limited_share >= LIMITED_SHARE
+
+    @property
+    def band(self) -> float:
+        """The settling band in mm (+-)."""
+        return self.band_mm if self.band_mm is not None else BAND * abs(self.step_mm)
 
     @property
     def periods(self) -> int:
@@ -437,6 +471,8 @@ class StepMetrics:
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
         d["settled"] = self.settled
+        d["band_mm"] = self.band
+        d["limiter_bound"] = self.limiter_bound
         return d
 
 
@@ -515,7 +551,26 @@ def measure(result: Any, t_step: float, step_mm: float, *, ramp_mm_s: float = 0.
     if n_pre == 0 or t.size - n_pre < 2:
         raise StepError(f"measure: t_step = {t_step:g} s is outside the trace ({t[0]:g} .. {t[-1]:g} s); "
                         f"allowed: a time with samples before and after it")
-    baseline = float(np.mean(y_all[max(0, n_pre - 10):n_pre]))
+    # the quiet time before the step: its second half, at most 0.5 s
+    k_quiet = max(n_pre // 2, n_pre - int(round(0.5 / T))) if T > 0 else n_pre // 2
+    quiet = y_all[k_quiet:n_pre]
+    quiet = quiet[np.isfinite(quiet)]
+    noise_mm = float(np.std(quiet)) if quiet.size >= 10 else 0.0
+    if noise_mm > 1e-4 * abs(step_mm) and quiet.size >= 10:
+        # a noisy offset: the mean of the quiet time (the last samples alone carry the noise)
+        baseline = float(np.mean(quiet[-min(quiet.size, int(round(0.1 / T)) if T > 0 else 100):]))
+    else:
+        baseline = float(np.mean(y_all[max(0, n_pre - 10):n_pre]))
+    # the band widens to the offset's noise, unless the limiter already acted before the step (a loop
+    # that oscillates on its own is not noise: its swing must not count as settled)
+    pre_limited = _limited_share(trace, col, k_quiet, None, T, stop=n_pre)
+    if pre_limited is not None and pre_limited > 0.01:
+        noise_mm = 0.0
+    band_mm = max(band * abs(step_mm), NOISE_SIGMAS * noise_mm)
+    # a swing counts beyond half the band on the other side, or beyond the noise band (noise alone
+    # does not get there)
+    hysteresis = max(band * abs(step_mm) / 2.0, NOISE_SIGMAS * noise_mm) / abs(step_mm)
+    band = band_mm / abs(step_mm)
     tt = t[n_pre:] - t_step
     yn = (y_all[n_pre:] - baseline) / step_mm
     rn = 1.0 + ramp_mm_s * tt / step_mm
@@ -551,14 +606,38 @@ def measure(result: Any, t_step: float, step_mm: float, *, ramp_mm_s: float = 0.
         if np.isfinite(tail).all():
             sse = float(np.mean(tail)) * (1.0 if step_mm > 0 else -1.0)
 
-    hysteresis = band / 2.0
     signs = np.sign(err[np.abs(err) > hysteresis])
     above = np.flatnonzero(signs > 0)
     oscillation = int(np.count_nonzero(signs[above[0] + 1:] != signs[above[0]:-1])) if above.size else 0
 
+    limited = _limited_share(trace, col, n_pre, settling, T)
     return StepMetrics(step_mm=step_mm, rise_time_s=rise, overshoot_mm=overshoot * abs(step_mm),
                        overshoot_pct=overshoot * 100.0, settling_time_s=settling, steady_state_error_mm=sse,
-                       oscillation=oscillation, peak_time_s=peak_time)
+                       oscillation=oscillation, peak_time_s=peak_time, band_mm=band_mm, limited_share=limited)
+
+
+def _limited_share(trace: "Trace", col: str, n_pre: int, settling: float | None, T: float,
+                   stop: int | None = None) -> float | None:
+    """Share of the transient's cycles (from the step to the settling time, or to the end of the run)
+    in which the limiter changed the PID's step: ``|u - v·T| > max(1 nm, 0.1 % of |u|)`` with ``u`` =
+    ``<axis>.dc.pre_limiter`` (DIST_CTRL::delta_deviation_pre_limiter) and ``v·T`` =
+    ``<axis>.dc.sloped_delta`` (DIST_CTRL_IFC::sloped_delta_deviation). None without those columns."""
+    if not col.endswith(".dc.offset"):
+        return None
+    ax = col[:-len(".dc.offset")]
+    u_col, v_col = f"{ax}.dc.pre_limiter", f"{ax}.dc.sloped_delta"
+    if u_col not in trace or v_col not in trace:
+        return None
+    u = np.asarray(trace[u_col], dtype=np.float64)[n_pre:stop]
+    vt = np.asarray(trace[v_col], dtype=np.float64)[n_pre:stop]
+    if settling is not None:
+        n = max(1, int(math.ceil(settling / T - 1e-9)) + 1) if T > 0 else u.size
+        u, vt = u[:n], vt[:n]
+    if u.size == 0:
+        return None
+    with np.errstate(invalid="ignore"):
+        clipped = np.abs(u - vt) > np.maximum(1e-6, 1e-3 * np.abs(u))
+    return float(np.count_nonzero(clipped)) / u.size
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -599,14 +678,94 @@ class _Bar:
             self.bar.stop()
 
 
+def _limits(params, setting: StepSetting, cycle_time: float) -> dict[str, float]:
+    """The limiter's reach for ``setting`` on an axis with ``params`` (mm, s): ``v_max`` (P-AXIS-00415),
+    ``a_max`` (P-AXIS-00416, or the axis acceleration when 0; a_min with adaptive acceleration, the
+    lowering weights applied when smaller) and ``linear_step_mm``: the largest step whose first cycle
+    the PID answers inside them (the wanted step ``k·step`` with ``k = KP (1 + T/T_n) + g_D`` within
+    ``v_max·T``, ``a_max·T²`` and the braking bound ``sqrt(2 a_max e)``)."""
+    from ..control.controller import AxisDistanceController
+
+    ctrl = AxisDistanceController(params.replace(kp=setting.kp, i_tn=setting.i_tn, d_tv=setting.d_tv),
+                                  cycle_time)
+    c = ctrl.law_constants()
+    T = float(c["T"])
+    v = float(c["v_max"]) * min(1.0, float(c["w_v"]))
+    a = float(c["a_base"]) * min(1.0, float(c["w_a"]))
+    if params.use_adaptive_acceleration:
+        a = min(a, float(params.a_min)) if params.a_min > 0 else a
+    k = setting.kp * (1.0 + float(c["i_gain"])) + float(c["d_gain"])
+    linear = min(v * T / k, a * T * T / k, 2.0 * a * T * T / (k * k)) if k > 0 and a > 0 and v > 0 else math.inf
+    return {"v_max": v, "a_max": a, "linear_step_mm": linear}
+
+
+def _axis_data(base: "Scenario | None") -> tuple[Any, float, dict[str, Any]]:
+    """(parameter list, cycle time, sensor dict) of the axis a step runs on."""
+    if base is None:
+        from ..params.listfile import parse_list_text
+
+        return (parse_list_text(DEFAULT_AXIS_LIST, "<distctrl step default Z axis>").params, 0.001,
+                dict(DEFAULT_SENSOR, axis="Z"))
+    axis = _step_axis(base)
+    return base.axes[axis].params, base.cycle_time, _sensor_dict(base, axis)
+
+
+def auto_step(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLike | None" = None
+              ) -> tuple[float, str]:
+    """The default step of ``distctrl step`` (``--step auto``): ``(step_mm, reason)``.
+
+    The largest step that keeps the first cycle of every setting within :data:`AUTO_MARGIN` of the
+    limiter's reach (:func:`_limits`: P-AXIS-00415 v_max, P-AXIS-00416 a_max), at most
+    :data:`AUTO_MAX_MM`, rounded down to 2 significant digits; but not smaller than
+    :data:`AUTO_NOISE_FLOOR` times the sensor's noise (a step drowned in noise measures the noise).
+    When the noise floor wins, the limiter may still decide the largest KPs; :func:`measure` says so.
+    """
+    from ..sim.scenario import Scenario, load_scenario
+
+    settings = list(settings)
+    if not settings:
+        raise StepSettingError("no settings; allowed: at least one StepSetting (see parse_settings)")
+    if base is not None and not isinstance(base, Scenario):
+        base = load_scenario(base)
+    params, T, sensor = _axis_data(base)
+    linear = min(_limits(params, s, T)["linear_step_mm"] for s in settings)
+    want = min(AUTO_MAX_MM, AUTO_MARGIN * linear)
+    want = _round_down(want)
+    floor = _round_up(AUTO_NOISE_FLOOR * float(sensor.get("noise_std") or 0.0))
+    if floor > want:
+        return floor, (f"auto: {AUTO_NOISE_FLOOR:g} x the sensor noise ({sensor.get('noise_std'):g} mm); "
+                       f"{want:g} mm would keep every setting inside P-AXIS-00415/00416")
+    if want >= AUTO_MAX_MM:
+        return want, "auto: every setting stays inside P-AXIS-00415/00416"
+    return want, "auto: the largest KP's first cycle stays inside P-AXIS-00415/00416"
+
+
+def _round_down(x: float) -> float:
+    """Down to 2 significant digits (0.0266 -> 0.026)."""
+    if not (x > 0 and math.isfinite(x)):
+        return x
+    e = math.floor(math.log10(x)) - 1
+    return math.floor(x / 10 ** e + 1e-9) * 10 ** e if e < 0 else float(math.floor(x / 10 ** e) * 10 ** e)
+
+
+def _round_up(x: float) -> float:
+    if not (x > 0 and math.isfinite(x)):
+        return 0.0
+    e = math.floor(math.log10(x)) - 1
+    return round(math.ceil(x / 10 ** e - 1e-9) * 10 ** e, 12)
+
+
 def run_steps(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLike | None" = None, *,
-              step_mm: float = 1.0, mode: str = "CONST_DIST", t_step: float = 0.5, duration: float = 2.0,
+              step_mm: "float | str" = 1.0, mode: str = "CONST_DIST", t_step: float = 0.5, duration: float = 2.0,
               set_dist: float = 1.0, ramp_mm_s: float = 0.0,
               progress: bool | None = None) -> list[StepResult]:
     """Run the step response of every setting (same machine, same step) and measure it.
 
-    All scenarios are built (and validated) before the first run, so bad input fails at once.
-    ``progress``: a rich progress bar on stderr; ``None`` (default) shows it when stderr is a terminal.
+    ``step_mm="auto"``: the step of :func:`auto_step`. All scenarios are built (and validated) before
+    the first run, so bad input fails at once. ``progress``: a rich progress bar on stderr; ``None``
+    (default) shows it when stderr is a terminal. ``trace.meta["step"]`` also holds the limiter's
+    reach for the setting (``v_max``, ``a_max``, ``linear_step_mm``, see :func:`_limits`) and, with
+    ``auto``, the reason for the step (``auto``).
     """
     from ..sim.runner import run
     from ..sim.scenario import Scenario, load_scenario
@@ -616,8 +775,14 @@ def run_steps(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLi
         raise StepSettingError("no settings; allowed: at least one StepSetting (see parse_settings)")
     if base is not None and not isinstance(base, Scenario):
         base = load_scenario(base)
+    auto = None
+    if isinstance(step_mm, str):
+        if step_mm.strip().lower() != "auto":
+            raise StepError(f"step = {step_mm!r}; allowed: a step != 0 in mm, or 'auto'")
+        step_mm, auto = auto_step(settings, base)
     scenarios = [step_scenario(base, s, step_mm, mode, t_step, duration, set_dist=set_dist,
                                ramp_mm_s=ramp_mm_s) for s in settings]
+    params, T, _ = _axis_data(base)
     out: list[StepResult] = []
     bar = _Bar(len(settings), progress)
     try:
@@ -626,10 +791,11 @@ def run_steps(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLi
             res = run(sc)
             trace = res.trace
             col = _offset_column(trace, None)
-            trace.meta.update({"step": {"t_step": float(t_step), "step_mm": float(step_mm),
-                                        "ramp_mm_s": float(ramp_mm_s), "mode": mode.upper(), "column": col,
-                                        "setting": setting.label},
-                               "errors": list(res.errors), "warnings": list(res.warnings)})
+            info = {"t_step": float(t_step), "step_mm": float(step_mm), "ramp_mm_s": float(ramp_mm_s),
+                    "mode": mode.upper(), "column": col, "setting": setting.label, **_limits(params, setting, T)}
+            if auto is not None:
+                info["auto"] = auto
+            trace.meta.update({"step": info, "errors": list(res.errors), "warnings": list(res.warnings)})
             out.append(StepResult(setting, measure(trace, t_step, step_mm, ramp_mm_s=ramp_mm_s, column=col),
                                   trace))
         bar.update(len(settings), "")
@@ -641,20 +807,28 @@ def run_steps(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLi
 # ------------------------------------------------------------------------------------------------------
 # presentation
 # ------------------------------------------------------------------------------------------------------
-TABLE_COLUMNS = ("setting", "rise 10-90 % [ms]", "overshoot [%]", "overshoot [mm]", "settling ±2 % [ms]",
-                 "steady-state error [mm]", "oscillation")
+TABLE_COLUMNS = ("setting", "rise 10-90 % [ms]", "overshoot [%]", "overshoot [mm]", "settling [ms]",
+                 "band ± [mm]", "steady-state error [mm]", "oscillation", "at limiter [%]")
+#: the limiter's parameters, as the hints name them
+LIMITER_IDS = "P-AXIS-00415/00416"
 
 
 def _ms(v: float | None, missing: str = "-") -> str:
     return missing if v is None or not math.isfinite(v) else f"{v * 1e3:.1f}"
 
 
+def _errors_of(r: StepResult) -> list:
+    return (r.trace.meta.get("errors") if hasattr(r.trace, "meta") else None) or []
+
+
 def _row(r: StepResult) -> tuple[str, ...]:
     m = r.metrics
-    errors = r.trace.meta.get("errors") if hasattr(r.trace, "meta") else None
+    errors = _errors_of(r)
     label = r.setting.label + (" (error " + ", ".join(str(e["id"]) for e in errors) + ")" if errors else "")
+    share = "-" if m.limited_share is None else f"{m.limited_share * 100:.0f}" + (" !" if m.limiter_bound else "")
     return (label, _ms(m.rise_time_s), f"{m.overshoot_pct:.1f}", f"{m.overshoot_mm:.4f}",
-            _ms(m.settling_time_s, "not settled"), _signed(m.steady_state_error_mm), str(m.oscillation))
+            _ms(m.settling_time_s, "not settled"), f"{m.band:.4f}", _signed(m.steady_state_error_mm),
+            str(m.oscillation), share)
 
 
 def _signed(v: float) -> str:
@@ -663,7 +837,8 @@ def _signed(v: float) -> str:
 
 
 def format_table(results: Sequence[StepResult], title: str | None = None, plain: bool = False) -> str:
-    """The metrics of every setting as a text table (rich, no colour; ``plain=True``: fixed-width ASCII)."""
+    """The metrics of every setting as a text table (rich, no colour; ``plain=True``: fixed-width ASCII).
+    ``at limiter [%]``: :attr:`StepMetrics.limited_share`, marked ``!`` when the response is limiter-bound."""
     rows = [_row(r) for r in results]
     return render_table(TABLE_COLUMNS, rows, title, plain)
 
@@ -681,7 +856,7 @@ def _classify(m: StepMetrics) -> str:
     up to 40 %, rapidly decaying)."""
     if m.oscillation > RAPID_CROSSINGS:
         return "oscillating"
-    if abs(m.steady_state_error_mm) > BAND * abs(m.step_mm):
+    if abs(m.steady_state_error_mm) > m.band:
         return "deviation"
     if not m.settled:
         return "slow"
@@ -698,6 +873,27 @@ def _overshoot_text(m: StepMetrics) -> str:
     return f"overshoot {m.overshoot_pct:.0f} % {_decay_text(m)}"
 
 
+def _linear_step(r: StepResult) -> float | None:
+    v = r.trace.meta.get("step", {}).get("linear_step_mm") if hasattr(r.trace, "meta") else None
+    return float(v) if v is not None and math.isfinite(float(v)) else None
+
+
+def _step_advice(results: Sequence[StepResult]) -> str:
+    """``--step 0.013`` (half the smallest linear step of the given results) or a generic advice."""
+    lin = [x for x in (_linear_step(r) for r in results) if x is not None]
+    if not lin:
+        return "a smaller --step"
+    return f"a smaller --step (at most about {_round_down(AUTO_MARGIN * min(lin)):g} mm)"
+
+
+def suggested_kp(results: Sequence[StepResult]) -> StepResult | None:
+    """The setting the summary suggests: the largest P-only KP whose response is "recognisable but
+    rapidly decaying", settled, ran without an error and was not limiter-bound; None if there is none."""
+    good = [r for r in results if r.setting.kind == "P" and not _errors_of(r) and not r.metrics.limiter_bound
+            and r.metrics.settled and _classify(r.metrics) == "good"]
+    return max(good, key=lambda r: r.setting.kp) if good else None
+
+
 def hints(results: Sequence[StepResult]) -> list[str]:
     """Short factual hints along the documents' method (FCT-M3 ch. 3), one per setting plus a summary.
 
@@ -705,12 +901,13 @@ def hints(results: Sequence[StepResult]) -> list[str]:
     one with a recognisable overshoot (2 ... 40 %) that decays within 2 periods is what the method
     looks for; a larger overshoot, more swings or no settling: lower KP or add D. Step 2 (I): only
     for a permanent control deviation. Step 4 (D): the overshoot with and without D_TV at the same
-    KP / I_TN is compared.
+    KP / I_TN is compared. A response the slope limiter decided (:attr:`StepMetrics.limiter_bound`)
+    says so and is never called good nor suggested: it shows the limiter, not KP.
     """
     out: list[str] = []
     for r in results:
         s, m = r.setting, r.metrics
-        errors = r.trace.meta.get("errors") if hasattr(r.trace, "meta") else None
+        errors = _errors_of(r)
         head = f"{s.label}: "
         if errors:
             ids = ", ".join(str(e["id"]) for e in errors)
@@ -718,18 +915,39 @@ def hints(results: Sequence[StepResult]) -> list[str]:
                               f"lower KP")
             continue
         kind = _classify(m)
+        limited = ""
+        if m.limiter_bound:
+            limited = (f"response limited by {LIMITER_IDS} (the limiter changed the PID's step in "
+                       f"{m.limited_share * 100:.0f} % of the cycles")
+            limited += " until it settled)" if m.settled else " after the step)"
+        if m.limiter_bound and kind in ("good", "damped", "large", "slow"):
+            # the shape is the limiter's: KP cannot be judged from it
+            lin = _linear_step(r)
+            if lin is not None and abs(m.step_mm) <= lin:
+                # the step's first cycle was inside the limiter: something else drove the offset there
+                out.append(head + f"{_overshoot_text(m)} — {limited}, although the step's first cycle was inside "
+                                  f"it: the ramp, the I part or the loop's own swing drove the offset to the limit; "
+                                  f"not a setting to judge by this response")
+            else:
+                out.append(head + f"{_overshoot_text(m)} — {limited} — use {_step_advice([r])} to see KP's own "
+                                  f"response")
+            continue
         if kind == "oscillating":
             remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
-            state = ("not settled within ±{:.0f} % by the end of the run".format(BAND * 100) if not m.settled
+            state = (f"not settled within ±{m.band:.4g} mm by the end of the run" if not m.settled
                      else f"settled after {_ms(m.settling_time_s)} ms")
             text = (f"overshoot {m.overshoot_pct:.0f} %, {m.oscillation} zero crossings after the first "
                     f"peak, {state} — more oscillation than 'rapidly decaying': {remedy}")
+            if m.limiter_bound:
+                text += f"; {limited}: its amplitude is the limiter's"
         elif kind == "deviation":
             text = (f"{_overshoot_text(m)}; steady-state error {m.steady_state_error_mm:+.4f} mm — a "
                     f"permanent control deviation: " + ("add I (T_n from 5 s, then reduce it; method step 2)"
                                               if s.i_tn == 0 else "reduce I_TN"))
+            if m.limiter_bound:
+                text += f"; {limited}"
         elif kind == "slow":
-            text = (f"{_overshoot_text(m)}; not settled within ±{BAND * 100:.0f} % by the end of the run "
+            text = (f"{_overshoot_text(m)}; not settled within ±{m.band:.4g} mm by the end of the run "
                     f"without oscillating: a slow approach (a longer run shows more)")
         elif kind == "large":
             remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
@@ -754,25 +972,60 @@ def hints(results: Sequence[StepResult]) -> list[str]:
             if r.setting.d_tv == 0 or m0.overshoot_pct < RECOGNISABLE_PCT:
                 continue
             m1 = r.metrics
+            if m0.limiter_bound and m1.limiter_bound:
+                out.append(f"KP={kp:g} I_TN={tn:g}: D_TV={r.setting.d_tv:g} cannot be judged: the limiter "
+                           f"({LIMITER_IDS}) decided both responses")
+                continue
             verb = "reduces" if m1.overshoot_pct < m0.overshoot_pct else "does not reduce"
             settle = "" if m1.settled or not m0.settled else "; and it no longer settles: lower D_TV"
             out.append(f"KP={kp:g} I_TN={tn:g}: D_TV={r.setting.d_tv:g} {verb} the overshoot "
                        f"({m0.overshoot_pct:.0f} % -> {m1.overshoot_pct:.0f} %, oscillation "
                        f"{m0.oscillation} -> {m1.oscillation} zero crossings){settle}")
-    # summary for the P part: the largest KP with a recognisable but rapidly decaying overshoot
-    p_only = [r for r in results if r.setting.kind == "P" and not (r.trace.meta.get("errors")
-                                                                  if hasattr(r.trace, "meta") else None)]
-    good = [r for r in p_only if _classify(r.metrics) == "good"]
-    if good:
-        best = max(good, key=lambda r: r.setting.kp)
+    # summary for the P part: the largest KP with a recognisable but rapidly decaying overshoot, never one
+    # the limiter decided or one that did not settle
+    p_only = [r for r in results if r.setting.kind == "P" and not _errors_of(r)]
+    # limiter-bound and not oscillating: the limiter shaped the response, KP cannot be judged from it (an
+    # oscillating one is judged: it oscillates, whatever bounds its swing)
+    undecided = [r for r in p_only if r.metrics.limiter_bound and _classify(r.metrics) != "oscillating"]
+    free = [r for r in p_only if r not in undecided]
+    best = suggested_kp(results)
+    if best is not None:
         out.append(f"suggested P setting: KP={best.setting.kp:g} (the largest tested KP whose overshoot is "
-                   f"recognisable but rapidly decaying)")
-    elif p_only and all(_classify(r.metrics) == "damped" for r in p_only):
-        top = max(r.setting.kp for r in p_only)
+                   f"recognisable but rapidly decaying, not decided by the limiter)")
+    elif p_only and not free:
+        out.append(f"the limiter ({LIMITER_IDS}) decided every P response: no KP can be judged from this step; "
+                   f"use {_step_advice(undecided)}")
+    elif free and not undecided and all(_classify(r.metrics) == "damped" for r in free):
+        top = max(r.setting.kp for r in free)
         out.append(f"no tested KP overshoots recognisably: try KP above {top:g}")
-    elif p_only and all(_classify(r.metrics) == "oscillating" for r in p_only):
-        out.append(f"every tested KP oscillates too much: try KP below {min(r.setting.kp for r in p_only):g}")
+    elif free and not undecided and all(_classify(r.metrics) == "oscillating" for r in free):
+        out.append(f"every tested KP oscillates too much: try KP below {min(r.setting.kp for r in free):g}")
+    if undecided and free:
+        names = ", ".join(f"KP={r.setting.kp:g}" for r in undecided)
+        out.append(f"not judged (the limiter, {LIMITER_IDS}, decided the response): {names}; use "
+                   f"{_step_advice(undecided)} for them")
     return out
+
+
+def results_json(results: Sequence[StepResult]) -> dict:
+    """The results as one JSON-able object (``distctrl step --json``): the step, per setting its
+    words, metrics (s, mm, %), class, limiter share and errors, the hints and the suggested KP."""
+    info0 = results[0].trace.meta.get("step", {}) if results else {}
+    best = suggested_kp(results)
+    rows = []
+    for r in results:
+        info = r.trace.meta.get("step", {})
+        rows.append({"setting": {"kp": r.setting.kp, "i_tn_s": r.setting.i_tn, "d_tv_s": r.setting.d_tv,
+                                 "label": r.setting.label, "kind": r.setting.kind},
+                     "metrics": r.metrics.to_dict(), "class": _classify(r.metrics),
+                     "limiter": {"v_max_mm_s": info.get("v_max"), "a_max_mm_s2": info.get("a_max"),
+                                 "linear_step_mm": info.get("linear_step_mm")},
+                     "errors": list(_errors_of(r)),
+                     "warnings": list(r.trace.meta.get("warnings") or []) if hasattr(r.trace, "meta") else []})
+    return {"step_mm": info0.get("step_mm"), "step_auto": info0.get("auto"), "mode": info0.get("mode"),
+            "t_step_s": info0.get("t_step"), "ramp_mm_s": info0.get("ramp_mm_s"),
+            "limited_share_threshold": LIMITED_SHARE, "results": rows, "hints": hints(results),
+            "suggested_kp": best.setting.kp if best is not None else None}
 
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")

@@ -36,14 +36,14 @@ def test_overshoot_settling_and_ringing():
     assert 0.05 < m["overshoot"][0] < 0.1
     inb = np.abs(e) <= 0.05
     first_in = next(k for k in range(3000) if inb[k:k + 100].all())
-    assert m["settling_time"][0] == pytest.approx(first_in * T)
+    assert m["settle_time_50um"][0] == pytest.approx(first_in * T)
     assert m["osc_index"][0] == pytest.approx(1 / 3.0)       # one crossing +band -> -band in 3 s
     # a 50 Hz oscillation of 0.1 mm: 100 crossings per second, hf_rms = its RMS
     s = 0.1 * np.sin(2 * np.pi * 50 * t)
     m2 = compute_metrics(np.zeros((1, 3000)), 1.0 + s[None, :], 1.0, T, k_on=0, band=0.05, f_osc=20.0)
     assert m2["osc_index"][0] == pytest.approx(100, rel=0.02)
     assert m2["hf_rms"][0] == pytest.approx(0.1 / np.sqrt(2), rel=1e-3)
-    assert np.isnan(m2["settling_time"][0])
+    assert np.isnan(m2["settle_time_50um"][0])
     m3 = compute_metrics(np.zeros((1, 3000)), 1.0 + s[None, :], 1.0, T, k_on=0, f_osc=60.0)
     assert m3["hf_rms"][0] < 1e-6
 

@@ -306,8 +306,8 @@ def test_format_table_lists_every_setting_and_metric():
     res = run_steps(parse_settings("0.2,0.5", "0", "0,0.001"), progress=False, **FAST)
     for plain in (False, True):
         text = format_table(res, title="steps", plain=plain)
-        for head in ("rise 10-90 % [ms]", "overshoot [%]", "settling ±2 % [ms]", "steady-state error [mm]",
-                     "oscillation"):
+        for head in ("rise 10-90 % [ms]", "overshoot [%]", "settling [ms]", "band ± [mm]",
+                     "steady-state error [mm]", "oscillation", "at limiter [%]"):
             assert head in text
         for r in res:
             assert r.setting.label in text
