@@ -26,7 +26,7 @@ def test_params_bad_file_exits_1_naming_line_and_range(tmp_path):
 
 
 def test_demo_runs_the_scenarios_and_writes_traces_and_plots(tmp_path):
-    from distctrl.demo import main as demo
+    from distctrl.cli.demo import main as demo
     results = demo(tmp_path)
     assert len(results) == 3
     for r in results:
@@ -42,7 +42,7 @@ def test_demo_output_shows_units_oscillation_and_every_collision(tmp_path, capsy
     """make demo may not show a crashing head as "completed, no warnings" (issue 13): the plain
     CONST_DIST case is labelled as the warning example with its oscillation and collisions, every
     header keeps its [mm] (rich would swallow it as markup)."""
-    from distctrl.demo import main as demo
+    from distctrl.cli.demo import main as demo
 
     both, plain, _ = demo(tmp_path)
     out = capsys.readouterr().out

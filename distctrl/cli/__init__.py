@@ -429,7 +429,7 @@ def diag(scenario: str, seconds: float, axis_filter: str | None, as_json: bool) 
 @main.command()
 def demo() -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, with a summary table."""
-    from ..demo import main as run_demo
+    from .demo import main as run_demo
 
     run_demo()
 

@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from distctrl.cli import main
-from distctrl.demo import _plain_const_dist
+from distctrl.cli.demo import plain_const_dist_scenario
 from distctrl.errors import ExitCode
 from distctrl.sim.runner import run
 from distctrl.sim.scenario import load_scenario
@@ -42,7 +42,7 @@ def test_settle_time_is_the_last_entry_into_the_band_in_whole_cycles():
 def test_a_loop_in_a_limit_cycle_never_settles_and_shows_its_oscillation():
     """The demo's plain CONST_DIST run (without P-AXIS-00500) oscillates into the sheet: settle_time is
     null, the oscillation of the last second of tracking is measured (frequency, amplitude)."""
-    r = run(_plain_const_dist())
+    r = run(plain_const_dist_scenario())
     m = r.metrics
     assert m["settle_time"] is None
     assert m["oscillation_amplitude_mm"] > 0.5 and 3.0 < m["oscillation_frequency_hz"] < 30.0
@@ -59,7 +59,7 @@ def test_every_run_has_the_minimum_true_distance_and_the_time_below_zero():
 
 
 def test_a_collision_is_a_warning_with_time_place_and_depth():
-    r = run(_plain_const_dist())
+    r = run(plain_const_dist_scenario())
     hits = [w for w in r.warnings if w["id"] == 900030]
     assert hits, r.warnings
     first = hits[0]
@@ -71,7 +71,7 @@ def test_a_collision_is_a_warning_with_time_place_and_depth():
 
 
 def test_stop_on_collision_ends_the_run_there_with_an_error(tmp_path):
-    sc = _plain_const_dist()
+    sc = plain_const_dist_scenario()
     r = run(sc, stop_on_collision=True)
     assert r.outcome == "aborted" and r.exit_code == ExitCode.ABORTED
     assert [e["id"] for e in r.errors] == [900030]

@@ -22,7 +22,7 @@ from scipy import signal
 from distctrl.cli import main
 from distctrl.control.filters import FilterConfig, SensorFilter
 from distctrl.control.kinds import FilterType
-from distctrl.demo import _plain_const_dist
+from distctrl.cli.demo import plain_const_dist_scenario
 from distctrl.sim.runner import run
 from distctrl.sim.scenario import load_scenario
 from distctrl.workbench.margins import (MarginResult, MarginsError, analyse, filter_coefficients, loop_model,
@@ -202,10 +202,10 @@ def test_a_scenario_whose_sensor_is_not_on_the_axis_is_refused():
         loop_model(dataclasses.replace(sc, sensor=None))
 
 
-def test_loop_is_the_product_of_the_blocks_for_plain_const_dist():
+def test_loop_is_the_product_of_the_blocks_forplain_const_dist_scenario():
     import control
 
-    model = loop_model(_plain_const_dist())
+    model = loop_model(plain_const_dist_scenario())
     b = model.blocks()
     product = b["filter"] * b["pid"] * b["integration"] * b["dead_time"] * b["drive"]
     w = np.logspace(0, math.log10(math.pi / T * 0.99), 50)
@@ -214,7 +214,7 @@ def test_loop_is_the_product_of_the_blocks_for_plain_const_dist():
 
 
 def test_the_model_reads_the_scenario():
-    model = loop_model(_plain_const_dist())
+    model = loop_model(plain_const_dist_scenario())
     assert (model.axis, model.mode, model.both_encoders) == ("Z", "CONST_DIST", False)
     assert (model.kp, model.d_tv, model.i_tn) == (0.5, 0.002, 0.0)
     assert model.dead_time_cycles == 2                      # machine read + sensor delay_cycles 1
@@ -228,7 +228,7 @@ def test_the_model_reads_the_scenario():
 
 
 def test_kp_override_and_the_d_gain_following_it():
-    model = loop_model(_plain_const_dist(), kp=0.2)
+    model = loop_model(plain_const_dist_scenario(), kp=0.2)
     assert model.kp == 0.2 and model.kp_source == "--kp"
     from distctrl.control import law
 
@@ -255,7 +255,7 @@ def test_axis_without_distance_control_is_refused():
 # (1) the plain CONST_DIST demo
 # ------------------------------------------------------------------------------------------------------
 def test_plain_demo_is_predicted_unstable():
-    r = analyse(loop_model(_plain_const_dist()))
+    r = analyse(loop_model(plain_const_dist_scenario()))
     assert not r.stable
     assert r.gain_margin < 1.0 and r.gain_margin_db < 0.0
     assert r.phase_margin_deg < 0.0
@@ -267,8 +267,8 @@ def test_plain_demo_limit_cycle_is_decided_by_the_limiter():
     """The demo's oscillation (about 14.5 Hz, ±1.4 mm) is not the linear loop's frequency: the loop is
     unstable and grows until the slope limiter clips it every cycle; the limiter's saturation lowers
     the frequency (docs/margins.md)."""
-    r = analyse(loop_model(_plain_const_dist()))
-    res = run(_plain_const_dist())
+    r = analyse(loop_model(plain_const_dist_scenario()))
+    res = run(plain_const_dist_scenario())
     m = res.metrics
     assert m["oscillation_frequency_hz"] == pytest.approx(14.5, abs=1.0)
     assert m["oscillation_amplitude_mm"] == pytest.approx(1.4, abs=0.15)
@@ -286,9 +286,9 @@ def test_plain_demo_limit_cycle_is_decided_by_the_limiter():
 def test_plain_demo_without_the_limiter_grows_as_predicted():
     """With the slope limiter's and the drive's limits raised 100 times, the same run grows at the
     predicted rate and frequency until max_deviation (70331) stops it."""
-    r = analyse(loop_model(_plain_const_dist()))
+    r = analyse(loop_model(plain_const_dist_scenario()))
     predicted_rate = math.log(r.spectral_radius) / T
-    res = run(raise_limits(_plain_const_dist()))
+    res = run(raise_limits(plain_const_dist_scenario()))
     assert [e["id"] for e in res.errors] == [70331]
     tr = res.trace
     t = np.asarray(tr.t)
@@ -349,7 +349,7 @@ def test_step_kp_1_in_the_simulator_neither_decays_nor_grows():
 ORACLE = {
     # name: (base scenario, I_TN, D_TV, step mm, factor below, factor above)
     "distctrl step machine (P)": (None, 0.0, 0.0, 0.01, 0.95, 1.05),
-    "plain demo axis (PD, MOVING_AVERAGE 4, sensor dead time)": (_plain_const_dist, 0.0, 0.002, 0.1, 0.9, 1.1),
+    "plain demo axis (PD, MOVING_AVERAGE 4, sensor dead time)": (plain_const_dist_scenario, 0.0, 0.002, 0.1, 0.9, 1.1),
 }
 
 
@@ -381,7 +381,7 @@ def test_kp_at_the_stability_limit_is_marginal_in_the_simulator(name):
 def test_to_dict_has_units_and_null_for_a_missing_margin():
     from distctrl.cli.common import json_text
 
-    r = analyse(loop_model(_plain_const_dist()))
+    r = analyse(loop_model(plain_const_dist_scenario()))
     d = json.loads(json_text(r.to_dict()))
     for key in ("gain_margin", "gain_margin_db", "phase_margin_deg", "phase_crossover_hz", "gain_crossover_hz",
                 "kp_limit", "limit_frequency_hz", "closed_loop_pole_hz"):
@@ -398,7 +398,7 @@ def test_to_dict_has_units_and_null_for_a_missing_margin():
 
 
 def test_plot_writes_bode_and_nyquist(tmp_path):
-    r = analyse(loop_model(_plain_const_dist()))
+    r = analyse(loop_model(plain_const_dist_scenario()))
     fig = r.plot(tmp_path / "m.png")
     assert (tmp_path / "m.png").stat().st_size > 10_000
     assert len(fig.axes) == 3
@@ -419,7 +419,7 @@ def test_model_from_parts_without_a_scenario():
 
 
 def test_format_text_units():
-    text = analyse(loop_model(_plain_const_dist())).format_text()
+    text = analyse(loop_model(plain_const_dist_scenario())).format_text()
     assert "UNSTABLE" in text
     for unit in (" dB)", " deg at ", " Hz", "T = 1 ms", "kv = 60 1/s", "D_TV = 0.002 s"):
         assert unit in text

@@ -11,14 +11,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
 
-def _plain_const_dist():
-    """The sheet scenario with P-AXIS-00500 switched off (the loop that can overshoot)."""
+def plain_const_dist_scenario():
+    """The sheet scenario with P-AXIS-00500 switched off: the documents' warning example, a loop that
+    oscillates into the sheet (a limit cycle; docs/run.md "Collisions", docs/margins.md)."""
     import dataclasses
 
-    from .sim.scenario import load_scenario
+    from ..sim.scenario import load_scenario
 
     sc = load_scenario(EXAMPLES / "const_dist_sheet.toml")
     z = sc.axes["Z"]
@@ -36,16 +37,16 @@ def main(out_dir: str | Path = "out/demo") -> list:
     from rich.markup import escape
     from rich.table import Table
 
-    from .sim import run
-    from .sim.scenario import load_scenario
+    from ..sim import run
+    from ..sim.scenario import load_scenario
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     console = Console()
     cases = [("CONST_DIST 1 mm, both encoders", "sheet", load_scenario(EXAMPLES / "const_dist_sheet.toml")),
-             ("CONST_DIST 1 mm, plain (WARNING EXAMPLE)", "sheet_plain", _plain_const_dist()),
+             ("CONST_DIST 1 mm, plain (WARNING EXAMPLE)", "sheet_plain", plain_const_dist_scenario()),
              ("SET_POS 30 mm (%DIST_1)", "dist_1", load_scenario(EXAMPLES / "dist_1.toml"))]
-    from .workbench.report import write_report
+    from ..workbench.report import write_report
 
     results = []
     for label, stem, sc in cases:
