@@ -10,7 +10,6 @@ Results are merged into bench/results.json and appended to bench/RESULTS.md.
 """
 from __future__ import annotations
 
-import json
 import os
 import pathlib
 import socket
@@ -25,8 +24,10 @@ sys.path.insert(0, str(ROOT))
 
 import pyads  # noqa: E402
 
-from distctrl.serve import ServedMachine  # noqa: E402
+from distctrl.ads.machine import ServedMachine  # noqa: E402
 from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))   # bench/, also when loaded by path
+from _results import merge_results  # noqa: E402
 
 def echo_server(ready: threading.Event, stop: threading.Event, port_box: list):
     srv = socket.socket()
@@ -256,10 +257,6 @@ def main() -> dict:
             ("cycles started more than 1 ms late (whole run)", loaded["late_over_one_cycle"], "", "", "-")]
     for a, b, c, d, e in rows:
         print(f"{a:<50} {b:>12,.2f} {c:<4} {d:<14} {e}")
-    results = ROOT / "bench" / "results.json"
-    data = json.loads(results.read_text()) if results.exists() else {}
-    data.update(res)
-    results.write_text(json.dumps(data, indent=2))
     lines = ["", "## ADS server (bench/bench_ads.py)", "",
              "- all round trips in one process, measured in 12 interleaved rounds of 250 (after 2 warm-up "
              "rounds), so that they see the same thread wake-up latency; the served machine runs its 1 ms cycle "
@@ -267,8 +264,7 @@ def main() -> dict:
              "- the no-work server: a blocking thread on 127.0.0.2:48898 answering each request with a fixed "
              "Read response (pyads always connects to port 48898)", "",
              "| measurement | value | unit | target | result |", "|---|---:|---|---:|---|"] + [f"| {a} | {b:,.2f} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
-    with open(ROOT / "bench" / "RESULTS.md", "a", encoding="utf-8") as f:
-        f.write("\n".join(lines) + "\n")
+    merge_results(ROOT / "bench", res, lines)
     return res
 
 

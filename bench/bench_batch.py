@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import json
 import os
 import pathlib
 import shutil
@@ -35,6 +34,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))   # bench/, also when loaded by path
+from _results import merge_results  # noqa: E402
 
 C_SOURCE = ROOT / "bench" / "batch_c" / "closed_loop.c"
 BUILD_DIR = ROOT / "bench" / "batch_c" / "build"
@@ -328,12 +329,7 @@ def main(argv=None) -> dict:
              f"gcc {t_gcc:.2f} s, numba compile {t_jit:.1f} s", "",
              "| measurement | value | unit | target | result |", "|---|---:|---|---:|---|"]
     lines += [f"| {a} | {b:,.4g} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
-    results = args.out / "results.json"
-    data = json.loads(results.read_text()) if results.exists() else {}
-    data.update(res)
-    results.write_text(json.dumps(data, indent=2))
-    with open(args.out / "RESULTS.md", "a", encoding="utf-8") as f:
-        f.write("\n".join(lines) + "\n")
+    merge_results(args.out, res, lines)
     return res
 
 

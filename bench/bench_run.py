@@ -6,7 +6,6 @@ and appended to bench/RESULTS.md by bench_core.py's conventions (own section).
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import pathlib
@@ -20,6 +19,8 @@ sys.path.insert(0, str(ROOT))
 
 from distctrl.sim.runner import run  # noqa: E402
 from distctrl.sim.scenario import scenario_from_text  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))   # bench/, also when loaded by path
+from _results import merge_results  # noqa: E402
 
 SCENARIO = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"
 
@@ -101,12 +102,7 @@ def main() -> dict:
     if "--out" in sys.argv:                       # a scratch directory (make bench writes bench/)
         out = pathlib.Path(sys.argv[sys.argv.index("--out") + 1])
         out.mkdir(parents=True, exist_ok=True)
-    results = out / "results.json"
-    data = json.loads(results.read_text()) if results.exists() else {}
-    data.update(res)
-    results.write_text(json.dumps(data, indent=2))
-    with open(out / "RESULTS.md", "a", encoding="utf-8") as f:
-        f.write("\n".join(lines) + "\n")
+    merge_results(out, res, lines)
     return res
 
 

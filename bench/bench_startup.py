@@ -20,13 +20,14 @@ bench/bench_batch.py; alone: ``.venv/bin/python bench/bench_startup.py [--out DI
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pathlib
 import subprocess
 import sys
 import tempfile
 import time
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))   # bench/, also when loaded by path
+from _results import merge_results  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "examples" / "scenarios" / "tune_sheet.toml"
@@ -88,12 +89,7 @@ def main(argv=None) -> dict:
              "| measurement | value | unit | target | result |", "|---|---:|---|---:|---|"]
     lines += [f"| {a} | {b:,.2f} | {c} | {d} | {e} |" for a, b, c, d, e in rows]
     args.out.mkdir(parents=True, exist_ok=True)
-    results = args.out / "results.json"
-    data = json.loads(results.read_text()) if results.exists() else {}
-    data.update(res)
-    results.write_text(json.dumps(data, indent=2))
-    with open(args.out / "RESULTS.md", "a", encoding="utf-8") as f:
-        f.write("\n".join(lines) + "\n")
+    merge_results(args.out, res, lines)
     return res
 
 

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import gc
-import socket
 import time
 from pathlib import Path
 
@@ -12,7 +11,7 @@ pyads = pytest.importorskip("pyads")
 
 from distctrl.ads.machine import ServedMachine  # noqa: E402
 from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
-from tests.ads import wait_for  # noqa: E402
+from tests.ads import port_free, wait_for  # noqa: E402
 
 SCN = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
 IG = 0x120300
@@ -22,19 +21,9 @@ UNIT = "gpAx[1].lr_mc_control.distance_control"
 HOST, NET_ID = "127.0.0.2", "127.0.0.2.1.1"
 
 
-def port_free(port: int) -> bool:
-    with socket.socket() as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((HOST, port))
-        except OSError:
-            return False
-    return True
-
-
 @pytest.fixture(scope="module")
 def served():
-    if not port_free(48898):
+    if not port_free(HOST, 48898):
         pytest.skip("TCP 48898 is in use on this machine (pyads always connects to 48898)")
     sc = scenario_from_dict({
         "name": "served Z", "program_text": "N10 #TIME 3600\nN20 M30\n",

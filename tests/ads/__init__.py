@@ -236,6 +236,19 @@ class RawClient:
         return struct.unpack("<I", r.data)[0]
 
 
+def port_free(host: str, port: int) -> bool:
+    """True when TCP ``port`` on ``host`` can be bound (no server of another test or program on it)."""
+    import socket
+
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
 def wait_for(cond, timeout: float = 3.0) -> bool:
     """Poll ``cond()`` until it is true or ``timeout`` seconds passed; its last value."""
     end = time.monotonic() + timeout

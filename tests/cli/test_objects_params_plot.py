@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import gc
 import json
-import socket
 from pathlib import Path
 
 import pytest
@@ -13,6 +12,7 @@ from click.testing import CliRunner
 
 from distctrl.cli import main
 from distctrl.errors import ExitCode
+from tests.ads import port_free
 
 ROOT = Path(__file__).resolve().parents[2]
 SCN = ROOT / "examples" / "scenarios"
@@ -48,19 +48,9 @@ def test_objects_json_is_one_object_with_raw_and_converted_values():
 HOST, NET_ID = "127.0.0.4", "127.0.0.4.1.1"
 
 
-def _port_free(port: int) -> bool:
-    with socket.socket() as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((HOST, port))
-        except OSError:
-            return False
-    return True
-
-
 def test_objects_watch_reads_a_served_machine_over_ads():
     pytest.importorskip("pyads")
-    if not _port_free(48898):
+    if not port_free(HOST, 48898):
         pytest.skip("TCP 48898 is in use on this address")
     from distctrl.ads.machine import ServedMachine
     from distctrl.sim.scenario import load_scenario
