@@ -82,6 +82,6 @@ def main(out_dir: str | Path = "out/demo") -> list:
         "Both encoders (P-AXIS-00500): the one collision is the obstacle's vertical 2.8 mm wall at X = 250 mm, "
         "which a head at 1 mm cannot clear at 6 m/min (the max error is that edge). Plain CONST_DIST is the "
         "documents' warning example: without both encoders the loop oscillates into the sheet (a limit "
-        "cycle; its oscillation and collisions are shown, warning 900030). "
+        "cycle; its oscillation and collisions are shown: warnings 900032 and 900030). "
         f"Traces, plots and HTML reports: {out}/ (open {out}/sheet_report/index.html)"))
     return [r for _, _, r in results]
