@@ -75,7 +75,7 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
     with the closed-loop batch kernel; write the metrics table and optionally a plot."""
     from ..batch.closed_loop import prepare
     from .metrics import METRIC_NAMES
-    from .runner import Evaluator, plot_sweep
+    from .runner import DEFAULT_CHUNK, Evaluator, plot_sweep
     from .space import build_sets, grid_points, parse_grid, random_sample
 
     if (grid is None) == (n_random is None):
@@ -85,6 +85,11 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
     opts = _mode(local, scheduler)
     weights = _weights(sat_weight, chatter_weight)
     try:
+        expected = n_random if n_random is not None else len(grid_points(parse_grid(grid)))
+        if opts["mode"] == "cluster" and not scheduler and expected <= (chunk or DEFAULT_CHUNK):
+            # one chunk cannot be spread over workers: the embedded cluster would only add its start-up
+            opts["mode"] = "local"
+            _say(f"{expected} sets fit in one chunk: running in this process (no cluster to start)")
         inputs = prepare(scenario, cycles)
         # the cluster starts (in the background) while the sets are built
         with Evaluator(inputs, cycles=cycles, n_workers=workers, chunk_size=chunk, log=_say,
