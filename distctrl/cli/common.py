@@ -76,6 +76,20 @@ def check_writable(path: str, what: str, directory: bool = False) -> None:
         fail(f"cannot write the {what} {path}: {exc.strerror or exc}")
 
 
+def check_plot_output(path: str | None, check_suffix) -> None:
+    """A ``--plot`` file before the work: its suffix (``check_suffix`` raises a DistCtrlError) and
+    that it can be written; fails with one line otherwise."""
+    from ..errors import DistCtrlError
+
+    if not path:
+        return
+    try:
+        check_suffix(path)
+    except DistCtrlError as exc:
+        fail(str(exc))
+    check_writable(path, "plot")
+
+
 def os_error_text(exc: OSError) -> str:
     """One line for an OSError: the path and the system's words."""
     where = exc.filename if exc.filename is not None else "an output"

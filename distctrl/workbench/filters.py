@@ -33,6 +33,7 @@ from ..control.filters import FilterConfig, SensorFilter
 from ..control.kinds import FILTER_TYPE_NAMES, FilterType
 from ..errors import DistCtrlError, ParameterError
 from .tables import render_table
+from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -754,15 +755,10 @@ def results_dicts(results: Sequence[FilterResult]) -> list[dict]:
     return out
 
 
-PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
 
 def check_plot_path(path: str | os.PathLike) -> Path:
-    p = Path(path)
-    if p.suffix.lower() not in PLOT_SUFFIXES:
-        raise WorkbenchError(f"plot file {str(p)!r}: suffix {p.suffix or '(none)'!r} not supported; "
-                             f"allowed: {', '.join(PLOT_SUFFIXES)}")
-    return p
+    return check_plot_suffix(path, WorkbenchError)
 
 
 def plot_overlay(t, signal, results: Sequence[FilterResult], path: str | os.PathLike | None = None,

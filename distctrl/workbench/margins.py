@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import DistCtrlError
+from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
 
 if TYPE_CHECKING:  # pragma: no cover
     import control
@@ -66,7 +67,6 @@ KP_SEARCH_MAX = 1000.0
 POLE_TOLERANCE = 1e-9
 #: the machine time a scenario is run at most to find the first select (s)
 SELECT_SEARCH_S = 60.0
-PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 #: crossings listed in the text (all of them in to_dict)
 MAX_CROSSINGS_SHOWN = 8
 #: one cycle: the machine's sensor reads the axis position the drive reached in the previous cycle
@@ -649,11 +649,7 @@ def _hz(f: float | None) -> str:
 
 
 def check_plot_path(path: str | os.PathLike) -> Path:
-    p = Path(path)
-    if p.suffix.lower() not in PLOT_SUFFIXES:
-        raise MarginsError(f"plot file {str(p)!r}: suffix {p.suffix or '(none)'!r} not supported; allowed: "
-                           f"{', '.join(PLOT_SUFFIXES)}")
-    return p
+    return check_plot_suffix(path, MarginsError)
 
 
 def _critical(model: LoopModel) -> tuple[float, float]:

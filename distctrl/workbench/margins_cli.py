@@ -37,16 +37,10 @@ def margins(scenario: str, axis: str | None, kp: float | None, plot_path: str | 
     crossover frequencies (Hz), the KP at the stability limit and the oscillation frequency there.
     A loop it calls unstable grows until the slope limiter decides a limit cycle (docs/margins.md).
     """
-    from ..cli.common import check_writable, emit_json, fail
+    from ..cli.common import check_plot_output, emit_json, fail
     from .margins import analyse, check_plot_path, loop_model
 
-    try:
-        if plot_path:
-            check_plot_path(plot_path)
-    except DistCtrlError as exc:
-        fail(str(exc))
-    if plot_path:
-        check_writable(plot_path, "plot")
+    check_plot_output(plot_path, check_plot_path)
     try:
         result = analyse(loop_model(scenario, axis=axis, kp=kp))
     except DistCtrlError as exc:

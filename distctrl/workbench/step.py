@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any, Iterable, NamedTuple, Sequence
 import numpy as np
 
 from ..errors import DistCtrlError
+from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
 from .tables import render_table
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -1028,15 +1029,10 @@ def results_json(results: Sequence[StepResult]) -> dict:
             "suggested_kp": best.setting.kp if best is not None else None}
 
 
-PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
 
 def check_plot_path(path: str | os.PathLike) -> Path:
-    p = Path(path)
-    if p.suffix.lower() not in PLOT_SUFFIXES:
-        raise StepError(f"plot file {str(p)!r}: suffix {p.suffix or '(none)'!r} not supported; allowed: "
-                        f"{', '.join(PLOT_SUFFIXES)}")
-    return p
+    return check_plot_suffix(path, StepError)
 
 
 def plot_steps(results: Sequence[StepResult], path: str | os.PathLike | None = None,

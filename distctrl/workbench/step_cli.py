@@ -69,7 +69,7 @@ def step(scenario: str | None, kp: str, i_tn: str, d_tv: str, step_mm: str, mode
     cycles the limiter (P-AXIS-00415/00416) shaped per setting, and hints along the documents'
     method; a response the limiter decided is said so and never suggested.
     """
-    from ..cli.common import check_writable
+    from ..cli.common import check_plot_output
     from .step import check_plot_path, format_table, hints, parse_settings, plot_steps, results_json, run_steps
 
     for name, value in (("--set-dist", set_dist), ("--ramp", ramp), ("--t-step", t_step), ("--duration", duration)):
@@ -78,12 +78,9 @@ def step(scenario: str | None, kp: str, i_tn: str, d_tv: str, step_mm: str, mode
     try:
         settings = parse_settings(kp, i_tn, d_tv)
         step_v = _step_value(step_mm)
-        if plot_path:
-            check_plot_path(plot_path)
     except DistCtrlError as exc:
         fail(str(exc))
-    if plot_path:
-        check_writable(plot_path, "plot")
+    check_plot_output(plot_path, check_plot_path)
     try:
         results = run_steps(settings, scenario, step_mm=step_v, mode=mode, t_step=t_step,
                             duration=duration, set_dist=set_dist, ramp_mm_s=ramp, progress=False if as_json else None)
