@@ -227,3 +227,9 @@ def test_3d_objects_exist_only_with_fct_3d_dist_ctrl():
     with pytest.raises(AdsError):
         device.read(0x121301, 0x3100, 8)
     device.read(0x120300, 0x13100, 8)                          # the axis objects are there
+
+
+def test_pyads_reads_the_string_object_with_its_own_string_type(cnc):
+    """pyads reads every string type with a 1024-byte buffer: the STRING(30) object filter_type
+    answers it with its 30 bytes (before: 0x705, issue 14)."""
+    assert cnc.read(IG, (1 << 16) | 0x310D, pyads.PLCTYPE_STRING) == "DEFAULT"

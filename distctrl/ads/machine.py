@@ -69,7 +69,9 @@ class CncObjectDevice:
 
     def read(self, index_group: int, index_offset: int, length: int) -> bytes:
         spec, ctx = self._find(index_group, index_offset)
-        if length != spec.length:
+        # a STRING object fills a larger buffer with its own bytes (pyads reads every string type with
+        # a 1024-byte buffer); every other object answers only a read of its exact size
+        if length != spec.length and not (spec.type == "STRING" and length > spec.length):
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.length} bytes, {length} requested")
         return read_bytes_3d(spec, ctx) if isinstance(ctx, Channel3DObjectContext) else read_bytes(spec, ctx)
 

@@ -630,7 +630,7 @@ class AdsServer:
                 raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short Read request")
             ig, io, length = _unpack_read_req(body, AMS_HEADER_SIZE)
             if length > self.max_frame:
-                self._check_length(length)
+                length = self._capacity(ig, length)
             data = self._read(conn, ams_port, dev, ig, io, length)
             return _pack_read_res(0, len(data)) + data
         p = memoryview(body)[AMS_HEADER_SIZE:]
@@ -648,7 +648,8 @@ class AdsServer:
             ig, io, rlen, wlen = READ_WRITE_REQ.unpack_from(p)
             if wlen > len(p) - READ_WRITE_REQ.size:
                 raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "ReadWrite data shorter than its length field")
-            self._check_length(rlen)
+            if rlen > self.max_frame:
+                rlen = self._capacity(ig, rlen)
             wdata = bytes(p[READ_WRITE_REQ.size:READ_WRITE_REQ.size + wlen])
             data = self._read_write(conn, ams_port, dev, ig, io, rlen, wdata)
             return READ_RES.pack(0, len(data)) + data
@@ -686,6 +687,15 @@ class AdsServer:
     def _check_length(self, length: int) -> None:
         if length > self.max_frame:
             raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"read length {length} exceeds {self.max_frame}")
+
+    def _capacity(self, ig: int, length: int) -> int:
+        """A read length above the frame limit: for the symbol services it is a buffer's capacity (ads-client
+        asks with 0xFFFFFFFF, "any size") and the answer has the real size; for a device's own index
+        groups it is refused (0x705)."""
+        if ig in _SYMBOL_GROUPS:
+            return self.max_frame
+        self._check_length(length)
+        return length
 
     # ------------------------------------------------------------------------------------------
     # device notifications
@@ -961,14 +971,15 @@ class AdsServer:
 
     def _sym_read(self, dev: AdsDevice, sym: SymbolInfo, length: int) -> bytes:
         """Value of a symbol. Strings: any length (the value is cut to it, a larger buffer gets the
-        whole string); other types: the length must be the symbol size."""
+        whole string); other types: the length is a capacity, at least the symbol's size, and the answer
+        has the symbol's size (as a TwinCAT 3 target answers ads-client's "any size" reads)."""
         if sym.ads_type in STRING_TYPES:
             data = bytes(dev.read(sym.index_group, sym.index_offset, sym.size))[:sym.size]
             return data[:length]
-        if length != sym.size:
+        if length < sym.size:
             raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, {length} requested")
-        data = bytes(dev.read(sym.index_group, sym.index_offset, length))
-        if len(data) > length:
+        data = bytes(dev.read(sym.index_group, sym.index_offset, sym.size))
+        if len(data) > sym.size:
             raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"{sym.name}: device returned {len(data)} bytes")
         return data
 

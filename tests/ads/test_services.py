@@ -274,3 +274,24 @@ def test_many_small_requests_are_fast(c):
     for _ in range(500):
         assert c.read(IG_DATA, 0, 4).result == 0
     assert time.perf_counter() - t0 < 5.0
+
+
+# --- "any size" reads of the symbol services (issue 14: ads-client asks with 0xFFFFFFFF) -----------------
+ANY = 0xFFFFFFFF
+
+
+def test_symbol_reads_take_the_length_as_a_capacity_and_answer_the_real_size(c, device):
+    h = c.handle("MAIN.value")
+    assert c.write(P.ADSIGRP_SYM_VALBYHND, h, struct.pack("<d", 2.25)).result == 0
+    for length in (9, 64, ANY):
+        r = c.read(P.ADSIGRP_SYM_VALBYHND, h, length)
+        assert r.result == 0 and struct.unpack("<d", r.data) == (2.25,), length
+    r = c.read_write(P.ADSIGRP_SYM_VALBYNAME, 0, ANY, b"MAIN.value\0")
+    assert r.result == 0 and struct.unpack("<d", r.data) == (2.25,)
+    r = c.read_write(P.ADSIGRP_SYM_INFOBYNAMEEX, 0, ANY, b"MAIN.value\0")
+    assert r.result == 0 and P.decode_symbol_entry(r.data).name == "MAIN.value"
+    r = c.read_write(P.ADSIGRP_SYM_HNDBYNAME, 0, ANY, b"MAIN.value\0")
+    assert r.result == 0 and len(r.data) == 4
+    # smaller than the symbol stays an error; a device's own index group keeps the exact-size rule
+    assert c.read(P.ADSIGRP_SYM_VALBYHND, h, 7).result == E.ADSERR_DEVICE_INVALIDSIZE
+    assert c.read(IG_DATA, 0, ANY).result == E.ADSERR_DEVICE_INVALIDSIZE
