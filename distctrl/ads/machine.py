@@ -22,8 +22,8 @@ import threading
 
 from . import AdsError, AdsServer, SymbolInfo
 from .errors import (ADSERR_DEVICE_INVALIDACCESS, ADSERR_DEVICE_INVALIDDATA, ADSERR_DEVICE_INVALIDGRP,
-                         ADSERR_DEVICE_INVALIDOFFSET, ADSERR_DEVICE_INVALIDSIZE)
-from .protocol import ADST_REAL64
+                         ADSERR_DEVICE_INVALIDOFFSET, ADSERR_DEVICE_INVALIDPARM, ADSERR_DEVICE_INVALIDSIZE)
+from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64
 from ..objects.registry import (INDEX_GROUPS, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
                                read_bytes, write_bytes)
 from ..objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
@@ -36,8 +36,12 @@ log = logging.getLogger("distctrl.serve")
 
 CNC_PORT = 551
 PLC_PORT = 851
+SYSTEM_SERVICE_PORT = 10000        # TwinCAT's system service: the target's run mode
+#: the PLC runtime's ADS and device state (ADS state UINT at offset 0, device state UINT at 2), as
+#: ads-client reads and subscribes to it on every connect
+DEVICE_DATA_GROUP = 0xF100
 PLC_SYMBOL_GROUP = 0x4020          # %M-like memory area for the PLC symbols
-ADS_RUN, DEVICE_OK = 5, 0
+ADS_RUN, DEVICE_OK = ADSSTATE_RUN, 0
 
 
 class CncObjectDevice:
@@ -103,8 +107,9 @@ class PlcDevice:
     name = "distctrl PLC"
     version = (0, 1, 0)
 
-    def __init__(self, machine):
+    def __init__(self, machine, runtime=None):
         self.machine = machine
+        self.runtime = runtime              # the served machine's run/stop switch (None: always RUN)
         self.specs: dict[str, object] = {}
         for i, n in enumerate(machine.axis_names):
             self.specs.update(hli_symbols(i + 1, machine.hli[n]))
@@ -121,6 +126,9 @@ class PlcDevice:
             self.by_offset[offset] = spec
             offset += (spec.size + 7) // 8 * 8                  # 8-byte aligned, distinct addresses
 
+    def _ads_state(self) -> int:
+        return ADSSTATE_STOP if self.runtime is not None and self.runtime.paused else ADSSTATE_RUN
+
     def _spec(self, index_group: int, index_offset: int):
         if index_group != PLC_SYMBOL_GROUP:
             raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X}")
@@ -130,6 +138,12 @@ class PlcDevice:
         return spec
 
     def read(self, index_group: int, index_offset: int, length: int) -> bytes:
+        if index_group == DEVICE_DATA_GROUP:
+            state = struct.pack("<HH", self._ads_state(), DEVICE_OK)
+            if index_offset + length > len(state) or length == 0:
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"0x{index_group:X}:0x{index_offset:X} has "
+                                                          f"{len(state) - index_offset} bytes, {length} requested")
+            return state[index_offset:index_offset + length]
         spec = self._spec(index_group, index_offset)
         if length != spec.size:
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.size} bytes")
@@ -152,7 +166,35 @@ class PlcDevice:
         return self.infos
 
     def state(self) -> tuple[int, int]:
-        return ADS_RUN, DEVICE_OK
+        return self._ads_state(), DEVICE_OK
+
+    def write_control(self, ads_state: int, device_state: int, data: bytes) -> None:
+        """WriteControl RUN / STOP, as starting and stopping a PLC: STOP pauses the served machine
+        (its cycle holds, the clients still read), RUN resumes it; other states: 0x70B."""
+        if self.runtime is None or ads_state not in (ADSSTATE_RUN, ADSSTATE_STOP):
+            raise AdsError(ADSERR_DEVICE_INVALIDPARM, f"WriteControl to ADS state {ads_state}: allowed "
+                                                      f"{ADSSTATE_RUN} RUN, {ADSSTATE_STOP} STOP")
+        self.runtime.set_paused(ads_state == ADSSTATE_STOP)
+
+
+class SystemServiceDevice:
+    """AMS port 10000, TwinCAT's system service: what clients read first to learn the target's run mode
+    (ads-client's default connect). RUN while the served machine is up; device info of the target."""
+
+    name = "TwinCAT System"
+    version = (3, 1, 4024)
+
+    def read(self, index_group: int, index_offset: int, length: int) -> bytes:
+        raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X} of the system service")
+
+    def write(self, index_group: int, index_offset: int, data: bytes) -> None:
+        raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X} of the system service")
+
+    def symbols(self) -> dict:
+        return {}
+
+    def state(self) -> tuple[int, int]:
+        return ADSSTATE_RUN, DEVICE_OK
 
 
 def _variable_symbol(variables: dict, name: str):
@@ -238,17 +280,28 @@ class ServedMachine:
         self.scenario = scenario
         self.machine = Machine(scenario, load_program(scenario), publish_hli=True)
         self.lock = threading.Lock()
+        self.paused = False
         self.cnc = CncObjectDevice(self.machine)
-        self.plc = PlcDevice(self.machine)
-        self.server = AdsServer({CNC_PORT: self.cnc, PLC_PORT: self.plc}, host=host, port=port, net_id=net_id,
-                                allowed=list(allowed), lock=self.lock)
+        self.plc = PlcDevice(self.machine, runtime=self)
+        self.system = SystemServiceDevice()
+        self.server = AdsServer({CNC_PORT: self.cnc, PLC_PORT: self.plc, SYSTEM_SERVICE_PORT: self.system},
+                                host=host, port=port, net_id=net_id, allowed=list(allowed), lock=self.lock)
         self.session = SessionLog(self.machine)
         self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock)
 
     def step(self) -> None:
-        """One cycle of the machine, then the session log (under the loop's lock)."""
+        """One cycle of the machine, then the session log (under the loop's lock); nothing while the
+        PLC runtime is stopped (WriteControl STOP on port 851)."""
+        if self.paused:
+            return
         self.machine.step()
         self.session.after_cycle()
+
+    def set_paused(self, paused: bool) -> None:
+        if paused != self.paused:
+            self.paused = paused
+            log.info("t=%.3f s PLC runtime %s (WriteControl)", self.machine.cycle * self.machine.T,
+                     "STOP: the machine holds" if paused else "RUN: the machine runs on")
 
     def start(self) -> None:
         self.server.start()
