@@ -59,6 +59,7 @@ from .protocol import (
     AMS_HEADER_SIZE,
     AMS_TCP_HEADER,
     AMS_TCP_HEADER_SIZE,
+    AMS_TCP_PORT_CLOSE,
     AMS_TCP_PORT_CONNECT,
     CMD_ADD_DEVICE_NOTIFICATION,
     CMD_DEL_DEVICE_NOTIFICATION,
@@ -110,6 +111,7 @@ _SYMBOL_GROUPS = frozenset({
 })
 
 _CLOSE = object()  # sentinel: close this connection
+_PORT_CLOSED = object()  # sentinel: the client unregistered its AMS port: close as a TwinCAT router does
 
 #: a response's AMS/TCP header and AMS header, packed at once
 _RESPONSE_HEAD = struct.Struct("<HI6sH6sHHHIII")
@@ -348,6 +350,8 @@ class _AdsProtocol(asyncio.BufferedProtocol):
                     out = srv._handle_tcp_command(self.conn, reserved, body)  # type: ignore[arg-type]
                 if out is _CLOSE:
                     self.close("malformed frame")
+                elif out is _PORT_CLOSED:
+                    self.close("AMS port closed by the client")
                 elif out:
                     self.transport.write(out)  # type: ignore[union-attr, arg-type]
         except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
@@ -554,6 +558,10 @@ class AdsServer:
             self._next_dynamic_port = 32768 + (self._next_dynamic_port - 32768 + 1) % 32000
             data = _PORT_CONNECT_RES.pack(self._net_id, port)
             return AMS_TCP_HEADER.pack(AMS_TCP_PORT_CONNECT, len(data)) + data
+        if reserved == AMS_TCP_PORT_CLOSE:
+            # the client unregisters its AMS port (ads-client's disconnect): a TwinCAT router drops the
+            # TCP connection then, which is the answer the client waits for
+            return _PORT_CLOSED
         self.log.debug("%s: ignoring AMS/TCP command 0x%04X (%d bytes)", conn.peer, reserved, len(body))
         return None
 

@@ -62,3 +62,12 @@ def test_write_control_stop_pauses_the_machine_and_run_resumes_it(served, c):
     assert wait_for(lambda: served.machine.cycle > held + 10)
     bad = c.call(P.request, P.CMD_WRITE_CONTROL, P.WRITE_CONTROL_REQ.pack(P.ADSSTATE_INIT, 0, 0))
     assert bad.result == E.ADSERR_DEVICE_INVALIDPARM
+
+
+def test_port_close_is_answered_by_closing_the_connection(c):
+    """ads-client's disconnect unregisters its AMS port (AMS/TCP 0x0001, 2 bytes: the port) and waits
+    for the router to drop the connection."""
+    r = c.call(P.request, P.CMD_READ_STATE, b"")
+    assert r.result == 0
+    c.send(P.AMS_TCP_HEADER.pack(P.AMS_TCP_PORT_CLOSE, 2) + struct.pack("<H", 32905))
+    assert c.is_closed_by_server(timeout=2.0)
