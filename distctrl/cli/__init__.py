@@ -119,10 +119,9 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     file, line or key and what is allowed), 2 a control error aborted it, 3 stopped at the time limit
     (duration) before the program ended, 130 Ctrl-C.
     """
-    from ..sim.runner import estimate_trace
     from ..sim.runner import run as run_scenario
     from ..sim.scenario import load_scenario
-    from .common import check_writable, emit_json
+    from .common import check_writable, emit_json, fail
 
     records = tuple(record.split(",")) if record else ()
     for path, what, is_dir in ((trace_path, "trace", False), (plot_path, "plot", False),
@@ -131,16 +130,14 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
             check_writable(path, what, directory=is_dir)
     try:
         sc = load_scenario(scenario)
-        if trace_path:
-            _say_trace_size(estimate_trace(sc, record=records, decimate=decimate, max_rows=max_rows), trace_path)
         # a plot or a report needs the trace in memory: thinned to PLOT_ROWS rows, never the whole run
         wants_trace = plot_path is not None or report_dir is not None
         result = run_scenario(sc, trace=trace_path, keep_trace=wants_trace, progress=not as_json, record=records,
                               stop_on_collision=stop_on_collision, decimate=decimate, max_rows=max_rows,
-                              keep_at_most=PLOT_ROWS if wants_trace and max_rows is None else None)
+                              keep_at_most=PLOT_ROWS if wants_trace and max_rows is None else None,
+                              on_start=(lambda size: _say_trace_size(size, trace_path)) if trace_path else None)
     except DistCtrlError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(1)
+        fail(str(exc))
     if plot_path:
         result.plot(plot_path)
     if report_dir:
@@ -310,9 +307,8 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
             sc = load_scenario(scenario)
         except DistCtrlError as exc:
             fail(str(exc))
-        order = [n for n in "XYZABC" if n in sc.axes] + [n for n in sc.axes if n not in "XYZABC"]
-        names = {i + 1: n for i, n in enumerate(order)}
-        resolution = next((sc.axes[n].resolution for n in order if sc.axes[n].resolution), 1e-4)
+        names = {i + 1: n for i, n in enumerate(sc.axes)}        # the scenario keeps X Y Z A B C order
+        resolution = next((a.resolution for a in sc.axes.values() if a.resolution), 1e-4)
     conn = pyads.Connection(net_id, 551, host)
     try:
         conn.open()

@@ -12,8 +12,8 @@ import ctypes
 from typing import Iterable, Mapping
 
 from ..control.states import InternalState
-from .registry import (SERVED_OBJECTS, AxisObjectContext, ObjectSpec, decode, format_value, index_offset,
-                       read_value)
+from .registry import (SERVED_OBJECTS, AxisObjectContext, ObjectSpec, decode, format_object_table, format_value,
+                       index_offset, read_value)
 
 #: the browser's columns
 COLUMNS = ("No", "Axis", "Group", "Offset", "Name", "Type", "Length", "Unit", "Raw value", "Value", "Access")
@@ -74,15 +74,8 @@ def remote_rows(conn, axes: Mapping[int, str], resolution_mm: float = 1e-4) -> l
 
 
 def format_rows(rows: list[dict], columns: tuple[str, ...] = COLUMNS) -> str:
-    """A plain fixed-width text table (a header line, a rule, the rows)."""
-    cells = [list(columns)] + [[str(r.get(c, "")) for c in columns] for r in rows]
-    widths = [max(len(line[i]) for line in cells) for i in range(len(columns))]
-    right = {"No", "Length", "Raw value", "Value"}
-
-    def fmt(line):
-        return "  ".join(v.rjust(w) if columns[i] in right else v.ljust(w)
-                         for i, (v, w) in enumerate(zip(line, widths))).rstrip()
-    return "\n".join([fmt(cells[0]), "  ".join("-" * w for w in widths)] + [fmt(r) for r in cells[1:]]) + "\n"
+    """A plain fixed-width text table (a header line, a rule, the rows), as the registry's."""
+    return format_object_table(rows, columns)
 
 
 def json_rows(rows: list[dict]) -> list[dict]:

@@ -568,11 +568,16 @@ def object_row(nr: int, index_group: int, index_offset_: int, spec: ObjectSpec, 
     return row
 
 
-def format_object_table(rows: list[dict], columns: tuple[str, ...] = COLUMNS) -> str:
-    """A plain fixed-width text table of :func:`object_table` rows (a header line, a rule, the rows)."""
+#: the columns of the object tables whose values are right-aligned (numbers)
+RIGHT_ALIGNED = frozenset({"Nr", "Länge", "Wert", "No", "Length", "Raw value", "Value"})
+
+
+def format_object_table(rows: list[dict], columns: tuple[str, ...] = COLUMNS,
+                        right: frozenset[str] = RIGHT_ALIGNED) -> str:
+    """A plain fixed-width text table of :func:`object_table` rows (a header line, a rule, the rows);
+    the ``right`` columns right-aligned."""
     cells = [[str(c) for c in columns]] + [[str(r.get(c, "")) for c in columns] for r in rows]
     widths = [max(len(row[i]) for row in cells) for i in range(len(columns))]
-    right = {"Nr", "Länge", "Wert"}
 
     def fmt(row):
         return "  ".join(v.rjust(w) if columns[i] in right else v.ljust(w)

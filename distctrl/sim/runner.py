@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..control import HliState
-from ..errors import CATALOGUE, ErrorId, ExitCode
+from ..errors import ErrorId, ExitCode
 from ..nc.parser import parse_file, parse_program
 from .config_errors import ConfigError
 from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
@@ -178,7 +178,7 @@ def load_program(scenario):
 
 def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, progress: bool = False,
         plc_program=None, record=(), stop_on_collision: bool = False, decimate: int = 1,
-        max_rows: int | None = None, keep_at_most: int | None = None) -> RunResult:
+        max_rows: int | None = None, keep_at_most: int | None = None, on_start=None) -> RunResult:
     """Run ``scenario`` (a Scenario, or a path to a TOML file). Invalid files raise DistCtrlError.
 
     ``trace``: a CSV path (streamed, with a ``.meta.json`` units sidecar) or a ``.parquet`` path
@@ -191,6 +191,8 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     only the last N rows (a ring buffer like a scope; the CSV is written at the end);
     ``keep_at_most=N`` thins the kept ``result.trace`` (not the CSV) to at most N rows, for a plot or
     report of a long run in bounded memory. Metrics and events always see every cycle.
+    ``on_start(size)``, if given, is called before the trace is opened with what it will hold at most
+    (:func:`estimate_trace`'s dict), e.g. to say so before a long run.
 
     ``plc_program(machine, cycle)``, if given, runs every cycle before the CNC reads the PLC
     interface: it may write ``machine.hli[axis]`` (command_w + semaphore, cyclic values) and read
@@ -211,16 +213,19 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         require_pyarrow()                       # fail before the run, not after it
         trace, keep_trace = None, True
         keep_at_most = None                     # the Parquet file is written from the kept rows: all of them
-    # rows packed as they are built (no Python floats kept alive) in 1024-row chunks (~190 kB), which
-    # stay in the CPU caches: buffering 8192 rows of floats (~6 MB) cost ~7 % of the cycle time
     decimate = _check_count(decimate, "decimate")
+    max_rows = None if max_rows is None else _check_count(max_rows, "max_rows")
+    limit_s = scenario.duration if scenario.duration is not None else MAX_RUN_SECONDS
+    if on_start is not None:
+        on_start(_trace_size(len(columns), limit_s, T, decimate, max_rows))
     meta = {"scenario": scenario.name, "cycle_time": T}
     if decimate > 1:
         meta["decimate"] = decimate
+    # rows packed as they are built (no Python floats kept alive) in 1024-row chunks (~190 kB), which
+    # stay in the CPU caches: buffering 8192 rows of floats (~6 MB) cost ~7 % of the cycle time
     recorder = TraceRecorder(columns, units, csv_path=trace, keep=keep_trace, chunk_rows=1024, packed=True,
-                             meta=meta, max_rows=None if max_rows is None else _check_count(max_rows, "max_rows"),
+                             meta=meta, max_rows=max_rows,
                              keep_at_most=None if keep_at_most is None else _check_count(keep_at_most, "keep_at_most"))
-    limit_s = scenario.duration if scenario.duration is not None else MAX_RUN_SECONDS
     max_cycles = int(round(limit_s / T))
     settle_cycles = max(1, int(round(scenario.settle_time / T)))
     dc_axis = scenario.sensor.axis if scenario.sensor is not None and scenario.sensor.axis in machine.dc_axes \
@@ -308,8 +313,8 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         # the sidecar keeps them: `distctrl plot` marks them without the run's JSON
         recorder.meta["errors"], recorder.meta["warnings"] = errors, warnings
         program_done = nc is not None and nc.ended and not nc.aborted
-        recorder.meta["outcome"] = _outcome(interrupted, bool(errors) or (nc is not None and nc.aborted),
-                                            program_done)
+        aborted = bool(errors) or (nc is not None and nc.aborted)
+        outcome = recorder.meta["outcome"] = _outcome(interrupted, aborted, program_done)
         kept = recorder.close(complete=not interrupted)
         machine.publish_all()
         if bar is not None:
@@ -323,9 +328,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     else:
         final_state = HliState(outputs[dc_axis].hli_state).name if dc_axis is not None else "n/a"
     notes = list(machine.notes)
-    aborted = bool(errors) or (nc is not None and nc.aborted)
     run_metrics = {**metrics.result(), **contact.result()}
-    outcome = _outcome(interrupted, aborted, program_done)
     return RunResult(scenario.name or Path(str(scenario.path or "scenario")).stem, program_done and not errors,
                      aborted, errors, warnings, final_state,
                      machine.cycle, T, run_metrics, kept, str(trace) if trace else None, interrupted, notes,
@@ -354,12 +357,15 @@ def estimate_trace(scenario, *, record=(), decimate: int = 1, max_rows: int | No
     machine = Machine(scenario, load_program(scenario))
     columns, _ = trace_columns(machine, check_record(record))
     limit_s = scenario.duration if scenario.duration is not None else MAX_RUN_SECONDS
-    rows = -(-int(round(limit_s / scenario.cycle_time)) // max(1, decimate))
+    return _trace_size(len(columns), limit_s, scenario.cycle_time, decimate, max_rows)
+
+
+def _trace_size(n_columns: int, limit_s: float, T: float, decimate: int, max_rows: int | None) -> dict:
+    rows = -(-int(round(limit_s / T)) // max(1, decimate))
     if max_rows is not None:
         rows = min(rows, max_rows)
-    n = len(columns)
-    return {"rows": rows, "columns": n, "csv_bytes": rows * n * CSV_BYTES_PER_VALUE, "memory_bytes": rows * n * 8,
-            "time_limit_s": limit_s}
+    return {"rows": rows, "columns": n_columns, "csv_bytes": rows * n_columns * CSV_BYTES_PER_VALUE,
+            "memory_bytes": rows * n_columns * 8, "time_limit_s": limit_s}
 
 
 def _outcome(interrupted: bool, aborted: bool, program_done: bool) -> str:
@@ -381,7 +387,7 @@ class _Metrics:
     the crossings of its mean (null when the amplitude is inside the band or it does not make two
     whole periods)."""
 
-    __slots__ = ("T", "n", "sq", "max", "band", "hold", "k", "k_start", "inside", "k_entry", "recent",
+    __slots__ = ("T", "n", "sq", "max", "band", "hold", "k_start", "inside", "k_entry", "recent",
                  "paused", "since_window", "episode", "episodes", "surface")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
@@ -392,7 +398,6 @@ class _Metrics:
         self.sq = 0.0
         self.max = 0.0
         self.band, self.hold = band, hold_cycles
-        self.k = -1                   # the cycle of the last sample
         self.k_start = None           # the first tracking cycle
         self.inside = 0               # cycles inside the band since the last entry
         self.k_entry = None           # the cycle of the last entry into the band
@@ -404,7 +409,6 @@ class _Metrics:
         self.episodes: list[dict] = []
 
     def add(self, k: int, line, err: float, surface: float = 0.0) -> None:
-        self.k = k
         if self.k_start is None:
             self.k_start = k
         if self.paused:             # tracking resumed: the band has to be entered anew

@@ -12,6 +12,7 @@ integers, NaN as ``nan``), about three times faster than Python's own formatting
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import math
@@ -498,19 +499,15 @@ class TraceRecorder:
         self.append_raw: Callable[[Any], None] = self._buf.append
         self.append: Callable[[Any], None] = self._make_append()
 
+    @contextlib.contextmanager
     def _naming_the_file(self):
         """Re-raise an OSError of the CSV or its sidecar with the CSV's path (a full disk names none)."""
-        import contextlib
-
-        @contextlib.contextmanager
-        def naming():
-            try:
-                yield
-            except OSError as exc:
-                if exc.filename is None:
-                    raise OSError(exc.errno, exc.strerror or str(exc), str(self.csv_path)) from exc
-                raise
-        return naming()
+        try:
+            yield
+        except OSError as exc:
+            if exc.filename is None:
+                raise OSError(exc.errno, exc.strerror or str(exc), str(self.csv_path)) from exc
+            raise
 
     def _make_append(self) -> Callable[[Any], None]:
         def append(row, _append=self._buf.append, _len=len, _buf=self._buf, _limit=self.chunk_rows,
