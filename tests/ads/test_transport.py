@@ -12,7 +12,7 @@ import pytest
 
 from distctrl.ads import AdsServer
 from distctrl.ads import protocol as P
-from distctrl.ads import server as S
+from distctrl.ads import transport as S
 
 from . import IG_DATA, MemoryDevice, RawClient, wait_for
 

@@ -4,7 +4,7 @@ Hypothesis generates valid requests with corrupted fields (AMS/TCP reserved/leng
 length, command id, state flags, invoke id, target port, index group/offset, read/write lengths),
 truncated frames, oversized lengths, frames split over several sends, pure random bytes and
 clients that vanish mid-frame. A small model of the server's framing rules (:func:`predict`, taken
-from ``docs/ads.md`` / ``distctrl/ads/server.py``) says, for every byte stream, which frames must
+from ``docs/ads.md`` / ``distctrl/ads/transport.py``) says, for every byte stream, which frames must
 be answered, which are silently ignored and whether the connection must be closed; the test checks
 the server does exactly that within a socket timeout of about 1 s (never hangs).
 

@@ -1,0 +1,155 @@
+"""Device notifications of the ADS server (AddDeviceNotification, DeleteDeviceNotification, and the
+DeviceNotification frames it sends): cyclic and on-change, sampled under the server's lock, bounded
+per connection (count, sampling cycle, unsent backlog)."""
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import struct
+import time
+from dataclasses import dataclass
+
+from . import errors as E
+from .errors import AdsError
+from .protocol import (
+    ADD_NOTIFICATION_REQ,
+    CMD_DEVICE_NOTIFICATION,
+    SF_ADS_COMMAND,
+    AdsDevice,
+    AmsHeader,
+    frame,
+)
+from .transport import Connection
+
+#: ADS transmission modes the server can serve (server cycle / server on change, and the "2"
+#: variants that TwinCAT treats the same way here)
+_TRANS_CYCLE = frozenset({3, 5})
+_TRANS_ON_CHANGE = frozenset({4, 6})
+#: seconds between 1601-01-01 (FILETIME epoch) and 1970-01-01
+_FILETIME_EPOCH = 11644473600
+_NOTIFY_STREAM_HEAD = struct.Struct("<IIQI")   # length, stamps, timestamp, samples
+_NOTIFY_SAMPLE_HEAD = struct.Struct("<II")     # notification handle, size
+_NOTIFY_FRAME_DATA = 60000                     # bytes of samples per notification frame (before splitting)
+_NOTIFY_BACKLOG = 1 << 20                      # unsent bytes to a client above which samples are dropped
+
+
+
+@dataclass
+class Notification:
+    handle: int
+    ams_port: int
+    index_group: int
+    index_offset: int
+    length: int
+    on_change: bool
+    cycle: float                 # seconds
+    route: tuple[bytes, int, bytes, int]   # client NetId, client port, our NetId, device port
+    due: float = 0.0
+    last: bytes | None = None
+
+
+class NotificationService:
+    """The notification part of :class:`~distctrl.ads.server.AdsServer` (a mixin: it uses the server's
+    ``devices``, ``lock``, ``lock_timeout``, ``log``, ``max_frame``, ``max_notifications``,
+    ``min_notification_cycle``, ``_tasks`` and ``_read``)."""
+
+    # device notifications
+    # ------------------------------------------------------------------------------------------
+    def _add_notification(self, conn: Connection, hdr: AmsHeader, dev: AdsDevice, p: memoryview) -> int:
+        if len(p) < ADD_NOTIFICATION_REQ.size:
+            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short AddDeviceNotification request")
+        ig, io, length, mode, _max_delay, cycle, _ = ADD_NOTIFICATION_REQ.unpack_from(p)
+        if mode not in _TRANS_CYCLE and mode not in _TRANS_ON_CHANGE:
+            raise AdsError(E.ADSERR_DEVICE_TRANSMODENOTSUPP, f"transmission mode {mode}")
+        if length == 0:
+            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "notification length 0")
+        if length > min(65536, self.max_frame):
+            raise AdsError(E.ADSERR_DEVICE_INVALIDWATCHSIZE, f"notification length {length}")
+        if len(conn.notifications) >= self.max_notifications:
+            raise AdsError(E.ADSERR_DEVICE_NOMOREHDLS,
+                           f"at most {self.max_notifications} notifications per connection")
+        self._read(conn, hdr.target_port, dev, ig, io, length)  # must be readable now
+        now = asyncio.get_running_loop().time()
+        n = Notification(
+            handle=conn.new_notification_handle(), ams_port=hdr.target_port, index_group=ig,
+            index_offset=io, length=length, on_change=mode in _TRANS_ON_CHANGE,
+            cycle=max(cycle * 1e-7, self.min_notification_cycle),
+            route=(hdr.source_net_id, hdr.source_port, hdr.target_net_id, hdr.target_port),
+            # the first sample follows the response after a moment: the client must have
+            # registered the handle before the first sample arrives
+            due=now + 0.05,
+        )
+        conn.notifications[n.handle] = n
+        if conn.notifier is None or conn.notifier.done():
+            conn.notifier = asyncio.get_running_loop().create_task(self._notify_loop(conn))
+            self._tasks.add(conn.notifier)
+        conn.wake.set()
+        return n.handle
+
+    async def _notify_loop(self, conn: Connection) -> None:
+        """Send the due notification samples of one connection, until it has none."""
+        loop = asyncio.get_running_loop()
+        try:
+            while conn.notifications:
+                now = loop.time()
+                due = [n for n in conn.notifications.values() if n.due <= now]
+                if due:
+                    for chunk in self._notification_frames(conn, due, now):
+                        conn.writer.write(chunk)
+                if not conn.notifications:
+                    break
+                conn.wake.clear()
+                wait = min(n.due for n in conn.notifications.values()) - loop.time()
+                if wait > 0:
+                    with contextlib.suppress(asyncio.TimeoutError):
+                        await asyncio.wait_for(conn.wake.wait(), wait)
+                else:
+                    await asyncio.sleep(0)
+        except asyncio.CancelledError:
+            raise
+        except Exception:  # pragma: no cover - defensive
+            self.log.exception("%s: notification loop failed", conn.peer)
+
+    def _notification_frames(self, conn: Connection, due: list[Notification], now: float) -> list[bytes]:
+        """Sample ``due`` (under the lock) and build the DeviceNotification frames to send."""
+        for n in due:   # schedule the next sample (no burst after a stall)
+            n.due = n.due + n.cycle if n.due + n.cycle > now else now + n.cycle
+        writer = conn.writer
+        if writer is None or writer.transport.get_write_buffer_size() > _NOTIFY_BACKLOG:
+            return []   # the client does not read: drop this round (on-change ones are resent)
+        lock = self.lock
+        if lock is not None and not lock.acquire(timeout=min(self.lock_timeout, 0.05)):
+            return []   # try again at the next cycle
+        samples: dict[tuple[bytes, int, bytes, int], list[tuple[int, bytes]]] = {}
+        try:
+            for n in due:
+                dev = self.devices.get(n.ams_port)
+                if dev is None:
+                    continue
+                err, data = self._sub(conn, self._read, conn, n.ams_port, dev, n.index_group,
+                                      n.index_offset, n.length)
+                if err:
+                    continue
+                data = data.ljust(n.length, b"\0")
+                if n.on_change and data == n.last:
+                    continue
+                n.last = data
+                samples.setdefault(n.route, []).append((n.handle, data))
+        finally:
+            if lock is not None:
+                lock.release()
+        stamp = int((time.time() + _FILETIME_EPOCH) * 10_000_000)
+        frames = []
+        for route, items in samples.items():
+            while items:
+                part, size = [], 0
+                while items and (not part or size + len(items[0][1]) <= _NOTIFY_FRAME_DATA):
+                    handle, data = items.pop(0)
+                    part.append(_NOTIFY_SAMPLE_HEAD.pack(handle, len(data)) + data)
+                    size += len(data)
+                body = b"".join(part)
+                data = _NOTIFY_STREAM_HEAD.pack(len(body) + 16, 1, stamp, len(part)) + body
+                hdr = AmsHeader(route[0], route[1], route[2], route[3], CMD_DEVICE_NOTIFICATION,
+                                SF_ADS_COMMAND, len(data), 0, 0)
+                frames.append(frame(hdr, data))
+        return frames
