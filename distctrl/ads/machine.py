@@ -20,17 +20,31 @@ import logging
 import struct
 import threading
 
-from . import AdsError, AdsServer, SymbolInfo
-from .errors import (ADSERR_DEVICE_INVALIDACCESS, ADSERR_DEVICE_INVALIDDATA, ADSERR_DEVICE_INVALIDGRP,
-                         ADSERR_DEVICE_INVALIDOFFSET, ADSERR_DEVICE_INVALIDPARM, ADSERR_DEVICE_INVALIDSIZE)
-from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64
-from ..objects.registry import (INDEX_GROUPS, AxisObjectContext, ObjectAccessError, ObjectValueError, find_object,
-                               read_bytes, write_bytes)
 from ..objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
 from ..objects.channel3d import read_bytes as read_bytes_3d
 from ..objects.channel3d import write_bytes as write_bytes_3d
+from ..objects.registry import (
+    INDEX_GROUPS,
+    AxisObjectContext,
+    ObjectAccessError,
+    ObjectValueError,
+    find_object,
+    read_bytes,
+    write_bytes,
+)
 from ..plc.hli import SemaphoreBusyError
-from ..plc.symbols import channel_status_symbols, hli_symbols
+from ..plc.symbols import STRUCT_MEMBERS, channel_status_symbols, hli_symbols
+from . import AdsError, AdsServer, SymbolInfo
+from .errors import (
+    ADSERR_DEVICE_INVALIDACCESS,
+    ADSERR_DEVICE_INVALIDDATA,
+    ADSERR_DEVICE_INVALIDGRP,
+    ADSERR_DEVICE_INVALIDOFFSET,
+    ADSERR_DEVICE_INVALIDPARM,
+    ADSERR_DEVICE_INVALIDSIZE,
+)
+from .datatypes import DataType, struct_type
+from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64
 
 log = logging.getLogger("distctrl.serve")
 
@@ -40,6 +54,9 @@ SYSTEM_SERVICE_PORT = 10000        # TwinCAT's system service: the target's run 
 #: the PLC runtime's ADS and device state (ADS state UINT at offset 0, device state UINT at 2), as
 #: ads-client reads and subscribes to it on every connect
 DEVICE_DATA_GROUP = 0xF100
+SYSTEM_STATE_GROUP = 0xF0             # the system service's extended state (ads-client reads it first)
+#: ADS state, device state, restart index, version, revision, build, platform, OS type, flags, reserved
+SYSTEM_STATE = struct.Struct("<HHHBBHBBHH")
 PLC_SYMBOL_GROUP = 0x4020          # %M-like memory area for the PLC symbols
 ADS_RUN, DEVICE_OK = ADSSTATE_RUN, 0
 
@@ -125,6 +142,12 @@ class PlcDevice:
                                           spec.comment, read_only=spec.set is None)
             self.by_offset[offset] = spec
             offset += (spec.size + 7) // 8 * 8                  # 8-byte aligned, distinct addresses
+        self.types: dict[str, DataType] = {}
+        for name, info in self.infos.items():
+            members = STRUCT_MEMBERS.get(info.type_name)
+            if members and info.type_name not in self.types:
+                self.types[info.type_name] = struct_type(
+                    info.type_name, [self.infos[f"{name}.{m}"] for m in members], f"{name}.", info.comment)
 
     def _ads_state(self) -> int:
         return ADSSTATE_STOP if self.runtime is not None and self.runtime.paused else ADSSTATE_RUN
@@ -165,6 +188,10 @@ class PlcDevice:
     def symbols(self) -> dict[str, SymbolInfo]:
         return self.infos
 
+    def data_types(self) -> dict[str, DataType]:
+        """The structures among the symbols (``STRUCT_MEMBERS``), as ADS clients read them by type name."""
+        return self.types
+
     def state(self) -> tuple[int, int]:
         return self._ads_state(), DEVICE_OK
 
@@ -185,6 +212,11 @@ class SystemServiceDevice:
     version = (3, 1, 4024)
 
     def read(self, index_group: int, index_offset: int, length: int) -> bytes:
+        if index_group == SYSTEM_STATE_GROUP and index_offset == 0:
+            if length != SYSTEM_STATE.size:
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"the extended system state has {SYSTEM_STATE.size} "
+                                                          f"bytes, {length} requested")
+            return SYSTEM_STATE.pack(ADSSTATE_RUN, DEVICE_OK, 0, *self.version, 0, 0, 0, 0)
         raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X} of the system service")
 
     def write(self, index_group: int, index_offset: int, data: bytes) -> None:

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from . import errors as E
+from .datatypes import DataType, encode_data_type, find_type, types_of
 from .errors import AdsError
 from .notifications import NotificationService
 from .protocol import (
@@ -17,6 +18,7 @@ from .protocol import (
     ADSIGRP_SUMUP_READ,
     ADSIGRP_SUMUP_READWRITE,
     ADSIGRP_SUMUP_WRITE,
+    ADSIGRP_SYM_DT_INFOBYNAMEEX,
     ADSIGRP_SYM_DT_UPLOAD,
     ADSIGRP_SYM_HNDBYNAME,
     ADSIGRP_SYM_INFOBYNAME,
@@ -61,18 +63,34 @@ from .transport import Connection
 _U32 = struct.Struct("<I")
 _UPLOADINFO = struct.Struct("<II")
 _UPLOADINFO2 = struct.Struct("<IIIIII")
+_HANDLE_EX = struct.Struct("<IIIH")    # handle, size, type decoration, type-name length
 
 #: index groups the server answers itself (never passed to a device)
 _SYMBOL_GROUPS = frozenset({
     ADSIGRP_SYM_HNDBYNAME, ADSIGRP_SYM_VALBYNAME, ADSIGRP_SYM_VALBYHND, ADSIGRP_SYM_RELEASEHND,
     ADSIGRP_SYM_INFOBYNAME, ADSIGRP_SYM_VERSION, ADSIGRP_SYM_INFOBYNAMEEX, ADSIGRP_SYM_UPLOAD,
-    ADSIGRP_SYM_UPLOADINFO, ADSIGRP_SYM_DT_UPLOAD, ADSIGRP_SYM_UPLOADINFO2,
+    ADSIGRP_SYM_UPLOADINFO, ADSIGRP_SYM_DT_UPLOAD, ADSIGRP_SYM_UPLOADINFO2, ADSIGRP_SYM_DT_INFOBYNAMEEX,
     ADSIGRP_SUMUP_READ, ADSIGRP_SUMUP_WRITE, ADSIGRP_SUMUP_READWRITE,
 })
 
 _pack_read_res = READ_RES.pack
 _unpack_read_req = READ_REQ.unpack_from
 _READ_REQ_END = AMS_HEADER_SIZE + READ_REQ.size
+
+
+def _name(raw: bytes) -> str:
+    """A name sent by a client, NUL-terminated or not."""
+    return bytes(raw).split(b"\0", 1)[0].decode(SYMBOL_ENCODING, errors="replace").strip()
+
+
+def _handle_answer(handle: int, sym: SymbolInfo, rlen: int) -> bytes:
+    """The answer to "handle by name": with a read buffer of 4 bytes (pyads) the handle alone; with a
+    buffer that holds more, as a TwinCAT 3 target answers ads-client, the handle, the symbol's size,
+    its type decoration (0: distctrl's symbols carry none), the type name's length and the type name
+    with its NUL."""
+    type_name = sym.type_name.encode(SYMBOL_ENCODING, errors="replace")[:255]
+    full = _HANDLE_EX.pack(handle, sym.size, 0, len(type_name)) + type_name + b"\0"
+    return full if rlen >= len(full) else _U32.pack(handle)
 
 
 class AdsServices(NotificationService):
@@ -196,7 +214,9 @@ class AdsServices(NotificationService):
             if ig == ADSIGRP_SYM_UPLOADINFO2:
                 syms = self._symbols(dev)
                 total = sum(len(encode_symbol_entry(s)) for s in syms.values())
-                return self._fit(_UPLOADINFO2.pack(len(syms), total, 0, 0, 0, 0), length)
+                types = self._types(dev)
+                types_total = sum(len(encode_data_type(t)) for t in types.values())
+                return self._fit(_UPLOADINFO2.pack(len(syms), total, len(types), types_total, 0, 0), length)
             if ig == ADSIGRP_SYM_UPLOADINFO:
                 syms = self._symbols(dev)
                 total = sum(len(encode_symbol_entry(s)) for s in syms.values())
@@ -207,7 +227,7 @@ class AdsServices(NotificationService):
             if ig == ADSIGRP_SYM_VERSION:
                 return self._fit(b"\x01", length)
             if ig == ADSIGRP_SYM_DT_UPLOAD:
-                return b""  # no data types are published
+                return self._fit(b"".join(encode_data_type(t) for t in self._types(dev).values()), length)
             raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, f"Read of index group 0x{ig:X}")
         data = bytes(dev.read(ig, io, length))
         if len(data) > length:
@@ -233,11 +253,17 @@ class AdsServices(NotificationService):
             if rlen < 4:
                 raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "handle needs a 4-byte read buffer")
             sym = self._find(dev, data)
-            out = _U32.pack(conn.new_handle(ams_port, sym))
+            out = _handle_answer(conn.new_handle(ams_port, sym), sym, rlen)
         elif ig == ADSIGRP_SYM_VALBYNAME:
             out = self._sym_read(dev, self._find(dev, data), rlen)
         elif ig == ADSIGRP_SYM_INFOBYNAMEEX:
             out = encode_symbol_entry(self._find(dev, data))
+        elif ig == ADSIGRP_SYM_DT_INFOBYNAMEEX:
+            name = _name(data)
+            t = find_type(self._types(dev), name)
+            if t is None:
+                raise AdsError(E.ADSERR_DEVICE_SYMBOLNOTFOUND, f"data type {name!r} not found")
+            out = encode_data_type(t)
         elif ig in (ADSIGRP_SUMUP_READ, ADSIGRP_SUMUP_WRITE, ADSIGRP_SUMUP_READWRITE):
             if nested:
                 raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, "nested sum command")
@@ -337,7 +363,7 @@ class AdsServices(NotificationService):
 
     def _find(self, dev: AdsDevice, raw: bytes) -> SymbolInfo:
         """The symbol named by ``raw`` (NUL-terminated or not; case-insensitive)."""
-        name = bytes(raw).split(b"\0", 1)[0].decode(SYMBOL_ENCODING, errors="replace").strip()
+        name = _name(raw)
         syms = self._symbols(dev)
         sym = syms.get(name)
         if sym is None and name:
@@ -349,6 +375,12 @@ class AdsServices(NotificationService):
         if sym is None:
             raise AdsError(E.ADSERR_DEVICE_SYMBOLNOTFOUND, f"symbol {name!r} not found")
         return sym
+
+    def _types(self, dev: AdsDevice) -> dict[str, DataType]:
+        """Every data type the device's symbols use (its structures, if it has ``data_types()``, and the
+        base types)."""
+        structs = getattr(dev, "data_types", None)
+        return types_of(self._symbols(dev), structs() if structs is not None else {})
 
     @staticmethod
     def _fit(data: bytes, length: int) -> bytes:

@@ -171,10 +171,28 @@ def hli_symbols(axis_index: int, unit: DistanceControlUnit) -> dict[str, SymbolS
     return {s.name: s for s in syms}
 
 
+#: the structures among the symbols: type name -> its members in the order of the raw value (each
+#: member is also a symbol of its own, ``<structure symbol>.<member>``); what ADS clients read as the
+#: structure's data type (0xF011). The cyclic command's valid_* flags are distctrl extensions
+#: outside the structure.
+STRUCT_MEMBERS: dict[str, tuple[str, ...]] = {
+    "HLI_DISTANCE_CONTROL_COMMAND": ("transition", "position"),
+    "HLI_DISTANCE_CONTROL_STATE": ("actual_state", "actual_position", "actual_offset", "command_source",
+                                   "actual_distance"),
+    "HLIDistanceControlCyclicCommand": ("D_Position", "D_Distance"),
+    "HLI_CHANNEL_DISTANCE_STATUS": ("virt_tool_length_r", "inclination_r"),
+}
+
+
 def channel_status_symbols(channel_index: int, status: ChannelDistanceStatus) -> dict[str, SymbolSpec]:
-    """The 3D distance-control values of one channel (read-only)."""
+    """The 3D distance-control values of one channel (read-only), also as one structure
+    ``gpCh[<i>].bahn_state`` (distctrl's type HLI_CHANNEL_DISTANCE_STATUS: the part of the channel
+    status that distance control fills)."""
     base = channel_status_path(channel_index)
     return {s.name: s for s in (
+        SymbolSpec(base, 8, ADST_BIGTYPE, "HLI_CHANNEL_DISTANCE_STATUS",
+                   lambda: struct.pack("<ii", status.virt_tool_length_r, status.inclination_r), None,
+                   "CNC -> PLC: virt_tool_length_r, inclination_r (DINT each)"),
         SymbolSpec(f"{base}.virt_tool_length_r", 4, ADST_INT32, "DINT",
                    _field(lambda: status, "virt_tool_length_r", "<i"), None,
                    "0.1 µm: (virtually extended) tool length"),

@@ -290,8 +290,8 @@ def test_symbol_reads_take_the_length_as_a_capacity_and_answer_the_real_size(c, 
     assert r.result == 0 and struct.unpack("<d", r.data) == (2.25,)
     r = c.read_write(P.ADSIGRP_SYM_INFOBYNAMEEX, 0, ANY, b"MAIN.value\0")
     assert r.result == 0 and P.decode_symbol_entry(r.data).name == "MAIN.value"
-    r = c.read_write(P.ADSIGRP_SYM_HNDBYNAME, 0, ANY, b"MAIN.value\0")
-    assert r.result == 0 and len(r.data) == 4
+    r = c.read_write(P.ADSIGRP_SYM_HNDBYNAME, 0, ANY, b"MAIN.value\0")   # + size, decoration, type name
+    assert r.result == 0 and struct.unpack_from("<IIIH", r.data)[1:] == (8, 0, 5) and r.data[14:] == b"LREAL\0"
     # smaller than the symbol stays an error; a device's own index group keeps the exact-size rule
     assert c.read(P.ADSIGRP_SYM_VALBYHND, h, 7).result == E.ADSERR_DEVICE_INVALIDSIZE
     assert c.read(IG_DATA, 0, ANY).result == E.ADSERR_DEVICE_INVALIDSIZE

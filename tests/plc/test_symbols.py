@@ -118,7 +118,11 @@ def test_wrong_sizes_raise():
 def test_channel_status_symbols():
     status = ChannelDistanceStatus(virt_tool_length_r=1234567, inclination_r=-300000)
     syms = channel_status_symbols(1, status)
-    assert set(syms) == {"gpCh[1].bahn_state.virt_tool_length_r", "gpCh[1].bahn_state.inclination_r"}
+    assert set(syms) == {"gpCh[1].bahn_state", "gpCh[1].bahn_state.virt_tool_length_r",
+                         "gpCh[1].bahn_state.inclination_r"}
     assert syms["gpCh[1].bahn_state.virt_tool_length_r"].get() == struct.pack("<i", 1234567)
     assert syms["gpCh[1].bahn_state.inclination_r"].get() == struct.pack("<i", -300000)
-    assert all(s.set is None and s.type_name == "DINT" and s.size == 4 for s in syms.values())
+    assert syms["gpCh[1].bahn_state"].get() == struct.pack("<ii", 1234567, -300000)   # the structure
+    members = [s for n, s in syms.items() if n != "gpCh[1].bahn_state"]
+    assert all(s.set is None and s.type_name == "DINT" and s.size == 4 for s in members)
+    assert syms["gpCh[1].bahn_state"].set is None
