@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench stress clean docs chromium
+.PHONY: demo test bench stress clean docs chromium node
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,7 +22,22 @@ chromium:
 	@command -v chromium >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq chromium >/dev/null) \
 		|| echo "chromium could not be installed: the report rendering test will be skipped"
 
-test: $(STAMP) chromium
+# ads-client (npm, pinned in tests/ads/node/package-lock.json) is the tests' second real ADS client
+# (issue 14). Node.js and npm come from Debian's packages; if they cannot be installed, make test stops
+# here with that message (the tests never skip for it).
+NODE_DIR   := tests/ads/node
+NODE_STAMP := $(NODE_DIR)/node_modules/.distctrl-installed
+
+$(NODE_STAMP): $(NODE_DIR)/package.json $(NODE_DIR)/package-lock.json
+	@(command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1) \
+		|| (apt-get update -qq && apt-get install -y -qq nodejs npm >/dev/null) \
+		|| (echo "make: Node.js and npm are needed for the ads-client tests and could not be installed (apt-get install nodejs npm)" >&2; exit 1)
+	cd $(NODE_DIR) && npm ci --no-audit --no-fund --loglevel=error
+	touch $@
+
+node: $(NODE_STAMP)
+
+test: $(STAMP) chromium $(NODE_STAMP)
 	$(PY) -m pytest -q -p no:cacheprovider
 
 bench: $(STAMP)
@@ -46,4 +61,4 @@ docs: $(STAMP)
 	$(PY) tools/traceability.py --write
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis
+	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis $(NODE_DIR)/node_modules
