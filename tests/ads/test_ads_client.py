@@ -90,6 +90,8 @@ def test_handles_sum_commands_and_notifications(session):
     assert ok(session, "sum_read") == [[1, 0, 0, 0], [1]]               # ACTIVE, enable_w TRUE
     assert ok(session, "sum_handles") == [0, E.ADSERR_DEVICE_SYMBOLNOTFOUND]
     assert ok(session, "subscribe") >= 5                                # 10 ms cycle for 300 ms
+    struct_sub = ok(session, "subscribe_struct")                        # a structure by notification
+    assert struct_sub["count"] >= 1 and struct_sub["fields"][0] == "actual_state"
 
 
 def test_failure_cases_answer_twincat_error_codes(session):

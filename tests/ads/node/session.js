@@ -93,6 +93,13 @@ async function command(client, transition, position) {
       await sub.unsubscribe();
       return seen.length;
     });
+    await step('subscribe_struct', async () => {
+      const got = [];
+      const sub = await client.subscribeValue(`${unit}.state_r`, (data) => got.push(data.value), 10);
+      await sleep(100);
+      await sub.unsubscribe();
+      return { count: got.length, fields: got.length ? Object.keys(got[0]) : [] };
+    });
     await step('sum_read', async () => {
       const syms = await Promise.all([`${unit}.state_r.actual_state`, `${unit}.enable_w`]
         .map((p) => client.getSymbol(p)));
