@@ -58,17 +58,30 @@ SYSTEM_STATE_GROUP = 0xF0             # the system service's extended state (ads
 #: ADS state, device state, restart index, version, revision, build, platform, OS type, flags, reserved
 SYSTEM_STATE = struct.Struct("<HHHBBHBBHH")
 PLC_SYMBOL_GROUP = 0x4020          # %M-like memory area for the PLC symbols
-ADS_RUN, DEVICE_OK = ADSSTATE_RUN, 0
+DEVICE_OK = 0
+
+
+def runtime_state(runtime, index_offset: int, length: int) -> bytes:
+    """Index group 0xF100 of a runtime port: ADS state (RUN, or STOP while ``runtime`` is paused) and
+    device state, 4 bytes; a read beyond them is 0x705."""
+    ads_state = ADSSTATE_STOP if runtime is not None and runtime.paused else ADSSTATE_RUN
+    state = struct.pack("<HH", ads_state, DEVICE_OK)
+    if index_offset + length > len(state) or length == 0:
+        raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"0x{DEVICE_DATA_GROUP:X}:0x{index_offset:X} has "
+                                                  f"{len(state) - index_offset} bytes, {length} requested")
+    return state[index_offset:index_offset + length]
 
 
 class CncObjectDevice:
-    """AMS port 551: the axis CNC objects of the machine's axes (axis_id from 1 in scenario order)."""
+    """AMS port 551: the axis CNC objects of the machine's axes (axis_id from 1 in scenario order), and
+    the runtime state at 0xF100 as on the PLC port (ads-client's default connect reads it)."""
 
     name = "distctrl GEO"
     version = (0, 1, 0)
 
-    def __init__(self, machine):
+    def __init__(self, machine, runtime=None):
         self.machine = machine
+        self.runtime = runtime              # the served machine's run/stop switch (None: always RUN)
         self.contexts = {i + 1: AxisObjectContext(i + 1, n, machine.controllers[n], machine.outputs[n],
                                                   machine.scenario.axes[n].resolution or 1e-4)
                          for i, n in enumerate(machine.axis_names)}
@@ -89,6 +102,8 @@ class CncObjectDevice:
         return found
 
     def read(self, index_group: int, index_offset: int, length: int) -> bytes:
+        if index_group == DEVICE_DATA_GROUP:
+            return runtime_state(self.runtime, index_offset, length)
         spec, ctx = self._find(index_group, index_offset)
         # a STRING object fills a larger buffer with its own bytes (pyads reads every string type with
         # a 1024-byte buffer); every other object answers only a read of its exact size
@@ -115,7 +130,7 @@ class CncObjectDevice:
         return {}
 
     def state(self) -> tuple[int, int]:
-        return ADS_RUN, DEVICE_OK
+        return struct.unpack("<HH", runtime_state(self.runtime, 0, 4))
 
 
 class PlcDevice:
@@ -162,11 +177,7 @@ class PlcDevice:
 
     def read(self, index_group: int, index_offset: int, length: int) -> bytes:
         if index_group == DEVICE_DATA_GROUP:
-            state = struct.pack("<HH", self._ads_state(), DEVICE_OK)
-            if index_offset + length > len(state) or length == 0:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"0x{index_group:X}:0x{index_offset:X} has "
-                                                          f"{len(state) - index_offset} bytes, {length} requested")
-            return state[index_offset:index_offset + length]
+            return runtime_state(self.runtime, index_offset, length)
         spec = self._spec(index_group, index_offset)
         if length != spec.size:
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.size} bytes")
@@ -313,7 +324,7 @@ class ServedMachine:
         self.machine = Machine(scenario, load_program(scenario), publish_hli=True)
         self.lock = threading.Lock()
         self.paused = False
-        self.cnc = CncObjectDevice(self.machine)
+        self.cnc = CncObjectDevice(self.machine, runtime=self)
         self.plc = PlcDevice(self.machine, runtime=self)
         self.system = SystemServiceDevice()
         self.server = AdsServer({CNC_PORT: self.cnc, PLC_PORT: self.plc, SYSTEM_SERVICE_PORT: self.system},

@@ -101,6 +101,10 @@ def test_failure_cases_answer_twincat_error_codes(session):
     assert not session["unknown_type"]["ok"]
 
 
+def test_the_cnc_port_in_default_mode(session):
+    assert ok(session, "cnc_port") > 0                                  # DIST_CTRL::kp of axis 2 (Z)
+
+
 def test_plc_stop_and_start_and_a_clean_disconnect(session):
     assert ok(session, "stop_plc") == {"stopped": True, "running": True, "connected": True}
     assert ok(session, "disconnect") is False

@@ -10,7 +10,7 @@ import pytest
 
 from distctrl.ads import errors as E
 from distctrl.ads import protocol as P
-from distctrl.ads.machine import DEVICE_DATA_GROUP, SYSTEM_SERVICE_PORT, ServedMachine
+from distctrl.ads.machine import CNC_PORT, DEVICE_DATA_GROUP, SYSTEM_SERVICE_PORT, ServedMachine
 from distctrl.sim.scenario import load_scenario
 
 from . import RawClient, wait_for
@@ -71,3 +71,17 @@ def test_port_close_is_answered_by_closing_the_connection(c):
     assert r.result == 0
     c.send(P.AMS_TCP_HEADER.pack(P.AMS_TCP_PORT_CLOSE, 2) + struct.pack("<H", 32905))
     assert c.is_closed_by_server(timeout=2.0)
+
+
+def test_the_cnc_port_serves_the_runtime_state_too(served, c):
+    """ads-client's default connect subscribes to 0xF100 of the port it targets: on port 551 (the GEO
+    task's CNC objects) too, so it connects there without its rawClient setting."""
+    r = c.read(DEVICE_DATA_GROUP, 0, 4, target_port=CNC_PORT)
+    assert r.result == 0 and struct.unpack("<HH", r.data) == (P.ADSSTATE_RUN, 0)
+    served.set_paused(True)
+    try:
+        r = c.read(DEVICE_DATA_GROUP, 0, 4, target_port=CNC_PORT)
+        assert struct.unpack("<HH", r.data) == (P.ADSSTATE_STOP, 0)
+    finally:
+        served.set_paused(False)
+    assert c.read(DEVICE_DATA_GROUP, 0, 8, target_port=CNC_PORT).result == E.ADSERR_DEVICE_INVALIDSIZE

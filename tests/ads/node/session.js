@@ -125,6 +125,14 @@ async function command(client, transition, position) {
       const running = await until(async () => client.metaData.plcRuntimeState.adsStateStr === 'Run');
       return { stopped, running, connected: client.connection.connected };
     });
+    await step('cnc_port', async () => {          // the GEO task's CNC objects: a second client, default mode
+      const cnc = new Client({ targetAmsNetId: netId, targetAdsPort: 551, routerAddress: '127.0.0.1',
+        routerTcpPort: Number(port), autoReconnect: false });
+      await cnc.connect();
+      const kp = (await cnc.readRaw(0x120300, (Number(axis) << 16) | 0x3106, 8)).readDoubleLE(0);
+      await cnc.disconnect();
+      return kp;
+    });
     await step('disconnect', async () => {
       await client.disconnect();
       return client.connection.connected;
