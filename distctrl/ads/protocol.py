@@ -311,7 +311,9 @@ class AdsDevice(Protocol):
 
     Optional extensions the server uses if present:
     ``read_write(index_group, index_offset, read_length, data) -> bytes`` for ReadWrite requests
-    to non-symbol index groups, and ``write_control(ads_state, device_state, data) -> None``.
+    to non-symbol index groups, ``write_control(ads_state, device_state, data) -> None``, and
+    ``data_types() -> dict[str, DataType]`` (:mod:`distctrl.ads.datatypes`): the structures among the
+    symbols, which the server publishes by name (0xF011) and in the data-type upload (0xF00E).
     """
 
     name: str
