@@ -312,10 +312,12 @@ class SessionLog:
 
 
 class ServedMachine:
-    """A machine stepped in real time in a background thread, with an ADS server over it."""
+    """A machine stepped in real time in a background thread, with an ADS server over it; by default
+    it also answers route discovery and add-route on UDP ``discovery_port`` of ``host``
+    (:mod:`distctrl.ads.discovery`; if that port cannot be bound, one warning and TCP is served)."""
 
     def __init__(self, scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
-                 net_id: str = "127.0.0.1.1.1"):
+                 net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899):
         from ..sim.machine import Machine
         from ..sim.realtime import RealTimeLoop
         from ..sim.runner import load_program
@@ -329,6 +331,13 @@ class ServedMachine:
         self.system = SystemServiceDevice()
         self.server = AdsServer({CNC_PORT: self.cnc, PLC_PORT: self.plc, SYSTEM_SERVICE_PORT: self.system},
                                 host=host, port=port, net_id=net_id, allowed=list(allowed), lock=self.lock)
+        # route discovery and add-route on UDP (docs/serve.md); None: not answered
+        self.discovery = None
+        if discovery_port is not None:
+            from .discovery import DiscoveryResponder, TargetInfo
+
+            self.discovery = DiscoveryResponder(TargetInfo(net_id, tc_version=self.system.version), discovery_port)
+            self.server.attached.append(self.discovery)
         self.session = SessionLog(self.machine)
         self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock)
 

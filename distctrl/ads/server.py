@@ -127,6 +127,10 @@ class AdsServer(AdsServices):
         self._writers: set[AdsProtocol] = set()
         self._tasks: set[asyncio.Task] = set()
         self._next_dynamic_port = 32768
+        #: endpoints run on this server's loop, e.g. the UDP discovery responder
+        #: (:class:`~distctrl.ads.discovery.DiscoveryResponder`): ``await a.open(self)`` once the TCP
+        #: socket is bound, ``a.close()`` when the server stops
+        self.attached: list[Any] = []
 
     # ------------------------------------------------------------------------------------------
     # life cycle
@@ -188,8 +192,13 @@ class AdsServer(AdsServices):
         loop = asyncio.get_running_loop()
         self._server = await loop.create_server(lambda: AdsProtocol(self), self.host, self.port, backlog=128)
         self.port = self._server.sockets[0].getsockname()[1]
+        for endpoint in self.attached:
+            await endpoint.open(self)
 
     async def _close(self) -> None:
+        for endpoint in self.attached:
+            with contextlib.suppress(Exception):
+                endpoint.close()
         if self._server is not None:
             self._server.close()
         for w in list(self._writers):

@@ -352,9 +352,14 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
               help="Client address or network allowed to connect (like an ADS route); repeat for more.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
 @click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
-def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id: str, duration: float | None) -> None:
+@click.option("--no-discovery", is_flag=True,
+              help="Do not answer route discovery and add-route on UDP 48899 (answered by default, "
+                   "to the --allow networks).")
+def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id: str, duration: float | None,
+          no_discovery: bool) -> None:
     """Run SCENARIO.toml in real time and serve it over ADS (CNC objects on AMS port 551, the PLC
-    interface and V.E. variables by symbol name on port 851). Reports the cycle jitter at the end."""
+    interface and V.E. variables by symbol name on port 851; route discovery and add-route on UDP
+    48899). Reports the cycle jitter at the end."""
     import logging
     import time
 
@@ -363,7 +368,8 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     try:
-        served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id)
+        served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id,
+                               discovery_port=None if no_discovery else 48899)
         served.start()
     except (DistCtrlError, OSError, ValueError) as exc:
         click.echo(f"error: {exc}", err=True)
