@@ -52,7 +52,8 @@ enum { Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR
 #define PACKED_LEN (FC_LEN + Q_LEN)
 
 enum { PL_Z0, PL_ACT0, PL_KV, PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF,
-       PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON, PL_MODE, PL_SET, PL_LEN };
+       PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON, PL_MODE, PL_SET,
+       PL_RESONANT, PL_P11, PL_P12, PL_P21, PL_P22, PL_LEN };
 
 #define MODE_CONST_DIST 1
 /* distctrl.errors.ErrorId values, passed in by the caller (closed_loop_batch's err_ids) */
@@ -267,6 +268,10 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
     const int64_t k_on = (int64_t)plant[PL_K_ON];
     const int const_dist = (int)plant[PL_MODE] == MODE_CONST_DIST;
     const double set_value = plant[PL_SET];
+    /* the drive's mechanical resonance (physics.resonance_step): the probe sees the nozzle */
+    const int resonant = plant[PL_RESONANT] != 0.0;
+    const double p11 = plant[PL_P11], p12 = plant[PL_P12], p21 = plant[PL_P21], p22 = plant[PL_P22];
+    double z_noz = z_pos, defl = 0.0, defl_rate = 0.0;
 
     double ring_static[64];
     double dline_static[64];
@@ -296,7 +301,7 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
     for (int64_t k = 0; k < n; k++) {
         /* ---- probe (EncoderProbe.read) */
         double sz = surface[k];
-        double z = z_pos;
+        double z = z_noz;
         out_distance[k] = z - sz;
         double x = -1.0 * (z - sz);
         if (has_noise)
@@ -466,6 +471,15 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
         else if (dv < z_vel - dr_dv)
             dv = z_vel - dr_dv;
         z_pos = z_pos + dv * T;
+        if (resonant) {
+            double de = defl_rate - (dv - z_vel);
+            double e = defl;
+            defl = p11 * e + p12 * de;
+            defl_rate = p21 * e + p22 * de;
+            z_noz = z_pos + defl;
+        } else {
+            z_noz = z_pos;
+        }
         z_vel = dv;
         z_act = res != 0.0 ? floor(z_pos * (1.0 / res) + 0.5) * res : z_pos;
     }

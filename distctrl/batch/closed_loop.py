@@ -17,7 +17,8 @@ Per cycle ``k`` (the order of the machine and of the cycle core)::
              feedback per mode, law.filter_seed (first active cycle), law.filter_step,
              law.pid_step, law.adaptive_acceleration (and _braking_), law.slope_limit, law.bound_velocity,
              law.advance_offset, 70331 / SW limit, law.integrator_after_limiter
-    drive    c = p + o  -> bus delay ring, kv loop, feed-forward, v/a limits, quantisation
+    drive    c = p + o  -> bus delay ring, kv loop, feed-forward, v/a limits, quantisation;
+             a resonant drive: physics.resonance_step moves the nozzle (what the probe sees next cycle)
 
 The law is *only* called (``law.*``, registered with numba by :mod:`distctrl.batch.kernel`); the
 sensor and drive arithmetic is written out here and mirrors :mod:`distctrl.sim.sensors` /
@@ -46,7 +47,8 @@ follow. Its outputs are NaN from the error cycle on and ``errors[i] = (cycle, er
 Per parameter set everything the law uses may differ (gains, limits, filter, adaptive
 acceleration, optimized scheduling, both encoders, bounds, monitoring limits, the encoder
 conversion; the probe is built per set with that set's resolution, sign and reference offset, as
-the machine does). The plant (drives, probe stroke, noise, dead time) is the scenario's.
+the machine does). The plant (drives, including a drive's mechanical resonance, probe stroke, noise,
+dead time) is the scenario's.
 """
 from __future__ import annotations
 
@@ -96,7 +98,9 @@ PACKED_LEN = law.FC_LEN + Q_LEN
 # the scenario's plant and select (``plant``)
 PL_Z0, PL_ACT0, PL_KV, PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF = range(8)
 PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON, PL_MODE, PL_SET = range(8, 15)
-PL_LEN = 15
+# the drive's mechanical resonance: 1.0 when resonant, then Phi = expm(A T) (physics.resonance_step)
+PL_RESONANT, PL_P11, PL_P12, PL_P21, PL_P22 = range(15, 20)
+PL_LEN = 20
 
 MODE_SET_POS, MODE_CONST_DIST = 0, 1
 _E_JUMP = int(ErrorId.SENSOR_JUMP)
@@ -296,7 +300,8 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
 
     drive = Drive(T, kv=ax.kv, v_max=ax.v_max, a_max=ax.a_max,
                   bus_delay_cycles=ax.bus_delay_cycles, resolution=ax.resolution,
-                  initial_position=ax.start, velocity_feedforward=ax.feedforward)
+                  initial_position=ax.start, velocity_feedforward=ax.feedforward,
+                  resonance_hz=ax.resonance_hz, damping=ax.damping)
     plant = np.zeros(PL_LEN)
     plant[PL_Z0] = drive.position
     plant[PL_ACT0] = drive.actual
@@ -313,6 +318,9 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     plant[PL_K_ON] = k_on
     plant[PL_MODE] = mode
     plant[PL_SET] = set_value
+    if drive.resonance_phi is not None:
+        plant[PL_RESONANT] = 1.0
+        plant[PL_P11], plant[PL_P12], plant[PL_P21], plant[PL_P22] = drive.resonance_phi
     return LoopInputs(sc, axis, T, n, k_on, mode, set_value, np.asarray(prog_values[:n], dtype=np.float64),
                       np.asarray(surface[:n], dtype=np.float64), _noise(sensor, n), plant, ax.params)
 
@@ -380,6 +388,12 @@ def plant_constants(plant):
             int(plant[PL_MODE]) == MODE_CONST_DIST, plant[PL_SET])
 
 
+@njit(nogil=True, error_model="numpy", inline="always")
+def resonance_constants(plant):
+    """The drive's resonance from the ``PL_*`` vector: (resonant, p11, p12, p21, p22)."""
+    return plant[PL_RESONANT] != 0.0, plant[PL_P11], plant[PL_P12], plant[PL_P21], plant[PL_P22]
+
+
 @cached
 @njit(cache=True, nogil=True, error_model="numpy")
 def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, out_error):
@@ -430,6 +444,10 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
     z_vel = 0.0
     kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
         plant_constants(plant)
+    resonant, p11, p12, p21, p22 = resonance_constants(plant)
+    z_noz = z_pos                             # Drive.nozzle: what the probe sees
+    defl = 0.0                                # Drive.deflection, deflection_rate
+    defl_rate = 0.0
 
     ring = np.empty(nbus + 1)                 # Drive.setpoint_history: starts full of the start position
     for j in range(nbus + 1):
@@ -455,7 +473,7 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
     for k in range(n):
         # ---- machine: the probe reads the true geometry (EncoderProbe.read)
         sz = surface[k]
-        z = z_pos
+        z = z_noz
         out_distance[k] = z - sz
         x = -1.0 * (z - sz)
         if has_noise:
@@ -578,6 +596,11 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         prev_sp = c
         dv = physics.limit_velocity(dv, dr_vmax, z_vel, dr_dv)
         z_pos = z_pos + dv * T
+        if resonant:
+            defl, defl_rate = physics.resonance_step(defl, defl_rate, dv - z_vel, p11, p12, p21, p22)
+            z_noz = z_pos + defl
+        else:
+            z_noz = z_pos
         z_vel = dv
         z_act = physics.quantise(z_pos, res, 1.0 / res) if res != 0.0 else z_pos
 

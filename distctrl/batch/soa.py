@@ -20,6 +20,8 @@ It is the same loop and gives the same numbers bit for bit (tests/batch/test_soa
   - the re-sum of a moving-average window when it wraps (``law._ring_sum``);
   - the adaptive acceleration (``law.adaptive_acceleration``) and the drive's velocity
     feed-forward, when a lane or the plant uses them;
+  - the drive's mechanical resonance (``physics.resonance_step``): its own copy of the drive loop,
+    chosen once per block, so the rigid drive's loop stays as it was;
   - monitoring errors.
 
 Which sets it takes (:func:`soa_eligible`): filter MOVING_AVERAGE, no modulo encoder. The lanes of
@@ -70,7 +72,7 @@ _E_SW = CL._E_SW
 # indexed per lane or per cycle (the rings, the output buffer) is copied in and out by short loops.
 (Z_POS, Z_ACT, Z_VEL, PREV_SP, OFS, VEL, INTEG, M_PREV, INV_2A, S_DELAYED, LAST_S, TOTAL, BOTH_ENC,
  Y_OLD, Y_NEW, OLD, FEEDBACK, CMD, C_IN, DIST, ERR_SENSOR, ERR_BOUND, U_LIM, E_LIM, I_CAND, V, V_LIM, A_LIM,
- LO, HI, LOWER, FLAG, A_BRAKE, C_USE, DV_FF, N_ROWS) = range(36)
+ LO, HI, LOWER, FLAG, A_BRAKE, C_USE, DV_FF, Z_NOZ, DEFL, DEFL_RATE, N_ROWS) = range(39)
 _INV_N = N_ROWS                  # W[_INV_N, b]: 1/n of the lane's window
 _P = N_ROWS + 1                  # W[_P + Q_*, b]: the set's parameters
 
@@ -143,6 +145,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     z0 = plant[PL_Z0]
     kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
         CL.plant_constants(plant)
+    resonant, p11, p12, p21, p22 = CL.resonance_constants(plant)
     T = packed[lanes[0], _FC + Q_T]
     inv_T = 1.0 / T
     inv_res = 1.0 / res if res != 0.0 else 0.0
@@ -155,6 +158,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
         for j in range(Q_LEN):
             W[_P + j, b] = packed[i, _FC + j]
         W[Z_POS, b] = z0
+        W[Z_NOZ, b] = z0
         W[Z_ACT, b] = plant[PL_ACT0]
         W[PREV_SP, b] = z0
         a_floor = packed[i, _FC + Q_A_FLOOR]
@@ -386,18 +390,37 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
         if ff != 0.0:                          # velocity feed-forward: its own loop (a division)
             for b in range(B):
                 W[DV_FF, b] = ff * (W[C_USE, b] - W[PREV_SP, b]) * inv_T
-        for b in range(B):
-            c = W[C_USE, b]
-            z_act = W[Z_ACT, b]
-            dv = kv * (c - z_act)
-            if ff != 0.0:
-                dv += W[DV_FF, b]
-            W[PREV_SP, b] = c
-            dv = physics.limit_velocity(dv, dr_vmax, W[Z_VEL, b], dr_dv)
-            z_pos = W[Z_POS, b] + dv * T
-            W[Z_POS, b] = z_pos
-            W[Z_VEL, b] = dv
-            W[Z_ACT, b] = physics.quantise(z_pos, res, inv_res) if res != 0.0 else z_pos
+        if resonant:                           # the nozzle: motor + the mode's deflection
+            for b in range(B):
+                c = W[C_USE, b]
+                z_act = W[Z_ACT, b]
+                dv = kv * (c - z_act)
+                if ff != 0.0:
+                    dv += W[DV_FF, b]
+                W[PREV_SP, b] = c
+                dv = physics.limit_velocity(dv, dr_vmax, W[Z_VEL, b], dr_dv)
+                z_pos = W[Z_POS, b] + dv * T
+                W[Z_POS, b] = z_pos
+                e, de = physics.resonance_step(W[DEFL, b], W[DEFL_RATE, b], dv - W[Z_VEL, b], p11, p12, p21, p22)
+                W[DEFL, b] = e
+                W[DEFL_RATE, b] = de
+                W[Z_NOZ, b] = z_pos + e
+                W[Z_VEL, b] = dv
+                W[Z_ACT, b] = physics.quantise(z_pos, res, inv_res) if res != 0.0 else z_pos
+        else:                                  # rigid: the nozzle is the motor
+            for b in range(B):
+                c = W[C_USE, b]
+                z_act = W[Z_ACT, b]
+                dv = kv * (c - z_act)
+                if ff != 0.0:
+                    dv += W[DV_FF, b]
+                W[PREV_SP, b] = c
+                dv = physics.limit_velocity(dv, dr_vmax, W[Z_VEL, b], dr_dv)
+                z_pos = W[Z_POS, b] + dv * T
+                W[Z_POS, b] = z_pos
+                W[Z_NOZ, b] = z_pos
+                W[Z_VEL, b] = dv
+                W[Z_ACT, b] = physics.quantise(z_pos, res, inv_res) if res != 0.0 else z_pos
         for b in range(n_lanes):
             ring[ring_w, b] = W[CMD, b]
         ring_w = nxt
@@ -487,7 +510,7 @@ def _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, delayed, first, runnin
     Inlined: called with constant flags, its tests vanish from the vector loop."""
     n_err = 0
     for b in range(BLOCK):
-        z = W[Z_POS, b]
+        z = W[Z_NOZ, b]                        # the probe sees the nozzle (= the motor when rigid)
         W[DIST, b] = z - sz
         x = -1.0 * (z - sz)
         if has_noise:

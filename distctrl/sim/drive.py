@@ -22,6 +22,16 @@ Large setpoint steps saturate velocity and acceleration; the loop then overshoot
 position loop without a trajectory generator would. The interpolator upstream keeps the setpoints
 feasible. Hard travel limits (``min_pos``/``max_pos``) are end stops: the axis stops there at once
 (velocity 0, ``at_limit`` set).
+
+Mechanical resonance (``resonance_hz`` f0 > 0, damping ratio ``damping`` zeta): the loop above
+moves the motor ``x``; the nozzle (what the sensor and the workpiece see) is ``x + e``, where the
+deflection ``e`` of a second-order mode obeys ``e'' = -w0^2 e - 2 zeta w0 e' - x''`` (w0 = 2 pi f0).
+The motor velocity is constant within a cycle, so ``x''`` is an impulse ``v_k - v_(k-1)`` at the
+start of cycle k: ``e' -= v_k - v_(k-1)``, then ``[e, e']`` propagates with ``Phi = expm(A T)``
+(:func:`distctrl.sim.physics.resonance_step`, coefficients computed once here). This is exact for
+the piecewise-linear motor motion, for any f0; scenarios allow f0 up to 1/(4T). ``actual`` stays
+the motor encoder (the loop is closed on the motor); ``nozzle`` is the nozzle position.
+``resonance_hz = 0`` (the default) is the rigid drive: ``nozzle`` is ``position``, nothing else changes.
 """
 from __future__ import annotations
 
@@ -29,7 +39,7 @@ import math
 from collections import deque
 
 from distctrl.sim.config_errors import ConfigError, require_int, require_number
-from distctrl.sim.physics import limit_velocity, quantise
+from distctrl.sim.physics import limit_velocity, quantise, resonance_coefficients, resonance_step
 
 __all__ = ["Drive"]
 
@@ -39,17 +49,21 @@ class Drive:
 
     Public state: ``position`` (true mechanical position, mm), ``actual`` (encoder position fed
     back and returned, mm), ``velocity`` (mm/s, of the last cycle), ``setpoint_history`` (the bus
-    delay line, oldest first), ``following_error`` (delayed setpoint - actual, mm), ``at_limit``.
+    delay line, oldest first), ``following_error`` (delayed setpoint - actual, mm), ``at_limit``,
+    ``nozzle`` (mm: the motor ``position`` plus the resonance's ``deflection``; ``position`` for a
+    rigid drive), ``deflection`` (mm) and ``deflection_rate`` (mm/s).
     """
 
     __slots__ = ("cycle_time", "kv", "v_max", "a_max", "bus_delay_cycles", "resolution", "min_pos",
                  "max_pos", "velocity_feedforward", "position", "actual", "velocity", "setpoint_history",
-                 "following_error", "at_limit", "_dv_max", "_prev_setpoint", "_inv_T", "_inv_res", "_limited")
+                 "following_error", "at_limit", "_dv_max", "_prev_setpoint", "_inv_T", "_inv_res", "_limited",
+                 "resonance_hz", "damping", "nozzle", "deflection", "deflection_rate", "resonance_phi")
 
     def __init__(self, cycle_time: float = 0.001, *, kv: float = 30.0, v_max: float = 500.0,
                  a_max: float = 5000.0, bus_delay_cycles: int = 1, resolution: float = 0.0,
                  min_pos: float | None = None, max_pos: float | None = None,
-                 initial_position: float = 0.0, velocity_feedforward: float = 0.0):
+                 initial_position: float = 0.0, velocity_feedforward: float = 0.0,
+                 resonance_hz: float = 0.0, damping: float = 0.05):
         name = "Drive"
         self.cycle_time = require_number(cycle_time, f"{name}.cycle_time", lo=0.0, lo_open=True)
         # kv*T < 1 keeps the discrete loop monotone (see module docstring)
@@ -65,6 +79,15 @@ class Drive:
         self.max_pos = None if max_pos is None else require_number(max_pos, f"{name}.max_pos")
         if self.min_pos is not None and self.max_pos is not None and self.max_pos <= self.min_pos:
             raise ConfigError(f"{name}.max_pos", max_pos, f"greater than min_pos = {self.min_pos:g}")
+        #: f0 (Hz) of the mode between motor and nozzle; 0 = rigid. Up to 1/(4T) (1/(2T) is Nyquist)
+        self.resonance_hz = require_number(resonance_hz, f"{name}.resonance_hz", lo=0.0,
+                                           hi=0.25 / self.cycle_time)
+        self.damping = require_number(damping, f"{name}.damping", lo=0.0, hi=1.0, lo_open=True)
+        #: (p11, p12, p21, p22) = expm(A T), or None for a rigid drive
+        self.resonance_phi = (resonance_coefficients(self.resonance_hz, self.damping, self.cycle_time)
+                              if self.resonance_hz else None)
+        self.deflection = 0.0
+        self.deflection_rate = 0.0
         x0 = require_number(initial_position, f"{name}.initial_position",
                             lo=self.min_pos, hi=self.max_pos)
         self._dv_max = self.a_max * self.cycle_time  # largest velocity change per cycle (mm/s)
@@ -73,6 +96,7 @@ class Drive:
         self._inv_res = 1.0 / self.resolution if self.resolution else 0.0
         self._limited = self.min_pos is not None or self.max_pos is not None
         self.position = x0
+        self.nozzle = x0
         self.actual = self._quantise(x0)
         self.velocity = 0.0
         # At rest holding its position: the delay line is full of the initial position.
@@ -109,6 +133,15 @@ class Drive:
             elif self.min_pos is not None and x < self.min_pos:
                 x, v, self.at_limit = self.min_pos, 0.0, True
         self.position = x
+        phi = self.resonance_phi
+        if phi is None:
+            self.nozzle = x
+        else:
+            e, de = resonance_step(self.deflection, self.deflection_rate, v - self.velocity,
+                                   phi[0], phi[1], phi[2], phi[3])
+            self.deflection = e
+            self.deflection_rate = de
+            self.nozzle = x + e
         self.velocity = v
         r = self.resolution
         a = quantise(x, r, self._inv_res) if r else x

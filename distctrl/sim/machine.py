@@ -6,7 +6,9 @@ Per GEO cycle (FCT-M3 Fig. 3: the offset is added after interpolation, before th
 2. the NC interpreter starts blocks; DIST_CTRL commands are queued for the axis's controller;
 3. the interpolator gives the programmed positions ``p``;
 4. the sensor measures the real geometry at the tool's actual position (probe increments, or a
-   distance written into its V.E. variable);
+   distance written into its V.E. variable); the tool is each drive's ``nozzle`` (the motor plus the
+   deflection of a drive's mechanical resonance, ``resonance_hz``; the motor for a rigid drive), and
+   so is the true distance the collision check uses;
 5. each distance-controlled axis runs ``AxisDistanceController.update`` -> setpoint ``c = p + o``;
 6. each drive follows its setpoint (one-cycle fieldbus delay, P loop, limits) -> actual ``a``.
 
@@ -107,7 +109,8 @@ class Machine:
         self.interp = Interpolator(T, limits, start={n: a.start for n, a in axes.items()})
         self.drives = {n: Drive(T, kv=a.kv, v_max=a.v_max, a_max=a.a_max, bus_delay_cycles=a.bus_delay_cycles,
                                 resolution=a.resolution, initial_position=a.start,
-                                velocity_feedforward=a.feedforward) for n, a in axes.items()}
+                                velocity_feedforward=a.feedforward, resonance_hz=a.resonance_hz,
+                                damping=a.damping) for n, a in axes.items()}
         self.controllers = {n: AxisDistanceController(a.params, T) for n, a in axes.items()}
         self.inputs = {n: CycleInput(programmed_position=a.start, actual_position=self.drives[n].actual)
                        for n, a in axes.items()}
@@ -644,14 +647,15 @@ class Machine:
         interp.feed_override = self.channel_override
         prog = interp.step()
         drives = self.drives
-        # the real geometry under the tool: true mechanical positions, not the quantised encoder
-        x = self._drive_x.position if self._drive_x is not None else 0.0
-        y = self._drive_y.position if self._drive_y is not None else 0.0
+        # the real geometry under the tool: the true nozzle positions (the motor plus a drive's
+        # resonant deflection; the motor for a rigid drive), not the quantised motor encoder
+        x = self._drive_x.nozzle if self._drive_x is not None else 0.0
+        y = self._drive_y.nozzle if self._drive_y is not None else 0.0
         surface_z = self.surface.height(x, y)
         self.true_surface = surface_z
         sensor_axis = self.sensor_axis
         if sensor_axis is not None:
-            z = drives[sensor_axis].position
+            z = drives[sensor_axis].nozzle
             self.true_distance = z - surface_z
             value = self.sensor.read(k, z, surface_z)
             if self.sensor_variable is None:
@@ -695,15 +699,15 @@ class Machine:
             clamp_prog_z = z + lv * uz
         else:
             mx, my, mz = x, y, z
-        # the real geometry: true mechanical positions of the axes
+        # the real geometry: true positions of the tool (the drives' nozzle: motor plus resonance)
         drives = self.drives
         dx, dy, dz = self._drive_x, self._drive_y, self._drive_z
-        px = dx.position if dx is not None else 0.0
-        py = dy.position if dy is not None else 0.0
-        pz = dz.position if dz is not None else 0.0
+        px = dx.nozzle if dx is not None else 0.0
+        py = dy.nozzle if dy is not None else 0.0
+        pz = dz.nozzle if dz is not None else 0.0
         da, dc = self._drive_a, self._drive_c
         if da is not None and dc is not None:
-            ua = _direction(dc.position * _DEG, da.position * _DEG)
+            ua = _direction(dc.nozzle * _DEG, da.nozzle * _DEG)
         else:
             ua = _Z
         # the head: the clamping point lies HD1 below the head reference point the axes carry
@@ -722,7 +726,7 @@ class Machine:
         if self._sensor_orth:
             self.variables[self.sensor_variable] = self.sensor.read(k, d_orth, 0.0)
         elif sensor_axis is not None:
-            zs = drives[sensor_axis].position
+            zs = drives[sensor_axis].nozzle
             surface_z = surface.height(px, py)
             self.true_surface = surface_z
             self.true_distance = zs - surface_z
@@ -840,8 +844,10 @@ class Machine:
             elif core.offset_velocity != 0.0:
                 return False
         # a drive with encoder quantisation may toggle by one increment around a setpoint that is not
-        # on its grid for ever: within one increment of its setpoint it is at rest
-        return all(name in tracking or abs(d.velocity) < 1e-3 or abs(d.following_error) <= d.resolution + 1e-9
+        # on its grid for ever: within one increment of its setpoint it is at rest; a resonant drive's
+        # nozzle must have stopped ringing too (deflection_rate is 0 for a rigid drive)
+        return all(name in tracking or ((abs(d.velocity) < 1e-3 or abs(d.following_error) <= d.resolution + 1e-9)
+                                        and abs(d.deflection_rate) < 1e-3)
                    for name, d in self.drives.items())
 
 

@@ -1,4 +1,4 @@
-"""The plant's arithmetic as plain functions: drive loop, encoder quantisation, probe conversion.
+"""The plant's arithmetic as plain functions: drive loop, resonance, encoder quantisation, probe conversion.
 
 Like :mod:`distctrl.control.law` for the controller, this is the only copy. The virtual machine
 (:class:`~distctrl.sim.drive.Drive`, :class:`~distctrl.sim.sensors.EncoderProbe`) calls these
@@ -47,5 +47,32 @@ def probe_increments(x, range_min, range_max, ref_offset, increments_per_mm):
     return floor_float((x - ref_offset) * increments_per_mm + 0.5)
 
 
+def resonance_step(e, de, dv, p11, p12, p21, p22):
+    """One cycle of the mechanical mode between motor and nozzle (docs/sim-models.md "Drive").
+
+    ``e`` (mm) and ``de`` (mm/s) are the nozzle's deflection from the motor and its rate at the end
+    of the last cycle, ``dv`` = v_k - v_(k-1) the change of the motor velocity at the start of this
+    cycle (mm/s), ``p11 .. p22`` = expm(A T) with A = [[0, 1], [-w0^2, -2 zeta w0]]
+    (:func:`resonance_coefficients`). The motor velocity is constant within a cycle, so its
+    acceleration is an impulse at the cycle start: ``de`` jumps by ``-dv``, then (e, de) move freely
+    for one cycle -- exact, whatever f0 and T. Returns the new ``(e, de)``."""
+    de = de - dv
+    return p11 * e + p12 * de, p21 * e + p22 * de
+
+
+def resonance_coefficients(resonance_hz, damping, cycle_time):
+    """``(p11, p12, p21, p22)`` = expm(A T), A = [[0, 1], [-w0^2, -2 zeta w0]], w0 = 2 pi f0 (set-up
+    only, not compiled: scipy)."""
+    from math import pi
+
+    import numpy as np
+    from scipy.linalg import expm
+
+    w0 = 2.0 * pi * resonance_hz
+    a = np.array([[0.0, 1.0], [-w0 * w0, -2.0 * damping * w0]])
+    phi = expm(a * cycle_time)
+    return float(phi[0, 0]), float(phi[0, 1]), float(phi[1, 0]), float(phi[1, 1])
+
+
 #: the functions numba compiles for the batch kernels (registered by distctrl.batch.kernel)
-PHYSICS_FUNCTIONS = (limit_velocity, quantise, probe_increments)
+PHYSICS_FUNCTIONS = (limit_velocity, quantise, probe_increments, resonance_step)

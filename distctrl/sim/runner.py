@@ -112,7 +112,7 @@ def check_record(record) -> tuple[str, ...]:
 def trace_columns(machine: Machine, record: tuple[str, ...] = ()) -> tuple[list[str], dict[str, str]]:
     cols, units = ["t", "line"], {"t": "s", "line": "-"}
     for n in machine.axis_names:
-        for c in ("prog", "cmd", "act"):
+        for c in ("prog", "cmd", "act") + _nozzle(machine, n):
             cols.append(f"{n}.{c}")
             units[f"{n}.{c}"] = "mm"
     for n in machine.dc_axes:
@@ -131,9 +131,15 @@ def trace_columns(machine: Machine, record: tuple[str, ...] = ()) -> tuple[list[
             units[c] = unit
     for n in machine.axis_names:
         if n in ("A", "B", "C"):
-            for c in ("prog", "cmd", "act"):
+            for c in ("prog", "cmd", "act") + _nozzle(machine, n):
                 units[f"{n}.{c}"] = "deg"
     return cols, units
+
+
+def _nozzle(machine: Machine, axis: str) -> tuple[str, ...]:
+    """``("nozzle",)`` for an axis whose drive has a mechanical resonance (the nozzle is then not the
+    motor the encoder ``<ax>.act`` reports), else ``()``: a rigid axis's trace is unchanged."""
+    return ("nozzle",) if machine.drives[axis].resonance_hz else ()
 
 
 def row_builder(machine: Machine, record: tuple[str, ...] = (), pack=None):
@@ -150,7 +156,7 @@ def row_builder(machine: Machine, record: tuple[str, ...] = (), pack=None):
         env[f"i{j}"], env[f"o{j}"], env[f"d{j}"] = machine.inputs[n], machine.outputs[n], machine.drives[n]
         # with kinematics the axis's CycleInput holds the machine setpoint; the NC's value is kept apart
         prog = f"m.prog_values[{j}]" if kinematic else f"i{j}.programmed_position"
-        parts += [prog, f"o{j}.command_position", f"d{j}.actual"]
+        parts += [prog, f"o{j}.command_position", f"d{j}.actual"] + [f"d{j}.nozzle" for _ in _nozzle(machine, n)]
     for j, n in enumerate(machine.dc_axes):
         env[f"c{j}"] = machine.outputs[n]
         parts += [f"c{j}.{a}" for a in ("hli_state", "offset", "sensor_value", "feedback_value", "filtered_feedback",

@@ -55,7 +55,8 @@ AXIS_NAMES = ("X", "Y", "Z", "A", "B", "C")
 TOP_LEVEL_KEYS = ("name", "cycle_time", "program", "program_text", "duration", "settle_time", "seed",
                   "variables", "external_variables", "tool", "axes", "channel", "surface", "sensor", "events")
 AXIS_KEYS = ("params", "start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "bus_delay_cycles",
-             "resolution", "feedforward")
+             "resolution", "feedforward",
+             "resonance_hz", "damping")           # the drive's mechanical resonance (issue 15)
 SENSOR_KINDS = ("encoder", "distance")
 #: what the sensor measures: "axis" - the height of the sensor axis above the surface (vertical, the
 #: axis variant); "orthogonal_clamping_point" - the orthogonal distance of the tool clamping point
@@ -138,6 +139,9 @@ class AxisConfig:
     resolution: float = 1e-4           # mm per motor encoder increment
     params_warnings: tuple[str, ...] = ()  # warnings of the list loader (a key given twice, ...)
     feedforward: float = 0.0           # drive velocity feed-forward 0..1
+    # -- the drive's mechanical resonance between motor and nozzle (docs/sim-models.md "Drive")
+    resonance_hz: float = 0.0          # f0, Hz; 0 = rigid drive
+    damping: float = 0.05              # zeta, 0 < zeta <= 1
 
     def limits(self) -> AxisLimits:
         """The interpolator's limits of this axis."""
@@ -147,7 +151,8 @@ class AxisConfig:
         """A :class:`Drive` at rest at ``start``."""
         return Drive(cycle_time, kv=self.kv, v_max=self.v_max, a_max=self.a_max,
                      bus_delay_cycles=self.bus_delay_cycles, resolution=self.resolution,
-                     initial_position=self.start, velocity_feedforward=self.feedforward)
+                     initial_position=self.start, velocity_feedforward=self.feedforward,
+                     resonance_hz=self.resonance_hz, damping=self.damping)
 
 
 @dataclass(frozen=True)
@@ -354,8 +359,27 @@ def _axis_config(name: str, cfg: object, base_dir: Path, cycle_time: float) -> A
     bus = require_int(cfg.get("bus_delay_cycles", 1), f"{key}.bus_delay_cycles", lo=0)
     resolution = require_number(cfg.get("resolution", 1e-4), f"{key}.resolution", lo=0.0)
     feedforward = require_number(cfg.get("feedforward", 0.0), f"{key}.feedforward", lo=0.0, hi=1.0)
+    resonance_hz, damping = _resonance(cfg, key, cycle_time)
     return AxisConfig(name, params, params_file, start, kv, v_max, a_max, v_rapid, a_rapid, bus, resolution,
-                      warnings, feedforward)
+                      warnings, feedforward, resonance_hz, damping)
+
+
+def _resonance(cfg: dict, key: str, cycle_time: float) -> tuple[float, float]:
+    """``resonance_hz`` (0 = rigid, else up to 1/(4 cycle_time)) and ``damping`` (0 < zeta <= 1)."""
+    f_max = 0.25 / cycle_time
+    value = cfg.get("resonance_hz", 0.0)
+    try:
+        f0 = require_number(value, f"{key}.resonance_hz", lo=0.0, hi=f_max)
+    except ConfigError as exc:
+        raise ConfigError(f"{key}.resonance_hz", value,
+                          f"a number in [0, {f_max:g}] Hz: 0 (a rigid drive) or up to 1/(4 cycle_time) "
+                          f"(cycle_time = {cycle_time:g} s)", exc.problem) from None
+    value = cfg.get("damping", 0.05)
+    try:
+        zeta = require_number(value, f"{key}.damping", lo=0.0, hi=1.0, lo_open=True)
+    except ConfigError as exc:
+        raise ConfigError(f"{key}.damping", value, "a damping ratio in (0, 1]", exc.problem) from None
+    return f0, zeta
 
 
 def _fault(cfg: dict, key: str, *, start_time: float | None = None) -> Fault:

@@ -15,7 +15,11 @@ cycle core and the virtual machine use:
 * **offset integration** without the slope limiter: ``o_k = o_(k-1) + u_k``, i.e. ``1 / (1 - z^-1)``;
 * **drive** (:class:`distctrl.sim.drive.Drive`): ``bus_delay_cycles`` of fieldbus delay, the P position
   loop ``kv`` and the velocity feed-forward ``ff`` discretised as the simulator does,
-  ``X/C = z^-B ((kv T + ff) - ff z^-1) / (1 - (1 - kv T) z^-1)``;
+  ``X/C = z^-B ((kv T + ff) - ff z^-1) / (1 - (1 - kv T) z^-1)``; with a mechanical resonance
+  (``resonance_hz`` f0, ``damping`` zeta) the sensor sees the nozzle ``N = R X`` with the simulator's
+  exact discretisation ``R = 1 - (p12 / T) (1 - z^-1)^2 / (1 - tr(Phi) z^-1 + det(Phi) z^-2)``,
+  ``Phi = expm(A T)`` (:func:`resonance_polynomials`), while the motor encoder (both encoders, SET_POS)
+  reports ``X``;
 * **dead time** of the measurement: one cycle because the machine's sensor reads the axis position of
   the previous cycle (:meth:`distctrl.sim.machine.Machine._step_axes` reads the sensor before the
   drives step), the sensor's ``delay_cycles``, and one more cycle when the list's
@@ -161,6 +165,8 @@ class LoopModel:
     scenario: str = ""
     kp_source: str = "parameter list"
     notes: tuple[str, ...] = ()
+    resonance_hz: float = 0.0          # the drive's mechanical resonance f0 (0: rigid)
+    damping: float = 0.05              # its damping ratio zeta
 
     # -- derived ----------------------------------------------------------------------------------------
     @property
@@ -189,8 +195,11 @@ class LoopModel:
         pi = self.kp + self.kp * self.i_gain * integ
         d = self.d_gain * _zinv([1.0, -1.0], [1.0], T)
         drive = _delay(self.bus_delay_cycles, T) * _zinv([kvT + ff, -ff], [1.0, -(1.0 - kvT)], T)
-        return {"filter": _zinv(self.filter_b, self.filter_a, T), "pi": pi, "d": d, "pid": pi + d,
-                "integration": integ, "dead_time": _delay(self.dead_time_cycles, T), "drive": drive}
+        blocks = {"filter": _zinv(self.filter_b, self.filter_a, T), "pi": pi, "d": d, "pid": pi + d,
+                  "integration": integ, "dead_time": _delay(self.dead_time_cycles, T), "drive": drive}
+        if self.resonance_hz:
+            blocks["resonance"] = _zinv(*resonance_polynomials(self.resonance_hz, self.damping, T), T)
+        return blocks
 
     def _polynomials(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(L_num, den, G_w_num): the open loop ``L = L_num / den`` and the path from the surface the
@@ -208,6 +217,9 @@ class LoopModel:
           c = p + o_(k-1), a = z^-1 X), SET_POS ``z^-1 Pn - ks z^-N Pn`` (a - d); ``Hw = -+ks z^-(N-1)``;
         * law.mode_error: CONST_DIST ``e = m = -F fb``, so ``Delta o = -C F fb``; SET_POS ``e = F fb -
           z^-1 o``, ``m = F fb``, so ``Delta o = C F fb - C_PI z^-1 o`` (the D part is on m only).
+
+        A resonant drive (``R = Rn / Rd`` from motor to nozzle): the sensor's ``Pn`` becomes ``Pn Rn``,
+        the motor encoder's ``Pn`` becomes ``Pn Rd`` and every ``Pd`` ``Pd Rd``.
         """
         P = np.polynomial.polynomial
         T = self.cycle_time
@@ -219,6 +231,10 @@ class LoopModel:
         zn1 = np.r_[np.zeros(n - 1), 1.0]
         pn = np.r_[np.zeros(self.bus_delay_cycles), kvT + ff, -ff]
         pd = np.array([1.0, -(1.0 - kvT)])
+        pn_enc = pn                                                     # what the motor encoder reports
+        if self.resonance_hz:
+            rn, rd = resonance_polynomials(self.resonance_hz, self.damping, T)
+            pn, pn_enc, pd = P.polymul(pn, rn), P.polymul(pn, rd), P.polymul(pd, rd)
         fb, fa = np.asarray(self.filter_b, dtype=float), np.asarray(self.filter_a, dtype=float)
         kp, ti, g = self.kp, self.i_gain, self.d_gain
         if ti > 0.0:
@@ -230,9 +246,9 @@ class LoopModel:
             cn = P.polyadd([kp], g * delta)
         d_o = ks * P.polymul(zn, pn)
         if self.mode == "SET_POS":
-            hn, hw, sign = P.polysub(P.polymul(z1, pn), d_o), ks * zn1, -1.0
+            hn, hw, sign = P.polysub(P.polymul(z1, pn_enc), d_o), ks * zn1, -1.0
         elif self.both_encoders:
-            hn, hw, sign = P.polyadd(d_o, P.polymul(z1, P.polysub(pd, pn))), -ks * zn1, 1.0
+            hn, hw, sign = P.polyadd(d_o, P.polymul(z1, P.polysub(pd, pn_enc))), -ks * zn1, 1.0
         else:
             hn, hw, sign = d_o, -ks * zn1, 1.0
         den = P.polymul(P.polymul(cd, fa), P.polymul(pd, delta))
@@ -281,13 +297,31 @@ class LoopModel:
                 "optimized_scheduling": self.optimized_scheduling,
                 "dead_time_cycles": self.dead_time_cycles, "dead_time_s": self.dead_time_cycles * self.cycle_time,
                 "drive_kv_per_s": self.kv, "drive_feedforward": self.feedforward,
-                "drive_bus_delay_cycles": self.bus_delay_cycles, "notes": list(self.notes)}
+                "drive_bus_delay_cycles": self.bus_delay_cycles,
+                "drive_resonance_hz": self.resonance_hz, "drive_damping": self.damping if self.resonance_hz else None,
+                "notes": list(self.notes)}
+
+
+def resonance_polynomials(resonance_hz: float, damping: float, cycle_time: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(Rn, Rd)``: the nozzle per motor position of a resonant drive, polynomials in ``z^-1``
+    (ascending), exactly as :class:`distctrl.sim.drive.Drive` steps it.
+
+    The deflection e after cycle k is ``s_k = Phi (s_(k-1) - [0, dv_k])``, with ``dv_k = (1 - z^-1)^2 x / T``
+    the change of the motor velocity; its first row gives ``E / dv = -p12 / (1 - tr(Phi) z^-1 + det(Phi) z^-2)``
+    and the nozzle ``N = X + E``: ``Rd = [1, -tr, det]``, ``Rn = Rd - (p12 / T) [1, -2, 1]`` (static gain 1)."""
+    from ..sim.physics import resonance_coefficients
+
+    p11, p12, p21, p22 = resonance_coefficients(resonance_hz, damping, cycle_time)
+    rd = np.array([1.0, -(p11 + p22), p11 * p22 - p12 * p21])
+    rn = rd - (p12 / cycle_time) * np.array([1.0, -2.0, 1.0])
+    return rn, rd
 
 
 def model_from_parts(params, cycle_time: float, *, axis: str = "Z", mode: str = "CONST_DIST",
                      kv: float = 40.0, feedforward: float = 0.0, bus_delay_cycles: int = 1,
                      sensor_delay_cycles: int = 0, sensor_gain: float = 1.0, scenario: str = "",
-                     kp_source: str = "parameter list", tuning=None, notes: tuple[str, ...] = ()) -> LoopModel:
+                     kp_source: str = "parameter list", tuning=None, notes: tuple[str, ...] = (),
+                     resonance_hz: float = 0.0, damping: float = 0.05) -> LoopModel:
     """The loop of an axis from its parameter list (``AxisParameters``), drive and sensor data.
 
     ``tuning`` (a :class:`distctrl.control.controller.Tuning`) overrides the list's KP / T_n / T_v and
@@ -316,7 +350,8 @@ def model_from_parts(params, cycle_time: float, *, axis: str = "Z", mode: str = 
                      sensor_delay_cycles=int(sensor_delay_cycles),
                      optimized_scheduling=bool(params.optimized_scheduling), kv=float(kv),
                      feedforward=float(feedforward), bus_delay_cycles=int(bus_delay_cycles),
-                     scenario=scenario, kp_source=kp_source, notes=tuple(notes))
+                     scenario=scenario, kp_source=kp_source, notes=tuple(notes),
+                     resonance_hz=float(resonance_hz), damping=float(damping))
 
 
 def _pick_axis(sc: "Scenario", axis: str | None) -> str:
@@ -420,7 +455,7 @@ def loop_model(scenario: "Scenario | str | os.PathLike", axis: str | None = None
                              bus_delay_cycles=ax.bus_delay_cycles,
                              sensor_delay_cycles=sc.sensor.delay_cycles if sc.sensor is not None else 0,
                              sensor_gain=gain, scenario=str(sc.path or sc.name), kp_source=source,
-                             tuning=tuning, notes=tuple(notes))
+                             tuning=tuning, notes=tuple(notes), resonance_hz=ax.resonance_hz, damping=ax.damping)
     if kp is not None:
         model = dataclasses.replace(model.with_kp(kp), kp_source="--kp")
     return model
@@ -529,6 +564,8 @@ class MarginResult:
                  f"{'on: 0' if m.optimized_scheduling else 'off: 1'})",
                  f"    drive        kv = {m.kv:g} 1/s, feed-forward {m.feedforward:g}, bus delay "
                  f"{_cycles(m.bus_delay_cycles)}"
+                 + (f", resonance {m.resonance_hz:g} Hz (damping {m.damping:g}) between motor and nozzle"
+                    if m.resonance_hz else "")
                  + (f"; sensor gain {m.sensor_gain:.4g} mm/mm" if m.sensor_gain != 1.0 else "")]
         for note in m.notes:
             lines.append(f"    note: {note}")

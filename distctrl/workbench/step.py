@@ -365,7 +365,8 @@ def step_scenario(base: "Scenario | str | os.PathLike | None", setting: StepSett
         params, params_file = ax.params, ax.params_file
         axis_cfg = {"kv": ax.kv, "v_max": ax.v_max, "a_max": ax.a_max, "v_rapid": ax.v_rapid,
                     "a_rapid": ax.a_rapid, "bus_delay_cycles": ax.bus_delay_cycles,
-                    "resolution": ax.resolution, "feedforward": ax.feedforward}
+                    "resolution": ax.resolution, "feedforward": ax.feedforward,
+                    "resonance_hz": ax.resonance_hz, "damping": ax.damping}
         sensor = _sensor_dict(base, axis)
         cycle_time, seed, variables = base.cycle_time, base.seed, dict(base.variables)
         source = f"step on {base.path or base.name}"

@@ -116,7 +116,8 @@ def test_c_reproduces_the_kernel(tmp_path, cref, mode):
     assert int(ErrorId.SENSOR_JUMP) in ids or int(ErrorId.MAX_DEVIATION) in ids
 
 
-@pytest.mark.parametrize("variant", ["drive_ff_bus0_resolution", "no_noise_no_delay", "set_before_select"])
+@pytest.mark.parametrize("variant", ["drive_ff_bus0_resolution", "no_noise_no_delay", "set_before_select",
+                                     "resonance_40hz"])
 def test_c_reproduces_the_plant_options(tmp_path, cref, variant):
     program = MODES["SET_POS"][0] + PATH
     z, sensor = {}, {}
@@ -124,6 +125,8 @@ def test_c_reproduces_the_plant_options(tmp_path, cref, variant):
         z = {"feedforward": 0.6, "bus_delay_cycles": 0, "resolution": 1e-3}
     elif variant == "no_noise_no_delay":
         sensor = {"noise_std": 0.0, "delay_cycles": 0}
+    elif variant == "resonance_40hz":              # the drive's mechanical resonance (issue 15)
+        z = {"resonance_hz": 40.0, "damping": 0.05}
     else:
         program = "N5 Z[DIST_CTRL SET_POS=29.6]\nN10 G1 X5 F600\nN15 Z[DIST_CTRL ON]" + PATH
     sets = sets_for({})

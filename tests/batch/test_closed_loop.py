@@ -93,7 +93,8 @@ def test_batch_of_one_replays_the_runner(tmp_path, filt, mode):
 
 @pytest.mark.parametrize("variant", ["no_optimized_scheduling", "adaptive_lowering_sw", "sw_limit_error",
                                      "sensor_jump_error", "drive_ff_bus0",
-                                     "no_noise_no_delay_resolution", "set_before_select"])
+                                     "no_noise_no_delay_resolution", "set_before_select",
+                                     "resonance_40hz", "resonance_250hz_ff_bus0"])
 def test_plant_and_law_options_replay(tmp_path, variant):
     params = make_params(**FILTERS["EXPO_MEAN"])
     program = MODES["SET_POS"][0] + PATH
@@ -117,12 +118,24 @@ def test_plant_and_law_options_replay(tmp_path, variant):
                                 sensor_sign_reversal=True,
                                 ref_offset=0.25)
         sensor = {"noise_std": 0.0, "delay_cycles": 0}
+    elif variant == "resonance_40hz":              # the drive's mechanical resonance (issue 15)
+        z = {"resonance_hz": 40.0, "damping": 0.05}
+    elif variant == "resonance_250hz_ff_bus0":     # f0 = 1/(4T), with feed-forward and no bus delay
+        z = {"resonance_hz": 250.0, "damping": 0.2, "feedforward": 0.5, "bus_delay_cycles": 0}
     else:
         program = "N5 Z[DIST_CTRL SET_POS=29.6]\nN10 G1 X5 F600\nN15 Z[DIST_CTRL ON]" + PATH
     sc = make_scenario(tmp_path, params, program, z=z, sensor=sensor)
     inputs = CL.prepare(sc)
     if variant == "set_before_select":
         assert inputs.k_on > 100
+    if variant.startswith("resonance"):
+        assert inputs.plant[CL.PL_RESONANT] == 1.0
+        # the nozzle really leaves the motor: the rigid plant gives another distance trace
+        rigid = make_scenario(tmp_path, params, program, z={k: v for k, v in z.items() if "reson" not in k
+                                                            and k != "damping"}, sensor=sensor, name="rigid")
+        a = CL.run_batch(inputs, [params])[1]
+        b = CL.run_batch(CL.prepare(rigid), [params])[1]
+        assert np.max(np.abs(a - b)) > 1e-3
     assert_replays(sc, inputs, error)
 
 

@@ -56,11 +56,13 @@ def option_sets(n_sets, seed=0):
     return sets
 
 
+@pytest.mark.parametrize("resonant", [False, True])
 @pytest.mark.parametrize("mode", list(MODES))
-def test_mixed_blocks_equal_closed_loop(tmp_path, mode):
+def test_mixed_blocks_equal_closed_loop(tmp_path, mode, resonant):
     block, extra = MODES[mode]
     sets = [p.replace(**extra) for p in option_sets(75, seed=len(mode))]
-    sc = make_scenario(tmp_path, sets[0], block + PATH)
+    z = {"resonance_hz": 40.0, "damping": 0.05} if resonant else None
+    sc = make_scenario(tmp_path, sets[0], block + PATH, z=z)
     inputs = CL.prepare(sc)
     off, dist, err = assert_same(inputs, sets)
     packed = CL.pack_sets(inputs, sets)
@@ -75,7 +77,8 @@ def test_mixed_blocks_equal_closed_loop(tmp_path, mode):
 
 
 @pytest.mark.parametrize("variant", ["no_optimized_scheduling", "drive_ff_bus0", "no_noise_no_delay_resolution",
-                                     "set_before_select", "sw_limit_error", "lowering_weights"])
+                                     "set_before_select", "sw_limit_error", "lowering_weights",
+                                     "resonance_40hz", "resonance_250hz_ff_bus0"])
 def test_batch_of_one_replays_the_runner(tmp_path, variant):
     """The plant and law variants of test_closed_loop, with MOVING_AVERAGE: through the block kernel."""
     params = make_params(**MA, n_cycles=6)
@@ -94,6 +97,10 @@ def test_batch_of_one_replays_the_runner(tmp_path, variant):
     elif variant == "sw_limit_error":
         params = params.replace(check_sw_limit_switch=True, sw_limit_min=-100.0, sw_limit_max=30.3)
         error = ErrorId.SW_LIMIT
+    elif variant == "resonance_40hz":              # the drive's mechanical resonance (issue 15)
+        z = {"resonance_hz": 40.0, "damping": 0.05}
+    elif variant == "resonance_250hz_ff_bus0":
+        z = {"resonance_hz": 250.0, "damping": 0.2, "feedforward": 0.5, "bus_delay_cycles": 0, "resolution": 1e-3}
     else:
         params = params.replace(v_weight_down=0.4, a_weight_down=0.5, use_adaptive_acceleration=True,
                                 a_min=300.0, dist_error_a_min=0.05, dist_error_a_max=0.3)
