@@ -1,0 +1,876 @@
+"""``distctrl identify``: the plant (drive and sensor) fitted to recordings of the real machine.
+
+A recording is a CSV at the interpolation cycle with four signals: time, the set position sent to
+the drive (*command*), the motor encoder (*actual*) and the height sensor (*sensor*). Three kinds of
+file load (docs/identify.md): a plain CSV with a header row, a distctrl trace (docs/trace.md, with
+its ``.meta.json`` sidecar) and a TwinCAT Scope CSV export (metadata rows before the data, ``;``,
+TAB or ``,`` separated, decimal comma possible, one time column per group of channels).
+
+The model (the one ``distctrl run`` simulates, docs/sim-models.md, in continuous time)::
+
+    command --(dead time)--> P loop kv, |v| <= v_max, |dv/dt| <= a_max --> motor x (actual column)
+    motor --(mode f0, zeta: e'' = -w0^2 e - 2 zeta w0 e' - x'')--> nozzle n = x + e
+    sensor = sign * characteristic(n(t - delay) - surface) + noise
+
+and the classic tools fit it:
+
+* drive: the one-step equation of the sampled P loop, ``x_{k+1} - x_k = (1 - exp(-kv T)) (c_k - x_k)``
+  with ``c_k`` the command delayed by the dead time (fractional, interpolated), by robust least
+  squares (:func:`scipy.optimize.least_squares`, soft-L1) on a grid of dead times, then refined;
+  ``v_max`` and ``a_max`` from the samples where the loop demands more than the motor does;
+* resonance and sensor delay: the frequency response motor -> sensor ``H = Pxy / Pxx``
+  (:func:`scipy.signal.csd`, :func:`scipy.signal.welch`, averaged over the recordings) fitted by
+  complex least squares with ``g * M(f0, zeta) * exp(-j 2 pi f delay)``, weighted by the coherence;
+* characteristic and noise: the quasi-static samples (a slow ramp, settled holds) against the motor
+  encoder, in bins of the true distance (local linear fits: the bin's value and its residual noise).
+
+A figure that the recordings cannot determine is ``None`` with a warning that says what to record.
+Errors are :class:`IdentifyError` (a ``DistCtrlError``) whose message names the file, the column or
+what to record.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import DistCtrlError
+from .filters import _TIME_UNITS, _VALUE_UNITS, _pick_column, _read_plain_csv, _unit_factor
+
+__all__ = ["IdentifyError", "IdentifyWarning", "Signals", "Identification", "load_signals", "identify",
+           "result_json", "format_summary", "write_scenario", "write_report", "MIN_SECONDS"]
+
+
+class IdentifyError(DistCtrlError, ValueError):
+    """Invalid recordings or options for ``identify`` (exit code 1)."""
+
+
+class IdentifyWarning(UserWarning):
+    """A figure that could not be identified, or a doubt about one."""
+
+
+#: shortest recording identify accepts (s)
+MIN_SECONDS = 1.0
+#: and in samples
+MIN_SAMPLES = 200
+#: what to record, quoted in the messages (docs/identify.md)
+RECORD_STEPS = ("steps of the set position of 0.2-0.5 mm (0.5 s apart, sensor not saturated, "
+                "distance control off)")
+RECORD_LARGE_STEP = ("a step large enough that the axis reaches its velocity limit (several mm, "
+                     "at a safe height above the sheet)")
+RECORD_CHIRP = ("a chirp of the set position 1-150 Hz, 0.02-0.05 mm amplitude, 20 s, above the sheet")
+RECORD_RAMP = ("a slow ramp of the set position (0.2-0.5 mm/s) over the sensor's range, with the "
+               "sensor over a flat sheet")
+RECORD_STANDSTILL = "1 s or more at standstill above the sheet"
+
+
+# ------------------------------------------------------------------------------------------------------
+# recordings
+# ------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Signals:
+    """One recording in s and mm: time, command (set position), actual (motor encoder), sensor.
+
+    ``actual_at``: when the actual column of a row is sampled: ``"start"`` of the cycle (TwinCAT:
+    the input mapping before the task runs) or ``"end"`` (distctrl traces: the drive's position
+    after the cycle). ``source``: ``"trace"``, ``"scope"`` or ``"csv"``.
+    """
+
+    t: np.ndarray
+    command: np.ndarray
+    actual: np.ndarray
+    sensor: np.ndarray
+    cycle_time: float
+    path: str
+    columns: tuple[str, str, str]
+    source: str
+    actual_at: str
+
+    @property
+    def duration(self) -> float:
+        return self.t.size * self.cycle_time
+
+
+_SCOPE_KEYS = {"Name", "SymbolName", "SymbolComment", "NetId", "NetID", "Port", "IndexGroup", "IndexOffset",
+               "Data-Type", "SampleTime[ms]", "SymbolBased", "VariableSize", "Offset", "ScaleFactor", "BitMask",
+               "Unit", "Unit ScaleFactor", "Unit Offset", "StartTime", "EndTime", "File", "Comment"}
+
+
+def _read_text(p: Path) -> str:
+    try:
+        return p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        return p.read_text(encoding="latin-1")
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+        return True
+    except ValueError:
+        return False
+
+
+def _delimiter(lines: list[str]) -> str:
+    """The separator of a Scope export: the one whose count is the same on most of the last lines
+    (';' before TAB before ',' on a tie: on a TAB file with decimal commas ',' counts the same)."""
+    tail = [ln for ln in lines if ln.strip()][-20:]
+    best, best_score = ",", -1.0
+    for d in (";", "\t", ","):
+        counts = [ln.count(d) for ln in tail]
+        mode = max(set(counts), key=counts.count)
+        if mode == 0:
+            continue
+        score = counts.count(mode) / len(counts)
+        if score > best_score:
+            best, best_score = d, score
+    return best
+
+
+def is_scope_export(text_head: str) -> bool:
+    """A TwinCAT Scope CSV export starts with metadata rows ``Name<sep>...`` (the Scope project),
+    and has a ``Name`` row per channel before the data."""
+    lines = [ln for ln in text_head.splitlines() if ln.strip()]
+    if not lines:
+        return False
+    first = lines[0].lstrip('"').split(";")[0].split("\t")[0].split(",")[0].strip().strip('"')
+    return first in ("Name", "File", "StartTime") and sum(
+        1 for ln in lines[:60] if ln.strip().strip('"').split(";")[0].split("\t")[0].split(",")[0].strip('"')
+        in _SCOPE_KEYS) >= 2
+
+
+def _read_scope_csv(p: Path, text: str) -> tuple[list[str], list[list[str]], int, dict[str, str], dict]:
+    """A TwinCAT Scope CSV export: (column names, data rows, line of the first data row, time column
+    of each value column, info).
+
+    Layout (TE13xx Scope View "Export in csv", TC3ScopeExportTool): rows of key/value metadata (the
+    project: Name, File, StartTime/EndTime), then per channel a block of ``key<sep>value`` pairs side
+    by side (Name, SymbolName, NetId, Port, SampleTime[ms], Data-Type, ...), then the data: each group
+    of channels with the same sample time has its own time column (ms since the start of the export,
+    or FILETIME ticks with "Full Timestamp") followed by its value columns. The ``Name`` row marks a
+    group's time column with the key itself. Separator ``;``, TAB or ``,``; with ``;`` or TAB the
+    decimal mark may be a comma. A trailing ``EOF`` row is skipped.
+    """
+    lines = text.splitlines()
+    delim = _delimiter(lines)
+    cells = [[c.strip().strip('"') for c in ln.split(delim)] if ln.strip() else [] for ln in lines]
+    comma = delim != "," and any("," in c for row in cells[-20:] for c in row)
+
+    def num(c: str) -> bool:
+        return bool(c) and _is_number(c.replace(",", ".") if comma else c)
+
+    data_i = None
+    for i, row in enumerate(cells):
+        filled = [c for c in row if c]
+        if len(filled) >= 2 and all(num(c) for c in filled) and row[0] not in _SCOPE_KEYS:
+            nxt = next((r for r in cells[i + 1:] if r), None)
+            if nxt is None or all(num(c) for c in nxt if c) or nxt[0].upper() == "EOF":
+                data_i = i
+                break
+    if data_i is None:
+        raise IdentifyError(f"{p}: a TwinCAT Scope export without numeric data rows; export the recording "
+                            "again (Scope View: Export -> CSV)")
+    width = len(cells[data_i])
+    meta: dict[str, list[str]] = {}
+    for row in cells[:data_i]:
+        if row and row[0] in _SCOPE_KEYS and len(row) >= width - 1:
+            meta[row[0]] = row + [""] * (width - len(row))         # the last (channel) block wins
+    names_row = meta.get("Name")
+    symbols = meta.get("SymbolName")
+    if names_row is None:
+        header = next((r for r in reversed(cells[:data_i]) if r and not all(num(c) for c in r if c)), None)
+        if header is None:
+            raise IdentifyError(f"{p}: no row with the channel names before the data")
+        names_row = header
+    names: list[str] = []
+    time_of: dict[str, str] = {}
+    current_time = None
+    groups = 0
+    for j in range(width):
+        c = names_row[j] if j < len(names_row) else ""
+        if c == "Name" or (j == 0 and names_row is not meta.get("Name")):
+            groups += 1
+            current_time = "Time" if groups == 1 else f"Time ({groups})"
+            names.append(current_time)
+            continue
+        name = c or f"column {j + 1}"
+        if name in names:
+            name = f"{name} ({j + 1})"
+        names.append(name)
+        if current_time is not None:
+            time_of[name] = current_time
+        if symbols is not None and j < len(symbols) and symbols[j] and symbols[j] != "SymbolName":
+            time_of.setdefault(f"symbol:{symbols[j]}", name)
+    body = []
+    for row in cells[data_i:]:
+        if not row:
+            continue
+        if row[0].upper() == "EOF":
+            break
+        body.append([c.replace(",", ".") for c in row] if comma else row)
+    info = {"separator": {"\t": "TAB"}.get(delim, delim), "decimal": "," if comma else ".",
+            "groups": groups, "sample_time_ms": (meta.get("SampleTime[ms]") or [None, None])[1]}
+    return names, body, data_i + 1, time_of, info
+
+
+def _column(p: Path, body: list[list[str]], j: int, name: str, first_line: int) -> np.ndarray:
+    out = np.empty(len(body))
+    for i, row in enumerate(body):
+        try:
+            out[i] = float(row[j])
+        except (ValueError, IndexError):
+            cell = row[j] if j < len(row) else ""
+            raise IdentifyError(f"{p}:{first_line + i}: column {name!r}: {cell!r} is not a number; allowed: "
+                                "decimal numbers in every row (record all signals at the same sample time)") from None
+    return out
+
+
+def load_signals(path: str | os.PathLike, *, time: str | None = None, command: str, actual: str, sensor: str,
+                 time_unit: str | None = None, value_unit: str = "mm", sensor_unit: str | None = None,
+                 mm_per_increment: float | None = None, actual_at: str = "auto") -> Signals:
+    """One recording, converted to s and mm.
+
+    ``time``: the time column (default: ``t`` for a trace, the channels' own time column for a
+    Scope export, the first column of a plain CSV). ``time_unit``: s, ms or us (default: the
+    trace's unit; ms for a Scope export, as it writes them; s for a plain CSV). ``value_unit``:
+    mm, um or inc (with ``mm_per_increment``) for command and actual; ``sensor_unit`` for the sensor
+    (default: ``value_unit``). ``actual_at``: ``start``/``end``/``auto`` (auto: end for a trace,
+    start otherwise).
+    """
+    from ..trace import Trace, sidecar_path
+
+    p = Path(path)
+    if not p.is_file():
+        raise IdentifyError(f"{p}: no such file; expected a CSV recording (header row, one row per cycle)")
+    vf = _unit_factor(p, "value", value_unit, _VALUE_UNITS, mm_per_increment)
+    sf = _unit_factor(p, "sensor", sensor_unit or value_unit, _VALUE_UNITS, mm_per_increment)
+    tf = None if time_unit is None else _unit_factor(p, "time", time_unit, _TIME_UNITS)
+    wanted = {"command": command, "actual": actual, "sensor": sensor}
+    filetime = False
+    if sidecar_path(p).exists():
+        source = "trace"
+        try:
+            trace = Trace.from_csv(p)
+        except (ValueError, OSError) as exc:
+            raise IdentifyError(f"{p}: not a readable distctrl trace: {exc}") from None
+        cols = list(trace.columns)
+        time = time or ("t" if "t" in trace else cols[0])
+        idx = {k: _col_index(p, cols, v, k) for k, v in wanted.items()}
+        ti = _col_index(p, cols, time, "time")
+        raw = {k: trace.data[:, i] for k, i in idx.items()}
+        raw_t = trace.data[:, ti]
+        if tf is None:
+            tf = _unit_factor(p, f"time column {time!r} has a", trace.unit(time) or "s", _TIME_UNITS)
+        units = {k: trace.unit(v) for k, v in wanted.items()}
+        if units["command"] or units["actual"]:
+            vf = _unit_factor(p, f"column {command!r} has a", units["command"] or units["actual"], _VALUE_UNITS,
+                              mm_per_increment)
+        if units["sensor"]:
+            sf = _unit_factor(p, f"column {sensor!r} has a", units["sensor"], _VALUE_UNITS, mm_per_increment)
+        first_line = 2
+    else:
+        text = _read_text(p)
+        if not text.strip():
+            raise IdentifyError(f"{p}: empty file; expected a header row and one row per cycle")
+        if is_scope_export(text[:20000]):
+            source = "scope"
+            names, body, first_line, time_of, _info = _read_scope_csv(p, text)
+            # a channel may be named by its Scope name or its SymbolName
+            for k, v in list(wanted.items()):
+                if v not in names and f"symbol:{v}" in time_of:
+                    wanted[k] = time_of[f"symbol:{v}"]
+            idx = {k: _col_index(p, names, v, k) for k, v in wanted.items()}
+            if time is None:
+                tcols = {time_of.get(wanted[k]) for k in wanted}
+                if len(tcols) != 1 or None in tcols:
+                    raise IdentifyError(f"{p}: the channels {', '.join(map(repr, wanted.values()))} are in different "
+                                        "time groups of the Scope export; record them at the same sample time "
+                                        "(the interpolation cycle) or name the time column with --time")
+                time = tcols.pop()
+            ti = _col_index(p, names, time, "time")
+            if tf is None:
+                tf = 1e-3                                        # Scope exports ms since the start
+                filetime = True
+        else:
+            source = "csv"
+            names, body, first_line = _read_plain_csv(p)
+            idx = {k: _col_index(p, names, v, k) for k, v in wanted.items()}
+            ti = _col_index(p, names, time, "time") if time is not None else 0
+            time = names[ti]
+            if tf is None:
+                tf = 1.0
+        body = [r for r in body if any(c.strip() for c in r)]
+        raw = {k: _column(p, body, j, names[j], first_line) for k, j in idx.items()}
+        raw_t = _column(p, body, ti, names[ti], first_line)
+        wanted = {k: names[j] for k, j in idx.items()}
+    n = raw_t.size
+    for k, v in raw.items():
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise IdentifyError(f"{p}:{first_line + bad[0]}: column {wanted[k]!r} is not finite; allowed: finite "
+                                "numbers in every row")
+    if filetime and n and raw_t[0] > 1e14:                      # "Full Timestamp": FILETIME, 100 ns ticks
+        raw_t = (raw_t - raw_t[0]) * 1e-4                          # -> ms
+    t = raw_t * tf
+    if n < 2:
+        raise IdentifyError(f"{p}: recording too short: {n} samples; record at least {MIN_SECONDS:g} s at the "
+                            "interpolation cycle")
+    dt = np.diff(t)
+    back = np.flatnonzero(~(dt > 0.0))
+    if back.size:
+        raise IdentifyError(f"{p}:{first_line + back[0] + 1}: time column {time!r} is not strictly increasing; "
+                            "allowed: one row per cycle in time order")
+    T = float(np.median(dt))
+    spread = float(np.max(np.abs(dt - T))) / T
+    if spread > 0.01:
+        i = int(np.argmax(np.abs(dt - T)))
+        raise IdentifyError(f"{p}:{first_line + i + 1}: non-uniform time base: the sample interval is "
+                            f"{dt[i] * 1e3:.6g} ms there, the median {T * 1e3:.6g} ms (allowed: within 1 %); record "
+                            "every cycle (Scope: the task's cycle time as sample time, no gaps)")
+    if n < MIN_SAMPLES or n * T < MIN_SECONDS:
+        raise IdentifyError(f"{p}: recording too short: {n} samples ({n * T:.3g} s); record at least "
+                            f"{MIN_SECONDS:g} s and {MIN_SAMPLES} cycles (steps: 5 s, chirp: 20 s, ramp: 20 s)")
+    if actual_at not in ("auto", "start", "end"):
+        raise IdentifyError(f"actual_at {actual_at!r}; allowed: auto, start, end")
+    at = ("end" if source == "trace" else "start") if actual_at == "auto" else actual_at
+    return Signals(t=t - t[0], command=raw["command"] * vf, actual=raw["actual"] * vf, sensor=raw["sensor"] * sf,
+                   cycle_time=T, path=str(p), columns=(wanted["command"], wanted["actual"], wanted["sensor"]),
+                   source=source, actual_at=at)
+
+
+def _col_index(p, columns: list[str], name: str, what: str) -> int:
+    try:
+        return _pick_column(p, columns, name, what)
+    except DistCtrlError as exc:
+        raise IdentifyError(str(exc)) from None
+
+
+# ------------------------------------------------------------------------------------------------------
+# identification
+# ------------------------------------------------------------------------------------------------------
+DRIVE_KEYS = ("kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping")
+SENSOR_KEYS = ("delay", "noise_std", "characteristic")
+#: longest dead time / sensor delay searched (s)
+MAX_DELAY = 0.03
+#: quasi-static samples (characteristic, noise): motor slower than this (mm/s) ...
+QS_VELOCITY = 5.0
+#: ... and command acceleration below this (mm/s^2) for the settling window before the sample
+QS_ACCELERATION = 20.0
+#: characteristic bins (mm of true distance)
+CHAR_BIN = 0.25
+#: Welch segment length (samples) of the frequency response
+NPERSEG = 2048
+
+
+@dataclass
+class _Rec:
+    """A recording on the motor's time base: X[k] is the motor at the row's time t[k]."""
+
+    sig: Signals
+    X: np.ndarray          # motor (mm)
+    S: np.ndarray          # command (mm)
+    Y: np.ndarray          # sensor, sign-corrected (mm, grows with the distance)
+    t: np.ndarray
+
+
+@dataclass
+class Identification:
+    """The fitted plant, fit quality and what could not be identified (``warnings``)."""
+
+    cycle_time: float
+    drive: dict
+    sensor: dict
+    fit: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    recordings: list[dict] = field(default_factory=list)
+    # for the report: per recording (t, X, S, Y) and model curves
+    curves: dict = field(default_factory=dict)
+
+
+def _warn(res_warnings: list[str], text: str) -> None:
+    res_warnings.append(text)
+    warnings.warn(text, IdentifyWarning, stacklevel=3)
+
+
+def _prepare(sig: Signals, sign: float) -> _Rec:
+    if sig.actual_at == "end":           # the row's actual is the motor one cycle later
+        X, S, Y, t = sig.actual[:-1], sig.command[1:], sig.sensor[1:], sig.t[1:]
+    else:
+        X, S, Y, t = sig.actual, sig.command, sig.sensor, sig.t
+    return _Rec(sig=sig, X=np.asarray(X, float), S=np.asarray(S, float), Y=sign * np.asarray(Y, float), t=t)
+
+
+def _delayed(x: np.ndarray, shift: float) -> np.ndarray:
+    """x at the fractional index k - shift (linear interpolation; the first value before the start)."""
+    idx = np.arange(x.size, dtype=float) - shift
+    return np.interp(idx, np.arange(x.size, dtype=float), x)
+
+
+def _drive_rows(recs: Sequence[_Rec], theta: float, T: float):
+    """Regressor z = c(theta) - X and response dX of every recording, concatenated."""
+    zs, ys = [], []
+    skip = int(math.ceil(MAX_DELAY / T)) + 2
+    for r in recs:
+        c = _delayed(r.S, theta / T)
+        dX = np.diff(r.X)
+        z = (c - r.X)[:-1]
+        zs.append(z[skip:])
+        ys.append(dX[skip:])
+    return np.concatenate(zs), np.concatenate(ys)
+
+
+def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> tuple[float, float, float]:
+    """y = alpha z on the samples the linear loop explains: alpha first as the median of y/z over the
+    moving samples (free of the leverage of the limited ones), then least squares on the samples
+    within 4 scales. Returns alpha, the truncated-quadratic cost and the median |residual|."""
+    mv = np.abs(z) > 1e-3
+    if int(mv.sum()) < 10:
+        return 0.0, math.inf, math.inf
+    a0 = float(np.median(y[mv] / z[mv]))
+    r = y - a0 * z
+    med = float(np.median(np.abs(r[mv])))
+    s = scale if scale is not None else max(1.4826 * med, 1e-7)
+    inl = np.abs(r) <= 4.0 * s
+    den = float(np.dot(z[inl], z[inl]))
+    alpha = float(np.dot(z[inl], y[inl])) / den if den > 0 else a0
+    q = ((y - alpha * z) / s) ** 2
+    return alpha, float(np.sum(np.minimum(q, 16.0))), med
+
+
+def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
+    out = {"kv": None, "dead_time": None, "v_max": None, "a_max": None}
+    moving = sum(float(np.ptp(r.S)) for r in recs)
+    if moving <= 0.0:
+        return out
+    # pass 1: least median of the residual over the moving samples, on a grid of dead times
+    grid = np.arange(0.0, MAX_DELAY + 1e-12, 0.25 * T)
+    rows = [_drive_rows(recs, th, T) for th in grid]
+    med = np.array([_robust_alpha(z, y)[2] for z, y in rows])
+    if not np.isfinite(med).any():
+        _warn(res.warnings, f"kv and dead time: the axis hardly moves in these recordings; record {RECORD_STEPS}")
+        return out
+    scale = max(1.4826 * float(np.min(med)), 1e-7)
+    # pass 2: the truncated quadratic cost at that scale, grid then refined
+    costs = np.array([_robust_alpha(z, y, scale)[1] for z, y in rows])
+    i = int(np.argmin(costs))
+    from scipy.optimize import minimize_scalar
+
+    lo, hi = grid[max(i - 2, 0)], grid[min(i + 2, grid.size - 1)]
+    theta = float(grid[i])
+    if hi > lo:
+        opt = minimize_scalar(lambda th: _robust_alpha(*_drive_rows(recs, th, T), scale)[1], bounds=(lo, hi),
+                              method="bounded", options={"xatol": 0.005 * T})
+        if opt.fun <= costs[i]:
+            theta = float(opt.x)
+    z, y = _drive_rows(recs, theta, T)
+    alpha, best, _ = _robust_alpha(z, y, scale)
+    res.extra["drive_equation_scale_mm"] = scale
+    # identifiability of the dead time: the cost must rise away from the optimum (a ramp alone
+    # trades dead time against kv; steps or a chirp separate them)
+    near = [c for th, c in zip(grid, costs) if abs(th - theta) >= 0.001 - 1e-12 and abs(th - theta) <= 0.002]
+    sharp = bool(near) and min(near) > 1.05 * best
+    if not (0.0 < alpha < 1.0) or not sharp:
+        _warn(res.warnings, "kv and dead time: not identifiable from these recordings (the command has no "
+                            f"fast transients); record {RECORD_STEPS}")
+        return out
+    kv = -math.log1p(-alpha) / T
+    out["kv"], out["dead_time"] = kv, theta
+    # the limits: samples where the P loop demands more than the motor does
+    kv_d = alpha / T
+    v_all, vd_all, dv_all, dvd_all = [], [], [], []
+    skip = int(math.ceil(MAX_DELAY / T)) + 2
+    for r in recs:
+        c = _delayed(r.S, theta / T)
+        v = np.diff(r.X) / T
+        vd = kv_d * (c - r.X)[:-1]
+        v_all.append(v[skip + 1:])
+        vd_all.append(vd[skip + 1:])
+        dv_all.append(np.diff(v)[skip:])
+        dvd_all.append((vd[1:] - v[:-1])[skip:])
+    v, vd, dv, dvd = (np.concatenate(a) for a in (v_all, vd_all, dv_all, dvd_all))
+    sv = 3.0 * scale / T + 1e-9                     # velocity noise
+    sat_v = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.sign(vd) == np.sign(v)) & \
+            (np.abs(dv) < 0.05 * np.abs(v) + 3 * sv) & (np.abs(v) > 10 * sv)
+    if int(sat_v.sum()) >= 3:
+        out["v_max"] = float(np.median(np.abs(v[sat_v])))
+    else:
+        _warn(res.warnings, "v_max: the velocity limit was not reached in these recordings; record "
+                            f"{RECORD_LARGE_STEP}")
+    sat_a = (np.abs(dvd) > 1.15 * np.abs(dv) + 5 * sv) & (np.sign(dvd) == np.sign(dv)) & (np.abs(dv) > 10 * sv) & ~sat_v
+    if int(sat_a.sum()) >= 3:
+        out["a_max"] = float(np.percentile(np.abs(dv[sat_a]), 90)) / T
+    else:
+        _warn(res.warnings, "a_max: the acceleration limit was not reached in these recordings; record "
+                            f"{RECORD_LARGE_STEP} (or steps of 1-2 mm)")
+    res.extra["drive_samples_velocity_limited"] = int(sat_v.sum())
+    res.extra["drive_samples_acceleration_limited"] = int(sat_a.sum())
+    return out
+
+
+def simulate_drive(S: np.ndarray, x0: float, T: float, kv: float, dead_time: float, v_max: float | None,
+                   a_max: float | None) -> np.ndarray:
+    """The fitted drive on a command (the model of :func:`identify`, sampled): motor positions at the
+    rows' times."""
+    alpha = -math.expm1(-kv * T)
+    kv_d = alpha / T
+    c = _delayed(S, dead_time / T).tolist()
+    vm = math.inf if v_max is None else v_max
+    dvm = math.inf if a_max is None else a_max * T
+    out = [0.0] * len(c)
+    x = x0
+    v = 0.0
+    for k in range(len(c)):
+        out[k] = x
+        vn = kv_d * (c[k] - x)
+        if vn > vm:
+            vn = vm
+        elif vn < -vm:
+            vn = -vm
+        if vn > v + dvm:
+            vn = v + dvm
+        elif vn < v - dvm:
+            vn = v - dvm
+        v = vn
+        x += v * T
+    return np.array(out)
+
+
+def _mode(f: np.ndarray, f0: float, zeta: float) -> np.ndarray:
+    """Motor -> nozzle: (w0^2 + 2 zeta w0 s) / (s^2 + 2 zeta w0 s + w0^2) at s = j 2 pi f."""
+    s = 2j * np.pi * f
+    w0 = 2.0 * np.pi * f0
+    return (w0 * w0 + 2 * zeta * w0 * s) / (s * s + 2 * zeta * w0 * s + w0 * w0)
+
+
+def _frf(recs: Sequence[_Rec], T: float):
+    from scipy.signal import csd, welch
+
+    fs = 1.0 / T
+    lengths = [r.X.size for r in recs]
+    nper = NPERSEG if max(lengths) >= 2 * NPERSEG else max(256, 2 ** int(math.log2(max(lengths) // 2)))
+    Pxx = Pyy = Pxy = None
+    f = None
+    for r in recs:
+        if r.X.size < nper:
+            continue
+        kw = dict(fs=fs, nperseg=nper, detrend="linear")
+        f, pxx = welch(r.X, **kw)
+        _, pyy = welch(r.Y, **kw)
+        _, pxy = csd(r.X, r.Y, **kw)
+        w = r.X.size / nper
+        Pxx = pxx * w if Pxx is None else Pxx + pxx * w
+        Pyy = pyy * w if Pyy is None else Pyy + pyy * w
+        Pxy = pxy * w if Pxy is None else Pxy + pxy * w
+    if f is None:
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = Pxy / Pxx
+        coh = np.abs(Pxy) ** 2 / (Pxx * Pyy)
+    return f, H, np.nan_to_num(coh), nper
+
+
+def _fit_frf(f, H, coh, T: float, res: Identification) -> dict:
+    from scipy.optimize import least_squares
+
+    out = {"resonance_hz": None, "damping": None, "delay": None, "gain": None}
+    df = f[1] - f[0]
+    sel = (f > 1.5 * df) & (f <= 0.45 / T) & (coh >= 0.6) & np.isfinite(H)
+    if int(sel.sum()) < 8:
+        _warn(res.warnings, "sensor delay and resonance: the motor -> sensor response is not coherent at any "
+                            f"frequency; record {RECORD_CHIRP}")
+        return out
+    fs_, Hs, cs = f[sel], H[sel], np.clip(coh[sel], 0.0, 0.999)
+    w = np.sqrt(cs / (1.0 - cs))
+    f_hi = float(fs_.max())
+    out["band_hz"] = [float(fs_.min()), f_hi]
+    mag = np.abs(Hs)
+    g0 = float(np.median(mag[: max(3, mag.size // 10)]))
+    low = fs_ <= min(30.0, max(fs_[2], 0.3 * f_hi))
+    ph = np.unwrap(np.angle(Hs / np.sign(g0 or 1.0)))
+    tau0 = float(-np.polyfit(fs_[low], ph[low], 1)[0] / (2 * np.pi)) if int(low.sum()) >= 3 else 0.0
+    tau0 = min(max(tau0, 0.0), MAX_DELAY)
+
+    def resid(model):
+        r = w * (model / Hs - 1.0)
+        return np.concatenate([r.real, r.imag])
+
+    def rigid(p):
+        return resid(p[0] * np.exp(-2j * np.pi * fs_ * p[1]))
+
+    fr = least_squares(rigid, [g0, tau0], bounds=([-np.inf, -0.005], [np.inf, MAX_DELAY]), x_scale=[abs(g0) or 1.0, T])
+    best = {"cost": float(fr.cost), "g": float(fr.x[0]), "tau": float(fr.x[1]), "f0": None, "zeta": None, "x": fr}
+    ratio = mag / abs(g0) if g0 else mag
+    ipk = int(np.argmax(ratio))
+    if ratio[ipk] > 1.3 and 0 < ipk < fs_.size - 1:
+        f00 = float(fs_[ipk])
+
+        def resonant(p):
+            return resid(p[0] * _mode(fs_, math.exp(p[2]), math.exp(p[3])) * np.exp(-2j * np.pi * fs_ * p[1]))
+
+        starts = [(f00, min(max(0.5 / ratio[ipk], 0.01), 0.5)), (f00, 0.1), (f00, 0.3)]
+        for f_init, z_init in starts:
+            try:
+                fm = least_squares(resonant, [g0, fr.x[1], math.log(f_init), math.log(z_init)],
+                                   bounds=([-np.inf, -0.005, math.log(fs_.min()), math.log(0.003)],
+                                           [np.inf, MAX_DELAY, math.log(0.5 / T), math.log(1.0)]),
+                                   x_scale=[abs(g0) or 1.0, T, 0.1, 0.3])
+            except ValueError:
+                continue
+            if fm.cost < best["cost"]:
+                best = {"cost": float(fm.cost), "g": float(fm.x[0]), "tau": float(fm.x[1]),
+                        "f0": math.exp(fm.x[2]), "zeta": math.exp(fm.x[3]), "x": fm}
+    rigid_cost = float(fr.cost)
+    f0 = best["f0"]
+    accepted = (f0 is not None and best["cost"] < 0.5 * rigid_cost and int((fs_ > 1.2 * f0).sum()) >= 3
+                and int((fs_ < 0.8 * f0).sum()) >= 3)
+    if not accepted:
+        best = {"cost": rigid_cost, "g": float(fr.x[0]), "tau": float(fr.x[1]), "f0": None, "zeta": None, "x": fr}
+        if f_hi < 100.0:
+            _warn(res.warnings, f"resonance_hz, damping: the recordings excite the axis coherently only up to "
+                                f"{f_hi:.0f} Hz and show no resonance there; record {RECORD_CHIRP}")
+        else:
+            _warn(res.warnings, f"resonance_hz, damping: no resonance between motor and nozzle up to {f_hi:.0f} Hz "
+                                "(a rigid drive fits: the scenario keeps resonance_hz = 0)")
+    # the delay's uncertainty from the Jacobian
+    J = best["x"].jac
+    try:
+        cov = np.linalg.pinv(J.T @ J) * (2 * best["cost"] / max(J.shape[0] - J.shape[1], 1))
+        tau_sd = float(math.sqrt(max(cov[1, 1], 0.0)))
+    except (np.linalg.LinAlgError, ValueError):
+        tau_sd = math.inf
+    if tau_sd <= 0.3e-3:
+        out["delay"] = max(best["tau"], 0.0)
+    else:
+        _warn(res.warnings, f"sensor delay: uncertain by {tau_sd * 1e3:.2g} ms with this excitation; record "
+                            f"{RECORD_CHIRP}")
+    out.update(resonance_hz=best["f0"], damping=best["zeta"], gain=best["g"])
+    model = best["g"] * np.exp(-2j * np.pi * fs_ * best["tau"])
+    if best["f0"] is not None:
+        model = model * _mode(fs_, best["f0"], best["zeta"])
+    err = np.linalg.norm(w * (model - Hs)) / max(np.linalg.norm(w * Hs), 1e-300)
+    out["frf_fit_percent"] = float(100.0 * (1.0 - err))
+    out["delay_sd"] = tau_sd
+    out["_model"] = (best["g"], best["tau"], best["f0"], best["zeta"])
+    out["_points"] = (fs_, Hs, cs)
+    return out
+
+
+def nozzle_from_motor(X: np.ndarray, T: float, f0: float | None, zeta: float | None) -> np.ndarray:
+    """The nozzle the fitted mode makes of the motor positions (continuous model, bilinear)."""
+    if not f0:
+        return X.copy()
+    from scipy.signal import cont2discrete, lfilter
+
+    w0 = 2 * math.pi * f0
+    num, den = [2 * zeta * w0, w0 * w0], [1.0, 2 * zeta * w0, w0 * w0]
+    b, a, _ = cont2discrete((num, den), T, method="bilinear")
+    b = np.ravel(b)
+    from scipy.signal import lfilter_zi
+
+    zi = lfilter_zi(b, a) * X[0]
+    return lfilter(b, a, X, zi=zi)[0]
+
+
+def _quasi_static(r: _Rec, T: float, settle: float) -> np.ndarray:
+    """Samples where the nozzle equals the motor: slow motor, and no command acceleration for
+    ``settle`` seconds before (a slow ramp, a settled hold)."""
+    acc = np.zeros_like(r.S)
+    acc[1:-1] = np.abs(np.diff(r.S, 2)) / (T * T)
+    dyn = (acc > QS_ACCELERATION).astype(np.int64)
+    n = int(round(settle / T))
+    cs = np.concatenate([[0], np.cumsum(dyn)])
+    k = np.arange(r.S.size)
+    recent = cs[k + 1] - cs[np.maximum(k + 1 - n, 0)]
+    v = np.zeros_like(r.X)
+    v[1:] = np.abs(np.diff(r.X)) / T
+    ok = (recent == 0) & (v <= QS_VELOCITY) & (k >= n)
+    return ok
+
+
+def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float, surface: float | None,
+                    calibrated_at: float | None, gain: float | None, res: Identification) -> dict:
+    xs, ys = [], []
+    for r in recs:
+        ok = _quasi_static(r, T, settle)
+        Xd = _delayed(r.X, delay / T)
+        xs.append(Xd[ok])
+        ys.append(r.Y[ok])
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    out = {"characteristic": None, "noise_std": None, "quasi_static_samples": int(x.size)}
+    if x.size < 200:
+        _warn(res.warnings, f"noise_std and characteristic: too few quasi-static samples ({x.size}); record "
+                            f"{RECORD_STANDSTILL} and {RECORD_RAMP}")
+        return out
+    edges = np.arange(math.floor(x.min() / CHAR_BIN) * CHAR_BIN, x.max() + CHAR_BIN, CHAR_BIN)
+    which = np.digitize(x, edges)
+    pts, resid, slopes = [], [], []
+    for b in np.unique(which):
+        m = which == b
+        if int(m.sum()) < 30:
+            continue
+        xb, yb = x[m], y[m]
+        span = float(np.ptp(xb))
+        if span >= 0.2 * CHAR_BIN:
+            c = 0.5 * (edges[b - 1] + edges[b]) if 0 < b < edges.size else float(np.mean(xb))
+            c = min(max(c, float(xb.min())), float(xb.max()))
+            p = np.polyfit(xb - c, yb, 1)
+            pts.append((c, float(p[1])))
+            slopes.append(float(p[0]))
+            resid.append(yb - np.polyval(p, xb - c))
+        else:
+            pts.append((float(np.mean(xb)), float(np.mean(yb))))
+            resid.append(yb - np.mean(yb))
+    if resid:
+        rr = np.concatenate(resid)
+        std = float(np.sqrt(np.mean(rr * rr)))
+        g = abs(gain) if gain else (abs(float(np.median(slopes))) if slopes else 1.0)
+        out["noise_std"] = std / (g or 1.0)
+        out["noise_samples"] = int(rr.size)
+    pts.sort()
+    out["points_motor"] = pts
+    if not pts:
+        return out
+    px = np.array([p[0] for p in pts])
+    py = np.array([p[1] for p in pts])
+    if surface is None and calibrated_at is None:
+        _warn(res.warnings, "characteristic: the zero of the true distance is unknown; give the surface height "
+                            "in the motor encoder's coordinates (--surface Z: the actual position where the nozzle "
+                            "touches the sheet) or the distance where the sensor reads true (--calibrated-at D)")
+        return out
+    if surface is None:
+        if not (py.min() <= calibrated_at <= py.max()) or px.size < 2 or np.any(np.diff(py) <= 0):
+            _warn(res.warnings, f"characteristic: the sensor never read {calibrated_at:g} mm on a monotonic part "
+                                f"of the recordings; record {RECORD_RAMP}")
+            return out
+        surface = float(np.interp(calibrated_at, py, px)) - calibrated_at
+    true = px - surface
+    if px.size < 2 or float(np.ptp(true)) < 0.5:
+        _warn(res.warnings, f"characteristic: the recordings cover only {float(np.ptp(true)):.2f} mm of distance "
+                            f"quasi-statically; record {RECORD_RAMP}")
+        return out
+    out["characteristic"] = [[round(float(a), 6), round(float(b), 6)] for a, b in zip(true, py)]
+    out["surface"] = surface
+    return out
+
+
+def _sign(recs: Sequence[_Rec]) -> float:
+    cov = 0.0
+    for r in recs:
+        cov += float(np.dot(r.X - r.X.mean(), r.sig.sensor[-r.X.size:] - r.sig.sensor[-r.X.size:].mean()))
+    return -1.0 if cov < 0.0 else 1.0
+
+
+def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, surface: float | None = None,
+             calibrated_at: float | None = None) -> Identification:
+    """Fit the drive and the sensor to the recordings (see the module docstring).
+
+    ``sensor_sign``: +1 if the sensor reads nozzle - surface (a distance), -1 if surface - nozzle
+    (encoder 2, s = -d); None: detected from the correlation with the motor. ``surface``: the
+    surface height in the actual column's coordinates (fixes the zero of the true distance for the
+    characteristic); ``calibrated_at``: instead, the distance (mm) at which the sensor reads true.
+    """
+    if not signals:
+        raise IdentifyError("no recording given")
+    T = signals[0].cycle_time
+    for s in signals[1:]:
+        if abs(s.cycle_time - T) > 0.01 * T:
+            raise IdentifyError(f"{s.path}: cycle {s.cycle_time * 1e3:.6g} ms, {signals[0].path}: {T * 1e3:.6g} ms; "
+                                "record every file at the same (interpolation) cycle")
+    moving = [s for s in signals if np.ptp(s.command) > 0.0]
+    if not moving:
+        raise IdentifyError("excitation too poor: the command does not move in any recording; record "
+                            f"{RECORD_STEPS}, {RECORD_CHIRP} and {RECORD_RAMP} (docs/identify.md)")
+    res = Identification(cycle_time=T, drive={k: None for k in DRIVE_KEYS}, sensor={k: None for k in SENSOR_KEYS})
+    recs0 = [_prepare(s, 1.0) for s in signals]
+    sign = _sign(recs0) if sensor_sign is None else float(sensor_sign)
+    recs = [_prepare(s, sign) for s in signals]
+    res.extra["sensor_sign"] = sign
+    res.extra["sensor_reads"] = "nozzle - surface (distance)" if sign > 0 else "surface - nozzle (encoder 2)"
+    # drive
+    drive = _fit_drive(recs, T, res)
+    res.drive.update(drive)
+    if all(drive[k] is None for k in ("kv", "v_max", "a_max")) and np.ptp(np.concatenate([r.S for r in recs])) < 1e-3:
+        raise IdentifyError("excitation too poor: the command moves less than 1 um; record "
+                            f"{RECORD_STEPS}, {RECORD_CHIRP} and {RECORD_RAMP}")
+    # sensor path: frequency response motor -> sensor
+    frf = _frf(recs, T)
+    fr = _fit_frf(*frf[:3], T, res) if frf is not None else {"resonance_hz": None, "damping": None, "delay": None,
+                                                             "gain": None}
+    if frf is None:
+        _warn(res.warnings, f"sensor delay and resonance: recordings too short for a frequency response; record "
+                            f"{RECORD_CHIRP}")
+    res.drive["resonance_hz"] = fr.get("resonance_hz")
+    res.drive["damping"] = fr.get("damping")
+    res.sensor["delay"] = fr.get("delay")
+    # quasi-static: characteristic and noise
+    settle = 0.3
+    if res.drive["kv"]:
+        settle = max(settle, 5.0 / res.drive["kv"])
+    if res.drive["resonance_hz"]:
+        settle = max(settle, 5.0 / (2 * math.pi * res.drive["resonance_hz"] * res.drive["damping"]))
+    settle = min(settle, 2.0)
+    delay = res.sensor["delay"] if res.sensor["delay"] is not None else (fr.get("_model") or (0, 0))[1]
+    ch = _characteristic(recs, T, delay or 0.0, settle, surface, calibrated_at, fr.get("gain"), res)
+    res.sensor["noise_std"] = ch["noise_std"]
+    res.sensor["characteristic"] = ch["characteristic"]
+    if ch["noise_std"] is None and not any("noise_std" in w for w in res.warnings):
+        _warn(res.warnings, f"noise_std: no quasi-static samples; record {RECORD_STANDSTILL}")
+    res.extra.update({"sensor_gain": fr.get("gain"), "surface_mm": ch.get("surface"),
+                      "frequency_band_hz": fr.get("band_hz"), "sensor_delay_sd_s": fr.get("delay_sd"),
+                      "quasi_static_samples": ch.get("quasi_static_samples"), "settle_s": settle,
+                      "noise_samples": ch.get("noise_samples")})
+    _fit_quality(recs, T, res, fr, ch)
+    res.recordings = [{"path": s.path, "source": s.source, "samples": int(s.t.size), "duration_s": s.duration,
+                       "columns": {"command": s.columns[0], "actual": s.columns[1], "sensor": s.columns[2]},
+                       "actual_sampled_at": s.actual_at, "cycle_time_s": s.cycle_time} for s in signals]
+    res.curves["recs"] = recs
+    res.curves["frf"] = frf
+    res.curves["frf_fit"] = fr
+    res.curves["char_points"] = ch.get("points_motor")
+    return res
+
+
+def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
+    d = res.drive
+    fit = res.fit
+    sims = []
+    if d["kv"] is not None:
+        errs, fits = [], []
+        for r in recs:
+            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"])
+            e = r.X - xh
+            errs.append(float(np.sqrt(np.mean(e * e))))
+            den = float(np.linalg.norm(r.X - r.X.mean()))
+            fits.append(float(100.0 * (1.0 - np.linalg.norm(e) / den)) if den > 0 else None)
+            sims.append(xh)
+        fit["drive_rms_mm"] = errs
+        fit["drive_fit_percent"] = fits
+    res.curves["drive_sim"] = sims
+    fit["frf_fit_percent"] = fr.get("frf_fit_percent")
+    model = fr.get("_model")
+    preds = []
+    if model is not None:
+        g, tau, f0, zeta = model
+        errs = []
+        for r in recs:
+            n = nozzle_from_motor(r.X, T, f0, zeta)
+            nd = _delayed(n, max(tau, 0.0) / T)
+            pts = ch.get("points_motor")
+            if ch.get("characteristic") is not None and pts:
+                yh = np.interp(nd, [p[0] for p in pts], [p[1] for p in pts])
+            else:
+                yh = g * nd
+                yh = yh + float(np.median(r.Y - yh))
+            preds.append(yh)
+            e = r.Y - yh
+            errs.append(float(np.sqrt(np.mean(e * e))))
+        fit["sensor_rms_mm"] = errs
+    res.curves["sensor_pred"] = preds
