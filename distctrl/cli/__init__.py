@@ -12,6 +12,7 @@ from .common import DistctrlGroup
 #: the commands that live beside what they serve, imported when used
 LAZY_COMMANDS = {
     "filters": "distctrl.workbench.filters_cli:filters",
+    "identify": "distctrl.workbench.identify_cli:identify_cmd",
     "margins": "distctrl.workbench.margins_cli:margins",
     "plot": "distctrl.workbench.plot_cli:plot",
     "step": "distctrl.workbench.step_cli:step",
