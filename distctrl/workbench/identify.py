@@ -288,12 +288,21 @@ def load_signals(path: str | os.PathLike, *, time: str | None = None, command: s
                     wanted[k] = time_of[f"symbol:{v}"]
             idx = {k: _col_index(p, names, v, k) for k, v in wanted.items()}
             if time is None:
-                tcols = {time_of.get(wanted[k]) for k in wanted}
-                if len(tcols) != 1 or None in tcols:
-                    raise IdentifyError(f"{p}: the channels {', '.join(map(repr, wanted.values()))} are in different "
-                                        "time groups of the Scope export; record them at the same sample time "
-                                        "(the interpolation cycle) or name the time column with --time")
-                time = tcols.pop()
+                tcols = [time_of.get(wanted[k]) for k in wanted]
+                if None in tcols:
+                    raise IdentifyError(f"{p}: no time column for {wanted[list(wanted)[tcols.index(None)]]!r}; "
+                                        "name it with --time")
+                first = _column(p, [r for r in body if any(c.strip() for c in r)], names.index(tcols[0]),
+                                tcols[0], first_line)
+                for other in set(tcols) - {tcols[0]}:
+                    col = _column(p, [r for r in body if any(c.strip() for c in r)], names.index(other), other,
+                                  first_line)
+                    if col.shape != first.shape or not np.allclose(col, first, rtol=0, atol=1e-9 * max(1.0, abs(first).max())):
+                        raise IdentifyError(f"{p}: the channels {', '.join(map(repr, wanted.values()))} are in "
+                                            "time groups with different time stamps in the Scope export; record them "
+                                            "at the same sample time (the interpolation cycle) or name the time "
+                                            "column with --time")
+                time = tcols[0]
             ti = _col_index(p, names, time, "time")
             if tf is None:
                 tf = 1e-3                                        # Scope exports ms since the start
