@@ -424,8 +424,8 @@ def _delayed(x: np.ndarray, shift: float) -> np.ndarray:
 
 
 def _drive_rows(recs: Sequence[_Rec], theta: float, T: float):
-    """Regressor z = c(theta) - X and response dX of every recording, concatenated."""
-    zs, ys = [], []
+    """Regressor z = c(theta) - X, response dX and the previous dX of every recording, concatenated."""
+    zs, ys, ps = [], [], []
     skip = int(math.ceil(MAX_DELAY / T)) + 2
     for r in recs:
         c = _delayed(r.S, theta / T)
@@ -433,7 +433,8 @@ def _drive_rows(recs: Sequence[_Rec], theta: float, T: float):
         z = (c - r.X)[:-1]
         zs.append(z[skip:])
         ys.append(dX[skip:])
-    return np.concatenate(zs), np.concatenate(ys)
+        ps.append(dX[skip - 1:-1])
+    return np.concatenate(zs), np.concatenate(ys), np.concatenate(ps)
 
 
 def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> tuple[float, float, float]:
@@ -454,73 +455,100 @@ def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> t
     return alpha, float(np.sum(np.minimum(q, 16.0))), med
 
 
+def _limits(recs, T: float, alpha: float, theta: float, scale: float):
+    """v_max and a_max (None if never reached) from the samples where the P loop demands more than
+    the motor does, and the number of such samples."""
+    z, y, yp = _drive_rows(recs, theta, T)
+    v, vp, vd = y / T, yp / T, alpha * z / T
+    dv, dvd = v - vp, vd - vp
+    sv = 3.0 * scale / T + 1e-9                     # velocity noise
+    sat_v = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.sign(vd) == np.sign(v)) & \
+            (np.abs(dv) < 0.05 * np.abs(v) + 3 * sv) & (np.abs(v) > 10 * sv)
+    sat_a = (np.abs(dvd) > 1.15 * np.abs(dv) + 5 * sv) & (np.sign(dvd) == np.sign(dv)) & \
+            (np.abs(dv) > 10 * sv) & ~sat_v
+    v_max = float(np.median(np.abs(v[sat_v]))) if int(sat_v.sum()) >= 3 else None
+    a_max = float(np.percentile(np.abs(dv[sat_a]), 90)) / T if int(sat_a.sum()) >= 3 else None
+    return v_max, a_max, int(sat_v.sum()), int(sat_a.sum())
+
+
+def _limited_cost(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max) -> float:
+    """The truncated quadratic cost of the one-step prediction with the limits (the measured previous
+    velocity bounds the change): a limited start is explained, a motion before the command is not."""
+    z, y, yp = _drive_rows(recs, theta, T)
+    vhat = alpha * z / T
+    if v_max is not None:
+        vhat = np.clip(vhat, -v_max, v_max)
+    if a_max is not None:
+        vp = yp / T
+        vhat = np.clip(vhat, vp - a_max * T, vp + a_max * T)
+    q = ((y - vhat * T) / scale) ** 2
+    return float(np.sum(np.minimum(q, 16.0)))
+
+
 def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
+    from scipy.optimize import minimize_scalar
+
     out = {"kv": None, "dead_time": None, "v_max": None, "a_max": None}
     moving = sum(float(np.ptp(r.S)) for r in recs)
     if moving <= 0.0:
         return out
     # pass 1: least median of the residual over the moving samples, on a grid of dead times
-    grid = np.arange(0.0, MAX_DELAY + 1e-12, 0.25 * T)
-    rows = [_drive_rows(recs, th, T) for th in grid]
-    med = np.array([_robust_alpha(z, y)[2] for z, y in rows])
+    coarse = np.arange(0.0, MAX_DELAY + 1e-12, T)
+    med = np.array([_robust_alpha(*_drive_rows(recs, th, T)[:2])[2] for th in coarse])
     if not np.isfinite(med).any():
         _warn(res.warnings, f"kv and dead time: the axis hardly moves in these recordings; record {RECORD_STEPS}")
         return out
     scale = max(1.4826 * float(np.min(med)), 1e-7)
-    # pass 2: the truncated quadratic cost at that scale, grid then refined
-    costs = np.array([_robust_alpha(z, y, scale)[1] for z, y in rows])
-    i = int(np.argmin(costs))
-    from scipy.optimize import minimize_scalar
-
-    lo, hi = grid[max(i - 2, 0)], grid[min(i + 2, grid.size - 1)]
-    theta = float(grid[i])
-    if hi > lo:
-        opt = minimize_scalar(lambda th: _robust_alpha(*_drive_rows(recs, th, T), scale)[1], bounds=(lo, hi),
-                              method="bounded", options={"xatol": 0.005 * T})
-        if opt.fun <= costs[i]:
-            theta = float(opt.x)
-    z, y = _drive_rows(recs, theta, T)
-    alpha, best, _ = _robust_alpha(z, y, scale)
     res.extra["drive_equation_scale_mm"] = scale
-    # identifiability of the dead time: the cost must rise away from the optimum (a ramp alone
-    # trades dead time against kv; steps or a chirp separate them)
-    near = [c for th, c in zip(grid, costs) if abs(th - theta) >= 0.001 - 1e-12 and abs(th - theta) <= 0.002]
+    # pass 2: the linear loop's truncated quadratic cost: a first dead time, and the limits there
+    costs = np.array([_robust_alpha(*_drive_rows(recs, th, T)[:2], scale)[1] for th in coarse])
+    theta = float(coarse[int(np.argmin(costs))])
+    alpha = _robust_alpha(*_drive_rows(recs, theta, T)[:2], scale)[0]
+    grid = np.arange(0.0, MAX_DELAY + 1e-12, 0.25 * T)
+    v_max, a_max, _, _ = _limits(recs, T, alpha, theta, scale)
+    # pass 3: with the limits in the one-step prediction (an acceleration-limited start no longer
+    # looks like a longer dead time), on the grid near the first dead time, then refined; the
+    # smallest of equal costs (the per-cycle velocity of the model cannot tell a continuous start
+    # within the cycle: the cost can be flat over a cycle)
+    for _ in range(2):
+        win = grid[np.abs(grid - theta) <= 8 * T + 1e-12]
+        costs_w = np.array([_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in win])
+        i = int(np.flatnonzero(costs_w <= costs_w.min() * (1 + 1e-9))[0])
+        theta = float(win[i])
+        lo, hi = win[max(i - 1, 0)], win[min(i + 1, win.size - 1)]
+        if hi > lo:
+            opt = minimize_scalar(lambda th: _limited_cost(recs, T, th, scale, alpha, v_max, a_max),
+                                  bounds=(lo, hi), method="bounded", options={"xatol": 0.005 * T})
+            if opt.fun < costs_w[i] * (1 - 1e-9):
+                theta = float(opt.x)
+        alpha = _robust_alpha(*_drive_rows(recs, theta, T)[:2], scale)[0]
+        best = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
+        v_max, a_max, n_v, n_a = _limits(recs, T, alpha, theta, scale)
+    # identifiability of the dead time: the cost must rise 2-3 ms away from the optimum (a ramp
+    # alone trades dead time against kv; steps or a chirp separate them)
+    near = [_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in (theta - 0.003, theta - 0.002,
+                                                                               theta + 0.002, theta + 0.003)
+            if 0.0 <= th <= MAX_DELAY]
     sharp = bool(near) and min(near) > 1.05 * best
+    # and command transients well above the encoder's noise (a ramp's kink is not enough)
+    jumps = sum(int(np.sum(np.abs(np.diff(r.S, 2)) > max(200.0 * scale, 1e-3))) for r in recs)
+    res.extra["drive_command_transients"] = jumps
+    sharp = sharp and jumps >= 3
+    res.extra["drive_dead_time_cost_ratio"] = (min(near) / best) if near and best > 0 else None
     if not (0.0 < alpha < 1.0) or not sharp:
         _warn(res.warnings, "kv and dead time: not identifiable from these recordings (the command has no "
                             f"fast transients); record {RECORD_STEPS}")
         return out
-    kv = -math.log1p(-alpha) / T
-    out["kv"], out["dead_time"] = kv, theta
-    # the limits: samples where the P loop demands more than the motor does
-    kv_d = alpha / T
-    v_all, vd_all, dv_all, dvd_all = [], [], [], []
-    skip = int(math.ceil(MAX_DELAY / T)) + 2
-    for r in recs:
-        c = _delayed(r.S, theta / T)
-        v = np.diff(r.X) / T
-        vd = kv_d * (c - r.X)[:-1]
-        v_all.append(v[skip + 1:])
-        vd_all.append(vd[skip + 1:])
-        dv_all.append(np.diff(v)[skip:])
-        dvd_all.append((vd[1:] - v[:-1])[skip:])
-    v, vd, dv, dvd = (np.concatenate(a) for a in (v_all, vd_all, dv_all, dvd_all))
-    sv = 3.0 * scale / T + 1e-9                     # velocity noise
-    sat_v = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.sign(vd) == np.sign(v)) & \
-            (np.abs(dv) < 0.05 * np.abs(v) + 3 * sv) & (np.abs(v) > 10 * sv)
-    if int(sat_v.sum()) >= 3:
-        out["v_max"] = float(np.median(np.abs(v[sat_v])))
-    else:
+    out["kv"], out["dead_time"] = -math.log1p(-alpha) / T, theta
+    out["v_max"], out["a_max"] = v_max, a_max
+    if v_max is None:
         _warn(res.warnings, "v_max: the velocity limit was not reached in these recordings; record "
                             f"{RECORD_LARGE_STEP}")
-    sat_a = (np.abs(dvd) > 1.15 * np.abs(dv) + 5 * sv) & (np.sign(dvd) == np.sign(dv)) & (np.abs(dv) > 10 * sv) & ~sat_v
-    if int(sat_a.sum()) >= 3:
-        out["a_max"] = float(np.percentile(np.abs(dv[sat_a]), 90)) / T
-    else:
+    if a_max is None:
         _warn(res.warnings, "a_max: the acceleration limit was not reached in these recordings; record "
                             f"{RECORD_LARGE_STEP} (or steps of 1-2 mm)")
-    res.extra["drive_samples_velocity_limited"] = int(sat_v.sum())
-    res.extra["drive_samples_acceleration_limited"] = int(sat_a.sum())
+    res.extra["drive_samples_velocity_limited"] = n_v
+    res.extra["drive_samples_acceleration_limited"] = n_a
     return out
 
 
