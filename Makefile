@@ -45,6 +45,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_batch.py
 	$(PY) bench/bench_run.py
 	$(PY) bench/bench_ads.py
+	$(PY) bench/bench_identify.py
 
 # reliability suites (issue 8) at full length; figures go to bench/reliability.json and bench/soak.json
 stress: $(STAMP)
