@@ -110,3 +110,23 @@ def test_help_says_what_to_record():
     assert r.returncode == 0
     for text in ("chirp", "1-150 Hz", "encoder", "ramp", "--out"):
         assert text in r.stdout
+
+
+def test_resonant_plant_scenario_runs(tmp_path):
+    """The written scenario with resonance_hz and damping is accepted by distctrl run (resonant drive)."""
+    plant = Plant()                                            # 40 Hz, zeta 0.05
+    files = []
+    for i, (name, cmd) in enumerate([("steps", steps_command(seconds=6.0)), ("chirp", chirp_command(seconds=12.0)),
+                                     ("ramp", ramp_command(seconds=10.0, surface=plant.surface))]):
+        p = tmp_path / f"{name}.csv"
+        write_csv(p, *simulate(plant, cmd, seed=i))
+        files.append(p)
+    out = tmp_path / "fitted"
+    r = run([*files, *ARGS, "--surface", plant.surface, "--out", out])
+    assert r.exit_code == 0, r.output
+    z = tomllib.loads((out / "fitted.toml").read_text())["axes"]["Z"]
+    assert abs(z["resonance_hz"] / 40.0 - 1) <= 0.1 and 0.025 <= z["damping"] <= 0.075
+    res = subprocess.run([sys.executable, "-m", "distctrl", "run", str(out / "fitted.toml"), "--json"],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout)["completed"]
