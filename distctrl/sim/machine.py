@@ -126,6 +126,10 @@ class Machine:
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
         #: program, the ADS server); a batch run without readers publishes once at the end
         self.publish_hli = plc_program is not None if publish_hli is None else publish_hli
+        # the PLC program the sensor needs (arc-voltage linearisation), before the run's own
+        sensor_plc = scenario.sensor.make_plc_program() if scenario.sensor is not None else None
+        if sensor_plc is not None:
+            self.plc_program = sensor_plc if plc_program is None else sensor_plc.then(plc_program)
         self._plc_pending: list[tuple[str, int, float]] = []    # scenario PLC commands waiting for the semaphore
         #: axes whose controller runs every cycle (distance control enabled); others only on commands
         self.dc_axes = [n for n, a in axes.items() if a.params.enabled]
@@ -139,15 +143,18 @@ class Machine:
         self.sensor_axis = None
         self.sensor = None
         self.sensor_variable = None
+        self._sensor_out = None                       # the V.E. variable the sensor writes
         sc = scenario.sensor
         self._sensor_orth = sc is not None and sc.orthogonal
         if sc is not None:
             self.sensor_axis = None if sc.orthogonal else sc.axis
             p = axes[sc.axis].params if sc.axis is not None else None
-            self.sensor = sc.make_sensor(T, p)          # the probe has its own zero (reading_at_contact)
+            self.sensor = sc.make_sensor(T, p, scenario.surface)   # the probe has its own zero (reading_at_contact)
             if sc.kind != "encoder":
                 self.sensor_variable = f"V.E.{sc.variable}"
                 self.variables.setdefault(self.sensor_variable, 0.0)
+                self._sensor_out = f"V.E.{sc.output_variable}"   # an arc voltage: its voltage variable
+                self.variables.setdefault(self._sensor_out, 0.0)
         self.nc = NcInterpreter(program, self, file=scenario.program_file) if program is not None else None
         #: the axis whose sensor writes a V.E. variable (axis variant): a select that keeps reading the
         #: second encoder is warned about once (900031)
@@ -657,11 +664,11 @@ class Machine:
         if sensor_axis is not None:
             z = drives[sensor_axis].nozzle
             self.true_distance = z - surface_z
-            value = self.sensor.read(k, z, surface_z)
+            value = self.sensor.read(k, z, surface_z, x, y)
             if self.sensor_variable is None:
                 self.inputs[sensor_axis].sensor_increments = value
             else:
-                self.variables[self.sensor_variable] = value
+                self.variables[self._sensor_out] = value
         self._axes_cycle(prog, line, t)
         self.cycle = k + 1
 
@@ -730,11 +737,11 @@ class Machine:
             surface_z = surface.height(px, py)
             self.true_surface = surface_z
             self.true_distance = zs - surface_z
-            value = self.sensor.read(k, zs, surface_z)
+            value = self.sensor.read(k, zs, surface_z, px, py)
             if self.sensor_variable is None:
                 self.inputs[sensor_axis].sensor_increments = value
             else:
-                self.variables[self.sensor_variable] = value
+                self.variables[self._sensor_out] = value
         theta_a = math.atan2(math.hypot(ua[0], ua[1]), ua[2])
         ext_a = self._extension(theta_a) if trafo else 1.0
         self.inclination_deg = math.degrees(theta_a)

@@ -43,7 +43,8 @@ from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, re
                                         require_mapping, require_number)
 from distctrl.sim.drive import Drive
 from distctrl.sim.interpolator import AxisLimits
-from distctrl.sim.sensors import FAULT_KINDS, DistanceSensor, EncoderProbe, Fault, SensorBase
+from distctrl.sim.sensors import (FAULT_KINDS, ArcVoltageSensor, Bursts, DistanceSensor, EncoderProbe, Fault,
+                                   SensorBase)
 from distctrl.sim.surface import Surface, surface_from_config
 
 __all__ = ["Scenario", "AxisConfig", "SensorConfig", "Event", "ScenarioError", "load_scenario",
@@ -57,16 +58,31 @@ TOP_LEVEL_KEYS = ("name", "cycle_time", "program", "program_text", "duration", "
 AXIS_KEYS = ("params", "start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "bus_delay_cycles",
              "resolution", "feedforward",
              "resonance_hz", "damping")           # the drive's mechanical resonance (issue 15)
-SENSOR_KINDS = ("encoder", "distance")
+SENSOR_KINDS = ("encoder", "distance", "arc_voltage")
 #: what the sensor measures: "axis" - the height of the sensor axis above the surface (vertical, the
 #: axis variant); "orthogonal_clamping_point" - the orthogonal distance of the tool clamping point
 #: from the surface (3D distance control, FCT-M3 §12.3)
 SENSOR_MODES = ("axis", "orthogonal_clamping_point")
 SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", "seed", "range_min", "reading_at_contact",
-               "range_max", "characteristic", "resolution", "faults", "collision_depth")
-#: sensor keys that only one kind accepts
-_SENSOR_KIND_ONLY = {"variable": "distance", "characteristic": "distance", "resolution": "distance",
-                     "range_min": "encoder", "reading_at_contact": "encoder"}
+               "range_max", "characteristic", "resolution", "faults", "collision_depth",
+               # issue 15: capacitive edge effect and bursts, plasma arc voltage (docs/scenarios.md)
+               "footprint_radius", "field_range", "bursts", "voltage_variable", "arc_v0", "arc_k", "arc_ripple",
+               "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0", "plc_k")
+#: sensor keys that only some kinds accept
+_SENSOR_KIND_ONLY = {"variable": ("distance", "arc_voltage"), "characteristic": ("distance",),
+                     "resolution": ("distance",), "range_min": ("encoder",), "reading_at_contact": ("encoder",),
+                     "footprint_radius": ("distance", "arc_voltage"), "field_range": ("distance", "arc_voltage"),
+                     "bursts": ("distance", "arc_voltage"),
+                     **{k: ("arc_voltage",) for k in ("voltage_variable", "arc_v0", "arc_k", "arc_ripple",
+                                                      "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0",
+                                                      "plc_k")}}
+#: the keys of ``sensor.bursts`` (required: rate, duration, amplitude)
+BURST_KEYS = ("rate", "duration", "amplitude", "offset")
+#: largest footprint radius (mm): a nozzle's electrode or a torch's arc root is a few mm
+FOOTPRINT_RADIUS_MAX = 25.0
+#: largest arc ripple, arc noise (V) and kerf jump (V) a scenario may give
+ARC_RIPPLE_MAX = 50.0
+KERF_JUMP_MAX = 500.0
 #: [channel]: the kernel channel list (3D distance control) and the head kinematics
 CHANNEL_KEYS = ("params", "kinematics")
 #: head kinematics a channel may have: "CA" (5-axis CA head, kinematic ID 9) or "none"
@@ -186,17 +202,53 @@ class SensorConfig:
     #: how far the tool may be below the surface before the run records a collision (mm, >= 0): 0 for a
     #: nozzle that must never touch the sheet; a tactile probe's stroke for a probe that rides on it
     collision_depth: float = 0.0
+    # --- issue 15: capacitive edge effect, bursts, plasma arc voltage (docs/sim-models.md) ---
+    #: distance / arc voltage: radius of the footprint (mm; 0 = the point under the tool)
+    footprint_radius: float = 0.0
+    #: distance / arc voltage: sheet farther than this from the sensor is "no sheet" (mm; None = range_max)
+    field_range: float | None = None
+    #: distance / arc voltage: plume/spark noise bursts (None = none)
+    bursts: Bursts | None = None
+    #: arc voltage: the V.E. variable the arc voltage (V) is written to (bare name)
+    voltage_variable: str | None = None
+    arc_v0: float = 100.0                  # V at zero arc length
+    arc_k: float = 6.0                     # V/mm
+    arc_ripple: float = 0.0                # V amplitude of the mains ripple
+    arc_ripple_hz: float = 50.0            # Hz
+    arc_noise_std: float = 0.0             # V white noise
+    kerf_jump: float = 0.0                 # V with no sheet under the whole footprint
+    #: arc voltage: the PLC linearisation's V0 (V) and k (V/mm); None = the arc's own (calibrated)
+    plc_v0: float | None = None
+    plc_k: float | None = None
+
+    @property
+    def output_variable(self) -> str | None:
+        """The bare V.E. name the sensor writes: the voltage variable of an arc-voltage sensor, the
+        distance variable of a distance sensor, None for the probe (encoder 2)."""
+        return self.voltage_variable if self.kind == "arc_voltage" else self.variable
+
+    def make_plc_program(self):
+        """The PLC program the sensor needs (the arc voltage's linearisation,
+        :class:`distctrl.plc.arc_voltage.ArcVoltageLinearisation`), or None."""
+        if self.kind != "arc_voltage":
+            return None
+        from distctrl.plc.arc_voltage import ArcVoltageLinearisation
+        return ArcVoltageLinearisation(self.arc_v0 if self.plc_v0 is None else self.plc_v0,
+                                       self.arc_k if self.plc_k is None else self.plc_k,
+                                       f"V.E.{self.voltage_variable}", f"V.E.{self.variable}")
 
     @property
     def orthogonal(self) -> bool:
         """The sensor reports the orthogonal distance of the tool clamping point (3D)."""
         return self.mode == "orthogonal_clamping_point"
 
-    def make_sensor(self, cycle_time: float, params: AxisParameters | None = None) -> SensorBase:
+    def make_sensor(self, cycle_time: float, params: AxisParameters | None = None,
+                    surface: Surface | None = None) -> SensorBase:
         """Build the sensor model. The probe takes its resolution and sign reversal from the axis
         parameters (P-AXIS-00422/00423/00230), so the core's conversion inverts them; its zero is its
         own (``reading_at_contact``), so the core reads the true distance only with the matching
-        P-AXIS-00418 ref_offset = -reading_at_contact."""
+        P-AXIS-00418 ref_offset = -reading_at_contact. A footprint (``footprint_radius > 0``) samples
+        ``surface`` (the scenario's)."""
         common = dict(noise_std=self.noise_std, delay_cycles=self.delay_cycles, seed=self.seed,
                       faults=self.faults)
         if self.kind == "encoder":
@@ -206,8 +258,14 @@ class SensorConfig:
                                 resolution_denom=p.encoder_resolution_denom,
                                 sign_reversal=p.sensor_sign_reversal, ref_offset=-self.reading_at_contact,
                                 **common)
+        extra = dict(footprint_radius=self.footprint_radius, field_range=self.field_range, surface=surface,
+                     bursts=self.bursts)
+        if self.kind == "arc_voltage":
+            return ArcVoltageSensor(cycle_time, v0=self.arc_v0, k=self.arc_k, ripple=self.arc_ripple,
+                                    ripple_hz=self.arc_ripple_hz, voltage_noise_std=self.arc_noise_std,
+                                    kerf_jump=self.kerf_jump, range_max=self.range_max, **common, **extra)
         return DistanceSensor(cycle_time, range_max=self.range_max, characteristic=self.characteristic,
-                              resolution=self.resolution, **common)
+                              resolution=self.resolution, **common, **extra)
 
 
 @dataclass(frozen=True)
@@ -262,7 +320,8 @@ class Scenario:
         if self.sensor is None:
             return None
         axis = self.sensor.axis
-        return self.sensor.make_sensor(self.cycle_time, self.axes[axis].params if axis is not None else None)
+        return self.sensor.make_sensor(self.cycle_time, self.axes[axis].params if axis is not None else None,
+                                       self.surface)
 
     def make_drives(self) -> dict[str, Drive]:
         return {name: ax.make_drive(self.cycle_time) for name, ax in self.axes.items()}
@@ -395,7 +454,7 @@ def _fault(cfg: dict, key: str, *, start_time: float | None = None) -> Fault:
 
 
 def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_time: float,
-                   has_3d: bool = False) -> SensorConfig:
+                   has_3d: bool = False, surface: Surface | None = None) -> SensorConfig:
     key = "sensor"
     require_mapping(cfg, key, SENSOR_KEYS, required=("kind",))
     assert isinstance(cfg, dict)
@@ -405,7 +464,8 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
     if mode == "orthogonal_clamping_point":
         if kind != "distance":
             raise ConfigError(f"{key}.mode", mode, "'orthogonal_clamping_point' only with kind = 'distance' "
-                              "(the 3D sensor writes a V.E. variable)", "not allowed for kind 'encoder':")
+                              "(the 3D sensor writes a V.E. variable: the PLC's idealised orthogonal distance)",
+                              f"not allowed for kind {kind!r}:")
         if not has_3d:
             raise ConfigError(f"{key}.mode", mode, "'orthogonal_clamping_point' only in a channel with 3D "
                               "distance control ([channel] params with configuration.decoder.function "
@@ -423,9 +483,13 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
                               "CNC objects and NC programs, not by the simulated plant (docs/sim-models.md)",
                               "rotary axis")
     for k, only in _SENSOR_KIND_ONLY.items():
-        if k in cfg and kind != only:
-            raise ConfigError(f"{key}.{k}", cfg[k], f"{k!r} only with kind = {only!r}",
+        if k in cfg and kind not in only:
+            raise ConfigError(f"{key}.{k}", cfg[k], f"{k!r} only with kind = " + " or ".join(repr(o) for o in only),
                               f"not allowed for kind {kind!r}:")
+    if mode == "orthogonal_clamping_point" and "footprint_radius" in cfg:
+        raise ConfigError(f"{key}.footprint_radius", cfg["footprint_radius"], "only in mode 'axis' (the 3D "
+                          "sensor value is the PLC's idealised orthogonal distance, FCT-M3 §12.3)",
+                          "not allowed in mode 'orthogonal_clamping_point':")
     noise_std = require_number(cfg.get("noise_std", 0.0), f"{key}.noise_std", lo=0.0)
     delay = require_int(cfg.get("delay_cycles", 0), f"{key}.delay_cycles", lo=0)
     sensor_seed = require_int(cfg.get("seed", seed), f"{key}.seed", lo=0)
@@ -442,6 +506,9 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
         variable = _var_name(cfg.get("variable", "SENSOR"), f"{key}.variable")
         range_max = require_number(cfg.get("range_max", 10.0), f"{key}.range_max", lo=0.0, lo_open=True)
         resolution = require_number(cfg.get("resolution", 0.0), f"{key}.resolution", lo=0.0)
+        fp = _footprint_keys(cfg, key, range_max, cycle_time)
+        if kind == "arc_voltage":
+            fp.update(_arc_keys(cfg, key, cycle_time, variable))
         if "characteristic" in cfg:
             ch = cfg["characteristic"]
             if not isinstance(ch, list):
@@ -465,12 +532,64 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
         faults.append(_fault(fcfg, fkey))
     collision_depth = require_number(cfg.get("collision_depth", 0.0), f"{key}.collision_depth", lo=0.0)
     sc = SensorConfig(axis, kind, variable, noise_std, delay, sensor_seed, range_min, range_max,
-                      characteristic, resolution, tuple(faults), mode, reading_at_contact, collision_depth)
+                      characteristic, resolution, tuple(faults), mode, reading_at_contact, collision_depth,
+                      **(fp if kind != "encoder" else {}))
     try:  # anything the models check beyond the keys above (combinations)
-        sc.make_sensor(cycle_time, axes[axis].params if axis is not None else None)
+        sc.make_sensor(cycle_time, axes[axis].params if axis is not None else None, surface)
     except ConfigError as exc:
-        raise _rekey(exc, "EncoderProbe" if kind == "encoder" else "DistanceSensor", key) from None
+        model = {"encoder": "EncoderProbe", "distance": "DistanceSensor", "arc_voltage": "ArcVoltageSensor"}[kind]
+        raise _rekey(exc, model, key) from None
     return sc
+
+
+def _footprint_keys(cfg: dict, key: str, range_max: float, cycle_time: float) -> dict:
+    """``footprint_radius``, ``field_range``, ``bursts`` of a distance or arc-voltage sensor."""
+    out: dict[str, Any] = {
+        "footprint_radius": require_number(cfg.get("footprint_radius", 0.0), f"{key}.footprint_radius",
+                                           lo=0.0, hi=FOOTPRINT_RADIUS_MAX)}
+    if "field_range" in cfg:
+        out["field_range"] = require_number(cfg["field_range"], f"{key}.field_range", lo=0.0, lo_open=True)
+    if "bursts" in cfg:
+        bkey = f"{key}.bursts"
+        b = cfg["bursts"]
+        require_mapping(b, bkey, BURST_KEYS, required=("rate", "duration", "amplitude"))
+        rate_max = 1.0 / cycle_time
+        out["bursts"] = Bursts(
+            rate=require_number(b["rate"], f"{bkey}.rate", lo=0.0, hi=rate_max),
+            duration=require_number(b["duration"], f"{bkey}.duration", lo=cycle_time, hi=60.0),
+            amplitude=require_number(b["amplitude"], f"{bkey}.amplitude", lo=0.0, hi=range_max),
+            offset=require_number(b.get("offset", 0.0), f"{bkey}.offset", lo=-range_max, hi=range_max))
+    return out
+
+
+def _arc_keys(cfg: dict, key: str, cycle_time: float, variable: str) -> dict:
+    """The arc-voltage keys (V, V/mm, Hz) and the PLC linearisation's parameters."""
+    from distctrl.plc.arc_voltage import ARC_K_RANGE, ARC_V0_RANGE
+    nyquist = 0.5 / cycle_time
+    out: dict[str, Any] = {
+        "voltage_variable": _var_name(cfg.get("voltage_variable", "ARC_VOLTAGE"), f"{key}.voltage_variable"),
+        "arc_v0": require_number(cfg.get("arc_v0", 100.0), f"{key}.arc_v0", lo=ARC_V0_RANGE[0], hi=ARC_V0_RANGE[1]),
+        "arc_k": require_number(cfg.get("arc_k", 6.0), f"{key}.arc_k", lo=ARC_K_RANGE[0], hi=ARC_K_RANGE[1]),
+        "arc_ripple": require_number(cfg.get("arc_ripple", 0.0), f"{key}.arc_ripple", lo=0.0, hi=ARC_RIPPLE_MAX),
+        "arc_noise_std": require_number(cfg.get("arc_noise_std", 0.0), f"{key}.arc_noise_std", lo=0.0,
+                                        hi=ARC_RIPPLE_MAX),
+        "kerf_jump": require_number(cfg.get("kerf_jump", 0.0), f"{key}.kerf_jump", lo=0.0, hi=KERF_JUMP_MAX)}
+    hz = cfg.get("arc_ripple_hz", 50.0)
+    try:
+        out["arc_ripple_hz"] = require_number(hz, f"{key}.arc_ripple_hz", lo=0.0, hi=nyquist, lo_open=True,
+                                              hi_open=True)
+    except ConfigError as exc:
+        raise ConfigError(f"{key}.arc_ripple_hz", hz, f"a frequency in (0, {nyquist:g}) Hz: below half the cycle "
+                          f"rate (cycle_time = {cycle_time:g} s)", exc.problem) from None
+    if "plc_v0" in cfg:
+        out["plc_v0"] = require_number(cfg["plc_v0"], f"{key}.plc_v0", lo=ARC_V0_RANGE[0], hi=ARC_V0_RANGE[1])
+    if "plc_k" in cfg:
+        out["plc_k"] = require_number(cfg["plc_k"], f"{key}.plc_k", lo=ARC_K_RANGE[0], hi=ARC_K_RANGE[1])
+    if out["voltage_variable"] == variable:
+        raise ConfigError(f"{key}.voltage_variable", cfg.get("voltage_variable", "ARC_VOLTAGE"),
+                          f"a V.E. variable other than the distance variable {variable!r} (sensor.variable): the "
+                          "sensor writes the voltage, the PLC linearisation the distance", "the same as variable:")
+    return out
 
 
 def _channel_config(cfg: object, axes: dict[str, AxisConfig], base_dir: Path
@@ -638,7 +757,7 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
 
     sensor = None
     if "sensor" in data:
-        sensor = _sensor_config(data["sensor"], axes, seed, cycle_time, has_3d)
+        sensor = _sensor_config(data["sensor"], axes, seed, cycle_time, has_3d, surface)
 
     events_cfg = data.get("events", [])
     if not isinstance(events_cfg, list):
@@ -672,6 +791,8 @@ def _check_declared(extv: dict, extv_file: Path, variables: dict, sensor, events
             raise ConfigError(f"variables.{name}", name, allowed, "not declared:")
     if sensor is not None and sensor.variable is not None and sensor.variable not in extv:
         raise ConfigError("sensor.variable", sensor.variable, allowed, "not declared:")
+    if sensor is not None and sensor.voltage_variable is not None and sensor.voltage_variable not in extv:
+        raise ConfigError("sensor.voltage_variable", sensor.voltage_variable, allowed, "not declared:")
     for ev in events:
         if ev.kind == "variable" and ev.data["name"] not in extv:
             raise ConfigError(f"events[{ev.index}].name", ev.data["name"], allowed, "not declared:")

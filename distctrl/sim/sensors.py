@@ -1,13 +1,18 @@
 """Height sensors of the virtual machine, read once per GEO cycle.
 
-Two sensors share one pipeline (:class:`SensorBase`); per call of ``read(cycle, axis_z, surface_z)``:
+Three sensors share one pipeline (:class:`SensorBase`); per call of
+``read(cycle, axis_z, surface_z, x=0.0, y=0.0)``:
 
 1. physical value in mm: :class:`EncoderProbe` ``s = surface_z - axis_z`` (= -d, SPEC §1),
-   :class:`DistanceSensor` ``d = axis_z - surface_z``;
-2. ``+`` Gaussian noise (``noise_std`` mm) ``+`` the additive faults (``jump``, ``drift``,
-   ``noise_burst``) - these disturb the measurement itself;
+   :class:`DistanceSensor` ``d = axis_z - surface_z``; with a footprint (``footprint_radius > 0``)
+   the distance the sensor sees over its footprint around ``(x, y)`` instead (the edge effect of a
+   capacitive sensor: :meth:`DistanceSensor.footprint_distance`); :class:`ArcVoltageSensor` the arc
+   length over the part of its footprint that has sheet under it;
+2. ``+`` Gaussian noise (``noise_std`` mm) ``+`` plume/spark bursts (:class:`Bursts`) ``+`` the
+   additive faults (``jump``, ``drift``, ``noise_burst``) - these disturb the measurement itself;
 3. saturation to the measuring range (the probe's mechanical stroke, the sensor's range), then
-   characteristic and quantisation into the output unit (raw increments, resp. mm);
+   characteristic and quantisation into the output unit (raw increments, mm, resp. the arc voltage
+   in V plus its mains ripple and white noise);
 4. the replacing faults (``freeze``, ``dropout``, ``nan``) - a sensor that sticks or fails;
 5. dead time: the value leaves a ring buffer ``delay_cycles`` reads later (the buffer starts filled
    with the first value, so there is no start-up transient).
@@ -16,9 +21,11 @@ Faults happen in the sensor, before the dead time: a fault starting at cycle ``k
 control at cycle ``k + delay_cycles``.
 
 ``read`` must be called exactly once per cycle with increasing ``cycle`` numbers; ``cycle`` only
-times the faults (the dead time counts calls). Noise is drawn from ``numpy.random.default_rng``
-seeded with ``seed`` in blocks of :data:`NOISE_BLOCK` samples, so runs are reproducible and the
-per-cycle cost stays at a list index.
+times the faults and the bursts (the dead time counts calls). Noise is drawn from
+``numpy.random.default_rng`` seeded with ``seed`` in blocks of :data:`NOISE_BLOCK` samples, so runs
+are reproducible and the per-cycle cost stays at a list index. Independent streams (children of
+``SeedSequence(seed)``): 0 the normal noise, 1 the ``noise_burst`` faults, 2 the plume bursts, 3 the
+arc voltage's white noise - a model switched on or off does not shift the others' sequences.
 """
 from __future__ import annotations
 
@@ -31,10 +38,63 @@ import numpy as np
 from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, require_int, require_number
 from distctrl.sim.physics import probe_increments
 
-__all__ = ["Fault", "FAULT_KINDS", "SensorBase", "EncoderProbe", "DistanceSensor", "NOISE_BLOCK"]
+__all__ = ["Fault", "FAULT_KINDS", "Bursts", "SensorBase", "EncoderProbe", "DistanceSensor", "ArcVoltageSensor",
+           "NOISE_BLOCK", "footprint_offsets", "FOOTPRINT_RINGS", "FOOTPRINT_PER_RING", "D_MIN"]
 
 NOISE_BLOCK = 4096
 FAULT_KINDS = ("jump", "drift", "freeze", "dropout", "nan", "noise_burst")
+#: the footprint is sampled on FOOTPRINT_RINGS rings of FOOTPRINT_PER_RING points (equal areas)
+FOOTPRINT_RINGS = 2
+FOOTPRINT_PER_RING = 8
+#: mm: a footprint point closer than this (or in the sheet) counts as this close (1/d stays finite)
+D_MIN = 1e-3
+_TWO_PI = 2.0 * math.pi
+
+
+def footprint_offsets(radius: float, rings: int = FOOTPRINT_RINGS,
+                      per_ring: int = FOOTPRINT_PER_RING) -> tuple[tuple[float, float], ...]:
+    """Sample points ``(dx, dy)`` (mm) of a disc of ``radius`` mm, each standing for an equal area.
+
+    Ring ``k`` (0-based) of ``rings`` lies at ``radius * sqrt((k + 0.5) / rings)`` (the middle of
+    its equal-area annulus) and carries ``per_ring`` (even) points at angles
+    ``(k + 0.5) / rings * 360° / per_ring + j * 360° / per_ring``: the set is symmetric about the
+    centre and no point lies on the X or Y line through it, so a straight edge through the centre
+    along X or Y (or any line through it that misses the points) covers exactly half of them.
+    """
+    if per_ring % 2:
+        raise ValueError("per_ring must be even (point symmetry)")
+    pts = []
+    step = _TWO_PI / per_ring
+    for k in range(rings):
+        r = radius * math.sqrt((k + 0.5) / rings)
+        phi0 = (k + 0.5) / rings * step
+        for j in range(per_ring):
+            a = phi0 + j * step
+            pts.append((r * math.cos(a), r * math.sin(a)))
+    return tuple(pts)
+
+
+@dataclass(frozen=True)
+class Bursts:
+    """Plume/spark noise bursts of a distance or arc-voltage sensor (added in mm, like the noise).
+
+    Burst starts form a Poisson process of ``rate`` starts per second (exponential gaps, drawn from
+    the sensor's seed); each burst lasts ``duration`` s (rounded to whole cycles, at least one;
+    overlapping bursts merge) and adds ``offset + amplitude * N(0, 1)`` mm every cycle it lasts
+    (``amplitude``: std in mm; ``offset``: mean shift in mm - a conductive plume between nozzle and
+    sheet raises the capacitance, so the sensor reports a smaller distance: ``offset < 0``).
+    """
+
+    rate: float
+    duration: float
+    amplitude: float
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        require_number(self.rate, "Bursts.rate", lo=0.0)
+        require_number(self.duration, "Bursts.duration", lo=0.0, lo_open=True)
+        require_number(self.amplitude, "Bursts.amplitude", lo=0.0)
+        require_number(self.offset, "Bursts.offset")
 
 
 @dataclass(frozen=True)
@@ -146,6 +206,53 @@ class SensorBase:
         self._delay_i = 0
         self.last_measured: float | None = None  # value entering the dead time (after faults)
         self.last_value: float | None = None     # value the control saw at the last read
+        #: the geometry over the footprint (subclasses): None = the point under (x, y)
+        self._footprint = None
+        #: fraction of the footprint with sheet under it at the last read (1 without a footprint)
+        self.covered = 1.0
+        #: added to the converted value every read (subclasses: the arc voltage's ripple and noise)
+        self._output_noise = None
+        self.bursts: Bursts | None = None
+        self.burst_count = 0                     # bursts started so far
+        self._b_next = math.inf                  # cycle (float) of the next burst start
+        self._b_end = 0                          # first cycle after the running burst(s)
+
+    def _set_bursts(self, bursts: Bursts | None, name: str) -> None:
+        """Switch the plume/spark bursts on (stream 2 of the seed)."""
+        if bursts is None:
+            return
+        if not isinstance(bursts, Bursts):
+            raise ConfigError(f"{name}.bursts", bursts, "a Bursts(rate, duration, amplitude, offset)")
+        self.bursts = bursts
+        self._plume_rng = np.random.default_rng(np.random.SeedSequence(self.seed).spawn(3)[2])
+        self._plume: list[float] = []
+        self._plume_i = 0
+        self._b_cycles = max(1, _cycles(bursts.duration, self.cycle_time))
+        # mean gap between starts in cycles (inf: rate 0, never)
+        self._b_gap = math.inf if bursts.rate == 0.0 else 1.0 / (bursts.rate * self.cycle_time)
+        self._b_next = self._gap()
+
+    def _gap(self) -> float:
+        g = self._b_gap
+        return g if g == math.inf else float(self._plume_rng.exponential(g))
+
+    def _plume_value(self, cycle: int) -> float:
+        """The bursts' contribution this cycle (mm); called every read while bursts are on."""
+        while cycle >= self._b_next:             # a burst starts (several only at absurd rates)
+            end = cycle + self._b_cycles
+            if end > self._b_end:
+                self._b_end = end
+            self.burst_count += 1
+            self._b_next += self._gap()
+        if cycle >= self._b_end:
+            return 0.0
+        i = self._plume_i
+        if i >= len(self._plume):
+            self._plume = self._plume_rng.standard_normal(NOISE_BLOCK).tolist()
+            i = 0
+        self._plume_i = i + 1
+        b = self.bursts
+        return b.offset + b.amplitude * self._plume[i]
 
     # -- faults -------------------------------------------------------------------------------------
     def inject(self, fault: Fault, at_cycle: int | None = None) -> None:
@@ -196,20 +303,25 @@ class SensorBase:
         """Unit conversion and quantisation only (used for a dropout reading)."""
         raise NotImplementedError
 
-    def ideal(self, axis_z: float, surface_z: float) -> float:
-        """The noise-, fault- and delay-free output for this geometry (output unit)."""
-        return self._convert(self._sense_sign * (axis_z - surface_z))
+    def ideal(self, axis_z: float, surface_z: float, x: float = 0.0, y: float = 0.0) -> float:
+        """The noise-, burst-, fault- and delay-free output for this geometry (output unit)."""
+        fp = self._footprint
+        v = self._sense_sign * (axis_z - surface_z) if fp is None else fp(axis_z, surface_z, x, y)
+        return self._convert(v)
 
     # -- per cycle ----------------------------------------------------------------------------------
-    def read(self, cycle: int, axis_z: float, surface_z: float) -> float:
+    def read(self, cycle: int, axis_z: float, surface_z: float, x: float = 0.0, y: float = 0.0) -> float:
         """The value the control sees this cycle (output unit), after noise, faults and dead time.
 
         ``axis_z``: true (mechanical) axis position in mm; ``surface_z``: surface height under the
-        sensor in mm.
+        sensor in mm; ``x``, ``y``: where the sensor is (mm; only a sensor with a footprint uses them).
         """
-        x = self._sense_sign * (axis_z - surface_z)
+        fp = self._footprint
+        v = self._sense_sign * (axis_z - surface_z) if fp is None else fp(axis_z, surface_z, x, y)
         if self.noise_std:
-            x += self.noise_std * self._normal()
+            v += self.noise_std * self._normal()
+        if self.bursts is not None:
+            v += self._plume_value(cycle)
         faults = self.faults
         if faults:
             replace = None
@@ -218,44 +330,48 @@ class SensorBase:
                     continue
                 kind = f.kind
                 if kind == "jump":
-                    x += f.fault.value
+                    v += f.fault.value
                 elif kind == "drift":
-                    x += f.fault.rate * (cycle - f.start) * self.cycle_time
+                    v += f.fault.rate * (cycle - f.start) * self.cycle_time
                 elif kind == "noise_burst":
-                    x += f.fault.value * self._burst_normal()
+                    v += f.fault.value * self._burst_normal()
                 else:
                     replace = f if replace is None or _PRIORITY[kind] >= _PRIORITY[replace.kind] else replace
                     if kind == "freeze" and f.held is None:
                         f.held = self.last_measured  # None at the very first cycle: set below
-            y = self._convert(x)
+            out = self._convert(v)
+            if self._output_noise is not None:
+                out += self._output_noise(cycle)
             if replace is not None:
                 kind = replace.kind
                 if kind == "freeze":
                     if replace.held is None:
-                        replace.held = y
-                    y = replace.held
+                        replace.held = out
+                    out = replace.held
                 elif kind == "dropout":
-                    v = replace.fault.value
-                    y = self._encode(0.0 if v is None else v)
+                    val = replace.fault.value
+                    out = self._encode(0.0 if val is None else val)
                 else:  # nan
-                    v = replace.fault.value
-                    y = math.nan if v is None else float(v)
+                    val = replace.fault.value
+                    out = math.nan if val is None else float(val)
         else:
-            y = self._convert(x)
-        self.last_measured = y
+            out = self._convert(v)
+            if self._output_noise is not None:
+                out += self._output_noise(cycle)
+        self.last_measured = out
 
         n = self.delay_cycles
         if n:
             line = self._delay_line
             if not line:
-                line.extend([y] * n)  # start filled with the first value: no start-up jump
+                line.extend([out] * n)  # start filled with the first value: no start-up jump
             i = self._delay_i
-            out = line[i]
-            line[i] = y
+            delayed = line[i]
+            line[i] = out
             self._delay_i = i + 1 if i + 1 < n else 0
-            y = out
-        self.last_value = y
-        return y
+            out = delayed
+        self.last_value = out
+        return out
 
 
 _PRIORITY = {"freeze": 0, "dropout": 1, "nan": 2}
@@ -316,13 +432,32 @@ class DistanceSensor(SensorBase):
     (piecewise-linear table of ``(true_mm, reported_mm)`` pairs, true values strictly increasing;
     beyond the table the end values hold; default identity) and quantised to ``resolution`` mm
     (0 = not quantised).
+
+    **Edge effect** (``footprint_radius > 0``, needs ``surface``): a capacitive sensor measures the
+    capacitance between its electrode, a disc of ``footprint_radius`` mm under the nozzle, and the
+    grounded sheet. Each part of the disc at distance ``d_i`` from the sheet contributes
+    ``∝ 1 / d_i`` (parallel plates); a part with no sheet within ``field_range`` mm (default
+    ``range_max``: over a hole, beyond the sheet edge, over a deep kerf) contributes nothing. The
+    sensor reports the distance of a whole flat sheet with the same capacitance::
+
+        d_seen = N / Σ_i c_i,   c_i = 1 / max(d_i, D_MIN) if d_i <= field_range else 0
+
+    over the N = 16 points of :func:`footprint_offsets` (the surface is looked up there each read).
+    Over a flat sheet ``d_seen = d``; with a fraction ``covered`` of the disc over the sheet and the
+    rest over nothing ``d_seen = d / covered`` - half over a straight edge reads twice the distance,
+    so the control lowers the head: it dives. No sheet at all: ``d_seen`` = inf, saturated to
+    ``range_max``. ``covered`` (the fraction of points with sheet in reach) is kept per read. The
+    characteristic applies to ``d_seen`` (after noise and bursts), as on the machine, where the
+    amplifier's static non-linearity acts on what the electrode sees.
+
+    **Bursts** (:class:`Bursts`): plume/spark noise bursts added to the distance.
     """
 
     def __init__(self, cycle_time: float = 0.001, *, range_max: float = 10.0,
                  characteristic: Sequence[tuple[float, float]] | None = None, resolution: float = 0.0,
                  noise_std: float = 0.0, delay_cycles: int = 0, seed: int | None = 0,
-                 faults: Iterable[Fault] = ()):
-        name = "DistanceSensor"
+                 faults: Iterable[Fault] = (), footprint_radius: float = 0.0, field_range: float | None = None,
+                 surface=None, bursts: Bursts | None = None, name: str = "DistanceSensor"):
         self.range_max = require_number(range_max, f"{name}.range_max", lo=0.0, lo_open=True)
         self.resolution = require_number(resolution, f"{name}.resolution", lo=0.0)
         self.characteristic: tuple[tuple[float, float], ...] | None = None
@@ -339,7 +474,38 @@ class DistanceSensor(SensorBase):
             self.characteristic = tuple(pts)
             self._char_x = [p[0] for p in pts]
             self._char_y = [p[1] for p in pts]
+        self.footprint_radius = require_number(footprint_radius, f"{name}.footprint_radius", lo=0.0)
+        self.field_range = self.range_max if field_range is None else \
+            require_number(field_range, f"{name}.field_range", lo=0.0, lo_open=True)
+        self.surface = surface
         super().__init__(cycle_time, noise_std, delay_cycles, seed, faults, name)
+        self.offsets: tuple[tuple[float, float], ...] = ()
+        if self.footprint_radius > 0.0:
+            if surface is None or not hasattr(surface, "height"):
+                raise ConfigError(f"{name}.surface", surface,
+                                  "the Surface under the sensor (footprint_radius > 0 samples it)")
+            self.offsets = footprint_offsets(self.footprint_radius)
+            self._height = surface.height
+            self._footprint = self.footprint_distance
+        self._set_bursts(bursts, name)
+
+    def footprint_distance(self, axis_z: float, surface_z: float, x: float, y: float) -> float:
+        """The distance the electrode sees over its footprint at ``(x, y)`` (mm; class docstring);
+        sets :attr:`covered`."""
+        if axis_z != axis_z:
+            return axis_z
+        h = self._height
+        far = self.field_range
+        n = 0
+        c = 0.0
+        for dx, dy in self.offsets:
+            d = axis_z - h(x + dx, y + dy)
+            if d <= far:
+                n += 1
+                c += 1.0 / d if d > D_MIN else 1.0 / D_MIN
+        npts = len(self.offsets)
+        self.covered = n / npts
+        return npts / c if n else math.inf
 
     def _encode(self, x_mm: float) -> float:
         r = self.resolution
@@ -368,3 +534,100 @@ class DistanceSensor(SensorBase):
             x_mm = self._apply_characteristic(x_mm)
         r = self.resolution
         return math.floor(x_mm / r + 0.5) * r if r else x_mm
+
+
+class ArcVoltageSensor(DistanceSensor):
+    """The arc voltage of a plasma torch (V), which the PLC linearises into the distance variable.
+
+    The arc length is the torch height over the sheet; over a kerf or a hole the arc has to reach
+    further, to the sheet beside it, and the voltage jumps. Per read, with ``footprint_radius`` mm
+    the radius the arc root wanders over (0: the point under the torch only) and ``field_range`` mm
+    the reach beyond which a point counts as "no sheet" (default ``range_max``)::
+
+        covered = (points with d_i <= field_range) / N          (N = 16; 1 point for radius 0)
+        d_arc   = mean of those d_i   (no point covered: d at the centre)
+        V       = v0 + k · clamp(d_arc + noise + bursts + faults, 0, range_max)
+                  + kerf_jump · (1 − covered) + ripple · sin(2π ripple_hz · t) + voltage_noise_std · N(0, 1)
+
+    ``v0`` (V) the voltage extrapolated to zero height (cathode and anode falls), ``k`` (V/mm) the
+    arc column's gradient (about 4-10 V/mm), ``kerf_jump`` (V) the extra voltage with no sheet
+    under the whole footprint, ``ripple`` (V amplitude, at ``ripple_hz``: the power source's
+    50/60 Hz, or 100/120 Hz after a bridge) and ``voltage_noise_std`` (V) the arc noise. ``noise_std``
+    (mm), the bursts and the faults act on the distance before the conversion (a dropout reports the
+    voltage of a ``value`` mm arc). No characteristic, no quantisation: the reading is in volts.
+    """
+
+    def __init__(self, cycle_time: float = 0.001, *, v0: float = 100.0, k: float = 6.0, ripple: float = 0.0,
+                 ripple_hz: float = 50.0, voltage_noise_std: float = 0.0, kerf_jump: float = 0.0,
+                 range_max: float = 10.0, noise_std: float = 0.0, delay_cycles: int = 0, seed: int | None = 0,
+                 faults: Iterable[Fault] = (), footprint_radius: float = 0.0, field_range: float | None = None,
+                 surface=None, bursts: Bursts | None = None):
+        name = "ArcVoltageSensor"
+        self.v0 = require_number(v0, f"{name}.v0", lo=0.0)
+        self.k = require_number(k, f"{name}.k", lo=0.0, lo_open=True)
+        self.ripple = require_number(ripple, f"{name}.ripple", lo=0.0)
+        nyquist = 0.5 / require_number(cycle_time, f"{name}.cycle_time", lo=0.0, lo_open=True)
+        self.ripple_hz = require_number(ripple_hz, f"{name}.ripple_hz", lo=0.0, hi=nyquist, lo_open=True,
+                                        hi_open=True)
+        self.voltage_noise_std = require_number(voltage_noise_std, f"{name}.voltage_noise_std", lo=0.0)
+        self.kerf_jump = require_number(kerf_jump, f"{name}.kerf_jump", lo=0.0)
+        super().__init__(cycle_time, range_max=range_max, noise_std=noise_std, delay_cycles=delay_cycles,
+                         seed=seed, faults=faults, footprint_radius=footprint_radius, field_range=field_range,
+                         surface=surface, bursts=bursts, name=name)
+        self._footprint = self.arc_length
+        self._omega_t = _TWO_PI * self.ripple_hz * self.cycle_time      # ripple phase per cycle (rad)
+        if self.voltage_noise_std:
+            self._vrng = np.random.default_rng(np.random.SeedSequence(self.seed).spawn(4)[3])
+            self._vnoise: list[float] = []
+            self._vnoise_i = 0
+        if self.ripple or self.voltage_noise_std:
+            self._output_noise = self.arc_noise
+
+    def arc_length(self, axis_z: float, surface_z: float, x: float, y: float) -> float:
+        """The arc length (mm) over the covered part of the footprint; sets :attr:`covered`."""
+        d0 = axis_z - surface_z
+        if not self.offsets:
+            self.covered = 1.0 if d0 <= self.field_range else 0.0
+            return d0
+        if axis_z != axis_z:
+            return axis_z
+        h = self._height
+        far = self.field_range
+        n = 0
+        s = 0.0
+        for dx, dy in self.offsets:
+            d = axis_z - h(x + dx, y + dy)
+            if d <= far:
+                n += 1
+                s += d
+        self.covered = n / len(self.offsets)
+        return s / n if n else d0
+
+    def arc_noise(self, cycle: int) -> float:
+        """Ripple plus white noise (V) at ``cycle``."""
+        e = self.ripple * math.sin(self._omega_t * cycle) if self.ripple else 0.0
+        if self.voltage_noise_std:
+            i = self._vnoise_i
+            if i >= len(self._vnoise):
+                self._vnoise = self._vrng.standard_normal(NOISE_BLOCK).tolist()
+                i = 0
+            self._vnoise_i = i + 1
+            e += self.voltage_noise_std * self._vnoise[i]
+        return e
+
+    def voltage(self, d_mm: float, covered: float = 1.0) -> float:
+        """The noise-free arc voltage (V) of an arc ``d_mm`` long with ``covered`` of the footprint
+        over sheet."""
+        if d_mm < 0.0:
+            d_mm = 0.0
+        elif d_mm > self.range_max:
+            d_mm = self.range_max
+        return self.v0 + self.k * d_mm + self.kerf_jump * (1.0 - covered)
+
+    def _encode(self, x_mm: float) -> float:
+        return self.v0 + self.k * x_mm
+
+    def _convert(self, x_mm: float) -> float:
+        if x_mm != x_mm:
+            return x_mm
+        return self.voltage(x_mm, self.covered)
