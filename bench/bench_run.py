@@ -126,5 +126,115 @@ def main() -> dict:
     return res
 
 
+# --- issue 15: the cost of the sensor models (own rows; the resonant drive has its own function) ------
+#: the bench scenario's sensor block, replaced per model (same surface: sine, step, 2.8 mm obstacle)
+_PROBE_SENSOR = """[sensor]
+axis = "Z"
+kind = "encoder"
+noise_std = 0.002
+delay_cycles = 1
+seed = 7
+"""
+SENSOR_MODELS = {
+    "point distance sensor (V.E. variable)": """[sensor]
+axis = "Z"
+kind = "distance"
+noise_std = 0.002
+delay_cycles = 1
+seed = 7
+""",
+    "capacitive: footprint r 3 mm (16 look-ups) + bursts + characteristic": """[sensor]
+axis = "Z"
+kind = "distance"
+noise_std = 0.002
+delay_cycles = 1
+seed = 7
+characteristic = [[0.0, 0.0], [1.0, 1.02], [3.0, 3.0], [10.0, 9.7]]
+footprint_radius = 3.0
+bursts = { rate = 2.0, duration = 0.02, amplitude = 0.02, offset = -0.01 }
+""",
+    "arc voltage: footprint r 1.5 mm, ripple, noise, kerf jump + PLC linearisation": """[sensor]
+axis = "Z"
+kind = "arc_voltage"
+noise_std = 0.002
+delay_cycles = 1
+seed = 7
+arc_v0 = 95.0
+arc_k = 6.0
+arc_ripple = 0.3
+arc_noise_std = 0.1
+kerf_jump = 10.0
+footprint_radius = 1.5
+""",
+}
+
+
+def sensor_scenario(seconds: float, sensor_block: str | None):
+    """The bench scenario with another sensor (None: the probe) reading V.E.SENSOR."""
+    sc = scenario(seconds)
+    if sensor_block is None:
+        return sc
+    length = 100.0 * seconds
+    text = SCENARIO.read_text()
+    assert _PROBE_SENSOR in text
+    text = text.replace(_PROBE_SENSOR, sensor_block).replace(
+        'program = "const_dist_sheet.nc"',
+        'program_text = """\nN10 G90 G0 X0 Y0 Z31\nN15 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]\n'
+        'N20 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\n'
+        f'N30 G1 X{length:g} Y{length / 10:g} F6000\nN40 Z[DIST_CTRL OFF]\nN60 M30\n"""').replace(
+        "duration = 10.0", f"duration = {seconds + 5:g}")
+    return scenario_from_text(text, base_dir=SCENARIO.parent, source="bench")
+
+
+def sensor_read_us(sc, n: int = 200_000) -> float:
+    """µs per ``read`` of the scenario's sensor model alone (over the bench surface, moving in X)."""
+    s = sc.make_sensor()
+    read = s.read
+    t0 = time.perf_counter()
+    for k in range(n):
+        read(k, 31.0, 30.0, 0.01 * k, 0.0)
+    return (time.perf_counter() - t0) / n * 1e6
+
+
+def sensor_model_rows(seconds: float = 20.0) -> tuple[dict, list[str]]:
+    """Cycles/s of the 3-axis scenario with each sensor model (median of 3) and µs per sensor read."""
+    res: dict = {}
+    rows = []
+    models = {"encoder probe (the bench scenario)": None, **SENSOR_MODELS}
+    base_rate = None
+    for i, (label, block) in enumerate(models.items()):
+        sc = sensor_scenario(seconds, block)
+        run(sensor_scenario(1.0, block))                                  # warm-up
+        rate = sorted(cycles_per_second(sc)[0] for _ in range(3))[1]
+        us = sensor_read_us(sc)
+        if i == 1:
+            base_rate = rate
+        rel = "-" if base_rate is None or i < 2 else f"{(1.0 / rate - 1.0 / base_rate) * 1e6:+.1f} µs/cycle"
+        res[f"sensor_model_{i}_cycles_per_s"] = rate
+        res[f"sensor_model_{i}_read_us"] = us
+        rows.append((label, rate, us, rel))
+    lines = ["", "## Sensor models (bench/bench_run.py, sensor_model_rows)", "",
+             f"- the 3-axis scenario above ({seconds:g} s program), its sensor replaced; median of 3 runs; "
+             "`read` alone: 200 000 calls over the same surface", "",
+             "| sensor model | run | unit | sensor read | unit | vs the point distance sensor |",
+             "|---|---:|---|---:|---|---|"]
+    lines += [f"| {a} | {b:,.0f} | cycles/s | {c:.2f} | µs | {d} |" for a, b, c, d in rows]
+    for a, b, c, d in rows:
+        print(f"{a:<78} {b:>10,.0f} cycles/s {c:>7.2f} µs/read  {d}")
+    return res, lines
+
+
+def main_sensors() -> dict:
+    res, lines = sensor_model_rows()
+    out = ROOT / "bench"
+    if "--out" in sys.argv:
+        out = pathlib.Path(sys.argv[sys.argv.index("--out") + 1])
+        out.mkdir(parents=True, exist_ok=True)
+    merge_results(out, res, lines)
+    return res
+
+
 if __name__ == "__main__":
-    main()
+    if "--sensors-only" not in sys.argv:
+        main()
+    main_sensors()

@@ -43,8 +43,8 @@ from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, re
                                         require_mapping, require_number)
 from distctrl.sim.drive import Drive
 from distctrl.sim.interpolator import AxisLimits
-from distctrl.sim.sensors import (FAULT_KINDS, ArcVoltageSensor, Bursts, DistanceSensor, EncoderProbe, Fault,
-                                   SensorBase)
+from distctrl.sim.sensors import (FAULT_KINDS, FOOTPRINT_POINTS, ArcVoltageSensor, Bursts, DistanceSensor,
+                                   EncoderProbe, Fault, SensorBase)
 from distctrl.sim.surface import Surface, surface_from_config
 
 __all__ = ["Scenario", "AxisConfig", "SensorConfig", "Event", "ScenarioError", "load_scenario",
@@ -66,12 +66,13 @@ SENSOR_MODES = ("axis", "orthogonal_clamping_point")
 SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", "seed", "range_min", "reading_at_contact",
                "range_max", "characteristic", "resolution", "faults", "collision_depth",
                # issue 15: capacitive edge effect and bursts, plasma arc voltage (docs/scenarios.md)
-               "footprint_radius", "field_range", "bursts", "voltage_variable", "arc_v0", "arc_k", "arc_ripple",
+               "footprint_radius", "footprint_points", "field_range", "bursts", "voltage_variable", "arc_v0", "arc_k", "arc_ripple",
                "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0", "plc_k")
 #: sensor keys that only some kinds accept
 _SENSOR_KIND_ONLY = {"variable": ("distance", "arc_voltage"), "characteristic": ("distance",),
                      "resolution": ("distance",), "range_min": ("encoder",), "reading_at_contact": ("encoder",),
                      "footprint_radius": ("distance", "arc_voltage"), "field_range": ("distance", "arc_voltage"),
+                     "footprint_points": ("distance", "arc_voltage"),
                      "bursts": ("distance", "arc_voltage"),
                      **{k: ("arc_voltage",) for k in ("voltage_variable", "arc_v0", "arc_k", "arc_ripple",
                                                       "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0",
@@ -205,6 +206,8 @@ class SensorConfig:
     # --- issue 15: capacitive edge effect, bursts, plasma arc voltage (docs/sim-models.md) ---
     #: distance / arc voltage: radius of the footprint (mm; 0 = the point under the tool)
     footprint_radius: float = 0.0
+    #: distance / arc voltage: sample points of the footprint (8, 16, 24 or 32)
+    footprint_points: int = 16
     #: distance / arc voltage: sheet farther than this from the sensor is "no sheet" (mm; None = range_max)
     field_range: float | None = None
     #: distance / arc voltage: plume/spark noise bursts (None = none)
@@ -259,7 +262,7 @@ class SensorConfig:
                                 sign_reversal=p.sensor_sign_reversal, ref_offset=-self.reading_at_contact,
                                 **common)
         extra = dict(footprint_radius=self.footprint_radius, field_range=self.field_range, surface=surface,
-                     bursts=self.bursts)
+                     bursts=self.bursts, footprint_points=self.footprint_points)
         if self.kind == "arc_voltage":
             return ArcVoltageSensor(cycle_time, v0=self.arc_v0, k=self.arc_k, ripple=self.arc_ripple,
                                     ripple_hz=self.arc_ripple_hz, voltage_noise_std=self.arc_noise_std,
@@ -547,6 +550,12 @@ def _footprint_keys(cfg: dict, key: str, range_max: float, cycle_time: float) ->
     out: dict[str, Any] = {
         "footprint_radius": require_number(cfg.get("footprint_radius", 0.0), f"{key}.footprint_radius",
                                            lo=0.0, hi=FOOTPRINT_RADIUS_MAX)}
+    if "footprint_points" in cfg:
+        pts = cfg["footprint_points"]
+        if isinstance(pts, bool) or pts not in FOOTPRINT_POINTS:
+            raise ConfigError(f"{key}.footprint_points", pts, "one of " + ", ".join(map(str, FOOTPRINT_POINTS))
+                              + " (sample points of the footprint: rings of 8; fewer are faster)")
+        out["footprint_points"] = int(pts)
     if "field_range" in cfg:
         out["field_range"] = require_number(cfg["field_range"], f"{key}.field_range", lo=0.0, lo_open=True)
     if "bursts" in cfg:

@@ -39,13 +39,15 @@ from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, req
 from distctrl.sim.physics import probe_increments
 
 __all__ = ["Fault", "FAULT_KINDS", "Bursts", "SensorBase", "EncoderProbe", "DistanceSensor", "ArcVoltageSensor",
-           "NOISE_BLOCK", "footprint_offsets", "FOOTPRINT_RINGS", "FOOTPRINT_PER_RING", "D_MIN"]
+           "NOISE_BLOCK", "footprint_offsets", "FOOTPRINT_RINGS", "FOOTPRINT_PER_RING", "FOOTPRINT_POINTS", "D_MIN"]
 
 NOISE_BLOCK = 4096
 FAULT_KINDS = ("jump", "drift", "freeze", "dropout", "nan", "noise_burst")
-#: the footprint is sampled on FOOTPRINT_RINGS rings of FOOTPRINT_PER_RING points (equal areas)
+#: the footprint is sampled on FOOTPRINT_RINGS rings of FOOTPRINT_PER_RING points (equal areas) by
+#: default; ``footprint_points`` (a multiple of FOOTPRINT_PER_RING) trades accuracy for speed
 FOOTPRINT_RINGS = 2
 FOOTPRINT_PER_RING = 8
+FOOTPRINT_POINTS = (8, 16, 24, 32)
 #: mm: a footprint point closer than this (or in the sheet) counts as this close (1/d stays finite)
 D_MIN = 1e-3
 _TWO_PI = 2.0 * math.pi
@@ -442,7 +444,8 @@ class DistanceSensor(SensorBase):
 
         d_seen = N / Σ_i c_i,   c_i = 1 / max(d_i, D_MIN) if d_i <= field_range else 0
 
-    over the N = 16 points of :func:`footprint_offsets` (the surface is looked up there each read).
+    over the N = ``footprint_points`` (default 16) points of :func:`footprint_offsets` (the surface
+    is looked up there each read: the model's cost).
     Over a flat sheet ``d_seen = d``; with a fraction ``covered`` of the disc over the sheet and the
     rest over nothing ``d_seen = d / covered`` - half over a straight edge reads twice the distance,
     so the control lowers the head: it dives. No sheet at all: ``d_seen`` = inf, saturated to
@@ -457,7 +460,8 @@ class DistanceSensor(SensorBase):
                  characteristic: Sequence[tuple[float, float]] | None = None, resolution: float = 0.0,
                  noise_std: float = 0.0, delay_cycles: int = 0, seed: int | None = 0,
                  faults: Iterable[Fault] = (), footprint_radius: float = 0.0, field_range: float | None = None,
-                 surface=None, bursts: Bursts | None = None, name: str = "DistanceSensor"):
+                 surface=None, bursts: Bursts | None = None, footprint_points: int = 16,
+                 name: str = "DistanceSensor"):
         self.range_max = require_number(range_max, f"{name}.range_max", lo=0.0, lo_open=True)
         self.resolution = require_number(resolution, f"{name}.resolution", lo=0.0)
         self.characteristic: tuple[tuple[float, float], ...] | None = None
@@ -477,15 +481,21 @@ class DistanceSensor(SensorBase):
         self.footprint_radius = require_number(footprint_radius, f"{name}.footprint_radius", lo=0.0)
         self.field_range = self.range_max if field_range is None else \
             require_number(field_range, f"{name}.field_range", lo=0.0, lo_open=True)
+        if isinstance(footprint_points, bool) or footprint_points not in FOOTPRINT_POINTS:
+            raise ConfigError(f"{name}.footprint_points", footprint_points,
+                              "one of " + ", ".join(map(str, FOOTPRINT_POINTS)) + " (sample points of the footprint)")
+        self.footprint_points = int(footprint_points)
         self.surface = surface
         super().__init__(cycle_time, noise_std, delay_cycles, seed, faults, name)
         self.offsets: tuple[tuple[float, float], ...] = ()
         if self.footprint_radius > 0.0:
-            if surface is None or not hasattr(surface, "height"):
+            if surface is None or not hasattr(surface, "features") or not hasattr(surface, "base"):
                 raise ConfigError(f"{name}.surface", surface,
                                   "the Surface under the sensor (footprint_radius > 0 samples it)")
-            self.offsets = footprint_offsets(self.footprint_radius)
-            self._height = surface.height
+            self.offsets = footprint_offsets(self.footprint_radius, self.footprint_points // FOOTPRINT_PER_RING)
+            # Surface.height inlined: the features' z functions and the base, bound once
+            self._z_fns = tuple(f.z for f in surface.features)
+            self._base = surface.base
             self._footprint = self.footprint_distance
         self._set_bursts(bursts, name)
 
@@ -494,12 +504,17 @@ class DistanceSensor(SensorBase):
         sets :attr:`covered`."""
         if axis_z != axis_z:
             return axis_z
-        h = self._height
+        fns = self._z_fns
+        top = axis_z - self._base
         far = self.field_range
         n = 0
         c = 0.0
         for dx, dy in self.offsets:
-            d = axis_z - h(x + dx, y + dy)
+            px = x + dx
+            py = y + dy
+            d = top
+            for f in fns:
+                d -= f(px, py)
             if d <= far:
                 n += 1
                 c += 1.0 / d if d > D_MIN else 1.0 / D_MIN
@@ -544,7 +559,7 @@ class ArcVoltageSensor(DistanceSensor):
     the radius the arc root wanders over (0: the point under the torch only) and ``field_range`` mm
     the reach beyond which a point counts as "no sheet" (default ``range_max``)::
 
-        covered = (points with d_i <= field_range) / N          (N = 16; 1 point for radius 0)
+        covered = (points with d_i <= field_range) / N   (N = footprint_points; 1 point for radius 0)
         d_arc   = mean of those d_i   (no point covered: d at the centre)
         V       = v0 + k · clamp(d_arc + noise + bursts + faults, 0, range_max)
                   + kerf_jump · (1 − covered) + ripple · sin(2π ripple_hz · t) + voltage_noise_std · N(0, 1)
@@ -561,7 +576,7 @@ class ArcVoltageSensor(DistanceSensor):
                  ripple_hz: float = 50.0, voltage_noise_std: float = 0.0, kerf_jump: float = 0.0,
                  range_max: float = 10.0, noise_std: float = 0.0, delay_cycles: int = 0, seed: int | None = 0,
                  faults: Iterable[Fault] = (), footprint_radius: float = 0.0, field_range: float | None = None,
-                 surface=None, bursts: Bursts | None = None):
+                 surface=None, bursts: Bursts | None = None, footprint_points: int = 16):
         name = "ArcVoltageSensor"
         self.v0 = require_number(v0, f"{name}.v0", lo=0.0)
         self.k = require_number(k, f"{name}.k", lo=0.0, lo_open=True)
@@ -573,7 +588,7 @@ class ArcVoltageSensor(DistanceSensor):
         self.kerf_jump = require_number(kerf_jump, f"{name}.kerf_jump", lo=0.0)
         super().__init__(cycle_time, range_max=range_max, noise_std=noise_std, delay_cycles=delay_cycles,
                          seed=seed, faults=faults, footprint_radius=footprint_radius, field_range=field_range,
-                         surface=surface, bursts=bursts, name=name)
+                         surface=surface, bursts=bursts, footprint_points=footprint_points, name=name)
         self._footprint = self.arc_length
         self._omega_t = _TWO_PI * self.ripple_hz * self.cycle_time      # ripple phase per cycle (rad)
         if self.voltage_noise_std:
@@ -591,12 +606,17 @@ class ArcVoltageSensor(DistanceSensor):
             return d0
         if axis_z != axis_z:
             return axis_z
-        h = self._height
+        fns = self._z_fns
+        top = axis_z - self._base
         far = self.field_range
         n = 0
         s = 0.0
         for dx, dy in self.offsets:
-            d = axis_z - h(x + dx, y + dy)
+            px = x + dx
+            py = y + dy
+            d = top
+            for f in fns:
+                d -= f(px, py)
             if d <= far:
                 n += 1
                 s += d

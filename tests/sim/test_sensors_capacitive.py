@@ -106,11 +106,26 @@ def test_without_footprint_the_sensor_is_the_point_sensor_bit_for_bit():
     assert a == b
 
 
+@pytest.mark.parametrize("points", [8, 16, 24, 32])
+def test_fewer_or_more_points_keep_the_half_edge_exact_and_refine_the_staircase(points):
+    s = DistanceSensor(footprint_radius=3.0, surface=SHEET, footprint_points=points)
+    assert len(s.offsets) == points
+    assert s.ideal(31.0, 30.0, EDGE_X, 0.0) == pytest.approx(2.0) and s.covered == 0.5
+    errors = []
+    for x in np.linspace(EDGE_X - 2.0, EDGE_X + 2.0, 81):
+        s.footprint_distance(31.0, 30.0, x, 0.0)
+        errors.append(abs(s.covered - disc_fraction_over_half_plane(EDGE_X - x, 3.0)))
+    assert np.mean(errors) < {8: 0.08, 16: 0.03, 24: 0.03, 32: 0.02}[points]
+    assert max(errors) < {8: 0.17, 16: 0.075, 24: 0.065, 32: 0.045}[points]
+
+
 def test_footprint_needs_a_surface():
     with pytest.raises(ConfigError, match="DistanceSensor.surface"):
         DistanceSensor(footprint_radius=1.0)
     with pytest.raises(ConfigError, match="footprint_radius"):
         DistanceSensor(footprint_radius=-1.0, surface=SHEET)
+    with pytest.raises(ConfigError, match="footprint_points"):
+        DistanceSensor(footprint_radius=1.0, surface=SHEET, footprint_points=12)
 
 
 # --- plume/spark bursts ------------------------------------------------------------------------

@@ -30,10 +30,11 @@ def _sc(sensor: dict, surface: dict | None = None):
 
 # --- keys --------------------------------------------------------------------------------------
 def test_capacitive_keys_build_the_model():
-    sc = _sc({"kind": "distance", "footprint_radius": 2.0, "field_range": 5.0,
+    sc = _sc({"kind": "distance", "footprint_radius": 2.0, "field_range": 5.0, "footprint_points": 24,
               "bursts": {"rate": 2.0, "duration": 0.02, "amplitude": 0.05, "offset": -0.05}})
     s = sc.make_sensor()
     assert isinstance(s, DistanceSensor) and s.footprint_radius == 2.0 and s.field_range == 5.0
+    assert len(s.offsets) == 24
     assert s.bursts == Bursts(2.0, 0.02, 0.05, -0.05) and s.surface is sc.surface
     assert sc.sensor.make_plc_program() is None and sc.sensor.output_variable == "SENSOR"
 
@@ -60,6 +61,9 @@ def test_arc_voltage_keys_build_the_model_and_the_plc_program():
     ({"kind": "distance", "footprint_radius": 30.0}, "sensor.footprint_radius", ["[0, 25]"]),
     ({"kind": "distance", "footprint_radius": -1.0}, "sensor.footprint_radius", ["[0, 25]"]),
     ({"kind": "distance", "field_range": 0.0}, "sensor.field_range", ["(0, inf)"]),
+    ({"kind": "distance", "footprint_radius": 1.0, "footprint_points": 10}, "sensor.footprint_points",
+     ["8, 16, 24, 32"]),
+    ({"kind": "encoder", "footprint_points": 8}, "sensor.footprint_points", ["only with kind"]),
     ({"kind": "distance", "bursts": {"rate": 1.0, "duration": 0.01}}, "sensor.bursts.amplitude", ["missing"]),
     ({"kind": "distance", "bursts": {"rate": 1.0, "duration": 0.01, "amplitude": 0.1, "size": 1}},
      "sensor.bursts.size", ["unknown key", "offset"]),
