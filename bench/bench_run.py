@@ -143,7 +143,7 @@ noise_std = 0.002
 delay_cycles = 1
 seed = 7
 """,
-    "capacitive: footprint r 3 mm (16 look-ups) + bursts + characteristic": """[sensor]
+    "capacitive: footprint r 3 mm (16 points) + bursts + characteristic": """[sensor]
 axis = "Z"
 kind = "distance"
 noise_std = 0.002
@@ -152,6 +152,37 @@ seed = 7
 characteristic = [[0.0, 0.0], [1.0, 1.02], [3.0, 3.0], [10.0, 9.7]]
 footprint_radius = 3.0
 bursts = { rate = 2.0, duration = 0.02, amplitude = 0.02, offset = -0.01 }
+""",
+    "capacitive: footprint r 3 mm with footprint_points = 8 + bursts + characteristic": """[sensor]
+axis = "Z"
+kind = "distance"
+noise_std = 0.002
+delay_cycles = 1
+seed = 7
+characteristic = [[0.0, 0.0], [1.0, 1.02], [3.0, 3.0], [10.0, 9.7]]
+footprint_radius = 3.0
+footprint_points = 8
+bursts = { rate = 2.0, duration = 0.02, amplitude = 0.02, offset = -0.01 }
+""",
+    "capacitive: bursts + characteristic, no footprint": """[sensor]
+axis = "Z"
+kind = "distance"
+noise_std = 0.002
+delay_cycles = 1
+seed = 7
+characteristic = [[0.0, 0.0], [1.0, 1.02], [3.0, 3.0], [10.0, 9.7]]
+bursts = { rate = 2.0, duration = 0.02, amplitude = 0.02, offset = -0.01 }
+""",
+    "arc voltage: ripple, noise + PLC linearisation, no footprint": """[sensor]
+axis = "Z"
+kind = "arc_voltage"
+noise_std = 0.002
+delay_cycles = 1
+seed = 7
+arc_v0 = 95.0
+arc_k = 6.0
+arc_ripple = 0.3
+arc_noise_std = 0.1
 """,
     "arc voltage: footprint r 1.5 mm, ripple, noise, kerf jump + PLC linearisation": """[sensor]
 axis = "Z"

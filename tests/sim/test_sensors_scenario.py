@@ -170,3 +170,21 @@ def test_examples_run_with_distctrl_run(path):
     assert res.exit_code == 0, res.output
     out = json.loads(res.output)
     assert out["outcome"] == "completed" and out["errors"] == []
+
+
+def test_the_sensor_examples_of_docs_scenarios_md_load(tmp_path):
+    text = (ROOT / "docs" / "scenarios.md").read_text(encoding="utf-8")
+    blocks = [b.split("```")[0] for b in text.split("```toml\n")[1:]]
+    mine = [b for b in blocks if "footprint_radius" in b]
+    assert len(mine) == 2
+    for b in mine:
+        sc = scenario_from_text('program_text = "M30\\n"\n[axes.Z]\nstart = 31.0\n[surface]\nbase = 30.0\n' + b,
+                                base_dir=SCN)
+        assert sc.sensor.footprint_radius > 0 and sc.make_sensor() is not None
+
+
+@pytest.mark.parametrize("path", [EDGE, PLASMA])
+def test_the_batch_kernels_refuse_the_new_sensor_models_by_name(path):
+    from distctrl.batch.closed_loop import ClosedLoopError, prepare
+    with pytest.raises(ClosedLoopError, match="kind = 'encoder'"):
+        prepare(path)
