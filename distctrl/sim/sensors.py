@@ -37,9 +37,10 @@ import numpy as np
 
 from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, require_int, require_number
 from distctrl.sim.physics import probe_increments
+from distctrl.sim.surface import Flat, Ramp, Sine, Step, TiltedPlane
 
 __all__ = ["Fault", "FAULT_KINDS", "Bursts", "SensorBase", "EncoderProbe", "DistanceSensor", "ArcVoltageSensor",
-           "NOISE_BLOCK", "footprint_offsets", "FOOTPRINT_RINGS", "FOOTPRINT_PER_RING", "FOOTPRINT_POINTS", "D_MIN"]
+           "NOISE_BLOCK", "footprint_offsets", "FootprintHeights", "FOOTPRINT_RINGS", "FOOTPRINT_PER_RING", "FOOTPRINT_POINTS", "D_MIN"]
 
 NOISE_BLOCK = 4096
 FAULT_KINDS = ("jump", "drift", "freeze", "dropout", "nan", "noise_burst")
@@ -74,6 +75,102 @@ def footprint_offsets(radius: float, rings: int = FOOTPRINT_RINGS,
             a = phi0 + j * step
             pts.append((r * math.cos(a), r * math.sin(a)))
     return tuple(pts)
+
+
+class FootprintHeights:
+    """The surface heights at a footprint's points around ``(x, y)``, cheaper than one look-up per
+    point and feature, and the same values (to rounding):
+
+    * a :class:`~distctrl.sim.surface.Step` or :class:`~distctrl.sim.surface.Ramp` with none of its
+      edges within the footprint's extent along its axis is constant there: one look-up at the centre;
+    * a :class:`~distctrl.sim.surface.Sine` uses ``sin(a + b) = sin a cos b + cos a sin b`` with the
+      points' ``cos b``, ``sin b`` computed once: one ``sin`` and one ``cos`` per read;
+    * a :class:`~distctrl.sim.surface.TiltedPlane` is its centre value plus a fixed offset per point;
+      :class:`~distctrl.sim.surface.Flat` is 0;
+    * any other feature (a height map) is looked up at every point.
+    """
+
+    def __init__(self, surface, offsets: Sequence[tuple[float, float]]):
+        self.base = float(surface.base)
+        self.dx = [float(p[0]) for p in offsets]
+        self.dy = [float(p[1]) for p in offsets]
+        n = len(self.dx)
+        reach_x = max(map(abs, self.dx), default=0.0)
+        reach_y = max(map(abs, self.dy), default=0.0)
+        plane = [0.0] * n
+        self.centre: list = []            # features constant over the footprint: looked up at the centre
+        self.sines: list = []             # (amplitude, k, phase, on_y, cos list, sin list)
+        self.edged: list = []             # (z, on_y, reach, ((a, b), ...)): constant unless an edge is near
+        self.points: list = []            # looked up at every point
+        for f in surface.features:
+            kind = type(f)
+            if kind is Flat:
+                continue
+            if kind is TiltedPlane:
+                self.centre.append(f.z)
+                plane = [o + f.sx * dx + f.sy * dy for o, dx, dy in zip(plane, self.dx, self.dy)]
+            elif kind is Sine:
+                on_y = f.axis == "Y"
+                k = _TWO_PI / f.wavelength                                   # = Sine._k
+                du = self.dy if on_y else self.dx
+                self.sines.append((f.amplitude, k, f.phase, on_y, [math.cos(k * d) for d in du],
+                                   [math.sin(k * d) for d in du]))
+            elif kind is Step:
+                L = f.ramp_length
+                edges = [(f.at, f.at + L)]
+                if f.width is not None:
+                    edges.append((f.at + f.width - L, f.at + f.width))
+                on_y = f.axis == "Y"
+                self.edged.append((f.z, on_y, reach_y if on_y else reach_x, tuple(edges)))
+            elif kind is Ramp:
+                on_y = f.axis == "Y"
+                self.edged.append((f.z, on_y, reach_y if on_y else reach_x, ((f.start, f.end),)))
+            else:
+                self.points.append(f.z)
+        self.plane = plane
+        self._level = not any(plane)      # no tilt: the points share one height unless a feature varies
+
+    def heights(self, x: float, y: float) -> list[float]:
+        """Heights (mm) at the points ``(x + dx_j, y + dy_j)``."""
+        c, hs = self.sample(x, y)
+        return [c] * len(self.dx) if hs is None else hs
+
+    def sample(self, x: float, y: float) -> tuple[float, list[float] | None]:
+        """``(c, None)`` when every point has the height ``c`` (mm): no sine, tilt or height map, and
+        no edge within reach - the common case, one look-up per feature; else ``(c, heights)``."""
+        c = self.base
+        for z in self.centre:
+            c += z(x, y)
+        varying = None
+        for z, on_y, reach, edges in self.edged:
+            u = y if on_y else x
+            lo, hi = u - reach, u + reach
+            for a, b in edges:    # constant for u < a and for u >= b; the points span [lo, hi]
+                if hi >= a and lo < b:
+                    if varying is None:
+                        varying = []
+                    varying.append(z)
+                    break
+            else:
+                c += z(x, y)
+        if varying is None and self._level and not self.sines and not self.points:
+            return c, None
+        hs = None if self._level else [c + o for o in self.plane]
+        for amp, k, phase, on_y, cs, sn in self.sines:
+            arg = k * (y if on_y else x) + phase
+            s0 = amp * math.sin(arg)
+            c0 = amp * math.cos(arg)
+            if hs is None:
+                hs = [c + s0 * cj + c0 * sj for cj, sj in zip(cs, sn)]
+            else:
+                hs = [h + s0 * cj + c0 * sj for h, cj, sj in zip(hs, cs, sn)]
+        if hs is None:
+            hs = [c] * len(self.dx)
+        for group in (varying, self.points):
+            if group:
+                for z in group:
+                    hs = [h + z(x + dx, y + dy) for h, dx, dy in zip(hs, self.dx, self.dy)]
+        return c, hs
 
 
 @dataclass(frozen=True)
@@ -444,8 +541,8 @@ class DistanceSensor(SensorBase):
 
         d_seen = N / Σ_i c_i,   c_i = 1 / max(d_i, D_MIN) if d_i <= field_range else 0
 
-    over the N = ``footprint_points`` (default 16) points of :func:`footprint_offsets` (the surface
-    is looked up there each read: the model's cost).
+    over the N = ``footprint_points`` (default 16) points of :func:`footprint_offsets` (the surface's
+    heights there each read, :class:`FootprintHeights`: the model's cost).
     Over a flat sheet ``d_seen = d``; with a fraction ``covered`` of the disc over the sheet and the
     rest over nothing ``d_seen = d / covered`` - half over a straight edge reads twice the distance,
     so the control lowers the head: it dives. No sheet at all: ``d_seen`` = inf, saturated to
@@ -493,9 +590,8 @@ class DistanceSensor(SensorBase):
                 raise ConfigError(f"{name}.surface", surface,
                                   "the Surface under the sensor (footprint_radius > 0 samples it)")
             self.offsets = footprint_offsets(self.footprint_radius, self.footprint_points // FOOTPRINT_PER_RING)
-            # Surface.height inlined: the features' z functions and the base, bound once
-            self._z_fns = tuple(f.z for f in surface.features)
-            self._base = surface.base
+            self.footprint_heights = FootprintHeights(surface, self.offsets)
+            self._sample = self.footprint_heights.sample
             self._footprint = self.footprint_distance
         self._set_bursts(bursts, name)
 
@@ -504,21 +600,27 @@ class DistanceSensor(SensorBase):
         sets :attr:`covered`."""
         if axis_z != axis_z:
             return axis_z
-        fns = self._z_fns
-        top = axis_z - self._base
         far = self.field_range
+        level, hs = self._sample(x, y)
+        if hs is None:                    # one height under the whole footprint
+            d = axis_z - level
+            if d <= far:
+                self.covered = 1.0
+                return d if d > D_MIN else D_MIN
+            self.covered = 0.0
+            return math.inf
+        npts = len(hs)
+        lo = axis_z - max(hs)
+        if lo > D_MIN and axis_z - min(hs) <= far:      # all in reach, none too close: the usual case
+            self.covered = 1.0
+            return npts / sum([1.0 / (axis_z - h) for h in hs])
         n = 0
         c = 0.0
-        for dx, dy in self.offsets:
-            px = x + dx
-            py = y + dy
-            d = top
-            for f in fns:
-                d -= f(px, py)
+        for h in hs:
+            d = axis_z - h
             if d <= far:
                 n += 1
                 c += 1.0 / d if d > D_MIN else 1.0 / D_MIN
-        npts = len(self.offsets)
         self.covered = n / npts
         return npts / c if n else math.inf
 
@@ -606,17 +708,16 @@ class ArcVoltageSensor(DistanceSensor):
             return d0
         if axis_z != axis_z:
             return axis_z
-        fns = self._z_fns
-        top = axis_z - self._base
         far = self.field_range
+        level, hs = self._sample(x, y)
+        if hs is None:                    # one height under the whole footprint
+            d = axis_z - level
+            self.covered = 1.0 if d <= far else 0.0
+            return d if d <= far else d0
         n = 0
         s = 0.0
-        for dx, dy in self.offsets:
-            px = x + dx
-            py = y + dy
-            d = top
-            for f in fns:
-                d -= f(px, py)
+        for h in hs:
+            d = axis_z - h
             if d <= far:
                 n += 1
                 s += d

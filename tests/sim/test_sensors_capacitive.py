@@ -182,3 +182,49 @@ def test_bursts_come_before_the_faults_and_the_dead_time():
     assert any(v != 2.0 for v in a[:400])
     assert d[3:403] == a[:400]                                    # the bursts, 3 cycles late
     assert set(d[403:]) == {a[399]}                               # frozen from cycle 400 on
+
+
+# --- the footprint's heights: shortcuts give the look-ups' values --------------------------------
+def test_footprint_heights_equal_one_look_up_per_point_and_feature():
+    from distctrl.sim.sensors import FootprintHeights
+    from distctrl.sim.surface import Flat, HeightMap, Ramp, Sine, TiltedPlane
+    srf = Surface(20.0, [Flat(), Sine(0.3, 40.0, phase=0.7), Sine(0.1, 7.0, axis="Y"),
+                         Step(at=50.0, height=0.5), Step(at=60.0, height=-3.0, width=4.0, ramp_length=1.0),
+                         Step(at=10.0, height=1.0, axis="Y", width=2.0), Ramp(70.0, 75.0, 2.0),
+                         TiltedPlane(0.01, -0.02, 5.0, 3.0),
+                         HeightMap([0.0, 50.0, 100.0], [0.0, 30.0], [[0.0, 0.2, 0.0], [0.1, 0.0, 0.3]])])
+    for points in (8, 16, 32):
+        offs = footprint_offsets(2.5, points // 8)
+        fh = FootprintHeights(srf, offs)
+        for x in np.linspace(40.0, 80.0, 161):
+            for y in (0.0, 8.5, 9.9, 11.0, 12.3):
+                got = fh.heights(x, y)
+                want = [srf.height(x + dx, y + dy) for dx, dy in offs]
+                assert np.max(np.abs(np.subtract(got, want))) < 1e-12, (x, y)
+
+
+def test_footprint_heights_look_a_step_up_once_away_from_its_edges():
+    from distctrl.sim.sensors import FootprintHeights
+    calls = []
+
+    class Counted(Step):
+        def z(self, x, y):
+            calls.append(x)
+            return super().z(x, y)
+
+    srf = Surface(0.0, [Step(at=100.0, height=1.0)])
+    srf.features[0].__class__ = Counted                           # a subclass: not a Step, looked up per point
+    fh = FootprintHeights(srf, footprint_offsets(3.0))
+    fh.heights(50.0, 0.0)
+    assert len(calls) == 16
+    step = Step(at=100.0, height=1.0)
+    fh = FootprintHeights(Surface(0.0, [step]), footprint_offsets(3.0))
+    assert fh.edged and not fh.points
+    calls.clear()
+    step.z = lambda x, y: calls.append(x) or Step.z(step, x, y)   # count the step's own look-ups
+    fh = FootprintHeights(Surface(0.0, [step]), footprint_offsets(3.0))
+    fh.heights(50.0, 0.0)
+    assert calls == [50.0]                                        # far from the edge: once, at the centre
+    calls.clear()
+    fh.heights(98.0, 0.0)
+    assert len(calls) == 16                                       # the edge within reach: every point
