@@ -82,6 +82,9 @@ class CncObjectDevice:
     def __init__(self, machine, runtime=None):
         self.machine = machine
         self.runtime = runtime              # the served machine's run/stop switch (None: always RUN)
+        #: (index group, index offset) -> (object, axis context) of the axis objects found so far: the
+        #: contexts are fixed, so a client's repeated reads skip the search (bounded by objects x axes)
+        self._found: dict[tuple[int, int], tuple] = {}
         self.contexts = {i + 1: AxisObjectContext(i + 1, n, machine.controllers[n], machine.outputs[n],
                                                   machine.scenario.axes[n].resolution or 1e-4)
                          for i, n in enumerate(machine.axis_names)}
@@ -94,11 +97,15 @@ class CncObjectDevice:
             if found is None:
                 raise AdsError(ADSERR_DEVICE_INVALIDOFFSET, f"index offset 0x{index_offset:X}")
             return found
+        found = self._found.get((index_group, index_offset))
+        if found is not None:
+            return found
         if index_group not in INDEX_GROUPS:          # 0x120300 and the TF5200 aliases' 0x20300
             raise AdsError(ADSERR_DEVICE_INVALIDGRP, f"index group 0x{index_group:X}")
         found = find_object(index_group, index_offset, self.contexts)
         if found is None:
             raise AdsError(ADSERR_DEVICE_INVALIDOFFSET, f"index offset 0x{index_offset:X}")
+        self._found[(index_group, index_offset)] = found
         return found
 
     def read(self, index_group: int, index_offset: int, length: int) -> bytes:
