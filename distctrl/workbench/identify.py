@@ -30,8 +30,6 @@ what to record.
 """
 from __future__ import annotations
 
-import csv
-import io
 import math
 import os
 import warnings
@@ -42,6 +40,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import DistCtrlError
+from ..sim.physics import limit_velocity
 from .filters import _TIME_UNITS, _VALUE_UNITS, _pick_column, _read_plain_csv, _unit_factor
 
 __all__ = ["IdentifyError", "IdentifyWarning", "Signals", "Identification", "load_signals", "identify",
@@ -566,16 +565,7 @@ def simulate_drive(S: np.ndarray, x0: float, T: float, kv: float, dead_time: flo
     v = 0.0
     for k in range(len(c)):
         out[k] = x
-        vn = kv_d * (c[k] - x)
-        if vn > vm:
-            vn = vm
-        elif vn < -vm:
-            vn = -vm
-        if vn > v + dvm:
-            vn = v + dvm
-        elif vn < v - dvm:
-            vn = v - dvm
-        v = vn
+        v = limit_velocity(kv_d * (c[k] - x), vm, v, dvm)     # the simulator's drive limits
         x += v * T
     return np.array(out)
 
