@@ -73,13 +73,12 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     from .identify import IdentifyError, format_summary, identify, load_signals, result_json, write_report, \
         write_scenario
 
-    caught: list = []
     try:
         if surface is not None and calibrated_at is not None:
             raise IdentifyError("--surface and --calibrated-at: give one of them")
         if template is not None and out_dir is None:
             raise IdentifyError("--template needs --out DIR (where the scenario is written)")
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True):   # the warnings are in res.warnings, printed below
             warnings.simplefilter("always")
             sigs = [load_signals(p, time=time_col, command=command_col, actual=actual_col, sensor=sensor_col,
                                  time_unit=time_unit, value_unit=value_unit, sensor_unit=sensor_unit,
