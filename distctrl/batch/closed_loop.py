@@ -177,28 +177,29 @@ def _noise(sensor_cfg, n: int) -> np.ndarray:
     return sensor_cfg.noise_std * normal
 
 
+_SENSORS = "it runs kind = 'encoder' (the probe) and kind = 'distance' (the point sensor), mode 'axis'"
+
+
 def _check_sensor(sensor) -> None:
     """The sensors the kernels model: the encoder probe and the point distance sensor, on the axis."""
     if sensor is None:
-        raise ClosedLoopError("the closed-loop kernel needs a [sensor] on the distance-controlled axis (kind = "
-                              "'encoder' or 'distance', mode 'axis')")
+        raise ClosedLoopError(f"the closed-loop kernel needs a [sensor] on the distance-controlled axis: {_SENSORS}")
     if sensor.orthogonal:
         raise ClosedLoopError(f"[sensor] mode = '{sensor.mode}' (3D distance control) is not modelled by the "
-                              "closed-loop kernel (mode 'axis' only)")
+                              f"closed-loop kernel: {_SENSORS}")
     if sensor.kind == "arc_voltage":
         raise ClosedLoopError("[sensor] kind = 'arc_voltage': the plasma arc voltage and its PLC linearisation "
-                              "are not modelled by the closed-loop kernel (kind 'encoder' or 'distance')")
+                              f"are not modelled by the closed-loop kernel: {_SENSORS}")
     if sensor.kind not in ("encoder", "distance"):
-        raise ClosedLoopError(f"[sensor] kind = '{sensor.kind}' is not modelled by the closed-loop kernel "
-                              "(kind 'encoder' or 'distance')")
+        raise ClosedLoopError(f"[sensor] kind = '{sensor.kind}' is not modelled by the closed-loop kernel: {_SENSORS}")
     if sensor.kind == "distance":
         if sensor.footprint_radius > 0.0:
             raise ClosedLoopError(f"[sensor] footprint_radius = {sensor.footprint_radius:g} mm: the capacitive "
-                                  "edge effect is not modelled by the closed-loop kernel (the point sensor "
-                                  "only: footprint_radius = 0)")
+                                  f"edge effect is not modelled by the closed-loop kernel: {_SENSORS}, "
+                                  "footprint_radius = 0")
         if sensor.bursts is not None:
             raise ClosedLoopError("[sensor] bursts: plume/spark noise bursts are not modelled by the closed-loop "
-                                  "kernel")
+                                  f"kernel: {_SENSORS}, without bursts")
 
 
 def _variable_source(cmd, kc: int, sensor_var: str, k_first):
