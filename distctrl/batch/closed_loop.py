@@ -12,7 +12,11 @@ Per cycle ``k`` (the order of the machine and of the cycle core)::
 
     sensor   x = -(z_true - surface[k]) + noise[k]        (EncoderProbe: clamp to the stroke,
              y = floor((x - ref_offset) * incr_per_mm + 0.5), dead time ring)
+             or the point distance sensor: x = z_true - surface[k] + noise[k],
+             y = physics.distance_reading(x, ...)          (DistanceSensor: range, characteristic,
+                                                            resolution; dead time ring)
     core     s = law.encoder_reading(y, ...)               (delayed one cycle without optimized scheduling)
+             or s = -y (SENSOR_SOURCE=VARIABLE: the variable holds the distance in mm)
              monitoring 70329 / 70330 / 70576 (from the select on)
              feedback per mode, law.filter_seed (first active cycle), law.filter_step,
              law.pid_step, law.adaptive_acceleration (and _braking_), law.slope_limit, law.bound_velocity,
@@ -20,21 +24,25 @@ Per cycle ``k`` (the order of the machine and of the cycle core)::
     drive    c = p + o  -> bus delay ring, kv loop, feed-forward, v/a limits, quantisation;
              a resonant drive: physics.resonance_step moves the nozzle (what the probe sees next cycle)
 
-The law is *only* called (``law.*``, registered with numba by :mod:`distctrl.batch.kernel`); the
-sensor and drive arithmetic is written out here and mirrors :mod:`distctrl.sim.sensors` /
-:mod:`distctrl.sim.drive` operation for operation, so a batch of one equals
+The law is *only* called (``law.*``, registered with numba by :mod:`distctrl.batch.kernel`), and so
+is the plant's arithmetic (``physics.*``: the probe's and the distance sensor's conversion, the drive's
+limits, quantisation and resonance); the sequence of sensor and drive steps is written out here and
+mirrors :mod:`distctrl.sim.sensors` / :mod:`distctrl.sim.drive` operation for operation, so a batch of one equals
 :func:`distctrl.sim.runner.run` bit for bit (tests/batch/test_closed_loop.py).
 
 Restrictions (checked by :func:`prepare`, a :class:`ClosedLoopError` says which one):
 
 * the axis variant only: no 3D distance control, no head kinematics (no CA axes set), sensor
-  ``kind = "encoder"`` with ``mode = "axis"``;
+  ``kind = "encoder"`` (the probe) or ``kind = "distance"`` (the point distance sensor: no
+  ``footprint_radius``, no ``bursts``; the program switches to it with ``SENSOR_SOURCE=VARIABLE``,
+  ``SENSOR_VAR`` naming its variable, with or before the select), ``mode = "axis"``; no
+  ``kind = "arc_voltage"``;
 * no scenario ``events`` and no sensor ``faults``;
 * the program's DIST_CTRL commands address the sensor axis only; before the select only value-
   setting commands (``SET_POS=``/``SET_DIST=`` without an action), then one ``ON`` (SET_POS or
   CONST_DIST) from the NC; no ``WAIT`` (its end depends on the control), no tuning words in the
-  blocks (``KP=``, ``FILTER_TYPE=`` ... would override the parameter set), no ``SENSOR_SOURCE``,
-  ``REF``, ``DRYRUN``, ``CHECK_POS``;
+  blocks (``KP=``, ``FILTER_TYPE=`` ... would override the parameter set), no ``SENSOR_SOURCE``
+  (but ``VARIABLE`` for the distance sensor), ``REF``, ``DRYRUN``, ``CHECK_POS``;
 * the run ends before the next command reaches the axis (``OFF``, program end, ...): with
   ``cycles=None`` the replay ends before the cycle it arrives in (or at ``duration``); a larger explicit
   ``cycles`` is refused;
@@ -47,8 +55,8 @@ follow. Its outputs are NaN from the error cycle on and ``errors[i] = (cycle, er
 Per parameter set everything the law uses may differ (gains, limits, filter, adaptive
 acceleration, optimized scheduling, both encoders, bounds, monitoring limits, the encoder
 conversion; the probe is built per set with that set's resolution, sign and reference offset, as
-the machine does). The plant (drives, including a drive's mechanical resonance, probe stroke, noise,
-dead time) is the scenario's.
+the machine does). The plant (drives, including a drive's mechanical resonance, the sensor: probe
+stroke or distance sensor range, characteristic and resolution, noise, dead time) is the scenario's.
 """
 from __future__ import annotations
 

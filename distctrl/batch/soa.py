@@ -33,7 +33,8 @@ The traces leave through an 8-cycle buffer per lane, a 64-byte line of a row at 
 non-temporal stores (:mod:`distctrl.batch.stream`; ordinary stores when the output rows are not
 contiguous).
 
-Restrictions, as for ``closed_loop`` (see there): the axis variant, probe sensor, no events. A set
+Restrictions, as for ``closed_loop`` (see there): the axis variant, the probe or the point distance
+sensor, no events. A set
 that raises a controller error stops at that cycle: its outputs are NaN from the error cycle on,
 and ``out_error`` holds (cycle, id). Its lane keeps computing; the NaN are written over its row
 from the error cycle on when the block is done.
