@@ -122,19 +122,31 @@ class CReference:
 
 # ----------------------------------------------------------------------------- scenario and sets
 
-def scenario(seconds: float = 12.0, resonant: bool = False):
+#: the point distance sensor in place of the probe (issue 15: what distctrl identify writes), with a
+#: characteristic (reported vs true mm) and the probe's noise and dead time
+DISTANCE_SENSOR = ('[sensor]\naxis = "Z"\nkind = "distance"\nvariable = "SENSOR"\nrange_max = 10.0\n'
+                   'characteristic = [[0.0, -0.01], [0.5, 0.51], [1.0, 1.03], [2.0, 2.09], [4.0, 4.2], '
+                   '[7.6, 7.97], [10.0, 10.55]]\n')
+
+
+def scenario(seconds: float = 12.0, resonant: bool = False, distance: bool = False):
     """const_dist_sheet.toml (CONST_DIST 1 mm, both encoders, probe with 2 µm noise and a 1-cycle
     dead time, sine + step + obstacle surface) with a straight program long enough for ``seconds``;
-    ``resonant``: the Z drive with a 40 Hz, zeta 0.05 mechanical resonance (issue 15)."""
+    ``resonant``: the Z drive with a 40 Hz, zeta 0.05 mechanical resonance (issue 15); ``distance``:
+    the point distance sensor with a characteristic (:data:`DISTANCE_SENSOR`, SENSOR_SOURCE=VARIABLE)."""
     from distctrl.sim.scenario import scenario_from_text
 
     length = 100.0 * seconds                      # F6000 = 100 mm/s
     text = SCENARIO.read_text()
     if resonant:
         text = text.replace("a_max = 20000.0\n", "a_max = 20000.0\nresonance_hz = 40.0\ndamping = 0.05\n", 1)
+    source = ""
+    if distance:
+        text = text.replace('[sensor]\naxis = "Z"\nkind = "encoder"\n', DISTANCE_SENSOR, 1)
+        source = " SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR"
     text = text.replace(
         'program = "const_dist_sheet.nc"',
-        'program_text = """\nN10 G90 G0 X0 Y0 Z31\nN20 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\n'
+        'program_text = """\nN10 G90 G0 X0 Y0 Z31\nN20 Z[DIST_CTRL ON CONST_DIST SET_DIST=1' + source + ']\n'
         f'N30 G1 X{length:g} F6000\nN40 Z[DIST_CTRL OFF]\nN60 M30\n"""').replace(
         "duration = 10.0", f"duration = {seconds + 5:g}")
     return scenario_from_text(text, base_dir=SCENARIO.parent, source="bench")
@@ -247,8 +259,16 @@ def main(argv=None) -> dict:
     CL.run_batch(res_inputs, packed[:1], cycles=10)
     t_r1 = best_of(lambda: CL.run_batch(res_inputs, packed, threads=1, out=out), repeats)
     t_n1b = best_of(lambda: CL.run_batch(inputs, packed, threads=1, out=out), repeats)
+    # the point distance sensor with a characteristic (issue 15), on the rigid and the resonant drive
+    dist_inputs = CL.prepare(scenario(n_cycles / 1000.0 + 2.0, distance=True), cycles=n_cycles)
+    dres_inputs = CL.prepare(scenario(n_cycles / 1000.0 + 2.0, resonant=True, distance=True), cycles=n_cycles)
+    assert dist_inputs.plant[CL.PL_SENSOR] == CL.SENSOR_DISTANCE and dres_inputs.plant[CL.PL_RESONANT] == 1.0
+    CL.run_batch(dist_inputs, packed[:1], cycles=10)
+    t_d1 = best_of(lambda: CL.run_batch(dist_inputs, packed, threads=1, out=out), repeats)
+    t_dr1 = best_of(lambda: CL.run_batch(dres_inputs, packed, threads=1, out=out), repeats)
     del out
     r_r1, r_n1b = work / t_r1, work / t_n1b
+    r_d1, r_dr1 = work / t_d1, work / t_dr1
     r_n1, r_c1, r_n2, r_c2 = work / t_n1, work / t_c1, work / t_n2, work / t_c2
     r_s1, r_a1 = work / t_s1, work / t_a1
     ratio = t_n1 / t_c1
@@ -300,6 +320,8 @@ def main(argv=None) -> dict:
         "batch_dask_scaling_1_to_2": t_dask[1] / t_dask[2],
         "batch_resonant_1t_set_cycles_per_s": r_r1, "batch_rigid_beside_resonant_1t_set_cycles_per_s": r_n1b,
         "batch_resonance_cost": r_n1b / r_r1 - 1.0,
+        "batch_distance_sensor_1t_set_cycles_per_s": r_d1,
+        "batch_distance_sensor_resonant_1t_set_cycles_per_s": r_dr1,
     }
     rows = [
         ("numba == C reference: max abs offset difference", d_off, "mm", "<= 1e-12, same errors",
@@ -326,6 +348,9 @@ def main(argv=None) -> dict:
          "PASS" if r_r1 >= TARGET_RATE_RESONANT else "FAIL"),
         ("the same rigid, measured beside it, 1 thread", r_n1b / 1e6, "M set-cycles/s", "", "-"),
         ("cost of the resonance (rigid rate / resonant rate - 1)", 100.0 * (r_n1b / r_r1 - 1.0), "%", "", "-"),
+        ("numba kernel, distance sensor with a characteristic (rigid drive), 1 thread", r_d1 / 1e6,
+         "M set-cycles/s", "", "-"),
+        ("the same on the drive with the 40 Hz resonance, 1 thread", r_dr1 / 1e6, "M set-cycles/s", "", "-"),
     ]
     for a, b, c, d, e in rows:
         print(f"{a:<80} {b:>12,.4g} {c:<15} {d:<22} {e}")

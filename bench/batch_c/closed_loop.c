@@ -11,6 +11,8 @@
  *   - filter: MOVING_AVERAGE only (law.filter_seed / law._push / law.filter_step for that kind:
  *     ring buffer, running sum, re-sum once per window). A set with any other filter kind is not
  *     run: out_error = (-2, kind), outputs NaN.
+ *   - sensor: the encoder probe only. A plant with the distance sensor (PL_SENSOR != 0, the kernel's
+ *     SENSOR_DISTANCE) is not run: out_error = (-3, PL_SENSOR), outputs NaN.
  *   - modes: SET_POS, CONST_DIST with one encoder (feedback = distance) and CONST_DIST with both
  *     encoders (feedback = d + c - a) - the three feedback variants of the kernel.
  *   - everything else of the kernel: probe noise / stroke clamp / quantisation / dead time,
@@ -53,7 +55,8 @@ enum { Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR
 
 enum { PL_Z0, PL_ACT0, PL_KV, PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF,
        PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON, PL_MODE, PL_SET,
-       PL_RESONANT, PL_P11, PL_P12, PL_P21, PL_P22, PL_LEN };
+       PL_RESONANT, PL_P11, PL_P12, PL_P21, PL_P22,
+       PL_SENSOR, PL_K_FIRST, PL_DRES, PL_NCHAR, PL_LEN };
 
 #define MODE_CONST_DIST 1
 /* distctrl.errors.ErrorId values, passed in by the caller (closed_loop_batch's err_ids) */
@@ -235,6 +238,12 @@ static void closed_loop_one(const double *fc, const double *prm, const double *p
     if (kind != MOVING_AVERAGE || nf < 1 || nf > MAX_N) {
         out_error[0] = -2;
         out_error[1] = kind;
+        fill_nan(out_offset, out_distance, 0, n);
+        return;
+    }
+    if (plant[PL_SENSOR] != 0.0) {
+        out_error[0] = -3;
+        out_error[1] = (int64_t)plant[PL_SENSOR];
         fill_nan(out_offset, out_distance, 0, n);
         return;
     }

@@ -12,7 +12,11 @@ Per cycle ``k`` (the order of the machine and of the cycle core)::
 
     sensor   x = -(z_true - surface[k]) + noise[k]        (EncoderProbe: clamp to the stroke,
              y = floor((x - ref_offset) * incr_per_mm + 0.5), dead time ring)
+             or the point distance sensor: x = z_true - surface[k] + noise[k],
+             y = physics.distance_reading(x, ...)          (DistanceSensor: range, characteristic,
+                                                            resolution; dead time ring)
     core     s = law.encoder_reading(y, ...)               (delayed one cycle without optimized scheduling)
+             or s = -y (SENSOR_SOURCE=VARIABLE: the variable holds the distance in mm)
              monitoring 70329 / 70330 / 70576 (from the select on)
              feedback per mode, law.filter_seed (first active cycle), law.filter_step,
              law.pid_step, law.adaptive_acceleration (and _braking_), law.slope_limit, law.bound_velocity,
@@ -20,21 +24,25 @@ Per cycle ``k`` (the order of the machine and of the cycle core)::
     drive    c = p + o  -> bus delay ring, kv loop, feed-forward, v/a limits, quantisation;
              a resonant drive: physics.resonance_step moves the nozzle (what the probe sees next cycle)
 
-The law is *only* called (``law.*``, registered with numba by :mod:`distctrl.batch.kernel`); the
-sensor and drive arithmetic is written out here and mirrors :mod:`distctrl.sim.sensors` /
-:mod:`distctrl.sim.drive` operation for operation, so a batch of one equals
+The law is *only* called (``law.*``, registered with numba by :mod:`distctrl.batch.kernel`), and so
+is the plant's arithmetic (``physics.*``: the probe's and the distance sensor's conversion, the drive's
+limits, quantisation and resonance); the sequence of sensor and drive steps is written out here and
+mirrors :mod:`distctrl.sim.sensors` / :mod:`distctrl.sim.drive` operation for operation, so a batch of one equals
 :func:`distctrl.sim.runner.run` bit for bit (tests/batch/test_closed_loop.py).
 
 Restrictions (checked by :func:`prepare`, a :class:`ClosedLoopError` says which one):
 
 * the axis variant only: no 3D distance control, no head kinematics (no CA axes set), sensor
-  ``kind = "encoder"`` with ``mode = "axis"``;
+  ``kind = "encoder"`` (the probe) or ``kind = "distance"`` (the point distance sensor: no
+  ``footprint_radius``, no ``bursts``; the program switches to it with ``SENSOR_SOURCE=VARIABLE``,
+  ``SENSOR_VAR`` naming its variable, with or before the select), ``mode = "axis"``; no
+  ``kind = "arc_voltage"``;
 * no scenario ``events`` and no sensor ``faults``;
 * the program's DIST_CTRL commands address the sensor axis only; before the select only value-
   setting commands (``SET_POS=``/``SET_DIST=`` without an action), then one ``ON`` (SET_POS or
   CONST_DIST) from the NC; no ``WAIT`` (its end depends on the control), no tuning words in the
-  blocks (``KP=``, ``FILTER_TYPE=`` ... would override the parameter set), no ``SENSOR_SOURCE``,
-  ``REF``, ``DRYRUN``, ``CHECK_POS``;
+  blocks (``KP=``, ``FILTER_TYPE=`` ... would override the parameter set), no ``SENSOR_SOURCE``
+  (but ``VARIABLE`` for the distance sensor), ``REF``, ``DRYRUN``, ``CHECK_POS``;
 * the run ends before the next command reaches the axis (``OFF``, program end, ...): with
   ``cycles=None`` the replay ends before the cycle it arrives in (or at ``duration``); a larger explicit
   ``cycles`` is refused;
@@ -47,8 +55,8 @@ follow. Its outputs are NaN from the error cycle on and ``errors[i] = (cycle, er
 Per parameter set everything the law uses may differ (gains, limits, filter, adaptive
 acceleration, optimized scheduling, both encoders, bounds, monitoring limits, the encoder
 conversion; the probe is built per set with that set's resolution, sign and reference offset, as
-the machine does). The plant (drives, including a drive's mechanical resonance, probe stroke, noise,
-dead time) is the scenario's.
+the machine does). The plant (drives, including a drive's mechanical resonance, the sensor: probe
+stroke or distance sensor range, characteristic and resolution, noise, dead time) is the scenario's.
 """
 from __future__ import annotations
 
@@ -100,7 +108,14 @@ PL_Z0, PL_ACT0, PL_KV, PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF = range(8)
 PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON, PL_MODE, PL_SET = range(8, 15)
 # the drive's mechanical resonance: 1.0 when resonant, then Phi = expm(A T) (physics.resonance_step)
 PL_RESONANT, PL_P11, PL_P12, PL_P21, PL_P22 = range(15, 20)
-PL_LEN = 20
+# the sensor: SENSOR_PROBE (encoder 2, increments) or SENSOR_DISTANCE (the point distance sensor, a V.E.
+# variable in mm: range [0, range max] = PL_RMIN, PL_RMAX, the resolution PL_DRES, PL_NCHAR points of
+# its characteristic after the vector: plant[PL_LEN:PL_LEN + n] true mm, plant[PL_LEN + n:PL_LEN + 2n]
+# reported mm); PL_K_FIRST: the cycle with no earlier reading (0; the distance sensor: the cycle the
+# control switches to SENSOR_SOURCE=VARIABLE, whose reading it takes at once)
+PL_SENSOR, PL_K_FIRST, PL_DRES, PL_NCHAR = range(20, 24)
+PL_LEN = 24
+SENSOR_PROBE, SENSOR_DISTANCE = 0, 1
 
 MODE_SET_POS, MODE_CONST_DIST = 0, 1
 _E_JUMP = int(ErrorId.SENSOR_JUMP)
@@ -170,6 +185,48 @@ def _noise(sensor_cfg, n: int) -> np.ndarray:
     return sensor_cfg.noise_std * normal
 
 
+_SENSORS = "it runs kind = 'encoder' (the probe) and kind = 'distance' (the point sensor), mode 'axis'"
+
+
+def _check_sensor(sensor) -> None:
+    """The sensors the kernels model: the encoder probe and the point distance sensor, on the axis."""
+    if sensor is None:
+        raise ClosedLoopError(f"the closed-loop kernel needs a [sensor] on the distance-controlled axis: {_SENSORS}")
+    if sensor.orthogonal:
+        raise ClosedLoopError(f"[sensor] mode = '{sensor.mode}' (3D distance control) is not modelled by the "
+                              f"closed-loop kernel: {_SENSORS}")
+    if sensor.kind == "arc_voltage":
+        raise ClosedLoopError("[sensor] kind = 'arc_voltage': the plasma arc voltage and its PLC linearisation "
+                              f"are not modelled by the closed-loop kernel: {_SENSORS}")
+    if sensor.kind not in ("encoder", "distance"):
+        raise ClosedLoopError(f"[sensor] kind = '{sensor.kind}' is not modelled by the closed-loop kernel: {_SENSORS}")
+    if sensor.kind == "distance":
+        if sensor.footprint_radius > 0.0:
+            raise ClosedLoopError(f"[sensor] footprint_radius = {sensor.footprint_radius:g} mm: the capacitive "
+                                  f"edge effect is not modelled by the closed-loop kernel: {_SENSORS}, "
+                                  "footprint_radius = 0")
+        if sensor.bursts is not None:
+            raise ClosedLoopError("[sensor] bursts: plume/spark noise bursts are not modelled by the closed-loop "
+                                  f"kernel: {_SENSORS}, without bursts")
+
+
+def _variable_source(cmd, kc: int, sensor_var: str, k_first):
+    """The distance sensor: the cycle the control switches to SENSOR_SOURCE=VARIABLE (``k_first``
+    so far, or ``kc`` for this command's switch); other sources and variables are refused."""
+    if cmd.sensor_var is not None:
+        var = cmd.sensor_var if cmd.sensor_var.startswith("V.E.") else "V.E." + cmd.sensor_var
+        if var != sensor_var:
+            raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: SENSOR_VAR={cmd.sensor_var}, but the distance "
+                                  f"sensor writes {sensor_var}")
+    if cmd.sensor_source is not None:
+        if cmd.sensor_source == SensorSource.DEFAULT or SensorSource(cmd.sensor_source) != SensorSource.VARIABLE:
+            raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: SENSOR_SOURCE other than VARIABLE is not replayed "
+                                  f"(the distance sensor writes {sensor_var})")
+        if k_first is None:
+            return kc
+    return k_first
+
+
 def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     """Record the Z-independent inputs of ``scenario`` (a Scenario or a TOML path) for the kernel.
 
@@ -187,9 +244,9 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
         scenario = load_scenario(scenario)
     sc = scenario
     sensor = sc.sensor
-    if sensor is None or sensor.kind != "encoder" or sensor.orthogonal:
-        raise ClosedLoopError("the closed-loop kernel needs an encoder probe on the axis ([sensor] kind = "
-                              "'encoder', mode 'axis')")
+    _check_sensor(sensor)
+    distance = sensor.kind == "distance"
+    sensor_var = f"V.E.{sensor.variable}" if distance else None
     if sensor.faults:
         raise ClosedLoopError("sensor faults are not modelled by the closed-loop kernel ([sensor] faults)")
     if sc.events:
@@ -236,6 +293,7 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     k_on = None
     stop = max_cycles
     programmed_set_pos = programmed_set_dist = None
+    k_first = None if distance else 0        # the distance sensor: the cycle of SENSOR_SOURCE=VARIABLE
     mode = MODE_SET_POS
     set_value = 0.0
     n_seen = 0
@@ -258,11 +316,14 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
                 break
             if not isinstance(cmd, Command):
                 raise ClosedLoopError(f"cycle {kc}: {type(cmd).__name__} is not replayed (only NC commands)")
-            bad = [f for f in _TUNING_FIELDS if getattr(cmd, f) is not None]
+            bad = [f for f in _TUNING_FIELDS if getattr(cmd, f) is not None
+                   and not (distance and f in ("sensor_source", "sensor_var"))]
             if bad:
                 words = ", ".join(b.upper() for b in bad)
                 raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: {words} in the block "
                                       "is not replayed (tuning belongs to the parameter sets)")
+            if distance:
+                k_first = _variable_source(cmd, kc, sensor_var, k_first)
             if cmd.set_pos is not None:
                 programmed_set_pos = float(cmd.set_pos)
             if cmd.set_dist is not None:
@@ -274,6 +335,11 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
                                       "(the first action must be ON)")
             if cmd.source != CommandSource.NC:
                 raise ClosedLoopError("only an ON from the NC program is replayed")
+            if k_first is None:
+                raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: the distance sensor writes {sensor_var}, but the "
+                                      f"control reads the second encoder: program {axis}[DIST_CTRL "
+                                      f"SENSOR_SOURCE=VARIABLE SENSOR_VAR={sensor_var}] with or before the select "
+                                      "(FCT-M3 §6, PROG DIST_CTRL)")
             if cmd.const_dist:
                 if programmed_set_dist is None:
                     raise ClosedLoopError(f"DIST_CTRL line {cmd.line}: ON CONST_DIST without SET_DIST")
@@ -302,7 +368,8 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
                   bus_delay_cycles=ax.bus_delay_cycles, resolution=ax.resolution,
                   initial_position=ax.start, velocity_feedforward=ax.feedforward,
                   resonance_hz=ax.resonance_hz, damping=ax.damping)
-    plant = np.zeros(PL_LEN)
+    chars = sensor.characteristic if distance and sensor.characteristic else ()
+    plant = np.zeros(PL_LEN + 2 * len(chars))
     plant[PL_Z0] = drive.position
     plant[PL_ACT0] = drive.actual
     plant[PL_KV] = drive.kv
@@ -311,8 +378,15 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     plant[PL_BUS] = drive.bus_delay_cycles
     plant[PL_RES] = drive.resolution
     plant[PL_FF] = drive.velocity_feedforward
-    plant[PL_RMIN] = sensor.range_min
+    plant[PL_RMIN] = 0.0 if distance else sensor.range_min
     plant[PL_RMAX] = sensor.range_max
+    plant[PL_SENSOR] = SENSOR_DISTANCE if distance else SENSOR_PROBE
+    plant[PL_K_FIRST] = k_first
+    plant[PL_DRES] = sensor.resolution if distance else 0.0
+    plant[PL_NCHAR] = len(chars)
+    for j, (true_mm, reported_mm) in enumerate(chars):
+        plant[PL_LEN + j] = true_mm
+        plant[PL_LEN + len(chars) + j] = reported_mm
     plant[PL_DELAY] = sensor.delay_cycles
     plant[PL_NOISE] = 1.0 if sensor.noise_std else 0.0
     plant[PL_K_ON] = k_on
@@ -346,7 +420,7 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
             raise ClosedLoopError(f"param_sets[{i}]: distance control not enabled (P-AXIS-00328)")
         ctrl = AxisDistanceController(p, T)            # validates, designs the filter
         c = ctrl.law_constants()
-        probe = inputs.scenario.sensor.make_sensor(T, p)
+        probe = inputs.scenario.sensor.make_sensor(T, p) if inputs.plant[PL_SENSOR] == SENSOR_PROBE else None
         fc = np.asarray(c["fc"], dtype=np.float64)
         q = np.zeros(Q_LEN)
         _kernel.put_law_constants(q, c)
@@ -369,8 +443,9 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
         q[Q_MODULO] = 1.0 if ctrl._modulo else 0.0
         q[Q_MIN_POS] = p.min_pos
         q[Q_MAX_POS] = p.max_pos
-        q[Q_PROBE_IPM] = probe.increments_per_mm
-        q[Q_PROBE_REF] = probe.ref_offset
+        if probe is not None:                          # (the distance sensor delivers mm)
+            q[Q_PROBE_IPM] = probe.increments_per_mm
+            q[Q_PROBE_REF] = probe.ref_offset
         rows[i, :law.FC_LEN] = fc
         rows[i, law.FC_LEN:] = q
     return rows
@@ -386,6 +461,16 @@ def plant_constants(plant):
     return (plant[PL_KV], plant[PL_VMAX], plant[PL_DV], int(plant[PL_BUS]), plant[PL_RES], plant[PL_FF],
             plant[PL_RMIN], plant[PL_RMAX], int(plant[PL_DELAY]), plant[PL_NOISE] != 0.0, int(plant[PL_K_ON]),
             int(plant[PL_MODE]) == MODE_CONST_DIST, plant[PL_SET])
+
+
+@njit(nogil=True, error_model="numpy", inline="always")
+def sensor_constants(plant):
+    """The sensor from the ``PL_*`` vector: (distance sensor?, the cycle with no earlier reading,
+    the distance sensor's resolution, its characteristic's true and reported values (views of the
+    plant vector's tail; empty without one))."""
+    nchar = int(plant[PL_NCHAR])
+    return (int(plant[PL_SENSOR]) == SENSOR_DISTANCE, int(plant[PL_K_FIRST]), plant[PL_DRES],
+            plant[PL_LEN:PL_LEN + nchar], plant[PL_LEN + nchar:PL_LEN + 2 * nchar])
 
 
 @njit(nogil=True, error_model="numpy", inline="always")
@@ -445,6 +530,7 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
     kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
         plant_constants(plant)
     resonant, p11, p12, p21, p22 = resonance_constants(plant)
+    distance, k_first, dres, char_x, char_y = sensor_constants(plant)
     z_noz = z_pos                             # Drive.nozzle: what the probe sees
     defl = 0.0                                # Drive.deflection, deflection_rate
     defl_rate = 0.0
@@ -467,18 +553,23 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
     a_bound_state = a_floor
     s_delayed = 0.0
     last_s = 0.0
-    has_last_s = False
     s_wrapped = 0.0                                 # modulo encoder: last wrapped / continuous reading
     s_unwrapped = 0.0
     for k in range(n):
-        # ---- machine: the probe reads the true geometry (EncoderProbe.read)
+        # ---- machine: the sensor reads the true geometry (EncoderProbe.read, DistanceSensor.read)
         sz = surface[k]
         z = z_noz
         out_distance[k] = z - sz
-        x = -1.0 * (z - sz)
-        if has_noise:
-            x += noise[k]
-        y = physics.probe_increments(x, r_min, r_max, probe_ref, probe_ipm)
+        if distance:
+            x = 1.0 * (z - sz)
+            if has_noise:
+                x += noise[k]
+            y = physics.distance_reading(x, r_max, char_x, char_y, dres)
+        else:
+            x = -1.0 * (z - sz)
+            if has_noise:
+                x += noise[k]
+            y = physics.probe_increments(x, r_min, r_max, probe_ref, probe_ipm)
         if ndel > 0:
             if k == 0:
                 for j in range(ndel):
@@ -490,9 +581,16 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         # ---- cycle core (AxisDistanceController.update)
         pr = prog[k]
         act = z_act
-        s_now = law.encoder_reading(y, mm_per_incr, sign_rev, ref_off, modulo, min_pos, max_pos)
+        if distance:                                # SENSOR_SOURCE=VARIABLE: the variable holds d (mm)
+            s_now = -y + 0.0                        # (AxisDistanceController._read_sensor; no REF)
+            if modulo:
+                s_now = min_pos + (s_now - min_pos) % (max_pos - min_pos)
+        else:
+            s_now = law.encoder_reading(y, mm_per_incr, sign_rev, ref_off, modulo, min_pos, max_pos)
+        # k <= k_first: no earlier reading (the first cycle; the distance sensor: the cycle the control
+        # switches to the variable, which restarts the reading's history)
         if modulo:                                  # AxisDistanceController._unwrap
-            if k > 0:
+            if k > k_first:
                 s_unwrapped = law.modulo_unwrap(s_now, s_wrapped, s_unwrapped, min_pos, max_pos)
             else:
                 s_unwrapped = s_now
@@ -501,13 +599,13 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
         if optimized:
             s = s_now
         else:
-            s = s_now if k == 0 else s_delayed      # the very first cycle has no earlier reading
+            s = s_now if k <= k_first else s_delayed   # no earlier reading
             s_delayed = s_now
         running = k >= k_on
         err_id = 0
         if running:
             s_window = law.modulo_wrap(s, min_pos, max_pos) if modulo else s
-            if has_last_s and abs(s - last_s) > jump_limit:
+            if k > k_first and abs(s - last_s) > jump_limit:
                 err_id = _E_JUMP
             elif s_window > s_hi:
                 err_id = _E_RUN_MAX
@@ -521,7 +619,6 @@ def closed_loop(fc, prm, plant, prog, surface, noise, out_offset, out_distance, 
                 out_distance[j] = np.nan
             return
         last_s = s
-        has_last_s = True
         d = -s
         feedback = law.feedback_value(const_dist, both, d, act, pr + o)
         target_dev = 0.0

@@ -33,7 +33,8 @@ The traces leave through an 8-cycle buffer per lane, a 64-byte line of a row at 
 non-temporal stores (:mod:`distctrl.batch.stream`; ordinary stores when the output rows are not
 contiguous).
 
-Restrictions, as for ``closed_loop`` (see there): the axis variant, probe sensor, no events. A set
+Restrictions, as for ``closed_loop`` (see there): the axis variant, the probe or the point distance
+sensor, no events. A set
 that raises a controller error stops at that cycle: its outputs are NaN from the error cycle on,
 and ``out_error`` holds (cycle, id). Its lane keeps computing; the NaN are written over its row
 from the error cycle on when the block is done.
@@ -146,6 +147,7 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
         CL.plant_constants(plant)
     resonant, p11, p12, p21, p22 = CL.resonance_constants(plant)
+    distance, k_first, dres, char_x, char_y = CL.sensor_constants(plant)
     T = packed[lanes[0], _FC + Q_T]
     inv_T = 1.0 / T
     inv_res = 1.0 / res if res != 0.0 else 0.0
@@ -235,10 +237,15 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
 
         # ---- sensor, encoder reading, monitoring, feedback, the window sum (update() 1-4)
         if push:                                # every cycle after the seed: constant flags
-            n_err = _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, ndel > 0, False, True, True, const_dist)
-        else:
-            n_err = _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, ndel > 0 and not first, first, running,
-                                  push, const_dist)
+            if distance:
+                n_err = _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, ndel > 0, False, True, True,
+                                      const_dist, True, char_x, char_y, dres)
+            else:
+                n_err = _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, ndel > 0, False, True, True,
+                                      const_dist, False, char_x, char_y, dres)
+        else:                                   # k <= k_first: no earlier reading (the first cycle,
+            n_err = _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, ndel > 0 and not first,
+                                  k <= k_first, running, push, const_dist, distance, char_x, char_y, dres)
         if ndel > 0:
             for b in range(n_lanes):
                 dline[dline_i, b] = W[Y_NEW, b]
@@ -502,27 +509,38 @@ def _stream_lines(out, buf, lanes, group, count, k):
 
 
 @njit(nogil=True, error_model="numpy", inline="always")
-def _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, delayed, first, running, push, const_dist):
-    """update() 1-4 for every lane: the probe's reading of the distance (``delayed``: the dead
-    time's older reading is used), the encoder reading, the sensor monitoring (while ``running``),
-    the feedback (``pr``: the programmed position) and the window sum (``push``). Returns the
-    number of lanes with a sensor error.
+def _sensor_lanes(W, sz, pr, nz, r_min, r_max, has_noise, delayed, first, running, push, const_dist,
+                  distance, char_x, char_y, dres):
+    """update() 1-4 for every lane: the sensor's reading of the distance (``distance``: the point
+    distance sensor through its variable, in mm; else the probe's increments; ``delayed``: the dead
+    time's older reading is used), the encoder reading, the sensor monitoring (while ``running``;
+    ``first``: no earlier reading), the feedback (``pr``: the programmed position) and the window sum
+    (``push``). Returns the number of lanes with a sensor error.
     Inlined: called with constant flags, its tests vanish from the vector loop."""
     n_err = 0
     for b in range(BLOCK):
-        z = W[Z_NOZ, b]                        # the probe sees the nozzle (= the motor when rigid)
+        z = W[Z_NOZ, b]                        # the sensor sees the nozzle (= the motor when rigid)
         W[DIST, b] = z - sz
-        x = -1.0 * (z - sz)
-        if has_noise:
-            x += nz
-        y = physics.probe_increments(x, r_min, r_max, W[_P + Q_PROBE_REF, b], W[_P + Q_PROBE_IPM, b])
+        if distance:                           # DistanceSensor.read
+            x = 1.0 * (z - sz)
+            if has_noise:
+                x += nz
+            y = physics.distance_reading(x, r_max, char_x, char_y, dres)
+        else:                                  # EncoderProbe.read
+            x = -1.0 * (z - sz)
+            if has_noise:
+                x += nz
+            y = physics.probe_increments(x, r_min, r_max, W[_P + Q_PROBE_REF, b], W[_P + Q_PROBE_IPM, b])
         W[Y_NEW, b] = y
         if delayed:
             y = W[Y_OLD, b]
-        s_now = law.encoder_reading(y, W[_P + Q_MM_PER_INCR, b], W[_P + Q_SIGN_REV, b] != 0.0,
-                                    W[_P + Q_REF_OFF, b], False, W[_P + Q_MIN_POS, b], W[_P + Q_MAX_POS, b])
+        if distance:                           # SENSOR_SOURCE=VARIABLE: d in mm (no REF, no modulo here)
+            s_now = -y + 0.0
+        else:
+            s_now = law.encoder_reading(y, W[_P + Q_MM_PER_INCR, b], W[_P + Q_SIGN_REV, b] != 0.0,
+                                        W[_P + Q_REF_OFF, b], False, W[_P + Q_MIN_POS, b], W[_P + Q_MAX_POS, b])
         if W[_P + Q_OPTIMIZED, b] != 0.0 or first:
-            s = s_now                          # the very first cycle has no earlier reading
+            s = s_now                          # no earlier reading
         else:
             s = W[S_DELAYED, b]
         W[S_DELAYED, b] = s_now

@@ -1,7 +1,9 @@
-"""The plant's arithmetic as plain functions: drive loop, resonance, encoder quantisation, probe conversion.
+"""The plant's arithmetic as plain functions: drive loop, resonance, encoder quantisation, the probe's and
+the distance sensor's conversion.
 
 Like :mod:`distctrl.control.law` for the controller, this is the only copy. The virtual machine
-(:class:`~distctrl.sim.drive.Drive`, :class:`~distctrl.sim.sensors.EncoderProbe`) calls these
+(:class:`~distctrl.sim.drive.Drive`, :class:`~distctrl.sim.sensors.EncoderProbe`,
+:class:`~distctrl.sim.sensors.DistanceSensor`) calls these
 functions in CPython; the batch kernels (:mod:`distctrl.batch.closed_loop`,
 :mod:`distctrl.batch.soa`) call the same functions compiled with numba (registered by
 :mod:`distctrl.batch.kernel`), so the replay equals the machine bit for bit. Scalars only. Units: mm,
@@ -47,6 +49,45 @@ def probe_increments(x, range_min, range_max, ref_offset, increments_per_mm):
     return floor_float((x - ref_offset) * increments_per_mm + 0.5)
 
 
+def round_to(x, resolution):
+    """``x`` rounded to a multiple of ``resolution`` (> 0) by ``floor(x / resolution + 0.5)``: the
+    distance sensor's quantisation (a division, as the sensor has always computed it)."""
+    return floor_float(x / resolution + 0.5) * resolution
+
+
+def characteristic_value(d, xs, ys):
+    """The distance sensor's static characteristic: the reported value (mm) at the true distance
+    ``d`` (mm), linear between the points ``(xs[i], ys[i])`` (``xs`` strictly increasing, at least
+    two points); beyond the table the end values hold. ``xs``, ``ys``: sequences of floats (lists
+    in the simulator, arrays in the kernels)."""
+    n = len(xs)
+    if d <= xs[0]:
+        return ys[0]
+    if d >= xs[n - 1]:
+        return ys[n - 1]
+    i = 1
+    while xs[i] < d:  # tables are short (a handful of points): a linear scan beats bisect
+        i += 1
+    x0 = xs[i - 1]
+    x1 = xs[i]
+    return ys[i - 1] + (ys[i] - ys[i - 1]) * (d - x0) / (x1 - x0)
+
+
+def distance_reading(x, range_max, xs, ys, resolution):
+    """What the distance sensor reports for the distance ``x`` (mm, not NaN; noise included):
+    saturated to its range ``[0, range_max]``, through the characteristic (``xs``/``ys``; empty:
+    none, :func:`characteristic_value`), then quantised to ``resolution`` mm (0: not quantised)."""
+    if x < 0.0:
+        x = 0.0
+    elif x > range_max:
+        x = range_max
+    if len(xs) > 0:
+        x = characteristic_value(x, xs, ys)
+    if resolution != 0.0:
+        x = round_to(x, resolution)
+    return x
+
+
 def resonance_step(e, de, dv, p11, p12, p21, p22):
     """One cycle of the mechanical mode between motor and nozzle (docs/sim-models.md "Drive").
 
@@ -75,4 +116,5 @@ def resonance_coefficients(resonance_hz, damping, cycle_time):
 
 
 #: the functions numba compiles for the batch kernels (registered by distctrl.batch.kernel)
-PHYSICS_FUNCTIONS = (limit_velocity, quantise, probe_increments, resonance_step)
+PHYSICS_FUNCTIONS = (limit_velocity, quantise, probe_increments, resonance_step, round_to, characteristic_value,
+                     distance_reading)

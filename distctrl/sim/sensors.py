@@ -36,7 +36,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, require_int, require_number
-from distctrl.sim.physics import probe_increments
+from distctrl.sim.physics import characteristic_value, distance_reading, probe_increments, round_to
 from distctrl.sim.surface import Flat, Ramp, Sine, Step, TiltedPlane
 
 __all__ = ["Fault", "FAULT_KINDS", "Bursts", "SensorBase", "EncoderProbe", "DistanceSensor", "ArcVoltageSensor",
@@ -562,6 +562,8 @@ class DistanceSensor(SensorBase):
         self.range_max = require_number(range_max, f"{name}.range_max", lo=0.0, lo_open=True)
         self.resolution = require_number(resolution, f"{name}.resolution", lo=0.0)
         self.characteristic: tuple[tuple[float, float], ...] | None = None
+        self._char_x: list[float] = []      # the table's columns (empty: no characteristic)
+        self._char_y: list[float] = []
         if characteristic is not None:
             pts = []
             for n, pair in enumerate(characteristic):
@@ -624,33 +626,19 @@ class DistanceSensor(SensorBase):
         self.covered = n / npts
         return npts / c if n else math.inf
 
+    # The arithmetic (saturation, characteristic, quantisation) is distctrl.sim.physics's, which the
+    # batch kernels compile too (docs/batch.md): one copy, the same numbers bit for bit.
     def _encode(self, x_mm: float) -> float:
         r = self.resolution
-        return math.floor(x_mm / r + 0.5) * r if r else x_mm
+        return round_to(x_mm, r) if r else x_mm
 
     def _apply_characteristic(self, d: float) -> float:
-        xs, ys = self._char_x, self._char_y
-        if d <= xs[0]:
-            return ys[0]
-        if d >= xs[-1]:
-            return ys[-1]
-        i = 1
-        while xs[i] < d:  # tables are short (a handful of points): a linear scan beats bisect
-            i += 1
-        x0, x1 = xs[i - 1], xs[i]
-        return ys[i - 1] + (ys[i] - ys[i - 1]) * (d - x0) / (x1 - x0)
+        return characteristic_value(d, self._char_x, self._char_y)
 
     def _convert(self, x_mm: float) -> float:
         if x_mm != x_mm:  # NaN geometry in, NaN out (math.floor would raise)
             return x_mm
-        if x_mm < 0.0:
-            x_mm = 0.0
-        elif x_mm > self.range_max:
-            x_mm = self.range_max
-        if self.characteristic is not None:
-            x_mm = self._apply_characteristic(x_mm)
-        r = self.resolution
-        return math.floor(x_mm / r + 0.5) * r if r else x_mm
+        return distance_reading(x_mm, self.range_max, self._char_x, self._char_y, self.resolution)
 
 
 class ArcVoltageSensor(DistanceSensor):

@@ -165,3 +165,17 @@ def test_c_reproduces_a_wrapping_modulo_encoder(tmp_path, cref):
     assert (err[:, 1] == 0).all() and np.ptp(off[0]) > 0.05
     _, dist, _ = CL.run_batch(inputs, packed, return_errors=True)
     assert np.count_nonzero(-dist[0] < -0.315) > 10                 # below min_pos: the reading wraps
+
+
+def test_c_reference_refuses_the_distance_sensor(tmp_path, cref):
+    """The C reference models the probe only: a plant with the distance sensor (issue 15) is marked
+    (-3, SENSOR_DISTANCE) and left NaN, never computed as if it were the probe."""
+    from tests.batch.test_closed_loop import make_scenario as make_distance_scenario
+
+    params = make_params(use_both_encoders=False)
+    sc = make_distance_scenario(tmp_path, params, "N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 SENSOR_SOURCE=VARIABLE "
+                                "SENSOR_VAR=V.E.SENSOR]" + PATH, distance=True)
+    inputs = CL.prepare(sc, cycles=500)
+    assert inputs.plant[CL.PL_SENSOR] == CL.SENSOR_DISTANCE
+    off, dist, err = cref.run(inputs, CL.pack_sets(inputs, [params]))
+    assert err[0].tolist() == [-3, CL.SENSOR_DISTANCE] and np.isnan(off).all() and np.isnan(dist).all()

@@ -29,6 +29,11 @@ FILTERS = {
                         kalman_sigma=50.0),
     "DEFAULT": dict(filter_type=FilterType.DEFAULT),
 }
+#: SENSOR_SOURCE=VARIABLE: the control reads the distance sensor's variable (FCT-M3 §6, PROG DIST_CTRL)
+VARIABLE = "SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR"
+#: a capacitive sensor's characteristic (reported vs true distance, mm), as distctrl identify writes it
+CHARACTERISTIC = [[0.0, -0.01], [0.3, 0.296], [0.625, 0.628], [1.0, 1.03], [2.0, 2.09], [4.0, 4.2], [7.6, 7.97],
+                  [10.0, 10.55]]
 MODES = {
     "SET_POS": ("N10 Z[DIST_CTRL ON SET_POS=29.7]", {}),
     "CONST_DIST": ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5]", dict(use_both_encoders=False)),
@@ -45,12 +50,16 @@ def make_params(**changes) -> AxisParameters:
 
 
 def make_scenario(tmp_path, params: AxisParameters, program: str, *, duration=2.5, z=None, sensor=None,
-                  name="z"):
+                  name="z", distance=False):
+    """``distance``: the point distance sensor (kind "distance", V.E.SENSOR) instead of the probe."""
     (tmp_path / f"{name}.lis").write_text(format_list(params))
     zcfg = {"params": f"{name}.lis", "start": 30.0, "kv": 50.0, "v_max": 300.0, "a_max": 10000.0}
     zcfg.update(z or {})
     scfg = {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0, "noise_std": 0.002,
             "delay_cycles": 2, "seed": 3}
+    if distance:
+        scfg = {"axis": "Z", "kind": "distance", "variable": "SENSOR", "range_max": 10.0, "noise_std": 0.002,
+                "delay_cycles": 2, "seed": 3}
     scfg.update(sensor or {})
     return scenario_from_dict({
         "name": "closed-loop", "program_text": program, "duration": duration,
@@ -201,5 +210,115 @@ def test_unsupported_scenarios_are_refused(tmp_path, program, extra, match):
 
         from distctrl.sim.scenario import Event
         sc = replace(sc, events=[Event(e["t"], "override", e["override"]) for e in extra["events"]])
+    with pytest.raises(CL.ClosedLoopError, match=match):
+        CL.prepare(sc)
+
+
+# ----------------------------------------------------------------------------- the distance sensor
+
+DISTANCE_VARIANTS = {
+    # name: (program, parameter changes, scenario Z axis, sensor keys, expected error)
+    "const_dist_ma": ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+                      dict(FILTERS["MOVING_AVERAGE"], use_both_encoders=False), {}, {}, None),
+    "const_dist_both_expo": ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+                             dict(FILTERS["EXPO_MEAN"], use_both_encoders=True), {}, {}, None),
+    "set_pos_kalman": ("N10 Z[DIST_CTRL ON SET_POS=29.7 " + VARIABLE + "]", FILTERS["KALMAN_EXPO"], {}, {}, None),
+    # the characteristic, a quantised reading and the drive's 40 Hz resonance (the fitted plant of issue 15)
+    "characteristic_resolution_resonance": (
+        "N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+        dict(FILTERS["MOVING_AVERAGE"], use_both_encoders=True, kp=0.3),
+        {"resonance_hz": 40.0, "damping": 0.05}, {"characteristic": CHARACTERISTIC, "resolution": 0.0005}, None),
+    "characteristic_lowpass_resonance_250hz": (
+        "N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+        dict(FILTERS["LOWPASS"], use_both_encoders=False, kp=0.4),
+        {"resonance_hz": 250.0, "damping": 0.2, "feedforward": 0.5, "bus_delay_cycles": 0},
+        {"characteristic": CHARACTERISTIC}, None),
+    # the reading saturates at range_max before the control brings the head down
+    "saturated_start": ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+                        dict(FILTERS["MOVING_AVERAGE"], use_both_encoders=False), {"start": 31.5},
+                        {"range_max": 1.0, "noise_std": 0.0}, None),
+    # the source switched blocks before the select (its history restarts there), no optimized scheduling
+    "source_before_select": ("N3 G1 X3 F600\nN5 Z[DIST_CTRL " + VARIABLE + "]\nN7 Z[DIST_CTRL SET_POS=29.6]\nN10 G1 X5 F600\n"
+                             "N15 Z[DIST_CTRL ON]", dict(FILTERS["MOVING_AVERAGE"], optimized_scheduling=False,
+                                                         kp=1.2, d_tv=0.0), {}, {"delay_cycles": 0}, None),
+    "source_in_select_no_optimized": ("N10 Z[DIST_CTRL ON SET_POS=29.7 " + VARIABLE + "]",
+                                      dict(FILTERS["EXPO_MEAN"], optimized_scheduling=False), {},
+                                      {"delay_cycles": 3}, None),
+    "sensor_jump_error": ("N10 Z[DIST_CTRL ON SET_POS=29.7 " + VARIABLE + "]",
+                          dict(FILTERS["MOVING_AVERAGE"], max_act_value_change=100.0), {}, {},
+                          ErrorId.SENSOR_JUMP),
+}
+
+
+@pytest.mark.parametrize("variant", list(DISTANCE_VARIANTS))
+def test_distance_sensor_replays_the_runner(tmp_path, variant):
+    """The point distance sensor (kind "distance", SENSOR_SOURCE=VARIABLE): noise, range saturation,
+    characteristic, quantisation and dead time as DistanceSensor computes them, bit for bit, in both
+    kernels (closed_loop one by one, soa.block_loop for MOVING_AVERAGE)."""
+    program, changes, z, sensor, error = DISTANCE_VARIANTS[variant]
+    params = make_params(**changes)
+    sc = make_scenario(tmp_path, params, program + PATH, z=z, sensor=sensor, distance=True)
+    assert sc.sensor.kind == "distance"
+    inputs = CL.prepare(sc)
+    assert inputs.plant[CL.PL_SENSOR] == CL.SENSOR_DISTANCE
+    if variant == "source_before_select":
+        assert 0 < inputs.plant[CL.PL_K_FIRST] < inputs.k_on - 100
+    else:
+        assert inputs.plant[CL.PL_K_FIRST] == inputs.k_on
+    if "characteristic" in sensor:
+        assert inputs.plant[CL.PL_NCHAR] == len(CHARACTERISTIC)
+    assert_replays(sc, inputs, error)
+    # several sets: both kernels, one by one and in blocks, agree
+    sets = [params, params.replace(kp=params.kp * 0.5), params.replace(n_cycles=3)]
+    a = CL.run_batch(inputs, sets, return_errors=True, vectorised=False)
+    b = CL.run_batch(inputs, sets, return_errors=True)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y, equal_nan=True)
+    if variant == "saturated_start":           # the reading really saturated (true distance above the range)
+        assert np.count_nonzero(np.asarray(run(sc).trace["true.distance"]) > 1.0) > 10
+
+
+def test_distance_sensor_characteristic_changes_the_loop(tmp_path):
+    """The characteristic is really applied: without it the tracked true distance differs (by the
+    table's error at the set distance)."""
+    params = make_params(**FILTERS["MOVING_AVERAGE"], use_both_encoders=False, kp=0.1, i_tn=0.0, d_tv=0.0)
+    program = "N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=2 " + VARIABLE + "]\nN20 G1 X5 F60\nN999 M30\n"
+    with_char = CL.prepare(make_scenario(tmp_path, params, program, sensor={"characteristic": CHARACTERISTIC},
+                                         distance=True))
+    plain = CL.prepare(make_scenario(tmp_path, params, program, distance=True, name="plain"))
+    d1 = CL.run_batch(with_char, [params])[1][0, -500:].mean()
+    d0 = CL.run_batch(plain, [params])[1][0, -500:].mean()
+    # reported 2 mm at true 1 + (2 - 1.03) / 1.06 = 1.915 mm: the loop holds 0.085 mm lower
+    assert d0 - d1 == pytest.approx(2.0 - (1.0 + 0.97 / 1.06), abs=0.01)
+
+
+def test_distance_sensor_modulo_replays(tmp_path):
+    """P-AXIS-00424 modulo with the variable source: the reading wraps into [min_pos, max_pos) and is
+    unwrapped (closed_loop; the block kernel takes no modulo sets)."""
+    params = make_params(kp=0.3, **FILTERS["EXPO_MEAN"], sensor_mode_act_pos=2, min_pos=-0.31, max_pos=0.69)
+    sc = make_scenario(tmp_path, params, "N10 Z[DIST_CTRL ON SET_POS=29.7 " + VARIABLE + "]" + PATH, distance=True)
+    inputs = CL.prepare(sc)
+    assert CL.pack_sets(inputs, [params])[0, CL.law.FC_LEN + CL.Q_MODULO] == 1.0
+    assert_replays(sc, inputs)
+    dist = CL.run_batch(inputs, [params])[1]
+    assert np.count_nonzero(-dist[0] < -0.315) > 10                 # below min_pos: the reading wraps
+
+
+@pytest.mark.parametrize("program, sensor, match", [
+    ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5]", {}, "SENSOR_SOURCE=VARIABLE"),
+    ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.OTHER]", {},
+     "SENSOR_VAR=V.E.OTHER"),
+    ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]", {"footprint_radius": 2.0},
+     r"\[sensor\] footprint_radius"),
+    ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+     {"bursts": {"rate": 2.0, "duration": 0.01, "amplitude": 0.05}}, r"\[sensor\] bursts"),
+    ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+     {"kind": "arc_voltage", "voltage_variable": "ARC_V"}, "kind = 'arc_voltage'"),
+    ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5 " + VARIABLE + "]",
+     {"faults": [{"kind": "jump", "value": 1.0, "start_time": 0.5}]}, r"\[sensor\] faults"),
+])
+def test_distance_sensor_refusals(tmp_path, program, sensor, match):
+    """What the kernels do not model of the distance sensors is refused, naming the key."""
+    sc = make_scenario(tmp_path, make_params(use_both_encoders=False), program + PATH, sensor=sensor, distance=True)
     with pytest.raises(CL.ClosedLoopError, match=match):
         CL.prepare(sc)

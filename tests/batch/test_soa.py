@@ -18,7 +18,8 @@ from distctrl.batch import soa  # noqa: E402
 from distctrl.control import FilterType, law  # noqa: E402
 from distctrl.errors import ErrorId  # noqa: E402
 
-from .test_closed_loop import FILTERS, MODES, PATH, assert_replays, make_params, make_scenario  # noqa: E402
+from .test_closed_loop import (CHARACTERISTIC, FILTERS, MODES, PATH, VARIABLE, assert_replays, make_params,  # noqa: E402
+                               make_scenario)
 
 MA = dict(filter_type=FilterType.MOVING_AVERAGE)
 
@@ -224,3 +225,22 @@ def test_a_modulo_encoder_that_wraps_gives_the_continuous_run(tmp_path):
     assert np.array_equal(err[0], err0[0])
     assert np.nanmax(np.abs(off[0] - off0[0])) < 1e-9
     assert np.array_equal(np.isnan(off[0]), np.isnan(off0[0]))
+
+
+@pytest.mark.parametrize("mode", list(MODES))
+def test_distance_sensor_mixed_blocks_equal_closed_loop(tmp_path, mode):
+    """The point distance sensor (SENSOR_SOURCE=VARIABLE) with a characteristic, a quantised reading,
+    noise and dead time, on the drive with a 40 Hz resonance: blocks of every option equal closed_loop."""
+    block, extra = MODES[mode]
+    block = block[:-1] + " " + VARIABLE + "]"
+    sets = [p.replace(**extra) for p in option_sets(75, seed=7 + len(mode))]
+    sc = make_scenario(tmp_path, sets[0], block + PATH, z={"resonance_hz": 40.0, "damping": 0.05},
+                       sensor={"characteristic": CHARACTERISTIC, "resolution": 0.0005}, distance=True)
+    inputs = CL.prepare(sc)
+    assert inputs.plant[CL.PL_SENSOR] == CL.SENSOR_DISTANCE and inputs.plant[CL.PL_RESONANT] == 1.0
+    off, dist, err = assert_same(inputs, sets)
+    lanes, counts, rest = soa.plan_blocks(CL.pack_sets(inputs, sets))
+    assert counts.sum() > 60
+    ids = set(err[err[:, 0] >= 0, 1].tolist())
+    assert int(ErrorId.SENSOR_JUMP) in ids
+    assert np.nanmax(np.abs(off)) > 0.05
