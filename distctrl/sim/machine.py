@@ -38,6 +38,7 @@ from ..nc.interpreter import NcAbort, NcInterpreter
 from ..nc.program import KinematicsWord, Program, kin_param_var
 from ..objects.units import mm_to_dint_01um, round_saturate
 from ..plc.hli import ChannelDistanceStatus, DistanceControlUnit
+from ..plc.process.channel import ChannelPathStatus
 from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
 from .sensors import Fault
@@ -121,6 +122,17 @@ class Machine:
         #: the channel's 3D status (gpCh[1]^.bahn_state: virt_tool_length_r, inclination_r); filled by
         #: the 3D distance control, 0 for the axis variant
         self.channel_status = ChannelDistanceStatus()
+        #: the channel's path status as the PLC reads it (StateBahn_Data.D_ActiveFeed / D_CommandFeed)
+        self.channel_path = ChannelPathStatus(self)
+        # the scenario's [[process]] functions (docs/process.md): after the sensor's PLC program,
+        # before the run's own; they read state_r every cycle, so it is published every cycle
+        process_plc = scenario.make_process_program() if getattr(scenario, "processes", ()) else None
+        #: the process functions' program (None without [[process]] tables)
+        self.process_program = process_plc
+        if process_plc is not None:
+            plc_program = process_plc if plc_program is None else process_plc.then(plc_program)
+            if publish_hli is None:
+                publish_hli = True
         #: a PLC program: called every cycle before the CNC consumes the control units
         self.plc_program = plc_program
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC

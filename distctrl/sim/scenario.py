@@ -54,7 +54,8 @@ __all__ = ["Scenario", "AxisConfig", "SensorConfig", "Event", "ScenarioError", "
 #: axis names a scenario may configure (the order is the display order)
 AXIS_NAMES = ("X", "Y", "Z", "A", "B", "C")
 TOP_LEVEL_KEYS = ("name", "cycle_time", "program", "program_text", "duration", "settle_time", "seed",
-                  "variables", "external_variables", "tool", "axes", "channel", "surface", "sensor", "events")
+                  "variables", "external_variables", "tool", "axes", "channel", "surface", "sensor", "events",
+                  "process")                      # issue 16: [[process]] tables (docs/process.md)
 AXIS_KEYS = ("params", "start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "bus_delay_cycles",
              "resolution", "feedforward",
              "resonance_hz", "damping")           # the drive's mechanical resonance (issue 15)
@@ -312,6 +313,17 @@ class Scenario:
     #: §12.8.4), None without a list (then every V.E. name a scenario or program uses exists)
     external_variables: dict | None = None
     external_variables_file: Path | None = None
+    # --- issue 16: the [[process]] tables (docs/process.md) ---
+    #: the cutting-process functions (:class:`distctrl.plc.process.ProcessConfig`), in file order
+    processes: tuple = ()
+
+    def make_process_program(self):
+        """The ``[[process]]`` functions as one PLC program
+        (:class:`distctrl.plc.process.ProcessProgram`), or None without any."""
+        if not self.processes:
+            return None
+        from distctrl.plc.process import make_process_program
+        return make_process_program(self.processes, self.cycle_time)
 
     @property
     def has_3d(self) -> bool:
@@ -787,9 +799,15 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
         for declared in extv:
             variables.setdefault(declared, 0.0)
 
+    # issue 16: [[process]] tables (docs/process.md)
+    processes: tuple = ()
+    if "process" in data:
+        from distctrl.plc.process import process_configs
+        processes = process_configs(data["process"], axes, sensor, cycle_time, has_3d)
+
     return Scenario(path, base_dir, name, cycle_time, program_text, program_file, duration, settle_time, seed,
                     variables, tool_length, axes, surface, dict(surface_cfg), sensor, events, channel_params,
-                    channel_file, channel_warnings, kinematics, extv, extv_file)
+                    channel_file, channel_warnings, kinematics, extv, extv_file, processes=processes)
 
 
 def _check_declared(extv: dict, extv_file: Path, variables: dict, sensor, events) -> None:

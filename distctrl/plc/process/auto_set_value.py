@@ -1,0 +1,115 @@
+"""Automatic set value: sample the sensor after the cut starts and take the mean as SET_DIST / SET_POS.
+
+A plasma torch's arc voltage at the cut height depends on the consumables' wear and the material,
+so a fixed calibration drifts. QtPlasmaC's "auto volts" and Hypertherm's voltage sampling take the
+set value from the cut itself: the torch is brought to the cut height, the voltage is sampled for a
+short time, and its mean becomes the value the height control holds. distctrl does the same on the
+distance the controller reads:
+
+* **the cut starts** when ``state_r.actual_state`` goes from INACTIVE (0) to ACTIVE (1) or
+  ACTIVE_CONST_DIST (4): the NC program (``Z[DIST_CTRL ON ...]``) or the PLC selected distance
+  control. A re-activation out of FREEZE (the locks) is not a new cut.
+* at once it requests the hold (FREEZE, :mod:`.hold`), so the head stays at the height it was
+  brought to (the pierce / cut height of the program);
+* it waits ``delay`` seconds (the arc and the FREEZE braking settle), then averages for
+  ``sample_time`` seconds ``state_r.actual_distance`` (CONST_DIST: the measured distance d) or
+  ``state_r.actual_position`` (SET_POS: the measured surface a - d), DINT 0.1 µm -> mm;
+* it puts the mean into the hold's set value and releases its request: distance control is
+  re-activated with ``ON_CONST_DIST`` (SET_DIST = mean) or ``ON`` (SET_POS = mean) once no other
+  lock holds it. ``state_r.command_source`` then shows the PLC (1).
+
+The set value the NC program selected with is only a placeholder then. Where the sensor's
+calibration is off (a plasma linearisation with the wrong V0), the held *true* height is the one
+the head had while sampling, not set value + calibration error. ``result`` keeps the last mean (mm).
+
+ST equivalent::
+
+    bRun := stState.actual_state = 1 OR stState.actual_state = 4;
+    IF bRun AND nLastState = 0 THEN eAuto := WAITING; nCnt := 0; lrSum := 0.0; END_IF
+    nLastState := stState.actual_state;
+    CASE eAuto OF
+    WAITING:  fbHold.bReqAuto := TRUE; nCnt := nCnt + 1;
+              IF nCnt >= nDelayCycles THEN eAuto := SAMPLING; nCnt := 0; END_IF
+    SAMPLING: fbHold.bReqAuto := TRUE;
+              lrSum := lrSum + DINT_TO_LREAL(SEL(fbHold.bConstDist, stState.actual_position,
+                                                 stState.actual_distance)) * 0.0001;
+              nCnt := nCnt + 1;
+              IF nCnt >= nSampleCycles THEN
+                  fbHold.lrSet := lrSum / nCnt; fbHold.bReqAuto := FALSE; eAuto := DONE;
+              END_IF
+    END_CASE
+    (* leaving the running states and the hold (OFF, RESET, ERROR) ends the sampling: eAuto := DONE *)
+"""
+from __future__ import annotations
+
+import math
+
+from ...control.states import HliState
+from ...sim.config_errors import require_number
+from .base import ProcessFunction, tracking_or_held
+
+__all__ = ["AutoSetValue", "AUTO_DEFAULTS"]
+
+AUTO_DEFAULTS = {"delay": 0.1, "sample_time": 0.2}
+_INACTIVE = int(HliState.INACTIVE)
+_MM_PER_UNIT = 1e-4
+DONE, WAITING, SAMPLING = "DONE", "WAITING", "SAMPLING"
+
+
+class AutoSetValue(ProcessFunction):
+    """``delay`` (s, >= 0) and ``sample_time`` (s, > 0) after the cut starts; ``cycle_time`` (s)."""
+
+    name = "auto_set_value"
+
+    def __init__(self, axis: str, cycle_time: float, delay: float = AUTO_DEFAULTS["delay"],
+                 sample_time: float = AUTO_DEFAULTS["sample_time"]):
+        super().__init__(axis)
+        self.cycle_time = require_number(cycle_time, "auto_set_value.cycle_time", lo=0.0, lo_open=True)
+        self.delay = require_number(delay, "auto_set_value.delay", lo=0.0, hi=10.0)
+        self.sample_time = require_number(sample_time, "auto_set_value.sample_time", lo=self.cycle_time,
+                                          hi=10.0)
+        self.delay_cycles = round(self.delay / self.cycle_time)
+        self.sample_cycles = max(1, round(self.sample_time / self.cycle_time))
+        self.phase = DONE
+        self._last_state = _INACTIVE
+        self._count = 0
+        self._sum = 0.0
+        self.const_dist = False
+        #: the last sampled mean (mm), NaN before the first
+        self.result = math.nan
+        #: (cycle, mean mm) of every sampling that completed
+        self.log: list[tuple[int, float]] = []
+
+    def step(self, machine, cycle: int) -> None:
+        state_r = machine.hli[self.axis].state_r
+        state = state_r.actual_state
+        hold = self.hold
+        if self._last_state == _INACTIVE and state in (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST)):
+            self.phase = WAITING
+            self.const_dist = state == int(HliState.ACTIVE_CONST_DIST)
+            self._count = 0
+            self._sum = 0.0
+        self._last_state = state
+        if self.phase == DONE:
+            return
+        if not tracking_or_held(state, hold):
+            self.phase = DONE                          # switched off, reset or an error: no set value
+            return
+        hold.request(self.name)
+        if self.phase == WAITING:
+            if self._count >= self.delay_cycles:
+                self.phase = SAMPLING
+                self._count = 0
+            else:
+                self._count += 1
+                return
+        value = state_r.actual_distance if self.const_dist else state_r.actual_position
+        self._sum += value * _MM_PER_UNIT
+        self._count += 1
+        if self._count >= self.sample_cycles:
+            self.result = self._sum / self._count
+            self.log.append((cycle, self.result))
+            hold.set_value = self.result
+            hold.const_dist = self.const_dist
+            hold.withdraw(self.name)                   # released in this very cycle
+            self.phase = DONE

@@ -1,0 +1,128 @@
+"""Void / kerf-crossing lock: FREEZE while the sensor signal changes faster than a plate can.
+
+Over a hole, a kerf or the sheet edge the arc voltage of a plasma torch jumps up (the arc reaches
+further) and a distance sensor reads "too far"; a height control that follows it dives into the
+void. Warp and waviness change the signal far more slowly. The lock watches the signal's rate of
+change over a window of ``window`` seconds,
+
+    rate = (x[k] - x[k - N]) / (N · T)      N = round(window / T), T the PLC (GEO) cycle time,
+
+and holds the height (FREEZE) after ``on_cycles`` consecutive cycles with ``|rate| > threshold``. It
+re-activates distance control (FREEZE -> ON / ON_CONST_DIST, :mod:`.hold`) after ``off_cycles``
+consecutive cycles in which the signal is steady again: ``|rate| <= threshold`` and within
+``release_band`` of the level it had before the void (``x[k - N]`` of the cycle that locked). A
+window of 20 ms (a whole 50 Hz period) cancels the mains ripple of an arc voltage.
+
+It follows QtPlasmaC's void lock ("void anti-dive": a voltage slope in V/s with on/off cycle counts,
+500 V/s by default) and LinuxCNC's kerfcross component (a voltage change per sample period and a
+lockout of a number of periods). The signal is a V.E. variable (the arc voltage in V, or a
+distance sensor's distance in mm; ``threshold`` and ``release_band`` are in its unit per second and
+its unit), or, without a variable, ``state_r.actual_distance`` (DINT 0.1 µm -> mm) of the axis's
+control unit (a probe on encoder 2). A NaN sample counts as unsteady and is not stored.
+
+ST equivalent (``aBuf`` a ring buffer of N LREAL, ``i`` its index)::
+
+    x := V_E_SIGNAL;
+    lrOld := aBuf[i]; aBuf[i] := x; i := (i + 1) MOD N; IF nFill < N THEN nFill := nFill + 1; END_IF
+    IF NOT fbHold.bTrackingOrHeld OR nFill < N THEN
+        bLock := FALSE; nOn := 0; nOff := 0;
+    ELSE
+        lrRate := (x - lrOld) / (N * lrT);
+        IF NOT bLock THEN
+            IF ABS(lrRate) > lrThreshold THEN nOn := nOn + 1; ELSE nOn := 0; END_IF
+            IF nOn >= nOnCycles THEN bLock := TRUE; lrLevel := lrOld; nOff := 0; END_IF
+        ELSE
+            IF ABS(lrRate) <= lrThreshold AND ABS(x - lrLevel) <= lrBand THEN nOff := nOff + 1;
+            ELSE nOff := 0; END_IF
+            IF nOff >= nOffCycles THEN bLock := FALSE; nOn := 0; END_IF
+        END_IF
+    END_IF
+    fbHold.bReqVoid := bLock;
+"""
+from __future__ import annotations
+
+import math
+
+from ...sim.config_errors import require_int, require_number
+from .base import ProcessFunction, tracking_or_held
+
+__all__ = ["VoidLock", "VOID_DEFAULTS", "VOID_THRESHOLD_V_S", "VOID_THRESHOLD_MM_S"]
+
+#: V/s: the default threshold on an arc voltage (QtPlasmaC's void slope default)
+VOID_THRESHOLD_V_S = 500.0
+#: mm/s: the default threshold on a distance (500 V/s at a typical arc gradient of 6 V/mm ~ 83 mm/s)
+VOID_THRESHOLD_MM_S = 80.0
+VOID_DEFAULTS = {"window": 0.02, "on_cycles": 3, "off_cycles": 20}
+_MM_PER_UNIT = 1e-4
+
+
+class VoidLock(ProcessFunction):
+    """``threshold`` (signal unit / s), ``window`` (s), ``on_cycles``, ``off_cycles``,
+    ``release_band`` (signal unit; default ``threshold · window / 2``), ``variable`` (a V.E. name, or
+    None for ``state_r.actual_distance``), ``cycle_time`` (s, the PLC cycle)."""
+
+    name = "void_lock"
+
+    def __init__(self, axis: str, cycle_time: float, threshold: float, *, variable: str | None = None,
+                 window: float = VOID_DEFAULTS["window"], on_cycles: int = VOID_DEFAULTS["on_cycles"],
+                 off_cycles: int = VOID_DEFAULTS["off_cycles"], release_band: float | None = None):
+        super().__init__(axis)
+        self.cycle_time = require_number(cycle_time, "void_lock.cycle_time", lo=0.0, lo_open=True)
+        self.threshold = require_number(threshold, "void_lock.threshold", lo=0.0, lo_open=True)
+        self.window = require_number(window, "void_lock.window", lo=self.cycle_time, hi=1.0)
+        self.on_cycles = require_int(on_cycles, "void_lock.on_cycles", lo=1, hi=10000)
+        self.off_cycles = require_int(off_cycles, "void_lock.off_cycles", lo=1, hi=100000)
+        if release_band is None:
+            release_band = 0.5 * self.threshold * self.window
+        self.release_band = require_number(release_band, "void_lock.release_band", lo=0.0, lo_open=True)
+        self.variable = None if variable is None else (variable if variable[:4].upper() == "V.E."
+                                                       else f"V.E.{variable}")
+        self.n = max(1, round(self.window / self.cycle_time))
+        self._buf = [0.0] * self.n
+        self._i = 0
+        self._fill = 0
+        self._rate_scale = 1.0 / (self.n * self.cycle_time)
+        self.locked = False
+        self.on_count = 0
+        self.off_count = 0
+        self.level = math.nan
+        self.rate = math.nan
+
+    def _signal(self, machine) -> float:
+        if self.variable is None:
+            return machine.hli[self.axis].state_r.actual_distance * _MM_PER_UNIT
+        return machine.variables.get(self.variable, math.nan)
+
+    def step(self, machine, cycle: int) -> None:
+        x = self._signal(machine)
+        finite = math.isfinite(x)
+        old = self._buf[self._i]
+        if finite:
+            self._buf[self._i] = x
+            self._i = (self._i + 1) % self.n
+            if self._fill < self.n:
+                self._fill += 1
+        unit = machine.hli[self.axis]
+        if not tracking_or_held(unit.state_r.actual_state, self.hold) or self._fill < self.n:
+            self.locked = False
+            self.on_count = self.off_count = 0
+            return
+        rate = (x - old) * self._rate_scale if finite else math.inf
+        self.rate = rate
+        steady = abs(rate) <= self.threshold
+        if not self.locked:
+            self.on_count = 0 if steady else self.on_count + 1
+            if self.on_count >= self.on_cycles:
+                self.locked = True
+                self.level = old
+                self.off_count = 0
+        else:
+            if steady and abs(x - self.level) <= self.release_band:
+                self.off_count += 1
+            else:
+                self.off_count = 0
+            if self.off_count >= self.off_cycles:
+                self.locked = False
+                self.on_count = 0
+        if self.locked:
+            self.hold.request(self.name)
