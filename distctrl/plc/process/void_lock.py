@@ -23,8 +23,9 @@ control unit (a probe on encoder 2). A NaN sample counts as unsteady and is not 
 ST equivalent (``aBuf`` a ring buffer of N LREAL, ``i`` its index)::
 
     x := V_E_SIGNAL;
-    lrOld := aBuf[i]; aBuf[i] := x; i := (i + 1) MOD N; IF nFill < N THEN nFill := nFill + 1; END_IF
-    IF NOT fbHold.bTrackingOrHeld OR nFill < N THEN
+    lrOld := aBuf[i]; bFull := nFill >= N;
+    aBuf[i] := x; i := (i + 1) MOD N; IF NOT bFull THEN nFill := nFill + 1; END_IF
+    IF NOT bFull OR NOT fbHold.bTrackingOrHeld THEN
         bLock := FALSE; nOn := 0; nOff := 0;
     ELSE
         lrRate := (x - lrOld) / (N * lrT);
@@ -97,13 +98,14 @@ class VoidLock(ProcessFunction):
         x = self._signal(machine)
         finite = math.isfinite(x)
         old = self._buf[self._i]
+        full = self._fill >= self.n                    # old is a sample taken N cycles ago
         if finite:
             self._buf[self._i] = x
             self._i = (self._i + 1) % self.n
-            if self._fill < self.n:
+            if not full:
                 self._fill += 1
         unit = machine.hli[self.axis]
-        if not tracking_or_held(unit.state_r.actual_state, self.hold) or self._fill < self.n:
+        if not full or not tracking_or_held(unit.state_r.actual_state, self.hold):
             self.locked = False
             self.on_count = self.off_count = 0
             return
