@@ -28,16 +28,18 @@ ST equivalent::
     IF bRun AND nLastState = 0 THEN eAuto := WAITING; nCnt := 0; lrSum := 0.0; END_IF
     nLastState := stState.actual_state;
     CASE eAuto OF
-    WAITING:  fbHold.bReqAuto := TRUE; nCnt := nCnt + 1;
-              IF nCnt >= nDelayCycles THEN eAuto := SAMPLING; nCnt := 0; END_IF
-    SAMPLING: fbHold.bReqAuto := TRUE;
-              lrSum := lrSum + DINT_TO_LREAL(SEL(fbHold.bConstDist, stState.actual_position,
-                                                 stState.actual_distance)) * 0.0001;
-              nCnt := nCnt + 1;
-              IF nCnt >= nSampleCycles THEN
-                  fbHold.lrSet := lrSum / nCnt; fbHold.bReqAuto := FALSE; eAuto := DONE;
-              END_IF
+    WAITING:  fbHold.bReqAuto := TRUE;
+              IF nCnt >= nDelayCycles THEN eAuto := SAMPLING; nCnt := 0; ELSE nCnt := nCnt + 1; END_IF
     END_CASE
+    IF eAuto = SAMPLING THEN
+        fbHold.bReqAuto := TRUE;
+        lrSum := lrSum + DINT_TO_LREAL(SEL(bConstDist, stState.actual_position,
+                                           stState.actual_distance)) * 0.0001;
+        nCnt := nCnt + 1;
+        IF nCnt >= nSampleCycles THEN
+            fbHold.lrSet := lrSum / nCnt; fbHold.bReqAuto := FALSE; eAuto := DONE;
+        END_IF
+    END_IF
     (* leaving the running states and the hold (OFF, RESET, ERROR) ends the sampling: eAuto := DONE *)
 """
 from __future__ import annotations
