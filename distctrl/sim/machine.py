@@ -222,6 +222,7 @@ class Machine:
         self.inclination_deg = 0.0
         self.virt_tool_length = self.tool_length
         self.true_clamp = (0.0, 0.0, 0.0)
+        self.true_xy = (0.0, 0.0)
         self.true_distance_orth = 0.0
         self.tcp_cmd = (0.0, 0.0, 0.0)
         self.prog_values = [a.start for a in scenario.axes.values()]
@@ -672,6 +673,7 @@ class Machine:
         y = self._drive_y.nozzle if self._drive_y is not None else 0.0
         surface_z = self.surface.height(x, y)
         self.true_surface = surface_z
+        self.true_xy = (x, y)              # where the tool met that surface (collisions are placed there)
         sensor_axis = self.sensor_axis
         if sensor_axis is not None:
             z = drives[sensor_axis].nozzle

@@ -241,7 +241,6 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     has_truth = scenario.sensor is not None or machine.kinematic_path
     contact = _Contact(T, scenario.sensor.collision_depth if scenario.sensor is not None else 0.0)
     kinematic = machine.kinematic_path
-    drive_x, drive_y = machine.drives.get("X"), machine.drives.get("Y")
     bar = _Progress(max_cycles if scenario.duration is not None else None, T) if progress else None
     interrupted = False
     settled_for = 0
@@ -289,8 +288,9 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                     if kinematic:
                         cx, cy = machine.true_clamp[0], machine.true_clamp[1]
                     else:
-                        cx = drive_x.position if drive_x is not None else 0.0
-                        cy = drive_y.position if drive_y is not None else 0.0
+                        # where the tool's nozzle met the surface this cycle (not the motor after
+                        # the drive's step: a cycle's travel later, and off by a resonance's deflection)
+                        cx, cy = machine.true_xy
                     if contact.add(k, d_true, cx, cy, line) and stop_on_collision:
                         contact.finish()
                         break

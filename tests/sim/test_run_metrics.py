@@ -163,3 +163,22 @@ def test_a_wavy_surface_followed_with_a_lag_is_not_an_oscillation():
     r = run(SCN / "tune_sheet.toml")
     assert r.metrics["oscillations"] == 0 and not [w for w in r.warnings if w["id"] == 900032]
     assert r.metrics["oscillation_amplitude_mm"] > 0.2
+
+
+def test_a_collision_is_placed_where_the_nozzle_is_on_a_resonant_axis():
+    """With a drive resonance the nozzle lags the motor while the axis accelerates (by a/w0^2, here
+    3000 mm/s^2 / (2 pi 20 Hz)^2 = 0.19 mm): the collision is reported at the nozzle's X, where it hit the
+    0.5 mm edge, not at the motor's."""
+    from distctrl.sim.scenario import scenario_from_dict
+
+    sc = scenario_from_dict({
+        "name": "edge hit while accelerating", "program_text": "N10 G1 X10 F6000\nN20 M30\n", "duration": 1.0,
+        "axes": {"X": {"v_max": 300.0, "a_max": 3000.0, "resonance_hz": 20.0, "damping": 0.05},
+                 "Z": {"params": "z_probe.lis", "start": 41.0}},
+        "surface": {"base": 40.0, "features": [{"type": "step", "axis": "X", "at": 0.5, "height": 2.0}]},
+        "sensor": {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0}}, base_dir=SCN)
+    r = run(sc)
+    hits = [w for w in r.warnings if w["id"] == 900030]
+    assert len(hits) == 1
+    x = float(hits[0]["message"].split("X=")[1].split(" mm")[0])
+    assert abs(x - 0.5) < 0.06, hits[0]["message"]
