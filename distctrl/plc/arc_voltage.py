@@ -46,7 +46,7 @@ class ArcVoltageLinearisation:
     """``distance_variable := (voltage_variable - v0) / k`` every cycle (module docstring).
 
     ``v0`` in V, ``k`` in V/mm; variable names with or without the ``V.E.`` prefix.
-    :meth:`then` chains a further PLC program that runs after this one in the same cycle.
+    :func:`distctrl.plc.chain.chain` runs it with further PLC programs in one task.
     """
 
     def __init__(self, v0: float, k: float, voltage_variable: str = "V.E.ARC_VOLTAGE",
@@ -57,7 +57,6 @@ class ArcVoltageLinearisation:
         self.voltage_variable = _ve(voltage_variable)
         self.distance_variable = _ve(distance_variable)
         self._inv_k = 1.0 / self.k
-        self._next = None
 
     def distance(self, voltage: float) -> float:
         """The distance (mm) this linearisation gives for ``voltage`` (V)."""
@@ -67,14 +66,6 @@ class ArcVoltageLinearisation:
         variables = machine.variables
         v = variables.get(self.voltage_variable, math.nan)
         variables[self.distance_variable] = (v - self.v0) * self._inv_k
-        if self._next is not None:
-            self._next(machine, cycle)
-
-    def then(self, program) -> "ArcVoltageLinearisation":
-        """This linearisation followed by ``program(machine, cycle)`` (e.g. the run's own PLC program)."""
-        chained = ArcVoltageLinearisation(self.v0, self.k, self.voltage_variable, self.distance_variable)
-        chained._next = program
-        return chained
 
     def __repr__(self) -> str:
         return (f"ArcVoltageLinearisation(v0={self.v0!r}, k={self.k!r}, "

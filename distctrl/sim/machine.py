@@ -37,6 +37,7 @@ from ..kinematics.kin98 import InclinationViolation, Kinematic98Params
 from ..nc.interpreter import NcAbort, NcInterpreter
 from ..nc.program import KinematicsWord, Program, kin_param_var
 from ..objects.units import mm_to_dint_01um, round_saturate
+from ..plc.chain import chain
 from ..plc.hli import ChannelDistanceStatus, DistanceControlUnit
 from ..plc.process.channel import ChannelPathStatus
 from .drive import Drive
@@ -129,19 +130,14 @@ class Machine:
         process_plc = scenario.make_process_program() if getattr(scenario, "processes", ()) else None
         #: the process functions' program (None without [[process]] tables)
         self.process_program = process_plc
-        if process_plc is not None:
-            plc_program = process_plc if plc_program is None else process_plc.then(plc_program)
-            if publish_hli is None:
-                publish_hli = True
-        #: a PLC program: called every cycle before the CNC consumes the control units
-        self.plc_program = plc_program
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
         #: program, the ADS server); a batch run without readers publishes once at the end
-        self.publish_hli = plc_program is not None if publish_hli is None else publish_hli
-        # the PLC program the sensor needs (arc-voltage linearisation), before the run's own
+        self.publish_hli = (plc_program is not None or process_plc is not None) if publish_hli is None \
+            else publish_hli
+        # the PLC program the sensor needs (arc-voltage linearisation) runs first
         sensor_plc = scenario.sensor.make_plc_program() if scenario.sensor is not None else None
-        if sensor_plc is not None:
-            self.plc_program = sensor_plc if plc_program is None else sensor_plc.then(plc_program)
+        #: the PLC task: called every cycle before the CNC consumes the control units
+        self.plc_program = chain(sensor_plc, process_plc, plc_program)
         self._plc_pending: list[tuple[str, int, float]] = []    # scenario PLC commands waiting for the semaphore
         #: axes whose controller runs every cycle (distance control enabled); others only on commands
         self.dc_axes = [n for n, a in axes.items() if a.params.enabled]

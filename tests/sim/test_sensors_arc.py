@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from distctrl.plc.arc_voltage import ArcVoltageLinearisation
+from distctrl.plc.chain import chain
 from distctrl.sim.config_errors import ConfigError
 from distctrl.sim.sensors import ArcVoltageSensor, Fault
 from distctrl.sim.surface import Step, Surface
@@ -104,7 +105,7 @@ def test_linearisation_inverts_the_arc_sensor():
 
 def test_linearisation_runs_a_chained_program_after_it():
     seen = []
-    plc = ArcVoltageLinearisation(100.0, 5.0).then(lambda m, k: seen.append((k, m.variables["V.E.SENSOR"])))
+    plc = chain(ArcVoltageLinearisation(100.0, 5.0), lambda m, k: seen.append((k, m.variables["V.E.SENSOR"])))
     m = _Machine(ARC_VOLTAGE=110.0)
     plc(m, 7)
     assert seen == [(7, 2.0)]

@@ -7,35 +7,27 @@ __all__ = ["ProcessProgram"]
 
 
 class ProcessProgram:
-    """Runs every function in order, then each axis's :class:`FreezeHold`, then the next program.
+    """Runs every function in order, then each axis's :class:`FreezeHold`.
 
-    One :class:`FreezeHold` per axis is shared by the functions of that axis. :meth:`then` chains a
-    further PLC program (the run's own ``plc_program``) that runs after these in the same cycle.
+    One :class:`FreezeHold` per axis is shared by the functions of that axis. The machine runs this
+    program in its PLC task after the sensor's program and before a run's own
+    (:func:`distctrl.plc.chain.chain`).
     """
 
-    def __init__(self, functions, holds: dict[str, FreezeHold] | None = None, next_program=None):
+    def __init__(self, functions):
         self.functions = list(functions)
-        if holds is None:
-            holds = {}
-            for f in self.functions:
-                if f.axis not in holds:
-                    holds[f.axis] = FreezeHold(f.axis)
-                f.bind(holds[f.axis])
-        self.holds = holds
-        self._holds = list(holds.values())
-        self._next = next_program
+        self.holds: dict[str, FreezeHold] = {}
+        for f in self.functions:
+            if f.axis not in self.holds:
+                self.holds[f.axis] = FreezeHold(f.axis)
+            f.bind(self.holds[f.axis])
+        self._holds = list(self.holds.values())
 
     def __call__(self, machine, cycle: int) -> None:
         for f in self.functions:
             f.step(machine, cycle)
         for h in self._holds:
             h.step(machine, cycle)
-        if self._next is not None:
-            self._next(machine, cycle)
-
-    def then(self, program) -> "ProcessProgram":
-        """These functions followed by ``program(machine, cycle)`` (the same function instances)."""
-        return ProcessProgram(self.functions, self.holds, program)
 
     def function(self, name: str, axis: str | None = None):
         """The first function called ``name`` (on ``axis``), or None."""
