@@ -157,11 +157,7 @@ class AdsProtocol(asyncio.BufferedProtocol):
                 conn.frames += 1  # type: ignore[union-attr]
                 body = bytes(self.rxview[AMS_TCP_HEADER_SIZE:nbytes])
                 try:
-                    out = srv._handle_ams(conn, body)  # type: ignore[arg-type]
-                    if out is CLOSE:
-                        self.close("malformed frame")
-                    elif out:
-                        self.transport.write(out)  # type: ignore[union-attr, arg-type]
+                    self._deliver(srv._handle_ams(conn, body))  # type: ignore[arg-type]
                 except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
                     self._internal_error()
                 return
@@ -231,12 +227,7 @@ class AdsProtocol(asyncio.BufferedProtocol):
                     out = srv._handle_ams(self.conn, body)  # type: ignore[arg-type]
                 else:
                     out = srv._handle_tcp_command(self.conn, reserved, body)  # type: ignore[arg-type]
-                if out is CLOSE:
-                    self.close("malformed frame")
-                elif out is PORT_CLOSED:
-                    self.close("AMS port closed by the client")
-                elif out:
-                    self.transport.write(out)  # type: ignore[union-attr, arg-type]
+                self._deliver(out)
         except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
             self._internal_error()
         finally:
@@ -244,6 +235,16 @@ class AdsProtocol(asyncio.BufferedProtocol):
                 buf.clear()
             elif pos:
                 del buf[:pos]
+
+    def _deliver(self, out) -> None:
+        """Act on a handler's result: send the answer frame, close (``CLOSE``, ``PORT_CLOSED``), or
+        nothing (None: no answer)."""
+        if out is CLOSE:
+            self.close("malformed frame")
+        elif out is PORT_CLOSED:
+            self.close("AMS port closed by the client")
+        elif out:
+            self.transport.write(out)  # type: ignore[union-attr, arg-type]
 
     def _bad_frame(self, reason: str) -> None:
         self.server.log.warning("%s: %s; closing", self.conn.peer, reason)  # type: ignore[union-attr]
