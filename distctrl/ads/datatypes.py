@@ -23,7 +23,7 @@ import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-from .protocol import ADST_BIGTYPE, ADST_STRING, IEC_TYPES, SYMBOL_ENCODING, SymbolInfo
+from .protocol import ADST_BIGTYPE, ADST_STRING, IEC_TYPES, SYMBOL_ENCODING, SymbolInfo, lookup
 
 ADSDATATYPEFLAG_DATATYPE = 0x0001
 ADSDATATYPEFLAG_DATAITEM = 0x0002
@@ -89,10 +89,7 @@ def types_of(symbols: Mapping[str, SymbolInfo], structs: Mapping[str, DataType])
 def find_type(types: Mapping[str, DataType], name: str) -> DataType | None:
     """``name`` in ``types`` (case-insensitive, as TwinCAT), else a base type of that name, else None."""
     name = name.strip()
-    t = types.get(name)
-    if t is None:
-        low = name.lower()
-        t = next((v for k, v in types.items() if k.lower() == low), None)
+    t = lookup(types, name)
     return t if t is not None else base_type(name)
 
 

@@ -328,6 +328,16 @@ class AdsDevice(Protocol):
     def state(self) -> tuple[int, int]: ...
 
 
+def lookup(table, name: str):
+    """``table[name]``, else the entry whose key equals ``name`` ignoring case (as TwinCAT matches
+    symbol and type names), else None."""
+    value = table.get(name)
+    if value is None and name:
+        low = name.lower()
+        value = next((v for k, v in table.items() if k.lower() == low), None)
+    return value
+
+
 SYMBOL_ENTRY_HEAD = struct.Struct("<IIIIIIHHH")   # 30 bytes, then name\0 type\0 comment\0
 SYMBOL_ENTRY_MAX = SYMBOL_ENTRY_HEAD.size + 3 * 256  # = sizeof(SAdsSymbolEntry) in pyads
 

@@ -57,6 +57,7 @@ from .protocol import (
     AmsHeader,
     SymbolInfo,
     encode_symbol_entry,
+    lookup,
 )
 from .transport import Connection
 
@@ -364,14 +365,7 @@ class AdsServices(NotificationService):
     def _find(self, dev: AdsDevice, raw: bytes) -> SymbolInfo:
         """The symbol named by ``raw`` (NUL-terminated or not; case-insensitive)."""
         name = _name(raw)
-        syms = self._symbols(dev)
-        sym = syms.get(name)
-        if sym is None and name:
-            low = name.lower()
-            for key, value in syms.items():
-                if key.lower() == low:
-                    sym = value
-                    break
+        sym = lookup(self._symbols(dev), name)
         if sym is None:
             raise AdsError(E.ADSERR_DEVICE_SYMBOLNOTFOUND, f"symbol {name!r} not found")
         return sym
