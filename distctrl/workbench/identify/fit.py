@@ -1,0 +1,561 @@
+"""``distctrl identify``, the fit: drive (kv, dead time, limits), resonance, sensor delay, noise and
+characteristic (the methods are in the package docstring)."""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from ...sim.physics import limit_velocity
+
+DRIVE_KEYS = ("kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping")
+SENSOR_KEYS = ("delay", "noise_std", "characteristic")
+#: longest dead time / sensor delay searched (s)
+MAX_DELAY = 0.03
+#: quasi-static samples (characteristic, noise): motor slower than this (mm/s) ...
+QS_VELOCITY = 5.0
+#: ... and command acceleration below this (mm/s^2) for the settling window before the sample
+QS_ACCELERATION = 20.0
+#: characteristic bins (mm of true distance)
+CHAR_BIN = 0.25
+#: Welch segment length (samples) of the frequency response
+NPERSEG = 2048
+from .common import (
+    RECORD_CHIRP,
+    RECORD_LARGE_STEP,
+    RECORD_RAMP,
+    RECORD_STANDSTILL,
+    RECORD_STEPS,
+    IdentifyError,
+    IdentifyWarning,
+)
+from .recordings import Signals
+
+
+@dataclass
+class _Rec:
+    """A recording on the motor's time base: X[k] is the motor at the row's time t[k]."""
+
+    sig: Signals
+    X: np.ndarray          # motor (mm)
+    S: np.ndarray          # command (mm)
+    Y: np.ndarray          # sensor, sign-corrected (mm, grows with the distance)
+    t: np.ndarray
+
+
+@dataclass
+class Identification:
+    """The fitted plant, fit quality and what could not be identified (``warnings``)."""
+
+    cycle_time: float
+    drive: dict
+    sensor: dict
+    fit: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    recordings: list[dict] = field(default_factory=list)
+    # for the report: per recording (t, X, S, Y) and model curves
+    curves: dict = field(default_factory=dict)
+
+
+def _warn(res_warnings: list[str], text: str) -> None:
+    res_warnings.append(text)
+    warnings.warn(text, IdentifyWarning, stacklevel=3)
+
+
+def _prepare(sig: Signals, sign: float) -> _Rec:
+    if sig.actual_at == "end":           # the row's actual is the motor one cycle later
+        X, S, Y, t = sig.actual[:-1], sig.command[1:], sig.sensor[1:], sig.t[1:]
+    else:
+        X, S, Y, t = sig.actual, sig.command, sig.sensor, sig.t
+    return _Rec(sig=sig, X=np.asarray(X, float), S=np.asarray(S, float), Y=sign * np.asarray(Y, float), t=t)
+
+
+def _delayed(x: np.ndarray, shift: float) -> np.ndarray:
+    """x at the fractional index k - shift (linear interpolation; the first value before the start)."""
+    idx = np.arange(x.size, dtype=float) - shift
+    return np.interp(idx, np.arange(x.size, dtype=float), x)
+
+
+def _drive_rows(recs: Sequence[_Rec], theta: float, T: float):
+    """Regressor z = c(theta) - X, response dX and the previous dX of every recording, concatenated."""
+    zs, ys, ps = [], [], []
+    skip = int(math.ceil(MAX_DELAY / T)) + 2
+    for r in recs:
+        c = _delayed(r.S, theta / T)
+        dX = np.diff(r.X)
+        z = (c - r.X)[:-1]
+        zs.append(z[skip:])
+        ys.append(dX[skip:])
+        ps.append(dX[skip - 1:-1])
+    return np.concatenate(zs), np.concatenate(ys), np.concatenate(ps)
+
+
+def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> tuple[float, float, float]:
+    """y = alpha z on the samples the linear loop explains: alpha first as the median of y/z over the
+    moving samples (free of the leverage of the limited ones), then least squares on the samples
+    within 4 scales. Returns alpha, the truncated-quadratic cost and the median |residual|."""
+    mv = np.abs(z) > 1e-3
+    if int(mv.sum()) < 10:
+        return 0.0, math.inf, math.inf
+    a0 = float(np.median(y[mv] / z[mv]))
+    r = y - a0 * z
+    med = float(np.median(np.abs(r[mv])))
+    s = scale if scale is not None else max(1.4826 * med, 1e-7)
+    inl = np.abs(r) <= 4.0 * s
+    den = float(np.dot(z[inl], z[inl]))
+    alpha = float(np.dot(z[inl], y[inl])) / den if den > 0 else a0
+    q = ((y - alpha * z) / s) ** 2
+    return alpha, float(np.sum(np.minimum(q, 16.0))), med
+
+
+def _limits(recs, T: float, alpha: float, theta: float, scale: float):
+    """v_max and a_max (None if never reached) from the samples where the P loop demands more than
+    the motor does, and the number of such samples."""
+    z, y, yp = _drive_rows(recs, theta, T)
+    v, vp, vd = y / T, yp / T, alpha * z / T
+    dv, dvd = v - vp, vd - vp
+    sv = 3.0 * scale / T + 1e-9                     # velocity noise
+    sat_v = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.sign(vd) == np.sign(v)) & \
+            (np.abs(dv) < 0.05 * np.abs(v) + 3 * sv) & (np.abs(v) > 10 * sv)
+    sat_a = (np.abs(dvd) > 1.15 * np.abs(dv) + 5 * sv) & (np.sign(dvd) == np.sign(dv)) & \
+            (np.abs(dv) > 10 * sv) & ~sat_v
+    v_max = float(np.median(np.abs(v[sat_v]))) if int(sat_v.sum()) >= 3 else None
+    a_max = float(np.percentile(np.abs(dv[sat_a]), 90)) / T if int(sat_a.sum()) >= 3 else None
+    return v_max, a_max, int(sat_v.sum()), int(sat_a.sum())
+
+
+def _limited_cost(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max) -> float:
+    """The truncated quadratic cost of the one-step prediction with the limits (the measured previous
+    velocity bounds the change): a limited start is explained, a motion before the command is not."""
+    z, y, yp = _drive_rows(recs, theta, T)
+    vhat = alpha * z / T
+    if v_max is not None:
+        vhat = np.clip(vhat, -v_max, v_max)
+    if a_max is not None:
+        vp = yp / T
+        vhat = np.clip(vhat, vp - a_max * T, vp + a_max * T)
+    q = ((y - vhat * T) / scale) ** 2
+    return float(np.sum(np.minimum(q, 16.0)))
+
+
+def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
+    from scipy.optimize import minimize_scalar
+
+    out = {"kv": None, "dead_time": None, "v_max": None, "a_max": None}
+    moving = sum(float(np.ptp(r.S)) for r in recs)
+    if moving <= 0.0:
+        return out
+    # pass 1: least median of the residual over the moving samples, on a grid of dead times
+    coarse = np.arange(0.0, MAX_DELAY + 1e-12, T)
+    med = np.array([_robust_alpha(*_drive_rows(recs, th, T)[:2])[2] for th in coarse])
+    if not np.isfinite(med).any():
+        _warn(res.warnings, f"kv and dead time: the axis hardly moves in these recordings; record {RECORD_STEPS}")
+        return out
+    scale = max(1.4826 * float(np.min(med)), 1e-7)
+    res.extra["drive_equation_scale_mm"] = scale
+    # pass 2: the linear loop's truncated quadratic cost: a first dead time, and the limits there
+    costs = np.array([_robust_alpha(*_drive_rows(recs, th, T)[:2], scale)[1] for th in coarse])
+    theta = float(coarse[int(np.argmin(costs))])
+    alpha = _robust_alpha(*_drive_rows(recs, theta, T)[:2], scale)[0]
+    grid = np.arange(0.0, MAX_DELAY + 1e-12, 0.25 * T)
+    v_max, a_max, _, _ = _limits(recs, T, alpha, theta, scale)
+    # pass 3: with the limits in the one-step prediction (an acceleration-limited start no longer
+    # looks like a longer dead time), on the grid near the first dead time, then refined; the
+    # smallest of equal costs (the per-cycle velocity of the model cannot tell a continuous start
+    # within the cycle: the cost can be flat over a cycle)
+    for _ in range(2):
+        win = grid[np.abs(grid - theta) <= 8 * T + 1e-12]
+        costs_w = np.array([_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in win])
+        i = int(np.flatnonzero(costs_w <= costs_w.min() * (1 + 1e-9))[0])
+        theta = float(win[i])
+        lo, hi = win[max(i - 1, 0)], win[min(i + 1, win.size - 1)]
+        if hi > lo:
+            opt = minimize_scalar(lambda th: _limited_cost(recs, T, th, scale, alpha, v_max, a_max),
+                                  bounds=(lo, hi), method="bounded", options={"xatol": 0.005 * T})
+            if opt.fun < costs_w[i] * (1 - 1e-9):
+                theta = float(opt.x)
+        alpha = _robust_alpha(*_drive_rows(recs, theta, T)[:2], scale)[0]
+        best = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
+        v_max, a_max, n_v, n_a = _limits(recs, T, alpha, theta, scale)
+    # identifiability of the dead time: the cost must rise 2-3 ms away from the optimum (a ramp
+    # alone trades dead time against kv; steps or a chirp separate them)
+    near = [_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in (theta - 0.003, theta - 0.002,
+                                                                               theta + 0.002, theta + 0.003)
+            if 0.0 <= th <= MAX_DELAY]
+    sharp = bool(near) and min(near) > 1.05 * best
+    # and command transients well above the encoder's noise (a ramp's kink is not enough)
+    jumps = sum(int(np.sum(np.abs(np.diff(r.S, 2)) > max(200.0 * scale, 1e-3))) for r in recs)
+    res.extra["drive_command_transients"] = jumps
+    sharp = sharp and jumps >= 3
+    res.extra["drive_dead_time_cost_ratio"] = (min(near) / best) if near and best > 0 else None
+    if not (0.0 < alpha < 1.0) or not sharp:
+        _warn(res.warnings, "kv and dead time: not identifiable from these recordings (the command has no "
+                            f"fast transients); record {RECORD_STEPS}")
+        return out
+    out["kv"], out["dead_time"] = -math.log1p(-alpha) / T, theta
+    out["v_max"], out["a_max"] = v_max, a_max
+    if v_max is None:
+        _warn(res.warnings, "v_max: the velocity limit was not reached in these recordings; record "
+                            f"{RECORD_LARGE_STEP}")
+    if a_max is None:
+        _warn(res.warnings, "a_max: the acceleration limit was not reached in these recordings; record "
+                            f"{RECORD_LARGE_STEP} (or steps of 1-2 mm)")
+    res.extra["drive_samples_velocity_limited"] = n_v
+    res.extra["drive_samples_acceleration_limited"] = n_a
+    return out
+
+
+def simulate_drive(S: np.ndarray, x0: float, T: float, kv: float, dead_time: float, v_max: float | None,
+                   a_max: float | None) -> np.ndarray:
+    """The fitted drive on a command (the model of :func:`identify`, sampled): motor positions at the
+    rows' times."""
+    alpha = -math.expm1(-kv * T)
+    kv_d = alpha / T
+    c = _delayed(S, dead_time / T).tolist()
+    vm = math.inf if v_max is None else v_max
+    dvm = math.inf if a_max is None else a_max * T
+    out = [0.0] * len(c)
+    x = x0
+    v = 0.0
+    for k in range(len(c)):
+        out[k] = x
+        v = limit_velocity(kv_d * (c[k] - x), vm, v, dvm)     # the simulator's drive limits
+        x += v * T
+    return np.array(out)
+
+
+def _mode(f: np.ndarray, f0: float, zeta: float) -> np.ndarray:
+    """Motor -> nozzle: (w0^2 + 2 zeta w0 s) / (s^2 + 2 zeta w0 s + w0^2) at s = j 2 pi f."""
+    s = 2j * np.pi * f
+    w0 = 2.0 * np.pi * f0
+    return (w0 * w0 + 2 * zeta * w0 * s) / (s * s + 2 * zeta * w0 * s + w0 * w0)
+
+
+def _frf(recs: Sequence[_Rec], T: float):
+    from scipy.signal import csd, welch
+
+    fs = 1.0 / T
+    lengths = [r.X.size for r in recs]
+    nper = NPERSEG if max(lengths) >= 2 * NPERSEG else max(256, 2 ** int(math.log2(max(lengths) // 2)))
+    Pxx = Pyy = Pxy = None
+    f = None
+    for r in recs:
+        if r.X.size < nper:
+            continue
+        kw = dict(fs=fs, nperseg=nper, detrend="linear")
+        f, pxx = welch(r.X, **kw)
+        _, pyy = welch(r.Y, **kw)
+        _, pxy = csd(r.X, r.Y, **kw)
+        w = r.X.size / nper
+        Pxx = pxx * w if Pxx is None else Pxx + pxx * w
+        Pyy = pyy * w if Pyy is None else Pyy + pyy * w
+        Pxy = pxy * w if Pxy is None else Pxy + pxy * w
+    if f is None:
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = Pxy / Pxx
+        coh = np.abs(Pxy) ** 2 / (Pxx * Pyy)
+    return f, H, np.nan_to_num(coh), nper
+
+
+def _fit_frf(f, H, coh, T: float, res: Identification) -> dict:
+    from scipy.optimize import least_squares
+
+    out = {"resonance_hz": None, "damping": None, "delay": None, "gain": None}
+    df = f[1] - f[0]
+    sel = (f > 1.5 * df) & (f <= 0.45 / T) & (coh >= 0.6) & np.isfinite(H)
+    if int(sel.sum()) < 8:
+        _warn(res.warnings, "sensor delay and resonance: the motor -> sensor response is not coherent at any "
+                            f"frequency; record {RECORD_CHIRP}")
+        return out
+    fs_, Hs, cs = f[sel], H[sel], np.clip(coh[sel], 0.0, 0.999)
+    w = np.sqrt(cs / (1.0 - cs))
+    f_hi = float(fs_.max())
+    out["band_hz"] = [float(fs_.min()), f_hi]
+    mag = np.abs(Hs)
+    g0 = float(np.median(mag[: max(3, mag.size // 10)]))
+    low = fs_ <= min(30.0, max(fs_[2], 0.3 * f_hi))
+    ph = np.unwrap(np.angle(Hs / np.sign(g0 or 1.0)))
+    tau0 = float(-np.polyfit(fs_[low], ph[low], 1)[0] / (2 * np.pi)) if int(low.sum()) >= 3 else 0.0
+    tau0 = min(max(tau0, 0.0), MAX_DELAY)
+
+    def resid(model):
+        r = w * (model / Hs - 1.0)
+        return np.concatenate([r.real, r.imag])
+
+    def rigid(p):
+        return resid(p[0] * np.exp(-2j * np.pi * fs_ * p[1]))
+
+    fr = least_squares(rigid, [g0, tau0], bounds=([-np.inf, -0.005], [np.inf, MAX_DELAY]), x_scale=[abs(g0) or 1.0, T])
+    best = {"cost": float(fr.cost), "g": float(fr.x[0]), "tau": float(fr.x[1]), "f0": None, "zeta": None, "x": fr}
+    ratio = mag / abs(g0) if g0 else mag
+    ipk = int(np.argmax(ratio))
+    if ratio[ipk] > 1.3 and 0 < ipk < fs_.size - 1:
+        f00 = float(fs_[ipk])
+
+        def resonant(p):
+            return resid(p[0] * _mode(fs_, math.exp(p[2]), math.exp(p[3])) * np.exp(-2j * np.pi * fs_ * p[1]))
+
+        starts = [(f00, min(max(0.5 / ratio[ipk], 0.01), 0.5)), (f00, 0.1), (f00, 0.3)]
+        for f_init, z_init in starts:
+            try:
+                fm = least_squares(resonant, [g0, fr.x[1], math.log(f_init), math.log(z_init)],
+                                   bounds=([-np.inf, -0.005, math.log(fs_.min()), math.log(0.003)],
+                                           [np.inf, MAX_DELAY, math.log(0.5 / T), math.log(1.0)]),
+                                   x_scale=[abs(g0) or 1.0, T, 0.1, 0.3])
+            except ValueError:
+                continue
+            if fm.cost < best["cost"]:
+                best = {"cost": float(fm.cost), "g": float(fm.x[0]), "tau": float(fm.x[1]),
+                        "f0": math.exp(fm.x[2]), "zeta": math.exp(fm.x[3]), "x": fm}
+    rigid_cost = float(fr.cost)
+    f0 = best["f0"]
+    accepted = (f0 is not None and best["cost"] < 0.5 * rigid_cost and int((fs_ > 1.2 * f0).sum()) >= 3
+                and int((fs_ < 0.8 * f0).sum()) >= 3)
+    if not accepted:
+        best = {"cost": rigid_cost, "g": float(fr.x[0]), "tau": float(fr.x[1]), "f0": None, "zeta": None, "x": fr}
+        if f_hi < 100.0:
+            _warn(res.warnings, f"resonance_hz, damping: the recordings excite the axis coherently only up to "
+                                f"{f_hi:.0f} Hz and show no resonance there; record {RECORD_CHIRP}")
+        else:
+            _warn(res.warnings, f"resonance_hz, damping: no resonance between motor and nozzle up to {f_hi:.0f} Hz "
+                                "(a rigid drive fits: the scenario keeps resonance_hz = 0)")
+    # the delay's uncertainty from the Jacobian
+    J = best["x"].jac
+    try:
+        cov = np.linalg.pinv(J.T @ J) * (2 * best["cost"] / max(J.shape[0] - J.shape[1], 1))
+        tau_sd = float(math.sqrt(max(cov[1, 1], 0.0)))
+    except (np.linalg.LinAlgError, ValueError):
+        tau_sd = math.inf
+    if tau_sd <= 0.3e-3:
+        out["delay"] = max(best["tau"], 0.0)
+    else:
+        _warn(res.warnings, f"sensor delay: uncertain by {tau_sd * 1e3:.2g} ms with this excitation; record "
+                            f"{RECORD_CHIRP}")
+    out.update(resonance_hz=best["f0"], damping=best["zeta"], gain=best["g"])
+    model = best["g"] * np.exp(-2j * np.pi * fs_ * best["tau"])
+    if best["f0"] is not None:
+        model = model * _mode(fs_, best["f0"], best["zeta"])
+    err = np.linalg.norm(w * (model - Hs)) / max(np.linalg.norm(w * Hs), 1e-300)
+    out["frf_fit_percent"] = float(100.0 * (1.0 - err))
+    out["delay_sd"] = tau_sd
+    out["_model"] = (best["g"], best["tau"], best["f0"], best["zeta"])
+    out["_points"] = (fs_, Hs, cs)
+    return out
+
+
+def nozzle_from_motor(X: np.ndarray, T: float, f0: float | None, zeta: float | None) -> np.ndarray:
+    """The nozzle the fitted mode makes of the motor positions (continuous model, bilinear)."""
+    if not f0:
+        return X.copy()
+    from scipy.signal import cont2discrete, lfilter
+
+    w0 = 2 * math.pi * f0
+    num, den = [2 * zeta * w0, w0 * w0], [1.0, 2 * zeta * w0, w0 * w0]
+    b, a, _ = cont2discrete((num, den), T, method="bilinear")
+    b = np.ravel(b)
+    from scipy.signal import lfilter_zi
+
+    zi = lfilter_zi(b, a) * X[0]
+    return lfilter(b, a, X, zi=zi)[0]
+
+
+def _quasi_static(r: _Rec, T: float, settle: float) -> np.ndarray:
+    """Samples where the nozzle equals the motor: slow motor, and no command acceleration for
+    ``settle`` seconds before (a slow ramp, a settled hold)."""
+    acc = np.zeros_like(r.S)
+    acc[1:-1] = np.abs(np.diff(r.S, 2)) / (T * T)
+    dyn = (acc > QS_ACCELERATION).astype(np.int64)
+    n = int(round(settle / T))
+    cs = np.concatenate([[0], np.cumsum(dyn)])
+    k = np.arange(r.S.size)
+    recent = cs[k + 1] - cs[np.maximum(k + 1 - n, 0)]
+    v = np.zeros_like(r.X)
+    v[1:] = np.abs(np.diff(r.X)) / T
+    ok = (recent == 0) & (v <= QS_VELOCITY) & (k >= n)
+    return ok
+
+
+def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float, surface: float | None,
+                    calibrated_at: float | None, gain: float | None, res: Identification) -> dict:
+    xs, ys = [], []
+    for r in recs:
+        ok = _quasi_static(r, T, settle)
+        Xd = _delayed(r.X, delay / T)
+        xs.append(Xd[ok])
+        ys.append(r.Y[ok])
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    out = {"characteristic": None, "noise_std": None, "quasi_static_samples": int(x.size)}
+    if x.size < 200:
+        _warn(res.warnings, f"noise_std and characteristic: too few quasi-static samples ({x.size}); record "
+                            f"{RECORD_STANDSTILL} and {RECORD_RAMP}")
+        return out
+    edges = np.arange(math.floor(x.min() / CHAR_BIN) * CHAR_BIN, x.max() + CHAR_BIN, CHAR_BIN)
+    which = np.digitize(x, edges)
+    pts, resid, slopes = [], [], []
+    for b in np.unique(which):
+        m = which == b
+        if int(m.sum()) < 30:
+            continue
+        xb, yb = x[m], y[m]
+        span = float(np.ptp(xb))
+        if span >= 0.2 * CHAR_BIN:
+            c = 0.5 * (edges[b - 1] + edges[b]) if 0 < b < edges.size else float(np.mean(xb))
+            c = min(max(c, float(xb.min())), float(xb.max()))
+            p = np.polyfit(xb - c, yb, 1)
+            pts.append((c, float(p[1])))
+            slopes.append(float(p[0]))
+            resid.append(yb - np.polyval(p, xb - c))
+        else:
+            pts.append((float(np.mean(xb)), float(np.mean(yb))))
+            resid.append(yb - np.mean(yb))
+    if resid:
+        rr = np.concatenate(resid)
+        std = float(np.sqrt(np.mean(rr * rr)))
+        g = abs(gain) if gain else (abs(float(np.median(slopes))) if slopes else 1.0)
+        out["noise_std"] = std / (g or 1.0)
+        out["noise_samples"] = int(rr.size)
+    pts.sort()
+    out["points_motor"] = pts
+    if not pts:
+        return out
+    px = np.array([p[0] for p in pts])
+    py = np.array([p[1] for p in pts])
+    if surface is None and calibrated_at is None:
+        _warn(res.warnings, "characteristic: the zero of the true distance is unknown; give the surface height "
+                            "in the motor encoder's coordinates (--surface Z: the actual position where the nozzle "
+                            "touches the sheet) or the distance where the sensor reads true (--calibrated-at D)")
+        return out
+    if surface is None:
+        if not (py.min() <= calibrated_at <= py.max()) or px.size < 2 or np.any(np.diff(py) <= 0):
+            _warn(res.warnings, f"characteristic: the sensor never read {calibrated_at:g} mm on a monotonic part "
+                                f"of the recordings; record {RECORD_RAMP}")
+            return out
+        surface = float(np.interp(calibrated_at, py, px)) - calibrated_at
+    true = px - surface
+    if px.size < 2 or float(np.ptp(true)) < 0.5:
+        _warn(res.warnings, f"characteristic: the recordings cover only {float(np.ptp(true)):.2f} mm of distance "
+                            f"quasi-statically; record {RECORD_RAMP}")
+        return out
+    out["characteristic"] = [[round(float(a), 6), round(float(b), 6)] for a, b in zip(true, py)]
+    out["surface"] = surface
+    return out
+
+
+def _sign(recs: Sequence[_Rec]) -> float:
+    cov = 0.0
+    for r in recs:
+        cov += float(np.dot(r.X - r.X.mean(), r.sig.sensor[-r.X.size:] - r.sig.sensor[-r.X.size:].mean()))
+    return -1.0 if cov < 0.0 else 1.0
+
+
+def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, surface: float | None = None,
+             calibrated_at: float | None = None) -> Identification:
+    """Fit the drive and the sensor to the recordings (see the module docstring).
+
+    ``sensor_sign``: +1 if the sensor reads nozzle - surface (a distance), -1 if surface - nozzle
+    (encoder 2, s = -d); None: detected from the correlation with the motor. ``surface``: the
+    surface height in the actual column's coordinates (fixes the zero of the true distance for the
+    characteristic); ``calibrated_at``: instead, the distance (mm) at which the sensor reads true.
+    """
+    if not signals:
+        raise IdentifyError("no recording given")
+    T = signals[0].cycle_time
+    for s in signals[1:]:
+        if abs(s.cycle_time - T) > 0.01 * T:
+            raise IdentifyError(f"{s.path}: cycle {s.cycle_time * 1e3:.6g} ms, {signals[0].path}: {T * 1e3:.6g} ms; "
+                                "record every file at the same (interpolation) cycle")
+    moving = [s for s in signals if np.ptp(s.command) > 0.0]
+    if not moving:
+        raise IdentifyError("excitation too poor: the command does not move in any recording; record "
+                            f"{RECORD_STEPS}, {RECORD_CHIRP} and {RECORD_RAMP} (docs/identify.md)")
+    res = Identification(cycle_time=T, drive={k: None for k in DRIVE_KEYS}, sensor={k: None for k in SENSOR_KEYS})
+    recs0 = [_prepare(s, 1.0) for s in signals]
+    sign = _sign(recs0) if sensor_sign is None else float(sensor_sign)
+    recs = [_prepare(s, sign) for s in signals]
+    res.extra["sensor_sign"] = sign
+    res.extra["sensor_reads"] = "nozzle - surface (distance)" if sign > 0 else "surface - nozzle (encoder 2)"
+    # drive
+    drive = _fit_drive(recs, T, res)
+    res.drive.update(drive)
+    if all(drive[k] is None for k in ("kv", "v_max", "a_max")) and np.ptp(np.concatenate([r.S for r in recs])) < 1e-3:
+        raise IdentifyError("excitation too poor: the command moves less than 1 um; record "
+                            f"{RECORD_STEPS}, {RECORD_CHIRP} and {RECORD_RAMP}")
+    # sensor path: frequency response motor -> sensor
+    frf = _frf(recs, T)
+    fr = _fit_frf(*frf[:3], T, res) if frf is not None else {"resonance_hz": None, "damping": None, "delay": None,
+                                                             "gain": None}
+    if frf is None:
+        _warn(res.warnings, f"sensor delay and resonance: recordings too short for a frequency response; record "
+                            f"{RECORD_CHIRP}")
+    res.drive["resonance_hz"] = fr.get("resonance_hz")
+    res.drive["damping"] = fr.get("damping")
+    res.sensor["delay"] = fr.get("delay")
+    # quasi-static: characteristic and noise
+    settle = 0.3
+    if res.drive["kv"]:
+        settle = max(settle, 5.0 / res.drive["kv"])
+    if res.drive["resonance_hz"]:
+        settle = max(settle, 5.0 / (2 * math.pi * res.drive["resonance_hz"] * res.drive["damping"]))
+    settle = min(settle, 2.0)
+    delay = res.sensor["delay"] if res.sensor["delay"] is not None else (fr.get("_model") or (0, 0))[1]
+    ch = _characteristic(recs, T, delay or 0.0, settle, surface, calibrated_at, fr.get("gain"), res)
+    res.sensor["noise_std"] = ch["noise_std"]
+    res.sensor["characteristic"] = ch["characteristic"]
+    if ch["noise_std"] is None and not any("noise_std" in w for w in res.warnings):
+        _warn(res.warnings, f"noise_std: no quasi-static samples; record {RECORD_STANDSTILL}")
+    res.extra.update({"sensor_gain": fr.get("gain"), "surface_mm": ch.get("surface"),
+                      "frequency_band_hz": fr.get("band_hz"), "sensor_delay_sd_s": fr.get("delay_sd"),
+                      "quasi_static_samples": ch.get("quasi_static_samples"), "settle_s": settle,
+                      "noise_samples": ch.get("noise_samples")})
+    _fit_quality(recs, T, res, fr, ch)
+    res.recordings = [{"path": s.path, "source": s.source, "samples": int(s.t.size), "duration_s": s.duration,
+                       "columns": {"command": s.columns[0], "actual": s.columns[1], "sensor": s.columns[2]},
+                       "actual_sampled_at": s.actual_at, "cycle_time_s": s.cycle_time} for s in signals]
+    res.curves["recs"] = recs
+    res.curves["frf"] = frf
+    res.curves["frf_fit"] = fr
+    res.curves["char_points"] = ch.get("points_motor")
+    return res
+
+
+def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
+    d = res.drive
+    fit = res.fit
+    sims = []
+    if d["kv"] is not None:
+        errs, fits = [], []
+        for r in recs:
+            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"])
+            e = r.X - xh
+            errs.append(float(np.sqrt(np.mean(e * e))))
+            den = float(np.linalg.norm(r.X - r.X.mean()))
+            fits.append(float(100.0 * (1.0 - np.linalg.norm(e) / den)) if den > 0 else None)
+            sims.append(xh)
+        fit["drive_rms_mm"] = errs
+        fit["drive_fit_percent"] = fits
+    res.curves["drive_sim"] = sims
+    fit["frf_fit_percent"] = fr.get("frf_fit_percent")
+    model = fr.get("_model")
+    preds = []
+    if model is not None:
+        g, tau, f0, zeta = model
+        errs = []
+        for r in recs:
+            n = nozzle_from_motor(r.X, T, f0, zeta)
+            nd = _delayed(n, max(tau, 0.0) / T)
+            pts = ch.get("points_motor")
+            if ch.get("characteristic") is not None and pts:
+                yh = np.interp(nd, [p[0] for p in pts], [p[1] for p in pts])
+            else:
+                yh = g * nd
+                yh = yh + float(np.median(r.Y - yh))
+            preds.append(yh)
+            e = r.Y - yh
+            errs.append(float(np.sqrt(np.mean(e * e))))
+        fit["sensor_rms_mm"] = errs
+    res.curves["sensor_pred"] = preds
