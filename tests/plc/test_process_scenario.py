@@ -133,3 +133,14 @@ def test_distctrl_run_refuses_a_function_not_implemented(tmp_path):
                           text=True, timeout=600)
     assert proc.returncode == 1
     assert "not implemented yet" in proc.stderr + proc.stdout and "Traceback" not in proc.stderr
+
+
+def test_enabled_key_switches_a_function_off_at_start():
+    sc = scenario('[[process]]\nfunction = "corner_lock"\naxis = "Z"\nenabled = false\n'
+                  '[[process]]\nfunction = "void_lock"\naxis = "Z"\n')
+    assert [p.enabled for p in sc.processes] == [False, True]
+    prog = sc.make_process_program()
+    assert [f.enabled for f in prog.functions] == [False, True]
+    with pytest.raises(ScenarioError) as exc:
+        scenario('[[process]]\nfunction = "corner_lock"\naxis = "Z"\nenabled = "yes"\n')
+    assert exc.value.key == "process[0].enabled" and "true or false" in str(exc.value)

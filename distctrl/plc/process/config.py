@@ -6,11 +6,12 @@ from dataclasses import dataclass, field
 
 from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
+from .base import require_bool
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .program import ProcessProgram
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
-__all__ = ["ProcessConfig", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
+__all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
            "make_process_program"]
 
 #: the functions a [[process]] table may name, and their own keys (besides function and axis)
@@ -20,6 +21,9 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     "auto_set_value": ("delay", "sample_time"),
 }
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
+#: the keys every function has besides function and axis: ``enabled`` (bool, default true) switches it
+#: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
+PROCESS_COMMON_KEYS = ("enabled",)
 #: named by issue 16, not implemented yet: refused with a clear message
 PROCESS_NOT_IMPLEMENTED = ("touch_off", "lift", "collision_retract", "calibrate")
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
@@ -33,6 +37,7 @@ class ProcessConfig:
     axis: str
     params: dict = field(default_factory=dict)
     index: int = 0
+    enabled: bool = True
 
     def make(self, cycle_time: float):
         p = self.params
@@ -62,7 +67,8 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
     if "function" not in cfg:
         raise ConfigError(f"{key}.function", MISSING, "one of " + ", ".join(repr(f) for f in PROCESS_FUNCTIONS))
     fn = _function(cfg["function"], f"{key}.function")
-    require_mapping(cfg, key, ("function", "axis") + PROCESS_KEYS[fn], required=("axis",))
+    require_mapping(cfg, key, ("function", "axis") + PROCESS_COMMON_KEYS + PROCESS_KEYS[fn], required=("axis",))
+    enabled = require_bool(cfg.get("enabled", True), f"{key}.enabled")
     if has_3d:
         raise ConfigError(f"{key}.axis", cfg["axis"], "an axis of the axis variant: the process functions do "
                           "not drive the channel's 3D distance control yet", "3D distance control:")
@@ -106,7 +112,7 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
         params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
                                                 k + "sample_time", lo=cycle_time, hi=10.0)}
-    return ProcessConfig(fn, axis, params, n)
+    return ProcessConfig(fn, axis, params, n, enabled)
 
 
 def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: bool = False
@@ -130,4 +136,9 @@ def make_process_program(configs, cycle_time: float) -> ProcessProgram | None:
     """One :class:`ProcessProgram` running every configured function in file order; None without any."""
     if not configs:
         return None
-    return ProcessProgram([c.make(cycle_time) for c in configs])
+    functions = []
+    for c in configs:
+        f = c.make(cycle_time)
+        f.enabled = c.enabled                    # [[process]] key enabled (switchable at run time)
+        functions.append(f)
+    return ProcessProgram(functions)
