@@ -8,6 +8,7 @@ them as one :class:`ProcessProgram` after the sensor's PLC program and before a 
 """
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import ProcessFunction
+from .calibrate import CALIBRATE_DEFAULTS, Calibrate, CalibrationRecord
 from .channel import ChannelPathStatus
 from .config import (
                      PROCESS_COMMON_KEYS,
@@ -23,7 +24,7 @@ from .hold import FreezeHold
 from .program import ProcessProgram
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
-__all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS",
+__all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS", "CALIBRATE_DEFAULTS", "Calibrate", "CalibrationRecord",
            "AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
            "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import require_bool
+from .calibrate import CALIBRATE_DEFAULTS, Calibrate
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .program import ProcessProgram
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
@@ -19,13 +20,15 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     "corner_lock": ("share", "hysteresis"),
     "void_lock": ("variable", "threshold", "window", "on_cycles", "off_cycles", "release_band"),
     "auto_set_value": ("delay", "sample_time"),
+    # capacitive calibration run (distctrl calibrate)
+    "calibrate": ("speed", "bottom", "settle", "runs", "variable"),
 }
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
 #: the keys every function has besides function and axis: ``enabled`` (bool, default true) switches it
 #: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
 PROCESS_COMMON_KEYS = ("enabled",)
 #: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED = ("touch_off", "lift", "collision_retract", "calibrate")
+PROCESS_NOT_IMPLEMENTED = ("touch_off", "lift", "collision_retract")
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -46,6 +49,9 @@ class ProcessConfig:
         if self.function == "void_lock":
             return VoidLock(self.axis, cycle_time, p["threshold"], variable=p["variable"], window=p["window"],
                             on_cycles=p["on_cycles"], off_cycles=p["off_cycles"], release_band=p["release_band"])
+        if self.function == "calibrate":
+            return Calibrate(self.axis, cycle_time, p["variable"], speed=p["speed"], bottom=p["bottom"],
+                             settle=p["settle"], runs=p["runs"])
         return AutoSetValue(self.axis, cycle_time, p["delay"], p["sample_time"])
 
 
@@ -108,11 +114,33 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
                   "off_cycles": require_int(cfg.get("off_cycles", VOID_DEFAULTS["off_cycles"]), k + "off_cycles",
                                             lo=1, hi=100000),
                   "release_band": band}
+    elif fn == "calibrate":
+        params = _calibrate_params(cfg, k, axis, sensor, cycle_time)
     else:
         params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
                                                 k + "sample_time", lo=cycle_time, hi=10.0)}
     return ProcessConfig(fn, axis, params, n, enabled)
+
+
+def _calibrate_params(cfg: dict, k: str, axis: str, sensor, cycle_time: float) -> dict:
+    """The calibration run's keys: it records a distance sensor's reading on the axis it measures."""
+    if sensor is None or sensor.kind != "distance" or sensor.axis != axis:
+        what = "no [sensor]" if sensor is None else f"a {sensor.kind!r} sensor on {sensor.axis}"
+        raise ConfigError(k + "axis", axis, "the axis of a [sensor] with kind = 'distance' (the calibration run "
+                          f"records a distance sensor's reading; the scenario has {what})", "no distance sensor on")
+    default_var = sensor.output_variable          # the raw reading when a linearisation is in force
+    var = cfg.get("variable", default_var)
+    if not isinstance(var, str) or not _VAR_RE.match(var):
+        raise ConfigError(k + "variable", var, "a V.E. variable name (default: the one the sensor writes)")
+    var = var[4:] if var.startswith("V.E.") else var
+    d = CALIBRATE_DEFAULTS
+    speed = require_number(cfg.get("speed", d["speed"]), k + "speed", lo=0.0, hi=20.0, lo_open=True)
+    bottom = require_number(cfg.get("bottom", d["bottom"]), k + "bottom", lo=0.0, hi=sensor.range_max,
+                            lo_open=True, hi_open=True)
+    return {"speed": speed, "bottom": bottom,
+            "settle": require_number(cfg.get("settle", d["settle"]), k + "settle", lo=cycle_time, hi=10.0),
+            "runs": require_int(cfg.get("runs", d["runs"]), k + "runs", lo=1, hi=10), "variable": var}
 
 
 def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: bool = False
