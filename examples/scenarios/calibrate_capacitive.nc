@@ -4,5 +4,5 @@
 ; head down to 0.3 mm and back (twice), recording the reading against the axis position
 N10 G90 G0 Z35
 N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]
-N30 #TIME 60
+N30 #TIME 30
 N40 M30
