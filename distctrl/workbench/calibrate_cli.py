@@ -91,7 +91,7 @@ def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, b
     check = None
     if res is not None:
         try:
-            check = model_check_um(sc, res)
+            check = model_check_um(sc, res, *getattr(run.machine, "true_xy", (0.0, 0.0)))
         except DistCtrlError:
             check = None
     if res is not None and repeatable:
