@@ -76,13 +76,17 @@ def test_distance_control_holds_the_true_distance_with_the_table(calibrated, set
     assert abs(with_ - set_dist) * 1000 < HOLD_TOLERANCE_UM
 
 
-def test_a_drifting_sensor_fails_the_repeatability_check(tmp_path):
-    scn = tmp_path / "drift.toml"
+@pytest.mark.parametrize("fault", ["drift", "noise"])
+def test_a_drifting_or_noisy_sensor_fails_the_repeatability_check(tmp_path, fault):
+    scn = tmp_path / "inconsistent.toml"
     text = SCN.read_text().replace('program = "calibrate_capacitive.nc"',
                                    f'program = "{(EX / "calibrate_capacitive.nc").as_posix()}"')
     text = text.replace('params = "z_laser.lis"', f'params = "{(EX / "z_laser.lis").as_posix()}"')
-    # the amplifier warms up: its reading drifts by 5 µm/s (about 50 µm between the two runs)
-    text += '\n[[events]]\nt = 0.0\nsensor_fault = { kind = "drift", rate = 0.005 }\n'
+    if fault == "drift":     # the amplifier warms up: 5 µm/s (about 50 µm between the two runs)
+        text += '\n[[events]]\nt = 0.0\nsensor_fault = { kind = "drift", rate = 0.005 }\n'
+    else:                    # 0.1 mm of noise: the runs' bins differ by tens of µm
+        text = text.replace("noise_std = 0.002", "noise_std = 0.1")
+        assert "noise_std = 0.1" in text
     scn.write_text(text)
     out = tmp_path / "table.toml"
     r = calibrate(scn, "--out", out, "--json", "--speed", 2.0)
