@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DistCtrlError
+from ..sim.config_errors import ConfigError
 from .identify.fit import CHAR_BIN, characteristic_points
 
 __all__ = ["CalibrationError", "CalibrationTable", "calibration_table", "run_calibration", "CalibrationRun",
@@ -174,8 +175,14 @@ def _with_calibrate(scenario, runs: int | None, speed: float | None, bottom: flo
     for k, v in (("runs", runs), ("speed", speed), ("bottom", bottom)):
         if v is not None:
             raw[k] = v
-    axes = scenario.axes
-    (pc,) = process_configs([raw], axes, sensor, scenario.cycle_time, False)
+    try:
+        (pc,) = process_configs([raw], scenario.axes, sensor, scenario.cycle_time, False)
+    except ConfigError as exc:              # name the option, or the scenario's own table
+        name = exc.key.rsplit(".", 1)[-1]
+        given = {"runs": runs, "speed": speed, "bottom": bottom}
+        key = f"--{name}" if given.get(name) is not None else \
+            exc.key.replace("process[0]", f"process[{cal[0].index}]" if cal else "calibrate")
+        raise exc.rekeyed(key) from None
     return dataclasses.replace(scenario, processes=(pc,))
 
 

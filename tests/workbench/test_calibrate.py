@@ -108,9 +108,11 @@ def test_summary_names_units_and_a_start_below_bottom_is_an_error(tmp_path):
     assert "repeatability: - (tolerance 10 µm)" in r.output and " mm/s" in r.output and "µm" in r.output
 
 
-def test_a_scenario_without_a_distance_sensor_is_refused():
+def test_invalid_input_ends_with_exit_code_1_naming_the_option_or_sensor(tmp_path):
     r = calibrate(EX / "process_void.toml")
     assert r.exit_code == 1 and "kind = 'distance'" in r.output
+    r = calibrate(SCN, "--bottom", 20, "--out", tmp_path / "t.toml")        # beyond the sensor's range
+    assert r.exit_code == 1 and "--bottom: out of range" in r.output and not (tmp_path / "t.toml").exists()
 
 
 # ---------------------------------------------------------------------- helpers
