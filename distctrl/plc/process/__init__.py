@@ -13,9 +13,11 @@ from .config import (PROCESS_FUNCTIONS, PROCESS_KEYS, PROCESS_NOT_IMPLEMENTED, P
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .hold import FreezeHold
 from .program import ProcessProgram
+from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
 __all__ = ["AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
            "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
-           "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock"]
+           "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
+           "TOUCH_DEFAULTS", "TouchOff"]
