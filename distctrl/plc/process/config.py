@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
+from .collision_retract import COLLISION_DEFAULTS, CollisionRetract
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .program import ProcessProgram
 from .touch_off import TOUCH_DEFAULTS, TouchOff
@@ -22,10 +23,13 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     # --- touch-off (docs/process.md "Touch-off")
     "touch_off": ("variable", "request", "probe_speed", "detect", "pierce_height", "stroke", "retries",
                   "verify_time", "verify_band", "tolerance"),
+    # --- collision retract (docs/process.md "Collision retract")
+    "collision_retract": ("variable", "threshold", "short_circuit", "confirm_cycles", "retract", "retract_speed",
+                          "retract_accel"),
 }
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
 #: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED = ("lift", "collision_retract", "calibrate")
+PROCESS_NOT_IMPLEMENTED = ("lift", "calibrate")
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -47,6 +51,8 @@ class ProcessConfig:
                             on_cycles=p["on_cycles"], off_cycles=p["off_cycles"], release_band=p["release_band"])
         if self.function == "touch_off":
             return TouchOff(self.axis, cycle_time, **p)
+        if self.function == "collision_retract":
+            return CollisionRetract(self.axis, cycle_time, **p)
         return AutoSetValue(self.axis, cycle_time, p["delay"], p["sample_time"])
 
 
@@ -110,6 +116,8 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
                   "release_band": band}
     elif fn == "touch_off":
         params = _touch_off(cfg, k, axes[axis], sensor, cycle_time)
+    elif fn == "collision_retract":
+        params = _collision_retract(cfg, k, axes[axis], sensor)
     else:
         params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
@@ -152,6 +160,23 @@ def _touch_off(cfg: dict, k: str, axis_cfg, sensor, cycle_time: float) -> dict:
                                           hi=100.0),
             "tolerance": require_number(cfg.get("tolerance", d["tolerance"]), k + "tolerance", lo=0.0, hi=10.0,
                                         lo_open=True)}
+
+
+def _collision_retract(cfg: dict, k: str, axis_cfg, sensor) -> dict:
+    d = COLLISION_DEFAULTS
+    sc = cfg.get("short_circuit", d["short_circuit"])
+    return {"variable": _signal_variable(cfg, k, sensor),
+            "threshold": require_number(cfg.get("threshold", d["threshold"]), k + "threshold", lo=0.0, hi=100.0),
+            "short_circuit": None if sc is None else require_number(sc, k + "short_circuit"),
+            "confirm_cycles": require_int(cfg.get("confirm_cycles", d["confirm_cycles"]), k + "confirm_cycles",
+                                          lo=1, hi=1000),
+            "retract": require_number(cfg.get("retract", d["retract"]), k + "retract", lo=0.0, hi=1000.0,
+                                      lo_open=True),
+            # the retract runs at the axis's limits unless slower ones are given
+            "retract_speed": require_number(cfg.get("retract_speed", axis_cfg.v_max), k + "retract_speed", lo=0.001,
+                                            hi=axis_cfg.v_max),
+            "retract_accel": require_number(cfg.get("retract_accel", axis_cfg.a_max), k + "retract_accel", lo=1.0,
+                                            hi=axis_cfg.a_max)}
 
 
 def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: bool = False

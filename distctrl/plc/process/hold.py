@@ -79,6 +79,9 @@ class FreezeHold:
         self._ctx = None
         #: (cycle, transition) of every command this hold sent (diagnosis, tests)
         self.log: list[tuple[int, int]] = []
+        #: functions that move the axis themselves for now (touch-off, collision retract): while any
+        #: is listed the hold sends nothing, drops the requests and forgets its phase (an interlock)
+        self.inhibitors: set[str] = set()
 
     # ------------------------------------------------------------------ requesters
     def request(self, who: str) -> None:
@@ -108,6 +111,10 @@ class FreezeHold:
     # ------------------------------------------------------------------ once per cycle
     def step(self, machine, cycle: int) -> None:
         self._requests, self._requested_now = self._requested_now, set()
+        if self.inhibitors:
+            self.phase = IDLE
+            self._pending = None
+            return
         unit = machine.hli[self.axis]
         state = unit.state_r.actual_state
         if self._pending is not None:                     # waiting for the semaphore

@@ -36,7 +36,8 @@ The PLC moves Z only through distance control (HLI control unit, CNC objects):
    2 s, else 900052), the PLC writes ``V.E.TOUCH_OFF = 0``: the program goes on. ``result`` holds the
    surface found (``state_r.actual_position``, mm), the distance held, the travel and the attempts.
 
-An error writes ``V.E.TOUCH_OFF = -1``, writes ``v_max`` back, switches distance control OFF (the
+While it runs the axis's FREEZE hold is inhibited: the locks (void lock, corner lock) freeze neither
+the probe nor the back-off. An error writes ``V.E.TOUCH_OFF = -1``, writes ``v_max`` back, switches distance control OFF (the
 offset runs out: the head returns to the programmed height it started from), reports the error with
 the NC line and stops the program. Every command goes through the semaphore handshake (FCT-M3 §8.2).
 
@@ -150,6 +151,8 @@ class TouchOff(ProcessFunction):
     def reset(self) -> None:
         """Back to the initial state: idle, no command waiting, no attempt counted (the logs stay)."""
         self.phase = IDLE
+        if self.hold is not None:
+            self.hold.inhibitors.discard(self.name)
         self._pending: tuple[int, float] | None = None
         self._sent = -1                   # the cycle the last command was taken
         self._count = 0
@@ -180,7 +183,7 @@ class TouchOff(ProcessFunction):
             self._send(unit, cycle, _T_OFF)          # the head returns to the programmed height
         machine.variables[self.request] = -1.0
         self.errors.append(report_error(machine, cycle, error_id, detail))
-        self.phase = IDLE
+        self._set_phase(IDLE)
 
     # ------------------------------------------------------------------ once per PLC cycle
     def step(self, machine, cycle: int) -> None:
@@ -263,7 +266,7 @@ class TouchOff(ProcessFunction):
                                "travel": self._offset0 - offset, "attempts": self.attempts + 1}
                 self.log.append(self.result)
                 machine.variables[self.request] = 0.0
-                self.phase = IDLE
+                self._set_phase(IDLE)
             elif state not in (_ACTIVE_CD, _FREEZE):
                 self._fail(machine, cycle, ErrorId.TOUCH_OFF_FAILED,
                            f"the FREEZE at the pierce height was not taken: distance control is {_state_name(state)}")
@@ -286,7 +289,14 @@ class TouchOff(ProcessFunction):
         self._offset0 = unit.state_r.actual_offset * MM_PER_UNIT
         self._last_offset = math.nan
         self._send(unit, cycle, _T_ON_CD, 0.0)
-        self.phase = PROBING
+        self._set_phase(PROBING)
+
+    def _set_phase(self, phase: str) -> None:
+        """The phase; while not IDLE the axis's FREEZE hold is inhibited (the locks must not freeze the
+        probe or the back-off)."""
+        self.phase = phase
+        if self.hold is not None:
+            (self.hold.inhibitors.discard if phase == IDLE else self.hold.inhibitors.add)(self.name)
 
 
 def _ve(name: str) -> str:
