@@ -48,7 +48,6 @@ def test_void_lock_on_the_distance_variable_defaults_to_mm_per_s():
 
 @pytest.mark.parametrize("body, key, words", [
     ('function = "lift"\naxis = "Z"', "process[0].function", "not implemented yet"),
-    ('function = "touch_off"\naxis = "Z"', "process[0].function", "not implemented yet"),
     ('function = "dive"\naxis = "Z"', "process[0].function", "corner_lock"),
     ('function = "corner_lock"\naxis = "Q"', "process[0].axis", "Z"),
     ('function = "corner_lock"\naxis = "X"', "process[0].axis", "distance control is off"),
