@@ -12,10 +12,12 @@ from .config import (PROCESS_FUNCTIONS, PROCESS_KEYS, PROCESS_NOT_IMPLEMENTED, P
                      make_process_program, process_configs)
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .hold import FreezeHold
+from .lift import LIFT_DEFAULTS, Lift, LiftMotion
 from .program import ProcessProgram
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
 __all__ = ["AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
            "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
-           "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock"]
+           "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
+           "LIFT_DEFAULTS", "Lift", "LiftMotion"]

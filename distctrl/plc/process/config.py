@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .corner_lock import CORNER_DEFAULTS, CornerLock
+from .lift import LIFT_DEFAULTS, Lift
 from .program import ProcessProgram
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
@@ -18,10 +19,12 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     "corner_lock": ("share", "hysteresis"),
     "void_lock": ("variable", "threshold", "window", "on_cycles", "off_cycles", "release_band"),
     "auto_set_value": ("delay", "sample_time"),
+    # --- lift (issue 16, h16-lift) ---
+    "lift": ("height", "min_distance", "v_max", "a_max", "settle_time"),
 }
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
 #: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED = ("touch_off", "lift", "collision_retract", "calibrate")
+PROCESS_NOT_IMPLEMENTED = ("touch_off", "collision_retract", "calibrate")
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -41,6 +44,10 @@ class ProcessConfig:
         if self.function == "void_lock":
             return VoidLock(self.axis, cycle_time, p["threshold"], variable=p["variable"], window=p["window"],
                             on_cycles=p["on_cycles"], off_cycles=p["off_cycles"], release_band=p["release_band"])
+        # --- lift (issue 16, h16-lift) ---
+        if self.function == "lift":
+            return Lift(self.axis, cycle_time, p["v_max"], p["a_max"], height=p["height"],
+                        min_distance=p["min_distance"], settle_time=p["settle_time"])
         return AutoSetValue(self.axis, cycle_time, p["delay"], p["sample_time"])
 
 
@@ -102,6 +109,19 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
                   "off_cycles": require_int(cfg.get("off_cycles", VOID_DEFAULTS["off_cycles"]), k + "off_cycles",
                                             lo=1, hi=100000),
                   "release_band": band}
+    # --- lift (issue 16, h16-lift) ---
+    elif fn == "lift":
+        ax = axes[axis]
+        params = {"height": require_number(cfg.get("height", LIFT_DEFAULTS["height"]), k + "height", lo=0.0,
+                                           hi=1000.0, lo_open=True),
+                  "min_distance": require_number(cfg.get("min_distance", LIFT_DEFAULTS["min_distance"]),
+                                                 k + "min_distance", lo=0.0, hi=1.0e6),
+                  "v_max": require_number(cfg.get("v_max", ax.v_max), k + "v_max", lo=0.0, hi=ax.v_max,
+                                          lo_open=True),
+                  "a_max": require_number(cfg.get("a_max", ax.a_max), k + "a_max", lo=0.0, hi=ax.a_max,
+                                          lo_open=True),
+                  "settle_time": require_number(cfg.get("settle_time", LIFT_DEFAULTS["settle_time"]),
+                                                k + "settle_time", lo=0.0, hi=1.0)}
     else:
         params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
