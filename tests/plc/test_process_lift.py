@@ -15,7 +15,7 @@ from distctrl.control import CycleOutput, HliState
 from distctrl.plc.process import LIFT_DEFAULTS, Lift, LiftMotion, ProcessProgram
 from distctrl.plc.process.channel import MOTION_LINEAR, MOTION_NONE, MOTION_RAPID, ChannelPathStatus
 from distctrl.sim.interpolator import AxisLimits, Interpolator
-from distctrl.sim.scenario import ScenarioError, scenario_from_text
+from distctrl.sim.scenario import ScenarioError, load_scenario, scenario_from_text
 
 EX = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 T = 0.001
@@ -298,3 +298,21 @@ def test_example_plate_end_to_end(tmp_path):
     t_without = wo["t"][int(np.argmax(wo["line"] == off_line))]
     assert t_without > 10.0 and t_with <= 1.05 * t_without
     assert res_w["metrics"]["collisions"] == 0 and res_w["metrics"]["min_distance_mm"] > 1.0
+
+
+def test_served_machine_lifts_and_the_plc_freezes_and_re_activates():
+    from distctrl.ads.machine import ServedMachine
+
+    served = ServedMachine(load_scenario(EX / "process_lift.toml"), port=0, discovery_port=None)
+    m = served.machine
+    lm = m.lift_motions[0]
+    top = 0.0
+    for _ in range(1100):                     # the first rapid between two holes: 0.85 .. 1.03 s
+        served.step()
+        top = max(top, m.inputs["Z"].programmed_position)
+    assert top == pytest.approx(36.5)
+    assert [e for _, e in lm.log][-3:] == ["start", "down", "landed"]
+    hold = m.process_program.holds["Z"]
+    assert [t for _, t in hold.log] == [2, 4]             # FREEZE for the lift, ON_CONST_DIST after it
+    assert hold.log[0][0] < [c for c, e in lm.log if e == "start"][-1]   # frozen before Z rose
+    assert m.hli["Z"].state_r.actual_state == 4 and m.hli["Z"].state_r.command_source == 1
