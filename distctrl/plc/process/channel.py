@@ -9,11 +9,11 @@ so a PLC program at the start of cycle k sees the values the CNC published at th
 ``D_CoveredDistance`` (DINT, 0.1 %): the part of the current block's path already travelled
 (``StateBahn_Data.D_CoveredDistance``, same HLI section); 0 while no G0/G1 block runs.
 
-``motion_type`` (UDINT): the motion type of the block the interpolator runs, 0 none (idle, dwell),
-1 G0 (rapid), 2 G1 (linear), 3 dwell (``#TIME``). A distctrl extension: the HLI's "Status
-information of a channel" has no element with the active block's G function (a TwinCAT PLC learns
-of a positioning block from the M/H functions the program sends it, e.g. the M5 that ends a cut);
-distctrl's NC has no M functions, so the PLC reads the block type here.
+``motion_type`` (UDINT): the motion type of the block the interpolator runs, 0 none (idle),
+1 G0 (rapid), 2 G1 (linear), 3 dwell (``#TIME``). A distctrl extension without an HLI name: the
+elements of ``StateBahn_Data`` in the HLI's "Status information of a channel" carry no block type
+(a TwinCAT PLC learns of a positioning block from the M/H functions the program sends it, e.g. the
+M5 that ends a cut); distctrl's NC has no M functions, so the PLC reads the block type here.
 
 ``override`` is the path override in force (1.0 = 100 %): on a TwinCAT CNC the PLC writes it itself
 (``gpCh[i]^.bahn_mc_control.override``), so a PLC program knows it; in the simulation scenario events
