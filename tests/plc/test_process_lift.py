@@ -114,10 +114,41 @@ def test_no_lift_on_g1_or_while_switched_off():
         m.interp.step()
         lm.step(m)
     assert lm.offset == 0.0 and not lm.log
-    off = SimpleNamespace(enabled=False)
-    lm2 = LiftMotion("Z", T, 5.0, V_Z, A_Z, function=off)
-    z, _ = _run_block(_machine(), lm2, {"X": 100.0})
-    assert np.all(z == 0.0)
+    off = Lift("Z", T, V_Z, A_Z, enabled=False)
+    z, _ = _run_block(_machine(), off.motion, {"X": 100.0})
+    assert np.all(z == 0.0) and not off.motion.log
+
+
+def test_switched_off_during_a_lift_it_keeps_the_freeze_until_the_head_has_landed():
+    f = Lift("Z", T, V_Z, A_Z)
+    prog = ProcessProgram([f])
+    hold = prog.holds["Z"]
+    m = _machine()
+    m.hli = {"Z": _Unit(state_r=SimpleNamespace(actual_state=0))}
+    m.interp.start_linear({"X": 200.0}, None)
+    for _ in range(50):
+        m.interp.step()
+        f.motion.step(m)
+    assert f.motion.offset > 0.0
+    f.enabled = False                    # as ProcessProgram.set_enabled does: switch, reset, withdraw
+    f.reset()
+    hold.withdraw(f.name)
+    assert f.enabled and not f.switched_on          # still running: the head is up
+    requested = []
+    while not m.interp.done or f.motion.busy:
+        if f.enabled:
+            f.step(m, m.cycle)
+        requested.append((f.motion.lift_active, "lift" in hold._requested_now))
+        hold._requested_now.clear()
+        m.interp.step()
+        f.motion.step(m)
+    assert all(r for active, r in requested if active)   # the hold requested while the head was up
+    assert f.motion.offset == 0.0 and not f.enabled      # landed, then off
+    m.interp.start_linear({"X": 0.0}, None)               # the next rapid is not lifted
+    for _ in range(300):
+        m.interp.step()
+        f.motion.step(m)
+    assert f.motion.offset == 0.0
 
 
 def test_a_feed_hold_keeps_the_head_up_and_the_landing_follows_the_resumed_path():

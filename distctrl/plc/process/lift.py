@@ -30,7 +30,8 @@ Two parts, as on a TwinCAT CNC:
   (``state_r.actual_state`` not ACTIVE / ACTIVE_CONST_DIST): two GEO cycles after the G0 started (a
   TwinCAT PLC would freeze on the M function that ends the cut, before the G0).
 
-A lift under way always lands; switching the function off (``enabled``) stops new lifts. The frozen
+Switching the function off (``enabled``) stops new lifts; a lift under way lands, and until it has
+landed the function still keeps distance control frozen (``enabled`` reads true until then). The frozen
 offset is kept over the rapid, so the head comes down to the height it had at the end of the cut;
 distance control then corrects for the plate under the new position.
 
@@ -126,10 +127,10 @@ class LiftMotion:
         interp = machine.interp
         cycle = machine.cycle
         rapid = interp.block == "rapid"
+        switched_on = getattr(self.function, "switched_on", True)
         if rapid and not self._was_rapid:                       # a G0 block started this cycle
             self.lift_suppressed = False
-            enabled = getattr(self.function, "enabled", True)
-            if self.phase == IDLE and enabled:
+            if self.phase == IDLE and switched_on:
                 if self.axis in interp.moving_axes or interp.path_length < self.min_distance:
                     self.lift_suppressed = True
                     self.log.append((cycle, "suppressed"))
@@ -138,7 +139,7 @@ class LiftMotion:
         self._was_rapid = rapid
         phase = self.phase
         if phase == WAITING:
-            if not rapid:
+            if not rapid or not switched_on:                    # nothing lifted yet: no lift
                 phase = IDLE
             elif machine.outputs[self.axis].hli_state not in _TRACKING:
                 phase = UP
@@ -198,6 +199,7 @@ class Lift(ProcessFunction):
     def __init__(self, axis: str, cycle_time: float, v_max: float, a_max: float,
                  height: float = LIFT_DEFAULTS["height"], min_distance: float = LIFT_DEFAULTS["min_distance"],
                  settle_time: float = LIFT_DEFAULTS["settle_time"], enabled: bool = True):
+        self.motion = None
         super().__init__(axis)
         if not isinstance(enabled, bool):
             raise ConfigError("lift.enabled", enabled, "true or false", "not a boolean:")
@@ -215,11 +217,27 @@ class Lift(ProcessFunction):
         self.requesting = False
 
     @property
+    def enabled(self) -> bool:
+        """The function runs: switched on, or switched off while a lift is still under way (it keeps
+        distance control frozen until the head has landed: re-activated while the head is up,
+        distance control would pull it down and, with a lower velocity limit than the landing, let
+        it dive into the plate when it lands)."""
+        return self.switched_on or (self.motion is not None and self.motion.lift_active)
+
+    @enabled.setter
+    def enabled(self, on: bool) -> None:
+        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``): no new lift while off
+        self.switched_on = bool(on)
+
+    @property
     def cnc_lift(self) -> LiftMotion:
         """The CNC part for the machine (:attr:`motion`)."""
         return self.motion
 
     def step(self, machine, cycle: int) -> None:
+        if not self.enabled:
+            self.requesting = False
+            return
         self.requesting = self.motion.lift_active            # the CNC object lift_active
         if self.requesting:
             self.hold.request(self.name)
