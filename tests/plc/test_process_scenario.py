@@ -47,7 +47,7 @@ def test_void_lock_on_the_distance_variable_defaults_to_mm_per_s():
 
 
 @pytest.mark.parametrize("body, key, words", [
-    ('function = "lift"\naxis = "Z"', "process[0].function", "not implemented yet"),
+    ('function = "calibrate"\naxis = "Z"', "process[0].function", "not implemented yet"),
     ('function = "dive"\naxis = "Z"', "process[0].function", "corner_lock"),
     ('function = "corner_lock"\naxis = "Q"', "process[0].axis", "Z"),
     ('function = "corner_lock"\naxis = "X"', "process[0].axis", "distance control is off"),
@@ -123,7 +123,7 @@ def test_distctrl_run_accepts_process_tables(name):
 
 
 def test_distctrl_run_refuses_a_function_not_implemented(tmp_path):
-    text = (EX / "process_corner.toml").read_text().replace('function = "corner_lock"', 'function = "lift"')
+    text = (EX / "process_corner.toml").read_text().replace('function = "corner_lock"', 'function = "calibrate"')
     (tmp_path / "s.toml").write_text(text.replace('program = "process_corner.nc"',
                                                   f'program = "{(EX / "process_corner.nc").as_posix()}"')
                                      .replace('params = "z_plasma.lis"',

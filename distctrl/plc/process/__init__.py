@@ -21,6 +21,7 @@ from .config import (
 )
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .hold import FreezeHold
+from .lift import LIFT_DEFAULTS, Lift, LiftMotion
 from .program import ProcessProgram
 from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
@@ -30,4 +31,5 @@ __all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS",
            "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
            "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
-           "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_SET_DIST", "CollisionRetract"]
+           "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_SET_DIST", "CollisionRetract",
+           "LIFT_DEFAULTS", "Lift", "LiftMotion"]

@@ -9,6 +9,7 @@ from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import require_bool
 from .collision_retract import COLLISION_DEFAULTS, CollisionRetract
 from .corner_lock import CORNER_DEFAULTS, CornerLock
+from .lift import LIFT_DEFAULTS, Lift
 from .program import ProcessProgram
 from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
@@ -27,13 +28,15 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     # --- collision retract (docs/process.md "Collision retract")
     "collision_retract": ("variable", "threshold", "short_circuit", "confirm_cycles", "retract", "retract_speed",
                           "retract_accel"),
+    # --- lift (issue 16, h16-lift) ---
+    "lift": ("height", "min_distance", "v_max", "a_max", "settle_time"),
 }
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
 #: the keys every function has besides function and axis: ``enabled`` (bool, default true) switches it
 #: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
 PROCESS_COMMON_KEYS = ("enabled",)
 #: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED = ("lift", "calibrate")
+PROCESS_NOT_IMPLEMENTED = ("calibrate",)
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -58,6 +61,10 @@ class ProcessConfig:
             return TouchOff(self.axis, cycle_time, **p)
         if self.function == "collision_retract":
             return CollisionRetract(self.axis, cycle_time, **p)
+        # --- lift (issue 16, h16-lift) ---
+        if self.function == "lift":
+            return Lift(self.axis, cycle_time, p["v_max"], p["a_max"], height=p["height"],
+                        min_distance=p["min_distance"], settle_time=p["settle_time"])
         return AutoSetValue(self.axis, cycle_time, p["delay"], p["sample_time"])
 
 
@@ -124,6 +131,19 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
         params = _touch_off(cfg, k, axes[axis], sensor, cycle_time)
     elif fn == "collision_retract":
         params = _collision_retract(cfg, k, axes[axis], sensor)
+    # --- lift (issue 16, h16-lift) ---
+    elif fn == "lift":
+        ax = axes[axis]
+        params = {"height": require_number(cfg.get("height", LIFT_DEFAULTS["height"]), k + "height", lo=0.0,
+                                           hi=1000.0, lo_open=True),
+                  "min_distance": require_number(cfg.get("min_distance", LIFT_DEFAULTS["min_distance"]),
+                                                 k + "min_distance", lo=0.0, hi=1.0e6),
+                  "v_max": require_number(cfg.get("v_max", ax.v_max), k + "v_max", lo=0.0, hi=ax.v_max,
+                                          lo_open=True),
+                  "a_max": require_number(cfg.get("a_max", ax.a_max), k + "a_max", lo=0.0, hi=ax.a_max,
+                                          lo_open=True),
+                  "settle_time": require_number(cfg.get("settle_time", LIFT_DEFAULTS["settle_time"]),
+                                                k + "settle_time", lo=0.0, hi=1.0)}
     else:
         params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
