@@ -37,7 +37,7 @@ import numpy as np
 
 from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, require_int, require_number
 from distctrl.sim.physics import characteristic_value, distance_reading, probe_increments, round_to
-from distctrl.sim.surface import Flat, Ramp, Sine, Step, TiltedPlane
+from distctrl.sim.surface import Flat, Holes, Ramp, Sine, Step, TiltedPlane
 
 __all__ = ["Fault", "FAULT_KINDS", "Bursts", "SensorBase", "EncoderProbe", "DistanceSensor", "ArcVoltageSensor",
            "NOISE_BLOCK", "footprint_offsets", "FootprintHeights", "FOOTPRINT_RINGS", "FOOTPRINT_PER_RING", "FOOTPRINT_POINTS", "D_MIN"]
@@ -85,6 +85,8 @@ class FootprintHeights:
       edges within the footprint's extent along its axis is constant there: one look-up at the centre;
     * a :class:`~distctrl.sim.surface.Sine` uses ``sin(a + b) = sin a cos b + cos a sin b`` with the
       points' ``cos b``, ``sin b`` computed once: one ``sin`` and one ``cos`` per read;
+    * :class:`~distctrl.sim.surface.Holes` with no hole within the footprint's reach add 0: one
+      grid look-up per read (:meth:`~distctrl.sim.surface.Holes.near`);
     * a :class:`~distctrl.sim.surface.TiltedPlane` is its centre value plus a fixed offset per point;
       :class:`~distctrl.sim.surface.Flat` is 0;
     * any other feature (a height map) is looked up at every point.
@@ -102,6 +104,8 @@ class FootprintHeights:
         self.sines: list = []             # (amplitude, k, phase, on_y, cos list, sin list)
         self.edged: list = []             # (z, on_y, reach, ((a, b), ...)): constant unless an edge is near
         self.points: list = []            # looked up at every point
+        self.holes: list = []             # (z, near): 0 over the footprint unless a hole is near
+        self._reach = math.hypot(reach_x, reach_y)
         for f in surface.features:
             kind = type(f)
             if kind is Flat:
@@ -125,6 +129,8 @@ class FootprintHeights:
             elif kind is Ramp:
                 on_y = f.axis == "Y"
                 self.edged.append((f.z, on_y, reach_y if on_y else reach_x, ((f.start, f.end),)))
+            elif kind is Holes:
+                self.holes.append((f.z, f.near))
             else:
                 self.points.append(f.z)
         self.plane = plane
@@ -153,6 +159,11 @@ class FootprintHeights:
                     break
             else:
                 c += z(x, y)
+        for z, near in self.holes:
+            if near(x, y, self._reach):
+                if varying is None:
+                    varying = []
+                varying.append(z)
         if varying is None and self._level and not self.sines and not self.points:
             return c, None
         hs = None if self._level else [c + o for o in self.plane]
