@@ -83,8 +83,10 @@ def _with_and_without(name):
 def test_corner_lock_end_to_end_no_dive_at_the_corner():
     with_, without, m = _with_and_without("process_corner.toml")
     assert without.completed and with_.completed
-    assert without.metrics["min_distance_mm"] < 0.5               # the torch dives at the corner
-    assert with_.metrics["min_distance_mm"] > 1.2                 # held: 1.5 mm set distance
+    # the arc model's slow-down rise (10 V at rest, no timed fault): the torch dives at the corner
+    assert without.metrics["min_distance_mm"] < 0.5
+    # held (1.5 mm set distance); what remains is the rise lagging the speed after the release
+    assert with_.metrics["min_distance_mm"] > 0.9
     hold = m.process_program.holds["Z"]
     # FREEZE and ON at the corner; FREEZE where the Y block slows to its end (then the NC switches off)
     assert [t for _, t in hold.log] == [2, 4, 2]
