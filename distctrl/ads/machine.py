@@ -346,6 +346,9 @@ class ServedMachine:
             self.discovery = DiscoveryResponder(TargetInfo(net_id, tc_version=self.system.version), discovery_port)
             self.server.attached.append(self.discovery)
         self.session = SessionLog(self.machine)
+        #: called after every cycle in the cycle thread, under the lock (the live page's recorder,
+        #: distctrl/ui/hub.py): keep them to a few microseconds
+        self.observers: list = []
         self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock)
 
     def step(self) -> None:
@@ -355,6 +358,8 @@ class ServedMachine:
             return
         self.machine.step()
         self.session.after_cycle()
+        for observer in self.observers:
+            observer()
 
     def set_paused(self, paused: bool) -> None:
         if paused != self.paused:
