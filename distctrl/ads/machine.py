@@ -35,6 +35,7 @@ from ..objects.registry import (
 from ..plc.hli import SemaphoreBusyError
 from ..plc.symbols import STRUCT_MEMBERS, channel_status_symbols, hli_symbols
 from . import AdsError, AdsServer, SymbolInfo
+from .datatypes import DataType, struct_type
 from .errors import (
     ADSERR_DEVICE_INVALIDACCESS,
     ADSERR_DEVICE_INVALIDDATA,
@@ -43,7 +44,6 @@ from .errors import (
     ADSERR_DEVICE_INVALIDPARM,
     ADSERR_DEVICE_INVALIDSIZE,
 )
-from .datatypes import DataType, struct_type
 from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64
 
 log = logging.getLogger("distctrl.serve")

@@ -30,7 +30,7 @@ CSP = ("default-src 'none'; script-src 'self' 'unsafe-inline'; style-src 'self' 
        "img-src 'self' data: blob:; font-src 'self' data:; connect-src 'self'; base-uri 'none'; "
        "form-action 'none'")
 #: frames per second of every page (the scope's stream, the panels' values)
-FRAME_MS = 40
+FRAME_MS = 50
 
 
 def free_port(host: str) -> int:

@@ -27,8 +27,15 @@ import numpy as np
 from ..control.states import HliTransition
 from ..errors import DistCtrlError
 from ..objects.browser import value_text
-from ..objects.registry import (SERVED_OBJECTS, ObjectAccessError, ObjectValueError, find_spec, index_offset,
-                                read_value, write_value)
+from ..objects.registry import (
+    SERVED_OBJECTS,
+    ObjectAccessError,
+    ObjectValueError,
+    find_spec,
+    index_offset,
+    read_value,
+    write_value,
+)
 from ..sim.runner import row_builder, trace_columns
 from ..trace.recorder import HLI_STATE_NAMES
 

@@ -2,7 +2,7 @@
 
 The surface (the scenario's ``[surface]`` at Y of the head) around the head, the nozzle (the Z drive's
 true nozzle), the true distance (nozzle to surface, green) and the measured distance (the sensor's
-reading as distance control sees it, ``<axis>.dc.sensor``, orange, drawn beside it), the head's path of
+measured distance the CNC reports in ``state_r.actual_distance``, orange, drawn beside it), the head's path of
 the last seconds, and the NC block being executed.
 """
 from __future__ import annotations
@@ -27,7 +27,7 @@ class MachineView:
         self.hub = hub
         m = hub.machine
         self.z_axis = m.sensor_axis or (m.dc_axes[0] if m.dc_axes else ("Z" if "Z" in m.axis_names else None))
-        self.surface = ColumnDataSource({"x": [], "z": []})
+        self.surface = ColumnDataSource({"x": [], "z": [], "zb": []})
         self.head = ColumnDataSource({"x": [], "z": []})
         self.true_d = ColumnDataSource({"x0": [], "z0": [], "x1": [], "z1": []})
         self.meas_d = ColumnDataSource({"x0": [], "z0": [], "x1": [], "z1": []})
@@ -35,7 +35,7 @@ class MachineView:
         p = figure(height=380, sizing_mode="stretch_width", match_aspect=False, x_axis_label="X (mm)",
                    y_axis_label="Z (mm)", tools="pan,wheel_zoom,reset,save", css_classes=["machine-plot"])
         p.toolbar.logo = None
-        p.varea("x", y1="z", y2=-1e3, source=self.surface, fill_color="lightsteelblue", fill_alpha=0.5)
+        p.varea("x", y1="z", y2="zb", source=self.surface, fill_color="lightsteelblue", fill_alpha=0.5)
         p.line("x", "z", source=self.surface, color="steelblue", line_width=2, legend_label="surface")
         p.line("x", "z", source=self.path, color="silver", line_width=1, legend_label="head path")
         p.segment("x0", "z0", "x1", "z1", source=self.true_d, color="green", line_width=3,
@@ -65,13 +65,16 @@ class MachineView:
         z = snap["true_surface"] + distance
         xs = np.linspace(x - HALF_WIDTH, x + HALF_WIDTH, 161)
         y = m.drives["Y"].nozzle if "Y" in m.drives else 0.0
-        self.surface.data = {"x": xs, "z": [m.surface.height(float(v), y) for v in xs]}
+        zs = [m.surface.height(float(v), y) for v in xs]
+        bottom = min(zs) - 2.0
+        self.surface.data = {"x": xs, "z": zs, "zb": [bottom] * len(zs)}
         self.head.data = {"x": [x], "z": [z]}
         self.true_d.data = {"x0": [x], "z0": [z], "x1": [x], "z1": [z - distance]}
         _, rows = hub.rows_since(max(0, hub.rows - int(PATH_SECONDS / hub.T)), 20)
-        measured = None
-        if len(rows) and "sensor" in self._cols:
-            measured = float(rows[-1, self._cols["sensor"]])
+        u = snap["units"].get(self.z_axis, {})
+        # state_r.actual_distance: the measured distance d as the CNC reports it (0.1 µm; only with
+        # distance control on the axis, P-AXIS-00328)
+        measured = u["actual_distance"] * 1e-4 if u.get("dc_on") else None
         dx = HALF_WIDTH / 40
         self.meas_d.data = ({"x0": [x + dx], "z0": [z], "x1": [x + dx], "z1": [z - measured]}
                             if measured is not None and np.isfinite(measured) else
@@ -81,7 +84,6 @@ class MachineView:
             self.path.data = {"x": rows[:, self._cols["x"]], "z": rows[:, zc]}
         line = snap["line"]
         block = hub.program_lines.get(line, "") if line is not None else ""
-        u = snap["units"].get(self.z_axis, {})
         text = (f"t = {snap['t']:.3f} s · NC {snap['nc_state']}, line {line if line is not None else '-'}: "
                 f"<code class='nc-block'>{html.escape(block.strip())}</code> · {self.z_axis} "
                 f"{state_name(u.get('state', 0))} · true distance {distance:.4f} mm · measured "

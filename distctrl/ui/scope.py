@@ -2,9 +2,9 @@
 
 * Signals: the columns of ``distctrl run --trace`` (every cycle) and the CNC objects of every axis
   (``<axis>.obj.<name>``, sampled every 20 ms). One y axis per unit.
-* Display: every ``DECIMATE``-th cycle (10 ms at 1 ms) streamed with rollover (``ColumnDataSource.stream``),
-  so the page holds the whole ring buffer (60 s) while it shows the last ``window`` seconds.
-* Pause (the buffer keeps filling; resume shows it), zoom and pan (Bokeh's tools), cursors (crosshair
+* Display: every ``DECIMATE``-th cycle (10 ms at 1 ms) streamed with rollover (``ColumnDataSource.stream``)
+  over the last ``window`` seconds; the ring buffer of the last 60 s (every cycle) stays on the server.
+* Pause loads the whole ring buffer into the page (the buffer keeps filling; Run goes live again), zoom and pan (Bokeh's tools), cursors (crosshair
   and hover), a trigger (rising or falling edge through a level, or any change of a state signal: the
   display stops half a window after it), markers for errors, warnings and state changes, and
   "Export CSV": the buffer at every cycle as a trace CSV with its .meta.json (``distctrl plot`` reads it).
@@ -16,8 +16,20 @@ from pathlib import Path
 
 import numpy as np
 from bokeh.layouts import column, row
-from bokeh.models import (Button, ColumnDataSource, CrosshairTool, DataRange1d, Div, HoverTool, LinearAxis,
-                          MultiChoice, NumericInput, Select, Spinner, Toggle)
+from bokeh.models import (
+    Button,
+    ColumnDataSource,
+    CrosshairTool,
+    DataRange1d,
+    Div,
+    HoverTool,
+    LinearAxis,
+    MultiChoice,
+    NumericInput,
+    Select,
+    Spinner,
+    Toggle,
+)
 from bokeh.palettes import Category10_10
 from bokeh.plotting import figure
 
@@ -42,7 +54,6 @@ class Scope:
     def __init__(self, hub: MachineHub, export_dir: Path):
         self.hub, self.export_dir = hub, export_dir
         self.step = DECIMATE
-        self.rollover = hub.capacity // DECIMATE
         options = [c for c in hub.columns if c not in ("t", "line")] + list(hub.object_signals)
         self.choice = MultiChoice(title="Signals (trace columns and CNC objects)", options=options,
                                   value=default_signals(hub), width=520, css_classes=["scope-signals"])
@@ -135,14 +146,25 @@ class Scope:
 
     def _set_window(self) -> None:
         self.x_range.follow_interval = float(self.window.value)
+        if not self.pause.active:
+            self._fill()
 
-    def _fill(self) -> None:
-        """Fill the sources from the whole ring buffer (start, resume, a new selection)."""
+    @property
+    def rollover(self) -> int:
+        """Rows the page keeps while running: the window (the browser redraws them every frame); the
+        whole ring buffer is loaded when the scope is paused."""
+        return max(2, int(float(self.window.value) / (self.hub.T * self.step)) + 1)
+
+    def _fill(self, whole: bool = False) -> None:
+        """Fill the sources from the ring buffer: the window (start, resume, a new selection) or,
+        paused, the whole buffer (60 s) to zoom and pan in."""
         hub = self.hub
         hub.pump()
-        self.cursor, rows = hub.rows_since(0, self.step)
+        back = hub.capacity if whole else self.rollover * self.step
+        self.cursor, rows = hub.rows_since(max(0, hub.rows - back), self.step)
         self.source.data = self._fast_data(rows)
-        self.obj_cursor, orows = hub.object_rows_since(0)
+        oback = hub.obj_capacity if whole else int(float(self.window.value) / (hub.T * hub.snapshot_every)) + 1
+        self.obj_cursor, orows = hub.object_rows_since(max(0, hub.obj_rows - oback))
         self.obj_source.data = self._slow_data(orows)
 
     def _fast_data(self, rows: np.ndarray) -> dict:
@@ -157,7 +179,7 @@ class Scope:
         self.pause.button_type = "warning" if paused else "default"
         if not paused:
             self._trig_stop_at = None
-            self._fill()
+        self._fill(whole=paused)
 
     def _arm(self) -> None:
         self._trig_armed = self.trig_mode.value != "off"
@@ -192,8 +214,9 @@ class Scope:
             self.source.stream(self._fast_data(rows), rollover=self.rollover)
         ocursor, orows = hub.object_rows_since(self.obj_cursor)
         self.obj_cursor = ocursor
-        if len(orows):
-            self.obj_source.stream(self._slow_data(orows), rollover=hub.obj_capacity)
+        if len(orows) and self.slow_cols:
+            self.obj_source.stream(self._slow_data(orows),
+                                   rollover=int(float(self.window.value) / (hub.T * hub.snapshot_every)) + 1)
         if self._trig_stop_at is not None and len(rows) and rows[-1, 0] >= self._trig_stop_at:
             self._trig_stop_at = None
             self.pause.active = True
