@@ -36,6 +36,7 @@ from ..objects.registry import (
 from ..plc.hli import SemaphoreBusyError
 from ..plc.symbols import STRUCT_MEMBERS, channel_status_symbols, hli_symbols, process_symbols
 from . import AdsError, AdsServer, SymbolInfo
+from .datatypes import DataType, struct_type
 from .errors import (
     ADSERR_DEVICE_INVALIDACCESS,
     ADSERR_DEVICE_INVALIDDATA,
@@ -44,7 +45,6 @@ from .errors import (
     ADSERR_DEVICE_INVALIDPARM,
     ADSERR_DEVICE_INVALIDSIZE,
 )
-from .datatypes import DataType, struct_type
 from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64
 
 log = logging.getLogger("distctrl.serve")
@@ -350,6 +350,9 @@ class ServedMachine:
             self.discovery = DiscoveryResponder(TargetInfo(net_id, tc_version=self.system.version), discovery_port)
             self.server.attached.append(self.discovery)
         self.session = SessionLog(self.machine)
+        #: called after every cycle in the cycle thread, under the lock (the live page's recorder,
+        #: distctrl/ui/hub.py): keep them to a few microseconds
+        self.observers: list = []
         self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock)
 
     def step(self) -> None:
@@ -359,6 +362,8 @@ class ServedMachine:
             return
         self.machine.step()
         self.session.after_cycle()
+        for observer in self.observers:
+            observer()
 
     def set_paused(self, paused: bool) -> None:
         if paused != self.paused:

@@ -218,6 +218,18 @@ def test_void_lock_reads_state_r_actual_distance_without_a_variable():
     assert f.locked
 
 
+def test_void_lock_window_starts_at_the_select_not_before_it():
+    # the head comes down to the cut height with distance control off (the arc voltage falls from
+    # 150 V to 104 V), then the NC selects: the window must not compare against the descent
+    m = FakeMachine(state=0)                               # INACTIVE
+    f, prog = void(m, window=0.005, on_cycles=1)
+    descent = [150.0 - 46.0 * min(k, 10) / 10 for k in range(12)]
+    k = run_cycles(m, prog, 12, feed_signal(descent))
+    m.hli["Z"].state_r.actual_state = ACTIVE_CD            # the select, at rest at the cut height
+    k = run_cycles(m, prog, 20, feed_signal([104.0] * 20), start=k)
+    assert m.taken == [] and not f.locked
+
+
 # ------------------------------------------------------------------ automatic set value
 def test_auto_set_value_samples_after_the_select_and_commands_the_mean():
     m = FakeMachine(state=int(HliState.INACTIVE), set_distance=1.0)

@@ -47,8 +47,7 @@ def test_void_lock_on_the_distance_variable_defaults_to_mm_per_s():
 
 
 @pytest.mark.parametrize("body, key, words", [
-    ('function = "lift"\naxis = "Z"', "process[0].function", "not implemented yet"),
-    ('function = "touch_off"\naxis = "Z"', "process[0].function", "not implemented yet"),
+    ('function = "calibrate"\naxis = "Z"', "process[0].axis", "kind = 'distance'"),   # an arc-voltage sensor
     ('function = "dive"\naxis = "Z"', "process[0].function", "corner_lock"),
     ('function = "corner_lock"\naxis = "Q"', "process[0].axis", "Z"),
     ('function = "corner_lock"\naxis = "X"', "process[0].axis", "distance control is off"),
@@ -84,8 +83,10 @@ def _with_and_without(name):
 def test_corner_lock_end_to_end_no_dive_at_the_corner():
     with_, without, m = _with_and_without("process_corner.toml")
     assert without.completed and with_.completed
-    assert without.metrics["min_distance_mm"] < 0.5               # the torch dives at the corner
-    assert with_.metrics["min_distance_mm"] > 1.2                 # held: 1.5 mm set distance
+    # the arc model's slow-down rise (10 V at rest, no timed fault): the torch dives at the corner
+    assert without.metrics["min_distance_mm"] < 0.5
+    # held (1.5 mm set distance); what remains is the rise lagging the speed after the release
+    assert with_.metrics["min_distance_mm"] > 0.9
     hold = m.process_program.holds["Z"]
     # FREEZE and ON at the corner; FREEZE where the Y block slows to its end (then the NC switches off)
     assert [t for _, t in hold.log] == [2, 4, 2]
@@ -123,8 +124,9 @@ def test_distctrl_run_accepts_process_tables(name):
     assert proc.returncode == 0, proc.stderr
 
 
-def test_distctrl_run_refuses_a_function_not_implemented(tmp_path):
-    text = (EX / "process_corner.toml").read_text().replace('function = "corner_lock"', 'function = "lift"')
+def test_distctrl_run_refuses_an_invalid_process_table(tmp_path):
+    # every function of issue 16 is implemented; calibrate on a plasma torch (no distance sensor) is refused
+    text = (EX / "process_corner.toml").read_text().replace('function = "corner_lock"', 'function = "calibrate"')
     (tmp_path / "s.toml").write_text(text.replace('program = "process_corner.nc"',
                                                   f'program = "{(EX / "process_corner.nc").as_posix()}"')
                                      .replace('params = "z_plasma.lis"',
@@ -132,7 +134,8 @@ def test_distctrl_run_refuses_a_function_not_implemented(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "distctrl", "run", str(tmp_path / "s.toml")], capture_output=True,
                           text=True, timeout=600)
     assert proc.returncode == 1
-    assert "not implemented yet" in proc.stderr + proc.stdout and "Traceback" not in proc.stderr
+    assert "process[0].axis" in proc.stderr and "kind = 'distance'" in proc.stderr
+    assert "Traceback" not in proc.stderr
 
 
 def test_enabled_key_switches_a_function_off_at_start():

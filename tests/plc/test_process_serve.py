@@ -103,3 +103,27 @@ def test_served_machine_runs_the_calibration_and_publishes_its_switch():
     for _ in range(1000):
         served.step()
     assert f.phase == "DOWN" and f.status()["samples"] > 0
+
+
+# ------------------------------------------------------------------ touch-off and collision retract (h16-touch)
+def test_served_machine_runs_the_touch_off():
+    served = ServedMachine(load_scenario(EX / "process_touch.toml"), port=0, discovery_port=None)
+    m = served.machine
+    f = m.process_program.function("touch_off", "Z")
+    for _ in range(1000):                     # the touch-off hands back at 0.873 s
+        served.step()
+    (res,) = f.log
+    assert abs(res["surface"] - 33.2) < 0.05 and res["attempts"] == 1
+    assert m.variables["V.E.TOUCH_OFF"] == 0.0 and m.nc.running and m.events == []
+
+
+def test_served_machine_runs_the_collision_retract():
+    served = ServedMachine(load_scenario(EX / "process_collision.toml"), port=0, discovery_port=None)
+    m = served.machine
+    f = m.process_program.function("collision_retract", "Z")
+    for _ in range(1000):                     # contact at 0.889 s, the retract takes 32 ms
+        served.step()
+    (c,) = f.log
+    assert abs(c["retract"] - 5.0) < 0.15 and c["line"] == 7
+    assert [ev.id for _, ev in m.events] == [900053] and m.nc.aborted
+    assert m.hli["Z"].state_r.actual_state == 0

@@ -10,6 +10,7 @@ from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import ProcessFunction
 from .calibrate import CALIBRATE_DEFAULTS, Calibrate, CalibrationRecord
 from .channel import ChannelPathStatus
+from .collision_retract import COLLISION_DEFAULTS, RETRACT_SET_DIST, CollisionRetract
 from .config import (
                      PROCESS_COMMON_KEYS,
                      PROCESS_FUNCTIONS,
@@ -21,11 +22,15 @@ from .config import (
 )
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .hold import FreezeHold
+from .lift import LIFT_DEFAULTS, Lift, LiftMotion
 from .program import ProcessProgram
+from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
 __all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS", "CALIBRATE_DEFAULTS", "Calibrate", "CalibrationRecord",
            "AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
            "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
-           "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock"]
+           "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
+           "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_SET_DIST", "CollisionRetract",
+           "LIFT_DEFAULTS", "Lift", "LiftMotion"]

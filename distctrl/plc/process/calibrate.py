@@ -145,7 +145,7 @@ class Calibrate(ProcessFunction):
         """Back to WAITING with nothing recorded (an enabled function calibrates again); ``completed``
         is kept. A run under way is abandoned as it stands: distance control stays where the PLC left
         it (ACTIVE_CONST_DIST at the distance reached) until the NC program or the PLC switches it off."""
-        self.phase = WAITING
+        self._set_phase(WAITING)
         self.error: str | None = None
         self.record = CalibrationRecord()
         self.run_no = 0
@@ -154,13 +154,21 @@ class Calibrate(ProcessFunction):
         self._set = math.nan
         self._axis_old = math.nan
 
+    def _set_phase(self, phase: str) -> None:
+        """The phase; from the select to the OFF the axis's FREEZE hold is inhibited
+        (``FreezeHold.inhibitors``): the locks must not freeze the calibration's motion."""
+        self.phase = phase
+        if self.hold is not None:
+            moving = phase not in (WAITING, DONE, FAILED)
+            (self.hold.inhibitors.add if moving else self.hold.inhibitors.discard)(self.name)
+
     def status(self) -> dict:
         st = super().status()
         st.update(phase=self.phase, run=self.run_no, samples=len(self.record), error=self.error)
         return st
 
     def _fail(self, unit, cycle: int, why: str) -> None:
-        self.phase = FAILED
+        self._set_phase(FAILED)
         self.error = why
         unit.plc_cyclic_stop()
         self._finish(cycle)
@@ -195,12 +203,12 @@ class Calibrate(ProcessFunction):
                 self._set = top
                 self.record.top = top
                 self.record.start_cycle = cycle
-                self.phase = SELECTING
+                self._set_phase(SELECTING)
                 self._count = 0
             return
         if phase == SELECTING:
             if state == _ACTIVE_CD:
-                self.phase = DOWN
+                self._set_phase(DOWN)
                 self.run_no = 1
             elif self._count >= self.select_cycles:
                 self._fail(unit, cycle, f"the PLC's select ON_CONST_DIST was not taken within {SELECT_TIMEOUT:g} s "
@@ -212,7 +220,7 @@ class Calibrate(ProcessFunction):
         if phase == ENDING:
             if unit.plc_command(_T_OFF, 0.0):
                 unit.plc_cyclic_stop()
-                self.phase = DONE
+                self._set_phase(DONE)
                 self._finish(cycle)
             return
         if state != _ACTIVE_CD:
@@ -224,12 +232,12 @@ class Calibrate(ProcessFunction):
                 self._count += 1
                 return
             if self._next == UP:
-                self.phase = UP
+                self._set_phase(UP)
             elif self.run_no < self.runs:
                 self.run_no += 1
-                self.phase = DOWN
+                self._set_phase(DOWN)
             else:
-                self.phase = ENDING
+                self._set_phase(ENDING)
                 self.step(machine, cycle)
                 return
         rec = self.record
@@ -247,5 +255,5 @@ class Calibrate(ProcessFunction):
         unit.plc_cyclic(distance_mm=self._set)
         if end:
             self._next = UP if self.phase == DOWN else DOWN
-            self.phase = DWELL
+            self._set_phase(DWELL)
             self._count = 0

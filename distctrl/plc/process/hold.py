@@ -71,6 +71,10 @@ class FreezeHold:
         #: (cycle, transition) of every command this hold sent (diagnosis, tests; kept by reset())
         self.log: list[tuple[int, int]] = []
         self._ctx = None
+        #: functions that move the axis themselves for now (touch-off, collision retract): while any
+        #: is listed the hold sends nothing, drops the requests and forgets its phase (an interlock;
+        #: the functions add and remove themselves, reset() keeps it)
+        self.inhibitors: set[str] = set()
         self.reset()
 
     def reset(self) -> None:
@@ -119,6 +123,10 @@ class FreezeHold:
     # ------------------------------------------------------------------ once per cycle
     def step(self, machine, cycle: int) -> None:
         self._requests, self._requested_now = self._requested_now, set()
+        if self.inhibitors:
+            self.phase = IDLE
+            self._pending = None
+            return
         unit = machine.hli[self.axis]
         state = unit.state_r.actual_state
         if self._pending is not None:                     # waiting for the semaphore
