@@ -124,3 +124,16 @@ def test_raw_variable_without_a_linearisation_is_refused():
     with pytest.raises(ScenarioError) as exc:
         scenario_from_text(text, base_dir=EX)
     assert exc.value.key == "sensor.raw_variable"
+
+
+def test_the_locks_cannot_freeze_the_calibration_run():
+    # the automatic set value requests a FREEZE at every select (INACTIVE -> ACTIVE): the calibration's
+    # own select would be frozen and fail without the interlock (FreezeHold.inhibitors)
+    text = SCN.read_text() + '\n[[process]]\nfunction = "auto_set_value"\naxis = "Z"\n'
+    m = _machine(text.replace('function = "calibrate"', 'function = "calibrate"\nruns = 1\nspeed = 5.0'))
+    f = m.process_program.function("calibrate", "Z")
+    hold = m.process_program.holds["Z"]
+    _until_ended(m, f)
+    assert f.phase == "DONE", f.error
+    assert m.process_program.function("auto_set_value", "Z").log    # it did sample: its request came
+    assert hold.log == [] and "calibrate" not in hold.inhibitors    # ... and no FREEZE was sent
