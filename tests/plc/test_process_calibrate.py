@@ -137,3 +137,20 @@ def test_the_locks_cannot_freeze_the_calibration_run():
     assert f.phase == "DONE", f.error
     assert m.process_program.function("auto_set_value", "Z").log    # it did sample: its request came
     assert hold.log == [] and "calibrate" not in hold.inhibitors    # ... and no FREEZE was sent
+
+
+def test_a_reset_during_the_run_fails_it_with_the_reason_and_stops_the_cyclic_command():
+    m = _machine()
+    f = m.process_program.function("calibrate", "Z")
+    while f.phase != "DOWN":
+        m.step()
+    for _ in range(200):
+        m.step()
+    m.reset()                                        # the channel reset: distance control INACTIVE at once
+    for _ in range(3):
+        m.step()
+    assert f.phase == "FAILED" and "left ACTIVE_CONST_DIST during run 1" in f.error
+    assert f.completed is f.record and len(f.completed) > 100
+    cyc = m.hli["Z"].cyclic
+    assert not cyc.valid_distance and not cyc.valid_position
+    assert "calibrate" not in m.process_program.holds["Z"].inhibitors
