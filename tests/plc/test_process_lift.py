@@ -97,6 +97,26 @@ def test_lift_waits_for_distance_control_to_stop_tracking():
     assert lm.phase == "UP" and lm.offset > 0.0
 
 
+def test_lift_waits_for_the_offset_to_stand():
+    m = _machine(HliState.TURNING_OFF)                  # an OFF still runs its offset out
+    m.outputs["Z"].offset_velocity = -10.0
+    lm = LiftMotion("Z", T, 5.0, V_Z, A_Z)
+    m.interp.start_linear({"X": 200.0}, None)
+    for _ in range(20):
+        m.interp.step()
+        lm.step(m)
+        m.cycle += 1
+    assert lm.phase == "WAITING" and lm.offset == 0.0   # the sum would exceed the axis's limits
+    m.outputs["Z"].hli_state = int(HliState.INACTIVE)
+    m.outputs["Z"].offset_velocity = 0.0
+    while not m.interp.done or lm.busy:
+        m.interp.step()
+        lm.step(m)
+        m.cycle += 1
+    assert [e for _, e in lm.log] == ["start", "down", "landed"]
+    assert lm.log[0][0] == 20 and lm.peaks == [pytest.approx(5.0)]
+
+
 @pytest.mark.parametrize("target, kwargs", [({"X": 50.0, "Z": 3.0}, {}),          # the G0 moves the lift axis
                                             ({"X": 5.0}, {"min_distance": 10.0})])  # shorter than min_distance
 def test_suppressed_lifts(target, kwargs):

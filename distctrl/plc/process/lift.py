@@ -14,7 +14,8 @@ Two parts, as on a TwinCAT CNC:
   in every G0 block that does not move the lift axis and is at least ``min_distance`` long (TF5290's
   P-CHAN-00244 ``lift_min_dist``; a shorter one is "lift suppressed"), it superimposes on the axis's
   programmed position a lift of up to ``height`` at ``v_max`` / ``a_max`` (the axis's limits by
-  default): up as soon as distance control no longer tracks, down again when the time the rapid
+  default): up as soon as distance control no longer tracks and its offset stands (FREEZE has
+  braked, an OFF has run out), down again when the time the rapid
   still needs (its velocity profile at the current override) has come down to the time the landing
   needs, so the head is back at the programmed height when the path stops. A short rapid gets a
   lower lift (what fits); where the landing still runs when the path stops, the next block waits
@@ -49,7 +50,7 @@ and of the CNC part (what the CNC's lift does each GEO cycle; ``lrTau`` the time
     END_IF
     CASE eLift OF
     WAITING: IF NOT bRapid THEN eLift := IDLE;
-             ELSIF NOT (nDcState = 1 OR nDcState = 4) THEN eLift := UP; END_IF
+             ELSIF NOT (nDcState = 1 OR nDcState = 4) AND lrOffsetVelocity = 0.0 THEN eLift := UP; END_IF
     UP:      lrH := lrZ + SEL(lrW > 0.0, 0.0, lrW * lrW / (2.0 * lrA));
              IF lrTau <= SEL(lrW > 0.0, 0.0, lrW / lrA) + TrapezoidTime(lrH, lrV, lrA) + 2.0 * lrT THEN
                  eLift := DOWN;
@@ -141,9 +142,11 @@ class LiftMotion:
         if phase == WAITING:
             if not rapid or not switched_on:                    # nothing lifted yet: no lift
                 phase = IDLE
-            elif machine.outputs[self.axis].hli_state not in _TRACKING:
-                phase = UP
-                self.log.append((cycle, "start"))
+            else:
+                out = machine.outputs[self.axis]
+                if out.hli_state not in _TRACKING and out.offset_velocity == 0.0:   # FREEZE has braked
+                    phase = UP
+                    self.log.append((cycle, "start"))
         if phase == UP:
             tau = interp.remaining_time() if rapid else 0.0
             if tau <= self.land_time() + self.settle_time + _MARGIN_CYCLES * self.T:
