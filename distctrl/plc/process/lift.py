@@ -3,8 +3,8 @@
 Between two cuts the head travels at the cut height over a plate with cut-out parts, tipped-up
 edges and slag: a collision risk. Lifting before the rapid and lowering after it costs time when
 done in separate blocks (``G0 Z..``, ``G0 X.. Y..``, ``G0 Z..``). Cutting controls overlap the lift
-with the rapid instead: Beckhoff TF5290 "Lift" (ISG FCT-A11 "Collision avoidance by lift function",
-Advanced Lifting: the CNC lifts the lift axis during the positioning blocks independently of the
+with the rapid instead: Beckhoff TF5290 "Lift" (TwinCAT CNC Cutting Plus; ISG functional description
+FCT-A11, the lift function, *Advanced Lifting*: the CNC lifts the lift axis during the positioning blocks independently of the
 path and lowers it so that it reaches the target height at the start of the next contour), FANUC's
 rapid retract/approach of laser controls, the "frog jump" of laser heads.
 
