@@ -118,7 +118,8 @@ def test_lift_waits_for_the_offset_to_stand():
 
 
 @pytest.mark.parametrize("target, kwargs", [({"X": 50.0, "Z": 3.0}, {}),          # the G0 moves the lift axis
-                                            ({"X": 5.0}, {"min_distance": 10.0})])  # shorter than min_distance
+                                            ({"X": 5.0}, {"min_distance": 10.0}),  # shorter than min_distance
+                                            ({"X": 0.5}, {"settle_time": 0.05})])   # 26 ms: no time to lift
 def test_suppressed_lifts(target, kwargs):
     m = _machine()
     lm = LiftMotion("Z", T, 5.0, V_Z, A_Z, **kwargs)

@@ -13,7 +13,8 @@ Two parts, as on a TwinCAT CNC:
 * **the CNC part** (:class:`LiftMotion`, run by the machine in the GEO cycle after the interpolator):
   in every G0 block that does not move the lift axis and is at least ``min_distance`` long (TF5290's
   P-CHAN-00244 ``lift_min_dist``; a shorter one is "lift suppressed"), it superimposes on the axis's
-  programmed position a lift of up to ``height`` at ``v_max`` / ``a_max`` (the axis's limits by
+  programmed position (a G0 too short to lift at all, not longer than ``settle_time``, is suppressed
+  as well) a lift of up to ``height`` at ``v_max`` / ``a_max`` (the axis's limits by
   default): up as soon as distance control no longer tracks and its offset stands (FREEZE has
   braked, an OFF has run out), down again when the time the rapid
   still needs (its velocity profile at the current override) has come down to the time the landing
@@ -45,7 +46,7 @@ and of the CNC part (what the CNC's lift does each GEO cycle; ``lrTau`` the time
 ``lrZ``/``lrW`` lift offset and its velocity, ``lrA``/``lrV`` the lift's limits)::
 
     IF bNewRapid THEN
-        bSuppressed := bLiftAxisInBlock OR lrPathLength < lrMinDist;
+        bSuppressed := bLiftAxisInBlock OR lrPathLength < lrMinDist OR lrTau <= lrSettle + 4.0 * lrT;
         IF NOT bSuppressed AND bEnabled THEN eLift := WAITING; END_IF
     END_IF
     CASE eLift OF
@@ -132,7 +133,8 @@ class LiftMotion:
         if rapid and not self._was_rapid:                       # a G0 block started this cycle
             self.lift_suppressed = False
             if self.phase == IDLE and switched_on:
-                if self.axis in interp.moving_axes or interp.path_length < self.min_distance:
+                if (self.axis in interp.moving_axes or interp.path_length < self.min_distance
+                        or interp.remaining_time() <= self.settle_time + (_MARGIN_CYCLES + 2) * self.T):
                     self.lift_suppressed = True
                     self.log.append((cycle, "suppressed"))
                 else:
