@@ -4,26 +4,26 @@ Between two cuts the head travels at the cut height over a plate with cut-out pa
 edges and slag: a collision risk. Lifting before the rapid and lowering after it costs time when
 done in separate blocks (``G0 Z..``, ``G0 X.. Y..``, ``G0 Z..``). Cutting controls overlap the lift
 with the rapid instead: Beckhoff TF5290 "Lift" (TwinCAT CNC Cutting Plus; ISG functional description
-FCT-A11, the lift function, *Advanced Lifting*: the CNC lifts the lift axis during the positioning blocks independently of the
-path and lowers it so that it reaches the target height at the start of the next contour), FANUC's
-rapid retract/approach of laser controls, the "frog jump" of laser heads.
+FCT-A11, the lift function, *Advanced Lifting*: the CNC lifts the lift axis during the positioning
+blocks independently of the path and lowers it so that it reaches the target height at the start of
+the next contour), FANUC's rapid retract/approach of laser controls, the "frog jump" of laser heads.
 
 Two parts, as on a TwinCAT CNC:
 
 * **the CNC part** (:class:`LiftMotion`, run by the machine in the GEO cycle after the interpolator):
-  in every G0 block that does not move the lift axis and is at least ``min_distance`` long (TF5290's
-  P-CHAN-00244 ``lift_min_dist``; a shorter one is "lift suppressed"), it superimposes on the axis's
-  programmed position (a G0 too short to lift at all, not longer than ``settle_time``, is suppressed
-  as well) a lift of up to ``height`` at ``v_max`` / ``a_max`` (the axis's limits by
-  default): up as soon as distance control no longer tracks and its offset stands (FREEZE has
-  braked, an OFF has run out), down again when the time the rapid
-  still needs (its velocity profile at the current override) has come down to the time the landing
-  needs, so the head is back at the programmed height when the path stops. A short rapid gets a
-  lower lift (what fits); where the landing still runs when the path stops, the next block waits
-  for it. On a TwinCAT CNC the program marks the range with ``Z[LIFT_START POS_LIMIT=..]`` /
-  ``Z[LIFT_END]``; distctrl's NC has no such words, so the scenario's ``lift`` table enables it for
-  every G0 block. ``lift_active`` / ``lift_suppressed`` are TF5290's CNC objects of that name
-  (GEO, index offsets 0x<AID>0095 / 0x<AID>0094, BOOLEAN), here attributes.
+  in every G0 block that does not move the lift axis, is at least ``min_distance`` long (TF5290's
+  P-CHAN-00244 ``lift_min_dist``) and takes longer than ``settle_time`` (else: "lift suppressed"),
+  it superimposes on the axis's programmed position a lift of up to ``height`` at ``v_max`` /
+  ``a_max`` (the axis's limits by default): up as soon as distance control no longer tracks and its
+  offset stands (FREEZE has braked, an OFF has run out), down again when the time the rapid still
+  needs (its velocity profile at the current override) has come down to the time the landing needs
+  plus ``settle_time``, so the head is back at the programmed height before the path stops. A short
+  rapid gets a lower lift (what fits); where the landing still runs when the path stops, the next
+  block waits for it. On a TwinCAT CNC the program marks the range with
+  ``Z[LIFT_START POS_LIMIT=..]`` / ``Z[LIFT_END]``; distctrl's NC has no such words, so the
+  scenario's ``lift`` table enables it for every G0 block. ``lift_active`` / ``lift_suppressed`` are
+  TF5290's CNC objects of that name (GEO, index offsets 0x<AID>0095 / 0x<AID>0094, BOOLEAN), here
+  attributes.
 * **the PLC part** (:class:`Lift`, this process function): FCT-M3 §5.2, "when the Z axis is lifted,
   distance control must be frozen (FREEZE) or deactivated (OFF), otherwise distance control prevents
   lifting/lowering". While ``lift_active`` it requests the axis's FREEZE hold (:mod:`.hold`), which
@@ -33,9 +33,10 @@ Two parts, as on a TwinCAT CNC:
   TwinCAT PLC would freeze on the M function that ends the cut, before the G0).
 
 Switching the function off (``enabled``) stops new lifts; a lift under way lands, and until it has
-landed the function still keeps distance control frozen (``enabled`` reads true until then). The frozen
-offset is kept over the rapid, so the head comes down to the height it had at the end of the cut;
-distance control then corrects for the plate under the new position.
+landed the function still keeps distance control frozen (``enabled`` reads true until then). The
+frozen offset is kept over the rapid, so the head comes down to the height it had at the end of the
+cut; distance control, re-activated ``settle_time`` before the rapid ends, then corrects for the
+plate under the new position.
 
 ST equivalent of the PLC part (``fbHold`` the axis's hold, :mod:`.hold`; ``bLiftActive`` the CNC
 object ``lift_active`` read every cycle)::
@@ -50,10 +51,10 @@ and of the CNC part (what the CNC's lift does each GEO cycle; ``lrTau`` the time
         IF NOT bSuppressed AND bEnabled THEN eLift := WAITING; END_IF
     END_IF
     CASE eLift OF
-    WAITING: IF NOT bRapid THEN eLift := IDLE;
+    WAITING: IF NOT bRapid OR NOT bEnabled THEN eLift := IDLE;
              ELSIF NOT (nDcState = 1 OR nDcState = 4) AND lrOffsetVelocity = 0.0 THEN eLift := UP; END_IF
     UP:      lrH := lrZ + SEL(lrW > 0.0, 0.0, lrW * lrW / (2.0 * lrA));
-             IF lrTau <= SEL(lrW > 0.0, 0.0, lrW / lrA) + TrapezoidTime(lrH, lrV, lrA) + 2.0 * lrT THEN
+             IF lrTau <= SEL(lrW > 0.0, 0.0, lrW / lrA) + TrapezoidTime(lrH, lrV, lrA) + lrSettle + 2.0 * lrT THEN
                  eLift := DOWN;
              END_IF
     END_CASE
