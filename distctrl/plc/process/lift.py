@@ -232,7 +232,8 @@ class Lift(ProcessFunction):
 
     @enabled.setter
     def enabled(self, on: bool) -> None:
-        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``): no new lift while off
+        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``):
+        #: no new lift while off
         self.switched_on = bool(on)
 
     @property
