@@ -84,8 +84,8 @@ class LiftMotion:
 
     ``offset`` (mm) is superimposed on the axis's programmed position; ``velocity`` (mm/s) is its
     rate. ``lift_active`` / ``lift_suppressed``: TF5290's CNC objects. ``log``: ``(cycle, event)``
-    with the events ``"start"`` (rising), ``"down"`` (landing begins, with the height reached in
-    :attr:`peaks`), ``"landed"``, ``"suppressed"``.
+    with the events ``"start"`` (rising), ``"down"`` (landing begins), ``"landed"`` (the highest
+    offset of that lift in :attr:`peaks`), ``"suppressed"``.
     """
 
     def __init__(self, axis: str, cycle_time: float, height: float, v_max: float, a_max: float,
@@ -107,8 +107,9 @@ class LiftMotion:
         self.lift_suppressed = False
         self._was_rapid = False
         self.log: list[tuple[int, str]] = []
-        #: the height (mm) of every lift when its landing began
+        #: the highest offset (mm) of every lift that landed
         self.peaks: list[float] = []
+        self._top = 0.0
 
     @property
     def busy(self) -> bool:
@@ -154,7 +155,6 @@ class LiftMotion:
             tau = interp.remaining_time() if rapid else 0.0
             if tau <= self.land_time() + self.settle_time + _MARGIN_CYCLES * self.T:
                 phase = DOWN
-                self.peaks.append(self.offset)
                 self.log.append((cycle, "down"))
         if phase == UP:
             self._move(self.height)
@@ -162,7 +162,11 @@ class LiftMotion:
             self._move(0.0)
             if self.offset == 0.0 and self.velocity == 0.0:
                 phase = IDLE
+                self.peaks.append(self._top)
+                self._top = 0.0
                 self.log.append((cycle, "landed"))
+        if self.offset > self._top:
+            self._top = self.offset
         self.phase = phase
         self.lift_active = phase != IDLE
 
