@@ -14,6 +14,7 @@ import pytest
 from distctrl.control import CycleOutput, HliState
 from distctrl.plc.process import LIFT_DEFAULTS, Lift, LiftMotion, ProcessProgram
 from distctrl.plc.process.channel import MOTION_LINEAR, MOTION_NONE, MOTION_RAPID, ChannelPathStatus
+from distctrl.sim import run
 from distctrl.sim.interpolator import AxisLimits, Interpolator
 from distctrl.sim.scenario import ScenarioError, load_scenario, scenario_from_text
 
@@ -368,3 +369,31 @@ def test_served_machine_lifts_and_the_plc_freezes_and_re_activates():
     assert [t for _, t in hold.log] == [2, 4]             # FREEZE for the lift, ON_CONST_DIST after it
     assert hold.log[0][0] < [c for c, e in lm.log if e == "start"][-1]   # frozen before Z rose
     assert m.hli["Z"].state_r.actual_state == 4 and m.hli["Z"].state_r.command_source == 1
+
+
+def _switch_off_at(cycle, keep_freeze):
+    sc = load_scenario(EX / "process_lift.toml")
+
+    def plc(m, k):
+        if k == cycle:                       # mid-lift over the first rapid between two holes (0.85 .. 1.03 s)
+            f = m.process_program.function("lift")
+            assert f.motion.offset > 1.0
+            if keep_freeze:                  # as ProcessProgram.set_enabled does: switch, reset, withdraw
+                f.enabled = False
+                f.reset()
+                f.hold.withdraw(f.name)
+            else:                            # a PLC part that just stops: the hold releases at once
+                f.step = lambda *a: None
+    r = run(sc, plc_program=plc)
+    t = r.trace.data[:, 0]
+    d = r.trace.data[:, r.trace.columns.index("true.distance")]
+    return r, d[(t > 0.85) & (t < 1.3)].min()
+
+
+def test_switched_off_mid_lift_in_a_run_the_head_lands_without_diving():
+    r, dmin = _switch_off_at(900, keep_freeze=True)
+    assert r.completed and r.metrics["collisions"] == 0 and dmin > 1.2
+    # why: distance control re-activated while the head is up pulls it down (100 mm/s) and cannot
+    # follow the landing (156 mm/s): the torch hits the plate
+    r, dmin = _switch_off_at(900, keep_freeze=False)
+    assert dmin < 0.0 and r.metrics["collisions"] >= 1
