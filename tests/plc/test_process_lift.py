@@ -173,6 +173,23 @@ def test_switched_off_during_a_lift_it_keeps_the_freeze_until_the_head_has_lande
     assert f.motion.offset == 0.0
 
 
+def test_set_enabled_off_then_on_during_a_lift_switches_it_back_on():
+    # enabled reads true while the head is up: the program must compare with the switch itself
+    f = Lift("Z", T, V_Z, A_Z)
+    prog = ProcessProgram([f])
+    m = _machine()
+    m.hli = {"Z": _Unit(state_r=SimpleNamespace(actual_state=0))}
+    m.interp.start_linear({"X": 200.0}, None)
+    for _ in range(50):
+        m.interp.step()
+        f.motion.step(m)
+    assert f.motion.lift_active
+    prog.set_enabled("lift", "Z", False)
+    assert not f.switched_on
+    prog.set_enabled("lift", "Z", True)               # on again before the head has landed
+    assert f.switched_on and f.enabled
+
+
 def test_a_feed_hold_keeps_the_head_up_and_the_landing_follows_the_resumed_path():
     m = _machine()
     lm = LiftMotion("Z", T, 5.0, V_Z, A_Z)
