@@ -51,7 +51,8 @@ class ProcessProgram:
             raise KeyError(f"no process function {name!r} on axis {axis!r}; configured: "
                            + (", ".join(f"{g.name}@{g.axis}" for g in self.functions) or "none"))
         on = bool(on)
-        if on == f.enabled:
+        # the switch itself: a function may read enabled while it finishes (a lift landing)
+        if on == getattr(f, "switched_on", f.enabled):
             return
         f.enabled = on
         f.reset()
