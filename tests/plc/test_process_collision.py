@@ -116,11 +116,11 @@ def test_distctrl_run_json_exit_code_and_error():
 
 
 def test_a_lock_does_not_freeze_the_retract():
-    # the corner lock wants FREEZE as soon as the path slows down (the stop): the retract owns the axis
-    sc = load_scenario(EX / "process_collision.toml")
+    # a void lock at 20 mm/s sees the reading change at the wall and during the retract and wants FREEZE:
+    # the retract owns the axis (the hold is inhibited; without that it stops after 0.24 mm)
     text = (EX / "process_collision.toml").read_text().replace(
-        '[[process]]\nfunction = "collision_retract"', '[[process]]\nfunction = "corner_lock"\naxis = "Z"\n'
-        '[[process]]\nfunction = "collision_retract"')
+        '[[process]]\nfunction = "collision_retract"', '[[process]]\nfunction = "void_lock"\naxis = "Z"\n'
+        'threshold = 20.0\n[[process]]\nfunction = "collision_retract"')
     sc = scenario_from_text(text, base_dir=EX)
     m = simulate(sc, 1.2)
     (c,) = m.process_program.function("collision_retract", "Z").log

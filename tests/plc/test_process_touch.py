@@ -221,3 +221,75 @@ def test_example_figures():
     assert res["distance"] == pytest.approx(3.0, abs=0.05)            # state_r.actual_distance
     assert math.isclose(m.true_distance, 3.0, abs_tol=0.05)
     assert 0.6 < res["cycle"] * sc.cycle_time < 1.2                   # probe 0.65 s + back-off + settling
+
+
+def test_an_axis_that_does_not_read_the_sensor_ends_the_probe_with_900052():
+    # without SENSOR_SOURCE=VARIABLE the axis reads its second encoder: the head never moves down
+    sc = scenario()
+    text = PROGRAM.format(start=40.0, before="").replace(
+        "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]\\n", "")
+    sc = scenario_from_text(SCENARIO.format(duration=4.0, program=text, lis=(EX / "z_laser.lis").as_posix(),
+                                            start=40.0, base=33.2, events="", keys=""), base_dir=EX)
+    f_cycles = touch(Machine(sc, load_program(sc))).probe_cycles
+    assert f_cycles == round((2 * 7.2 / 10.0 + 1.0) / 0.001)
+    m = simulate(sc, 3.0)
+    (ev,) = errors(m)
+    assert ev.id == int(ErrorId.TOUCH_OFF_FAILED) and "SENSOR_SOURCE" in ev.message
+    assert m.nc.aborted and m.variables["V.E.TOUCH_OFF"] == -1.0
+
+
+def test_a_void_lock_does_not_freeze_the_back_off():
+    # the back-off lifts the head at 200 mm/s: the distance changes faster than the void lock's 80 mm/s,
+    # so the lock asks for FREEZE; the touch-off inhibits the hold while it runs
+    sc = scenario(keys='[[process]]\nfunction = "void_lock"\naxis = "Z"\n')
+    m = simulate(sc, 2.5)
+    assert not errors(m) and touch(m).log and m.nc.ended
+    assert not m.process_program.holds["Z"].inhibitors
+    void = m.process_program.function("void_lock", "Z")
+    assert void.rate == void.rate                                     # it did watch
+
+
+PLASMA = """
+name = "plasma touch"
+cycle_time = 0.001
+duration = 4.0
+program_text = "{program}"
+[axes.X]
+[axes.Z]
+params = "{lis}"
+start = 40.0
+kv = 40.0
+v_max = 200.0
+a_max = 5000.0
+[surface]
+base = 32.0
+[sensor]
+axis = "Z"
+kind = "arc_voltage"
+variable = "SENSOR"
+voltage_variable = "ARC_VOLTAGE"
+arc_v0 = 95.0
+arc_k = 6.0
+arc_ripple = 2.0
+arc_noise_std = 0.3
+seed = 3
+[[process]]
+function = "touch_off"
+axis = "Z"
+"""
+
+
+def test_touch_off_on_a_plasma_torch_with_ripple_and_noise():
+    # the linearised arc voltage carries a 0.33 mm 50 Hz ripple; the back-off is judged on the filtered
+    # distance (target deviation) and the drive's following error
+    sc = scenario_from_text(PLASMA.format(program=PROGRAM.format(start=40.0, before=""),
+                                          lis=(EX / "z_plasma.lis").as_posix()), base_dir=EX)
+    assert sc.processes[0].params["stroke"] == pytest.approx(9.0)     # 0.9 x max_deviation 10 mm
+    m = Machine(sc, load_program(sc))
+    f = touch(m)
+    while not f.log and not errors(m) and m.cycle < 3000:
+        m.step()
+    assert not errors(m)
+    res = f.log[0]
+    assert res["surface"] == pytest.approx(32.0, abs=0.4) and res["attempts"] == 1
+    assert m.true_distance == pytest.approx(3.0, abs=0.1)

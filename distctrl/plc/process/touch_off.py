@@ -23,7 +23,9 @@ The PLC moves Z only through distance control (HLI control unit, CNC objects):
    speed. Any other state: error 900052.
 2. PROBING: the signal (the sensor's distance variable, or ``state_r.actual_distance``) at or below
    ``detect`` reports the surface -> FREEZE (2; braked within a_max). The offset's travel
-   (``state_r.actual_offset`` since the start) beyond ``stroke`` without it -> error 900050.
+   (``state_r.actual_offset`` since the start) beyond ``stroke`` without it -> error 900050. A probe
+   that takes longer than twice the stroke at the probe speed plus 1 s (the axis does not read the
+   sensor the signal comes from, e.g. no ``SENSOR_SOURCE=VARIABLE``) -> error 900052.
 3. VERIFY: once the offset stands, after ``verify_time`` the signal must still be at or below
    ``detect + verify_band``; otherwise the detection was false (a spike, a spark): probe on
    (FREEZE -> ON_CONST_DIST, SET_DIST = 0) up to ``retries`` times, then error 900051.
@@ -50,11 +52,13 @@ ST equivalent (``SEND(t, pos)`` = the semaphore handshake of docs/process.md; mm
                    IF stState.actual_state <> 0 AND stState.actual_state <> 2 THEN FAIL(900052);
                    ELSE nVmaxSaved := DIST_CTRL_PARAM_v_max;                  (* CNC object 0x3500, um/s *)
                         DIST_CTRL_PARAM_v_max := LREAL_TO_DINT(lrProbeSpeed * 1000.0);
-                        lrOffs0 := lrOffs; nAttempt := 0; SEND(4, 0.0); eTouch := PROBING; END_IF
+                        lrOffs0 := lrOffs; nAttempt := 0; nCnt := 0; SEND(4, 0.0); eTouch := PROBING; END_IF
                END_IF
-    PROBING:   IF stState.actual_state <> 4 THEN FAIL(900052);
+    PROBING:   nCnt := nCnt + 1;
+               IF stState.actual_state <> 4 THEN FAIL(900052);
                ELSIF lrSig <= lrDetect THEN SEND(2, 0.0); eTouch := BRAKING;
-               ELSIF lrOffs0 - lrOffs > lrStroke THEN FAIL(900050); END_IF
+               ELSIF lrOffs0 - lrOffs > lrStroke THEN FAIL(900050);
+               ELSIF nCnt > nProbeCycles THEN FAIL(900052); END_IF
     BRAKING:   IF stState.actual_state <> 2 THEN FAIL(900052);
                ELSIF lrOffs = lrOffsLast THEN nCnt := 0; eTouch := VERIFY; END_IF
     VERIFY:    nCnt := nCnt + 1;
@@ -62,7 +66,7 @@ ST equivalent (``SEND(t, pos)`` = the semaphore handshake of docs/process.md; mm
                    IF lrSig <= lrDetect + lrVerifyBand THEN
                        DIST_CTRL_PARAM_v_max := nVmaxSaved; SEND(4, lrPierce); eTouch := BACKING_OFF; nCnt := 0;
                    ELSIF nAttempt >= nRetries THEN FAIL(900051);
-                   ELSE nAttempt := nAttempt + 1; SEND(4, 0.0); eTouch := PROBING; END_IF
+                   ELSE nAttempt := nAttempt + 1; nCnt := 0; SEND(4, 0.0); eTouch := PROBING; END_IF
                END_IF
     BACKING_OFF: IF stState.actual_state <> 4 THEN FAIL(900052);
                ELSIF ABS(DIST_CTRL_target_deviation * 1.0E-8) <= lrTol THEN nOk := nOk + 1; ELSE nOk := 0; END_IF
@@ -142,6 +146,8 @@ class TouchOff(ProcessFunction):
         self.verify_cycles = max(1, round(self.verify_time / self.cycle_time))
         self.timeout_cycles = round(BACKOFF_TIMEOUT_S / self.cycle_time)
         self.brake_cycles = round(BRAKE_TIMEOUT_S / self.cycle_time)
+        #: the longest a probe may take: the stroke at the probe speed, twice, plus 1 s
+        self.probe_cycles = round((2.0 * self.stroke / self.probe_speed + 1.0) / self.cycle_time)
         #: every completed touch-off: {"cycle", "surface", "distance", "travel", "attempts"} (mm)
         self.log: list[dict] = []
         #: the errors this function reported (ErrorEvent)
@@ -216,6 +222,15 @@ class TouchOff(ProcessFunction):
                            f"probed {self._offset0 - offset:.3f} mm down (stroke {self.stroke:g} mm) at "
                            f"{self.probe_speed:g} mm/s, the signal still reads {signal:.3f} mm "
                            f"(surface at <= {self.detect:g} mm)")
+            else:
+                self._count += 1
+                if self._count > self.probe_cycles:
+                    self._fail(machine, cycle, ErrorId.TOUCH_OFF_FAILED,
+                               f"the head went only {self._offset0 - offset:.3f} mm down in "
+                               f"{self._count * self.cycle_time:.3f} s (stroke {self.stroke:g} mm at "
+                               f"{self.probe_speed:g} mm/s); distance control reads "
+                               f"{unit.state_r.actual_distance * MM_PER_UNIT:.3f} mm, the signal "
+                               f"{signal:.3f} mm: does the axis read the sensor (SENSOR_SOURCE, SENSOR_VAR)?")
         elif phase == BRAKING:
             self._count += 1
             if state != _FREEZE:
@@ -242,6 +257,7 @@ class TouchOff(ProcessFunction):
                     self.attempts += 1
                     self._send(unit, cycle, _T_ON_CD, 0.0)
                     self.phase = PROBING
+                    self._count = 0
         elif phase == BACKING_OFF:
             self._count += 1
             if state != _ACTIVE_CD:
@@ -289,6 +305,7 @@ class TouchOff(ProcessFunction):
         self._offset0 = unit.state_r.actual_offset * MM_PER_UNIT
         self._last_offset = math.nan
         self._send(unit, cycle, _T_ON_CD, 0.0)
+        self._count = 0
         self._set_phase(PROBING)
 
     def _set_phase(self, phase: str) -> None:
