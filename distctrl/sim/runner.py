@@ -254,6 +254,10 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     add_metric = metrics.add
     out3d = machine.out3d if machine.ch3d is not None else None
     in3d = machine.in3d
+    # a process function that moves the axis itself (touch-off, collision retract) inhibits the axis's
+    # FREEZE hold while it does (docs/process.md): those cycles are not tracking, the metrics skip them
+    process = machine.process_program
+    moving = process.holds[dc_axis].inhibitors if process is not None and dc_axis in process.holds else None
     try:
         for k in range(max_cycles):
             step()
@@ -274,7 +278,10 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                     metrics.gap()
             elif dc_out is not None:
                 state = dc_out.hli_state
-                if state == 4:
+                if moving:
+                    if metrics.inside:
+                        metrics.gap()
+                elif state == 4:
                     add_metric(k, line, machine.true_distance - dc_out.set_distance,
                                machine.true_surface)
                 elif state == 1:

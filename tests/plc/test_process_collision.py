@@ -113,6 +113,8 @@ def test_distctrl_run_json_exit_code_and_error():
     assert proc.returncode == 2, proc.stderr
     data = json.loads(proc.stdout)
     assert [e["id"] for e in data["errors"]] == [COLLISION_ID]
+    # the retract is not tracking: the largest distance error is the wall's 4 mm before the contact
+    assert data["metrics"]["distance_error_max"] == pytest.approx(4.0, abs=0.05)
 
 
 def test_a_lock_does_not_freeze_the_retract():

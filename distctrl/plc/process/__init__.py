@@ -8,7 +8,7 @@ them as one :class:`ProcessProgram` after the sensor's PLC program and before a 
 """
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .channel import ChannelPathStatus
-from .collision_retract import COLLISION_DEFAULTS, RETRACT_SET_DIST, CollisionRetract
+from .collision_retract import COLLISION_DEFAULTS, RETRACT_MARGIN, CollisionRetract
 from .config import (PROCESS_FUNCTIONS, PROCESS_KEYS, PROCESS_NOT_IMPLEMENTED, ProcessConfig,
                      make_process_program, process_configs)
 from .corner_lock import CORNER_DEFAULTS, CornerLock
@@ -21,4 +21,4 @@ __all__ = ["AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTI
            "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
            "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
-           "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_SET_DIST", "CollisionRetract"]
+           "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_MARGIN", "CollisionRetract"]

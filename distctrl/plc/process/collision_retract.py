@@ -15,9 +15,10 @@ retract. As a PLC program on the HLI control unit and the CNC objects:
    limits and holds). From now on the axis's FREEZE hold is inhibited: no lock freezes the retract.
 2. FREEZE (2) if distance control tracks, and write ``DIST_CTRL_PARAM[0]::v_max`` = ``retract_speed``
    (µm/s) and ``a_max`` = ``retract_accel`` (mm/s²): pending, adopted by the next select.
-3. In FREEZE: select ON_CONST_DIST (4) with SET_DIST = :data:`RETRACT_SET_DIST` (far above any
-   reading: the offset rises at the retract limits whatever the sensor reads while it touches, a
-   short-circuit value included).
+3. In FREEZE: select ON_CONST_DIST (4) with SET_DIST = the reading at the contact + ``retract`` +
+   :data:`RETRACT_MARGIN` (1 mm): above every reading while the head rises by ``retract``, so the
+   offset rises at the retract limits whatever the sensor reads while it touches, a short-circuit
+   value included.
 4. RETRACTING: once the offset (``state_r.actual_offset``) has risen by ``retract`` minus the
    braking distance ``v²/(2·retract_accel)`` at its current velocity: FREEZE; the head stops about
    ``retract`` above the contact.
@@ -47,7 +48,8 @@ ST equivalent::
                  IF stState.actual_state <> 2 THEN SEND(2, 0.0); END_IF
                  eColl := FREEZING;
              END_IF
-    FREEZING: IF stState.actual_state = 2 THEN lrOffs0 := lrOffs; SEND(4, RETRACT_SET_DIST); eColl := RETRACTING;
+    FREEZING: IF stState.actual_state = 2 THEN lrOffs0 := lrOffs; SEND(4, MAX(lrHit, 0.0) + lrRetract + 1.0);
+                  eColl := RETRACTING;
               ELSE STOP_AND_REPORT(); END_IF
     RETRACTING: lrV := (lrOffs - lrOffsLast) / lrT;
               IF stState.actual_state <> 4 THEN STOP_AND_REPORT();
@@ -69,12 +71,14 @@ from ...sim.config_errors import require_int, require_number
 from .base import ProcessFunction
 from .plc_io import MM_PER_UNIT, read_signal, write_object
 
-__all__ = ["CollisionRetract", "COLLISION_DEFAULTS", "RETRACT_SET_DIST"]
+__all__ = ["CollisionRetract", "COLLISION_DEFAULTS", "RETRACT_MARGIN"]
 
 #: threshold mm, confirm_cycles, retract mm; retract_speed / retract_accel default to the axis's limits
 COLLISION_DEFAULTS = {"threshold": 0.2, "confirm_cycles": 2, "retract": 5.0, "short_circuit": None}
-#: mm: SET_DIST of the retract select, far above any reading: the offset rises at the retract limits
-RETRACT_SET_DIST = 1000.0
+#: mm: SET_DIST of the retract select = the reading at the contact + retract + this: above every reading
+#: while the head rises by ``retract`` (the reading grows by at most the rise), so the offset rises at
+#: the retract limits whatever the sensor reads while it touches
+RETRACT_MARGIN = 1.0
 #: s: the longest the head may take to stop after the retract
 STOP_TIMEOUT_S = 1.0
 _SHORT_BAND = 1e-3
@@ -171,7 +175,8 @@ class CollisionRetract(ProcessFunction):
         elif phase == FREEZING:
             if state == _FREEZE:
                 self._offset0 = offset
-                self._send(unit, cycle, _T_ON_CD, RETRACT_SET_DIST)
+                set_dist = max(self.contact["reading"], 0.0) + self.retract + RETRACT_MARGIN
+                self._send(unit, cycle, _T_ON_CD, set_dist if set_dist == set_dist else self.retract + RETRACT_MARGIN)
                 self.phase = RETRACTING
                 self._count = 0
             else:
