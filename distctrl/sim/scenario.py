@@ -68,7 +68,9 @@ SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", 
                "range_max", "characteristic", "resolution", "faults", "collision_depth",
                # issue 15: capacitive edge effect and bursts, plasma arc voltage (docs/scenarios.md)
                "footprint_radius", "footprint_points", "field_range", "bursts", "voltage_variable", "arc_v0", "arc_k", "arc_ripple",
-               "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0", "plc_k")
+               "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0", "plc_k",
+               # issue 16: the arc voltage's rise when the torch slows (docs/sim-models.md)
+               "arc_speed_volts", "arc_cut_speed", "arc_speed_tau")
 #: sensor keys that only some kinds accept
 _SENSOR_KIND_ONLY = {"variable": ("distance", "arc_voltage"), "characteristic": ("distance",),
                      "resolution": ("distance",), "range_min": ("encoder",), "reading_at_contact": ("encoder",),
@@ -77,7 +79,8 @@ _SENSOR_KIND_ONLY = {"variable": ("distance", "arc_voltage"), "characteristic": 
                      "bursts": ("distance", "arc_voltage"),
                      **{k: ("arc_voltage",) for k in ("voltage_variable", "arc_v0", "arc_k", "arc_ripple",
                                                       "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0",
-                                                      "plc_k")}}
+                                                      "plc_k", "arc_speed_volts", "arc_cut_speed",
+                                                      "arc_speed_tau")}}
 #: the keys of ``sensor.bursts`` (required: rate, duration, amplitude)
 BURST_KEYS = ("rate", "duration", "amplitude", "offset")
 #: largest footprint radius (mm): a nozzle's electrode or a torch's arc root is a few mm
@@ -85,6 +88,9 @@ FOOTPRINT_RADIUS_MAX = 25.0
 #: largest arc ripple, arc noise (V) and kerf jump (V) a scenario may give
 ARC_RIPPLE_MAX = 50.0
 KERF_JUMP_MAX = 500.0
+#: largest slow-down rise (V) and cut speed (mm/s, 60 m/min) of the arc voltage's slow-down model
+ARC_SPEED_VOLTS_MAX = 100.0
+ARC_CUT_SPEED_MAX = 1000.0
 #: [channel]: the kernel channel list (3D distance control) and the head kinematics
 CHANNEL_KEYS = ("params", "kinematics")
 #: head kinematics a channel may have: "CA" (5-axis CA head, kinematic ID 9) or "none"
@@ -221,6 +227,9 @@ class SensorConfig:
     arc_ripple_hz: float = 50.0            # Hz
     arc_noise_std: float = 0.0             # V white noise
     kerf_jump: float = 0.0                 # V with no sheet under the whole footprint
+    arc_speed_volts: float = 0.0           # V rise at rest in a cut (0: no slow-down model)
+    arc_cut_speed: float | None = None     # mm/s: the speed at which the rise is 0
+    arc_speed_tau: float = 0.02            # s: the rise's lag behind the speed
     #: arc voltage: the PLC linearisation's V0 (V) and k (V/mm); None = the arc's own (calibrated)
     plc_v0: float | None = None
     plc_k: float | None = None
@@ -267,7 +276,9 @@ class SensorConfig:
         if self.kind == "arc_voltage":
             return ArcVoltageSensor(cycle_time, v0=self.arc_v0, k=self.arc_k, ripple=self.arc_ripple,
                                     ripple_hz=self.arc_ripple_hz, voltage_noise_std=self.arc_noise_std,
-                                    kerf_jump=self.kerf_jump, range_max=self.range_max, **common, **extra)
+                                    kerf_jump=self.kerf_jump, range_max=self.range_max,
+                                    speed_volts=self.arc_speed_volts, cut_speed=self.arc_cut_speed,
+                                    speed_tau=self.arc_speed_tau, **common, **extra)
         return DistanceSensor(cycle_time, range_max=self.range_max, characteristic=self.characteristic,
                               resolution=self.resolution, **common, **extra)
 
@@ -594,7 +605,16 @@ def _arc_keys(cfg: dict, key: str, cycle_time: float, variable: str) -> dict:
         "arc_ripple": require_number(cfg.get("arc_ripple", 0.0), f"{key}.arc_ripple", lo=0.0, hi=ARC_RIPPLE_MAX),
         "arc_noise_std": require_number(cfg.get("arc_noise_std", 0.0), f"{key}.arc_noise_std", lo=0.0,
                                         hi=ARC_RIPPLE_MAX),
-        "kerf_jump": require_number(cfg.get("kerf_jump", 0.0), f"{key}.kerf_jump", lo=0.0, hi=KERF_JUMP_MAX)}
+        "kerf_jump": require_number(cfg.get("kerf_jump", 0.0), f"{key}.kerf_jump", lo=0.0, hi=KERF_JUMP_MAX),
+        "arc_speed_volts": require_number(cfg.get("arc_speed_volts", 0.0), f"{key}.arc_speed_volts", lo=0.0,
+                                          hi=ARC_SPEED_VOLTS_MAX),
+        "arc_speed_tau": require_number(cfg.get("arc_speed_tau", 0.02), f"{key}.arc_speed_tau", lo=0.0, hi=1.0)}
+    if "arc_cut_speed" in cfg:
+        out["arc_cut_speed"] = require_number(cfg["arc_cut_speed"], f"{key}.arc_cut_speed", lo=0.0, lo_open=True,
+                                              hi=ARC_CUT_SPEED_MAX)
+    elif out["arc_speed_volts"]:
+        raise ConfigError(f"{key}.arc_cut_speed", MISSING, f"the cut speed in mm/s (0 .. {ARC_CUT_SPEED_MAX:g}] at "
+                          "which the slow-down rise is 0: required with arc_speed_volts > 0")
     hz = cfg.get("arc_ripple_hz", 50.0)
     try:
         out["arc_ripple_hz"] = require_number(hz, f"{key}.arc_ripple_hz", lo=0.0, hi=nyquist, lo_open=True,

@@ -37,7 +37,7 @@ import numpy as np
 
 from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, require_int, require_number
 from distctrl.sim.physics import characteristic_value, distance_reading, probe_increments, round_to
-from distctrl.sim.surface import Flat, Ramp, Sine, Step, TiltedPlane
+from distctrl.sim.surface import Flat, Holes, Ramp, Sine, Step, TiltedPlane
 
 __all__ = ["Fault", "FAULT_KINDS", "Bursts", "SensorBase", "EncoderProbe", "DistanceSensor", "ArcVoltageSensor",
            "NOISE_BLOCK", "footprint_offsets", "FootprintHeights", "FOOTPRINT_RINGS", "FOOTPRINT_PER_RING", "FOOTPRINT_POINTS", "D_MIN"]
@@ -85,6 +85,8 @@ class FootprintHeights:
       edges within the footprint's extent along its axis is constant there: one look-up at the centre;
     * a :class:`~distctrl.sim.surface.Sine` uses ``sin(a + b) = sin a cos b + cos a sin b`` with the
       points' ``cos b``, ``sin b`` computed once: one ``sin`` and one ``cos`` per read;
+    * :class:`~distctrl.sim.surface.Holes` with no hole within the footprint's reach add 0: one
+      grid look-up per read (:meth:`~distctrl.sim.surface.Holes.near`);
     * a :class:`~distctrl.sim.surface.TiltedPlane` is its centre value plus a fixed offset per point;
       :class:`~distctrl.sim.surface.Flat` is 0;
     * any other feature (a height map) is looked up at every point.
@@ -102,6 +104,8 @@ class FootprintHeights:
         self.sines: list = []             # (amplitude, k, phase, on_y, cos list, sin list)
         self.edged: list = []             # (z, on_y, reach, ((a, b), ...)): constant unless an edge is near
         self.points: list = []            # looked up at every point
+        self.holes: list = []             # (z, near): 0 over the footprint unless a hole is near
+        self._reach = math.hypot(reach_x, reach_y)
         for f in surface.features:
             kind = type(f)
             if kind is Flat:
@@ -125,6 +129,8 @@ class FootprintHeights:
             elif kind is Ramp:
                 on_y = f.axis == "Y"
                 self.edged.append((f.z, on_y, reach_y if on_y else reach_x, ((f.start, f.end),)))
+            elif kind is Holes:
+                self.holes.append((f.z, f.near))
             else:
                 self.points.append(f.z)
         self.plane = plane
@@ -153,6 +159,11 @@ class FootprintHeights:
                     break
             else:
                 c += z(x, y)
+        for z, near in self.holes:
+            if near(x, y, self._reach):
+                if varying is None:
+                    varying = []
+                varying.append(z)
         if varying is None and self._level and not self.sines and not self.points:
             return c, None
         hs = None if self._level else [c + o for o in self.plane]
@@ -652,7 +663,8 @@ class ArcVoltageSensor(DistanceSensor):
         covered = (points with d_i <= field_range) / N   (N = footprint_points; 1 point for radius 0)
         d_arc   = mean of those d_i   (no point covered: d at the centre)
         V       = v0 + k · clamp(d_arc + noise + bursts + faults, 0, range_max)
-                  + kerf_jump · (1 − covered) + ripple · sin(2π ripple_hz · t) + voltage_noise_std · N(0, 1)
+                  + kerf_jump · (1 − covered) + speed_volts · slowdown
+                  + ripple · sin(2π ripple_hz · t) + voltage_noise_std · N(0, 1)
 
     ``v0`` (V) the voltage extrapolated to zero height (cathode and anode falls), ``k`` (V/mm) the
     arc column's gradient (about 4-10 V/mm), ``kerf_jump`` (V) the extra voltage with no sheet
@@ -660,13 +672,27 @@ class ArcVoltageSensor(DistanceSensor):
     50/60 Hz, or 100/120 Hz after a bridge) and ``voltage_noise_std`` (V) the arc noise. ``noise_std``
     (mm), the bursts and the faults act on the distance before the conversion (a dropout reports the
     voltage of a ``value`` mm arc). No characteristic, no quantisation: the reading is in volts.
+
+    **Slow-down** (``speed_volts > 0``; 0, the default, leaves the model as without it): the arc
+    voltage rises when the torch slows below the speed it cuts at (at a corner the kerf widens and
+    the arc burns into its walls, the arc column gets longer)::
+
+        v_f      = first-order lag (time constant speed_tau s) of the nozzle's X/Y speed (mm/s)
+        slowdown = clamp(1 − v_f / cut_speed, 0, 1)       (0 at the cut speed, 1 at rest)
+
+    from the nozzle positions the machine hands :meth:`read` every cycle. The term is counted *in a
+    cut* only: from the cycle ``v_f`` first reaches 90 % of ``cut_speed`` until the arc breaks (the
+    arc length beyond ``range_max``, the torch lifted away); before that the torch pierces or
+    accelerates out of the pierce, a regime the steady cut's slow-down law does not describe, and
+    the term adds nothing (a plasma control keeps height control off there, QtPlasmaC's THC delay).
     """
 
     def __init__(self, cycle_time: float = 0.001, *, v0: float = 100.0, k: float = 6.0, ripple: float = 0.0,
                  ripple_hz: float = 50.0, voltage_noise_std: float = 0.0, kerf_jump: float = 0.0,
                  range_max: float = 10.0, noise_std: float = 0.0, delay_cycles: int = 0, seed: int | None = 0,
                  faults: Iterable[Fault] = (), footprint_radius: float = 0.0, field_range: float | None = None,
-                 surface=None, bursts: Bursts | None = None, footprint_points: int = 16):
+                 surface=None, bursts: Bursts | None = None, footprint_points: int = 16,
+                 speed_volts: float = 0.0, cut_speed: float | None = None, speed_tau: float = 0.02):
         name = "ArcVoltageSensor"
         self.v0 = require_number(v0, f"{name}.v0", lo=0.0)
         self.k = require_number(k, f"{name}.k", lo=0.0, lo_open=True)
@@ -687,6 +713,38 @@ class ArcVoltageSensor(DistanceSensor):
             self._vnoise_i = 0
         if self.ripple or self.voltage_noise_std:
             self._output_noise = self.arc_noise
+        self.speed_volts = require_number(speed_volts, f"{name}.speed_volts", lo=0.0)
+        self.speed_tau = require_number(speed_tau, f"{name}.speed_tau", lo=0.0)
+        self.cut_speed = None if cut_speed is None else \
+            require_number(cut_speed, f"{name}.cut_speed", lo=0.0, lo_open=True)
+        if self.speed_volts and self.cut_speed is None:
+            raise ConfigError(f"{name}.cut_speed", MISSING, "the cut speed in mm/s (> 0) with speed_volts > 0")
+        #: the slow-down model's state: the lagged speed (mm/s), in a cut, the rise in force (V)
+        self.speed = 0.0
+        self.in_cut = False
+        self.speed_rise = 0.0
+        self._last_xy: tuple[float, float] | None = None
+        self._speed_alpha = self.cycle_time / (self.speed_tau + self.cycle_time)
+        if self.speed_volts:
+            self.read = self._read_with_speed          # the plain read() stays as fast as without it
+
+    def _read_with_speed(self, cycle: int, axis_z: float, surface_z: float, x: float = 0.0,
+                         y: float = 0.0) -> float:
+        """:meth:`read` with the slow-down term updated from this cycle's nozzle position."""
+        last = self._last_xy
+        v = 0.0 if last is None else math.hypot(x - last[0], y - last[1]) / self.cycle_time
+        self._last_xy = (x, y)
+        vf = self.speed = self.speed + self._speed_alpha * (v - self.speed)
+        ref = self.cut_speed
+        if axis_z - surface_z > self.range_max:        # the arc broke (torch lifted): the cut ended
+            self.in_cut = False
+        elif not self.in_cut and vf >= 0.9 * ref:
+            self.in_cut = True
+        if self.in_cut and vf < ref:
+            self.speed_rise = self.speed_volts * (1.0 - vf / ref)
+        else:
+            self.speed_rise = 0.0
+        return SensorBase.read(self, cycle, axis_z, surface_z, x, y)
 
     def arc_length(self, axis_z: float, surface_z: float, x: float, y: float) -> float:
         """The arc length (mm) over the covered part of the footprint; sets :attr:`covered`."""
@@ -726,12 +784,12 @@ class ArcVoltageSensor(DistanceSensor):
 
     def voltage(self, d_mm: float, covered: float = 1.0) -> float:
         """The noise-free arc voltage (V) of an arc ``d_mm`` long with ``covered`` of the footprint
-        over sheet."""
+        over sheet, plus the slow-down rise in force (:attr:`speed_rise`, 0 without the model)."""
         if d_mm < 0.0:
             d_mm = 0.0
         elif d_mm > self.range_max:
             d_mm = self.range_max
-        return self.v0 + self.k * d_mm + self.kerf_jump * (1.0 - covered)
+        return self.v0 + self.k * d_mm + self.kerf_jump * (1.0 - covered) + self.speed_rise
 
     def _encode(self, x_mm: float) -> float:
         return self.v0 + self.k * x_mm

@@ -8,7 +8,8 @@ object with
 * ``gradient(x, y) -> (dz/dx, dz/dy)`` analytic slope (mm/mm).
 
 Features: :class:`Flat`, :class:`Step` (thickness step or block obstacle), :class:`Ramp`,
-:class:`Sine` (waviness), :class:`TiltedPlane`, :class:`HeightMap` (bilinear grid from CSV).
+:class:`Sine` (waviness), :class:`TiltedPlane`, :class:`Holes` (round holes through the sheet),
+:class:`HeightMap` (bilinear grid from CSV).
 
 Z points away from the workpiece (SPEC §1): a larger ``z`` is a higher surface, closer to the head.
 
@@ -28,7 +29,7 @@ import numpy as np
 from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, require_mapping,
                                        require_number)
 
-__all__ = ["Feature", "Flat", "Step", "Ramp", "Sine", "TiltedPlane", "HeightMap", "Surface",
+__all__ = ["Feature", "Flat", "Step", "Ramp", "Sine", "TiltedPlane", "Holes", "HeightMap", "Surface",
            "surface_from_config", "FEATURE_TYPES"]
 
 _TWO_PI = 2.0 * math.pi
@@ -235,6 +236,78 @@ class TiltedPlane:
         return f"TiltedPlane(sx={self.sx!r}, sy={self.sy!r}, x0={self.x0!r}, y0={self.y0!r})"
 
 
+class Holes:
+    """Round holes (or round pockets) of one ``diameter`` at ``centers`` ``[(x, y), ...]`` (mm): the
+    height contribution is ``height`` (mm, negative: a hole through a sheet, e.g. -30 down to the
+    support table) inside a hole (distance from its centre < diameter / 2), 0 outside. Holes must not
+    overlap (they would not add up: a point in two holes counts once).
+
+    A per-cycle look-up costs one dictionary access, not one test per hole: the centres are sorted
+    into a grid of cells of one diameter, each cell listing the holes that reach into it.
+    :meth:`near` says whether any hole lies within ``reach`` of a point (a sensor's footprint).
+    """
+
+    def __init__(self, centers: Sequence[Sequence[float]], diameter: float, height: float):
+        if not isinstance(centers, (list, tuple)) or not centers:
+            raise ConfigError("Holes.centers", centers, "a non-empty list of [x, y] pairs (mm)")
+        pts = []
+        for n, c in enumerate(centers):
+            key = f"Holes.centers[{n}]"
+            if not isinstance(c, (list, tuple)) or len(c) != 2:
+                raise ConfigError(key, c, "a pair [x, y] (mm)")
+            pts.append((require_number(c[0], key + "[0]"), require_number(c[1], key + "[1]")))
+        self.centers: tuple[tuple[float, float], ...] = tuple(pts)
+        self.diameter = require_number(diameter, "Holes.diameter", lo=0.0, lo_open=True)
+        self.height = require_number(height, "Holes.height")
+        self.radius = self.diameter / 2.0
+        self._r2 = self.radius * self.radius
+        self._cell = self.diameter
+        grid: dict[tuple[int, int], list[tuple[float, float]]] = {}
+        for cx, cy in self.centers:
+            for i in range(math.floor((cx - self.radius) / self._cell), math.floor((cx + self.radius) / self._cell) + 1):
+                for j in range(math.floor((cy - self.radius) / self._cell),
+                               math.floor((cy + self.radius) / self._cell) + 1):
+                    grid.setdefault((i, j), []).append((cx, cy))
+        self._grid = {k: tuple(v) for k, v in grid.items()}
+
+    def z(self, x: float, y: float) -> float:
+        cand = self._grid.get((math.floor(x / self._cell), math.floor(y / self._cell)))
+        if cand is not None:
+            r2 = self._r2
+            for cx, cy in cand:
+                dx = x - cx
+                dy = y - cy
+                if dx * dx + dy * dy < r2:
+                    return self.height
+        return 0.0
+
+    def z_array(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        xs, ys = np.broadcast_arrays(np.asarray(xs, float), np.asarray(ys, float))
+        inside = np.zeros(xs.shape, bool)
+        for cx, cy in self.centers:
+            inside |= (xs - cx) ** 2 + (ys - cy) ** 2 < self._r2
+        return np.where(inside, self.height, 0.0)
+
+    def gradient(self, x: float, y: float) -> tuple[float, float]:
+        return (0.0, 0.0)                 # vertical walls: no slope (as a Step's vertical edge)
+
+    def near(self, x: float, y: float, reach: float) -> bool:
+        """True when a hole comes within ``reach`` mm of ``(x, y)`` (its rim closer than ``reach``)."""
+        c = self._cell
+        lim = (self.radius + reach) ** 2
+        for i in range(math.floor((x - reach) / c), math.floor((x + reach) / c) + 1):
+            for j in range(math.floor((y - reach) / c), math.floor((y + reach) / c) + 1):
+                for cx, cy in self._grid.get((i, j), ()):
+                    dx = x - cx
+                    dy = y - cy
+                    if dx * dx + dy * dy < lim:
+                        return True
+        return False
+
+    def __repr__(self) -> str:
+        return f"Holes(<{len(self.centers)} centers>, diameter={self.diameter!r}, height={self.height!r})"
+
+
 class HeightMap:
     """Height grid with bilinear interpolation; outside the grid the edge values continue (clamp).
 
@@ -420,6 +493,7 @@ FEATURE_TYPES: dict[str, tuple[type, tuple[str, ...], tuple[str, ...]]] = {
     "sine": (Sine, ("axis", "amplitude", "wavelength", "phase"), ("amplitude", "wavelength")),
     "tilted_plane": (TiltedPlane, ("sx", "sy", "angle_deg", "about", "x0", "y0"), ()),
     "heightmap": (HeightMap, ("file",), ("file",)),
+    "holes": (Holes, ("centers", "diameter", "height"), ("centers", "diameter", "height")),
 }
 
 

@@ -193,3 +193,26 @@ def test_reset_returns_to_watching_and_releases_the_hold():
     assert f.phase == DONE and f.hold.inhibitors
     f.reset()
     assert f.phase == WATCH and f.hits == 0 and f.contact is None and not f.hold.inhibitors
+
+
+def test_switched_off_during_the_retract_it_finishes_the_retract_first():
+    sc = load_scenario(EX / "process_collision.toml")
+    m = Machine(sc, load_program(sc))
+    f = m.process_program.function("collision_retract", "Z")
+    while f.phase not in ("RETRACTING",) and m.cycle < 1200:
+        m.step()
+    assert f.phase == "RETRACTING"
+    m.process_program.set_enabled("collision_retract", "Z", False)
+    assert f.enabled and f.phase == "RETRACTING"            # not dropped half-way
+    for _ in range(100):
+        m.step()
+    (c,) = f.log
+    assert c["retract"] == pytest.approx(5.0, abs=0.15) and f.phase == DONE and not f.enabled
+    f.reset()
+    assert f.phase == WATCH and not f.hold.inhibitors
+
+
+def test_switched_off_it_does_not_watch():
+    text = (EX / "process_collision.toml").read_text() + "enabled = false\n"
+    result = run(scenario_from_text(text, base_dir=EX), keep_trace=False)
+    assert result.outcome == "completed" and result.metrics["collisions"] == 1 and result.errors == []

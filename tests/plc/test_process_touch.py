@@ -190,13 +190,40 @@ def test_a_request_while_distance_control_tracks_is_refused_with_900052():
     assert m.nc.aborted
 
 
-def test_reset_returns_to_idle():
+def test_reset_while_probing_ends_the_touch_off_safely_and_when_idle_returns_to_the_initial_state():
     sc = scenario()
     m = simulate(sc, 0.3)
     f = touch(m)
-    assert f.phase == PROBING
+    assert f.phase == PROBING and f.hold.inhibitors == {"touch_off"}
+    f.reset()                                    # dropped now, distance control would go on down at SET_DIST 0
+    assert f.phase == PROBING and f.enabled
+    m.step()
+    (ev,) = errors(m)
+    assert ev.id == int(ErrorId.TOUCH_OFF_FAILED) and "reset while PROBING" in ev.message
+    assert f.phase == IDLE and not f.hold.inhibitors and m.nc.aborted
     f.reset()
-    assert f.phase == IDLE and f.attempts == 0 and f.result is None and f._pending is None
+    assert f.phase == IDLE and f.attempts == 0 and f.result is None and f._pending is None and not f._abort
+
+
+def test_switched_off_during_the_probe_it_ends_it_then_stays_off():
+    sc = scenario()
+    m = simulate(sc, 0.3)
+    f = touch(m)
+    m.process_program.set_enabled("touch_off", "Z", False)
+    assert f.enabled and not f.switched_on                  # still ending the probe
+    for _ in range(300):
+        m.step()
+    (ev,) = errors(m)
+    assert ev.id == int(ErrorId.TOUCH_OFF_FAILED) and "switched off" in ev.message
+    assert not f.enabled and m.hli["Z"].state_r.actual_state == 0      # OFF ran the offset out
+    assert m.variables["V.E.TOUCH_OFF"] == -1.0
+
+
+def test_switched_off_before_the_request_nobody_answers_and_the_program_waits():
+    sc = scenario(keys="enabled = false")
+    m = simulate(sc, 1.5)
+    assert not errors(m) and not touch(m).log and m.nc.running and m.nc.line == 4    # at #WAIT FOR
+    assert m.hli["Z"].state_r.actual_state == 0
 
 
 # ------------------------------------------------------------------ the example through distctrl run

@@ -116,3 +116,51 @@ def test_linearisation_parameters_are_checked():
         ArcVoltageLinearisation(100.0, 0.0)
     with pytest.raises(ConfigError, match="ArcVoltageLinearisation.v0"):
         ArcVoltageLinearisation(-5.0, 6.0)
+
+
+# --- the slow-down rise (issue 16) -------------------------------------------------------------
+def _drive(s, speeds, z=31.5, start=0):
+    """Read once per cycle with the nozzle moving along X at ``speeds`` (mm/s, one per cycle)."""
+    x, out = (s._last_xy or (0.0, 0.0))[0], []       # go on from where the last call left the nozzle
+    for k, v in enumerate(speeds, start):
+        x += v * s.cycle_time
+        out.append(s.read(k, z, 30.0, x, 0.0))
+    return out
+
+
+def test_slow_down_off_by_default_leaves_the_voltage_unchanged():
+    s = ArcVoltageSensor(v0=95.0, k=6.0)
+    assert s.speed_volts == 0.0
+    assert _drive(s, [80.0] * 50 + [0.0] * 50) == [104.0] * 100
+
+
+def test_slow_down_rises_with_the_relative_slow_down_in_a_cut():
+    s = ArcVoltageSensor(v0=95.0, k=6.0, speed_volts=10.0, cut_speed=80.0, speed_tau=0.0)
+    assert _drive(s, [0.0] * 20) == [104.0] * 20          # at rest before the cut: piercing, nothing
+    assert _drive(s, [40.0] * 20, start=20) == [104.0] * 20   # accelerating out of the pierce (< 90 %)
+    v = _drive(s, [80.0] * 10 + [40.0] * 10 + [0.0] * 10, start=40)
+    assert s.in_cut
+    assert v[:10] == pytest.approx([104.0] * 10)           # at the cut speed: no rise
+    assert v[11:20] == pytest.approx([109.0] * 9)          # at half the cut speed: half of 10 V
+    assert v[21:] == pytest.approx([114.0] * 9)            # at rest in the cut (a corner): all of it
+    # the arc breaks when the torch lifts beyond range_max: the next rest is a pierce again
+    s.read(100, 45.0, 30.0, 0.0, 0.0)
+    assert not s.in_cut and _drive(s, [0.0] * 5, start=101) == [104.0] * 5
+
+
+def test_slow_down_lags_the_speed_by_its_time_constant():
+    s = ArcVoltageSensor(v0=95.0, k=6.0, speed_volts=10.0, cut_speed=80.0, speed_tau=0.02)
+    _drive(s, [80.0] * 200)
+    v = _drive(s, [0.0] * 100, start=200)
+    # first-order lag: after one time constant (20 cycles) 1 - e^-1 of the 10 V
+    a = 0.02 / 0.021                      # the discrete lag's pole: T / (tau + T) = 1 - a
+    # (the first read has no previous position: speed 0, so 199 cycles at 80 mm/s)
+    assert v[19] - 104.0 == pytest.approx(10.0 * (1 - (1 - a ** 199) * a ** 20), rel=1e-9)
+    assert 6.0 < v[19] - 104.0 < 6.5 and v[-1] - 104.0 == pytest.approx(10.0, abs=0.1)
+
+
+def test_slow_down_needs_the_cut_speed():
+    with pytest.raises(ConfigError, match="cut_speed"):
+        ArcVoltageSensor(speed_volts=5.0)
+    with pytest.raises(ConfigError, match="speed_volts"):
+        ArcVoltageSensor(speed_volts=-1.0, cut_speed=50.0)

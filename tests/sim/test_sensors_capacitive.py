@@ -228,3 +228,31 @@ def test_footprint_heights_look_a_step_up_once_away_from_its_edges():
     calls.clear()
     fh.heights(98.0, 0.0)
     assert len(calls) == 16                                       # the edge within reach: every point
+
+
+def test_footprint_heights_over_holes_match_one_look_up_per_point():
+    from distctrl.sim.sensors import FootprintHeights
+    from distctrl.sim.surface import Holes, Sine
+    holes = Holes([[50.0, 10.0], [58.0, 10.0], [70.0, 14.0]], diameter=6.0, height=-30.0)
+    srf = Surface(20.0, [holes, Sine(0.3, 40.0), Step(at=65.0, height=-30.0, width=1.5)])
+    offs = footprint_offsets(2.5)
+    fh = FootprintHeights(srf, offs)
+    assert fh.holes and not fh.points
+    inside = 0
+    for x in np.linspace(40.0, 80.0, 161):
+        for y in (0.0, 6.0, 8.5, 10.0, 12.3, 17.5):
+            got = fh.heights(x, y)
+            want = [srf.height(x + dx, y + dy) for dx, dy in offs]
+            inside += min(want) < 0.0
+            assert np.max(np.abs(np.subtract(got, want))) < 1e-12, (x, y)
+    assert inside > 50                                            # the sweep does cross the holes
+
+
+def test_a_capacitive_sensor_over_a_hole_reads_too_far():
+    from distctrl.sim.surface import Holes
+    srf = Surface(30.0, [Holes([[100.0, 0.0]], diameter=10.0, height=-40.0)])
+    s = DistanceSensor(footprint_radius=3.0, surface=srf, range_max=10.0)
+    assert s.ideal(31.0, 30.0, 50.0, 0.0) == pytest.approx(1.0) and s.covered == 1.0
+    edge = s.ideal(31.0, 30.0, 105.0, 0.0)                       # centre on the rim: about half covered
+    assert s.covered == pytest.approx(0.5, abs=0.1) and edge == pytest.approx(1.0 / s.covered)
+    assert s.ideal(31.0, -10.0, 100.0, 0.0) == 10.0 and s.covered == 0.0   # over the middle: no sheet

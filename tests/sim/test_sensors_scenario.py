@@ -50,6 +50,12 @@ def test_arc_voltage_keys_build_the_model_and_the_plc_program():
     assert (plc.v0, plc.k) == (96.0, 6.0)                               # plc_k: the arc's own
     assert (plc.voltage_variable, plc.distance_variable) == ("V.E.ARC_VOLTAGE", "V.E.SENSOR")
     assert sc.sensor.output_variable == "ARC_VOLTAGE"
+    assert s.speed_volts == 0.0 and s.read.__func__ is ArcVoltageSensor.read    # no slow-down model by default
+
+
+def test_arc_slow_down_keys_build_the_model():
+    s = _sc({"kind": "arc_voltage", "arc_speed_volts": 10.0, "arc_cut_speed": 83.3, "arc_speed_tau": 0.03}).make_sensor()
+    assert (s.speed_volts, s.cut_speed, s.speed_tau) == (10.0, 83.3, 0.03)
 
 
 @pytest.mark.parametrize("sensor, key, words", [
@@ -80,6 +86,13 @@ def test_arc_voltage_keys_build_the_model_and_the_plc_program():
     ({"kind": "arc_voltage", "voltage_variable": "SENSOR"}, "sensor.voltage_variable", ["other than the distance"]),
     ({"kind": "arc_voltage", "voltage_variable": "1V"}, "sensor.voltage_variable", ["V.E. variable name"]),
     ({"kind": "plasma"}, "sensor.kind", ["arc_voltage"]),
+    ({"kind": "arc_voltage", "arc_speed_volts": 10.0}, "sensor.arc_cut_speed", ["missing", "required with"]),
+    ({"kind": "arc_voltage", "arc_speed_volts": 200.0, "arc_cut_speed": 50.0}, "sensor.arc_speed_volts",
+     ["[0, 100]"]),
+    ({"kind": "arc_voltage", "arc_speed_volts": 10.0, "arc_cut_speed": 0.0}, "sensor.arc_cut_speed",
+     ["(0, 1000]"]),
+    ({"kind": "arc_voltage", "arc_speed_tau": 2.0}, "sensor.arc_speed_tau", ["[0, 1]"]),
+    ({"kind": "distance", "arc_speed_volts": 1.0}, "sensor.arc_speed_volts", ["only with kind = 'arc_voltage'"]),
 ])
 def test_bad_sensor_keys_say_what_is_allowed(sensor, key, words):
     with pytest.raises(ConfigError) as ei:

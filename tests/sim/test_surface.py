@@ -243,3 +243,32 @@ def test_config_either_builds_or_names_the_key(key, value):
         assert repr(value) in str(exc)
     else:
         assert math.isfinite(s.height(1.0, 2.0))
+
+
+def test_holes_inside_outside_and_on_the_rim():
+    from distctrl.sim.surface import Holes
+    h = Holes([[10.0, 0.0], [40.0, 25.0]], diameter=8.0, height=-30.0)
+    s = Surface(20.0, [h])
+    assert s.height(10.0, 0.0) == -10.0 and s.height(13.9, 0.0) == -10.0      # inside (radius 4)
+    assert s.height(14.0, 0.0) == 20.0 and s.height(10.0, 4.1) == 20.0        # the rim and beyond: sheet
+    assert s.height(40.0, 28.0) == -10.0 and s.height(25.0, 12.0) == 20.0
+    assert s.gradient(10.0, 0.0) == (0.0, 0.0)
+    xs, ys = np.meshgrid(np.linspace(0.0, 50.0, 101), np.linspace(-5.0, 30.0, 71))
+    want = np.vectorize(s.height)(xs, ys)
+    assert np.array_equal(s.height_array(xs, ys), want) and (want < 0).sum() > 50
+    assert h.near(10.0, 6.5, 3.0) and not h.near(10.0, 7.5, 3.0)             # rim 4 mm from the centre
+
+
+def test_holes_from_config_and_their_errors():
+    s = surface_from_config({"base": 30.0, "features": [
+        {"type": "holes", "centers": [[0.0, 0.0], [20.0, 0.0]], "diameter": 10.0, "height": -40.0}]})
+    assert s.height(20.0, 1.0) == -10.0 and s.height(10.0, 0.0) == 30.0
+    for holes, key, words in [
+            ({"centers": [], "diameter": 5.0, "height": -1.0}, "centers", "non-empty"),
+            ({"centers": [[1.0]], "diameter": 5.0, "height": -1.0}, "centers[0]", "pair"),
+            ({"centers": [[1.0, "a"]], "diameter": 5.0, "height": -1.0}, "centers[0][1]", "number"),
+            ({"centers": [[1.0, 2.0]], "diameter": 0.0, "height": -1.0}, "diameter", "(0, inf)"),
+            ({"centers": [[1.0, 2.0]], "diameter": 5.0}, "height", "required")]:
+        with pytest.raises(ConfigError) as exc:
+            surface_from_config({"features": [{"type": "holes", **holes}]})
+        assert exc.value.key == "surface.features[0]." + key and words in str(exc.value), str(exc.value)

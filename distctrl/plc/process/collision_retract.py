@@ -29,7 +29,9 @@ retract. As a PLC program on the HLI control unit and the CNC objects:
    X/Y position, the reading, the retract distance and time.
 
 A state that leaves the sequence (ERROR, e.g. the offset reached max_deviation, P-AXIS-00414)
-ends the retract where it is: the reset and the error follow at once.
+ends the retract where it is: the reset and the error follow at once. Switched off (or reset) during a
+retract, the function finishes it first (``enabled`` reads true until then); switched off while
+watching, it stops watching.
 
 ST equivalent::
 
@@ -118,8 +120,28 @@ class CollisionRetract(ProcessFunction):
         self.errors: list = []
         self.reset()
 
+    @property
+    def busy(self) -> bool:
+        """A retract is under way (the function moves the axis)."""
+        return getattr(self, "phase", WATCH) in (FREEZING, RETRACTING, STOPPING)
+
+    @property
+    def enabled(self) -> bool:
+        """The function runs: switched on, or switched off while a retract is under way (it is
+        finished: stopped half-way the head would stay on the obstacle, distance control in the
+        retract's select)."""
+        return self.switched_on or self.busy
+
+    @enabled.setter
+    def enabled(self, on: bool) -> None:
+        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``)
+        self.switched_on = bool(on)
+
     def reset(self) -> None:
-        """Back to the initial state: watching, no contact counted, no command waiting (logs stay)."""
+        """Back to the initial state: watching, no contact counted, no command waiting (logs stay). A
+        retract under way is finished first (see :attr:`enabled`)."""
+        if self.busy:
+            return
         self.phase = WATCH
         if self.hold is not None:
             self.hold.inhibitors.discard(self.name)
@@ -165,6 +187,8 @@ class CollisionRetract(ProcessFunction):
         state = unit.state_r.actual_state
         offset = unit.state_r.actual_offset * MM_PER_UNIT
         if phase == WATCH:
+            if not self.switched_on:
+                return
             signal = read_signal(machine, self.axis, self.variable)
             armed = state in _ARMED and not self._touch_off_busy(machine)
             self.hits = self.hits + 1 if armed and self._is_contact(signal) else 0

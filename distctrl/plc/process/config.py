@@ -6,13 +6,15 @@ from dataclasses import dataclass, field
 
 from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
+from .base import require_bool
 from .collision_retract import COLLISION_DEFAULTS, CollisionRetract
 from .corner_lock import CORNER_DEFAULTS, CornerLock
+from .lift import LIFT_DEFAULTS, Lift
 from .program import ProcessProgram
 from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
-__all__ = ["ProcessConfig", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
+__all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
            "make_process_program"]
 
 #: the functions a [[process]] table may name, and their own keys (besides function and axis)
@@ -26,10 +28,15 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     # --- collision retract (docs/process.md "Collision retract")
     "collision_retract": ("variable", "threshold", "short_circuit", "confirm_cycles", "retract", "retract_speed",
                           "retract_accel"),
+    # --- lift (issue 16, h16-lift) ---
+    "lift": ("height", "min_distance", "v_max", "a_max", "settle_time"),
 }
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
+#: the keys every function has besides function and axis: ``enabled`` (bool, default true) switches it
+#: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
+PROCESS_COMMON_KEYS = ("enabled",)
 #: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED = ("lift", "calibrate")
+PROCESS_NOT_IMPLEMENTED = ("calibrate",)
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -41,6 +48,7 @@ class ProcessConfig:
     axis: str
     params: dict = field(default_factory=dict)
     index: int = 0
+    enabled: bool = True
 
     def make(self, cycle_time: float):
         p = self.params
@@ -53,6 +61,10 @@ class ProcessConfig:
             return TouchOff(self.axis, cycle_time, **p)
         if self.function == "collision_retract":
             return CollisionRetract(self.axis, cycle_time, **p)
+        # --- lift (issue 16, h16-lift) ---
+        if self.function == "lift":
+            return Lift(self.axis, cycle_time, p["v_max"], p["a_max"], height=p["height"],
+                        min_distance=p["min_distance"], settle_time=p["settle_time"])
         return AutoSetValue(self.axis, cycle_time, p["delay"], p["sample_time"])
 
 
@@ -74,7 +86,8 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
     if "function" not in cfg:
         raise ConfigError(f"{key}.function", MISSING, "one of " + ", ".join(repr(f) for f in PROCESS_FUNCTIONS))
     fn = _function(cfg["function"], f"{key}.function")
-    require_mapping(cfg, key, ("function", "axis") + PROCESS_KEYS[fn], required=("axis",))
+    require_mapping(cfg, key, ("function", "axis") + PROCESS_COMMON_KEYS + PROCESS_KEYS[fn], required=("axis",))
+    enabled = require_bool(cfg.get("enabled", True), f"{key}.enabled")
     if has_3d:
         raise ConfigError(f"{key}.axis", cfg["axis"], "an axis of the axis variant: the process functions do "
                           "not drive the channel's 3D distance control yet", "3D distance control:")
@@ -118,11 +131,24 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
         params = _touch_off(cfg, k, axes[axis], sensor, cycle_time)
     elif fn == "collision_retract":
         params = _collision_retract(cfg, k, axes[axis], sensor)
+    # --- lift (issue 16, h16-lift) ---
+    elif fn == "lift":
+        ax = axes[axis]
+        params = {"height": require_number(cfg.get("height", LIFT_DEFAULTS["height"]), k + "height", lo=0.0,
+                                           hi=1000.0, lo_open=True),
+                  "min_distance": require_number(cfg.get("min_distance", LIFT_DEFAULTS["min_distance"]),
+                                                 k + "min_distance", lo=0.0, hi=1.0e6),
+                  "v_max": require_number(cfg.get("v_max", ax.v_max), k + "v_max", lo=0.0, hi=ax.v_max,
+                                          lo_open=True),
+                  "a_max": require_number(cfg.get("a_max", ax.a_max), k + "a_max", lo=0.0, hi=ax.a_max,
+                                          lo_open=True),
+                  "settle_time": require_number(cfg.get("settle_time", LIFT_DEFAULTS["settle_time"]),
+                                                k + "settle_time", lo=0.0, hi=1.0)}
     else:
         params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
                                                 k + "sample_time", lo=cycle_time, hi=10.0)}
-    return ProcessConfig(fn, axis, params, n)
+    return ProcessConfig(fn, axis, params, n, enabled)
 
 
 def _signal_variable(cfg: dict, k: str, sensor) -> str | None:
@@ -200,4 +226,9 @@ def make_process_program(configs, cycle_time: float) -> ProcessProgram | None:
     """One :class:`ProcessProgram` running every configured function in file order; None without any."""
     if not configs:
         return None
-    return ProcessProgram([c.make(cycle_time) for c in configs])
+    functions = []
+    for c in configs:
+        f = c.make(cycle_time)
+        f.enabled = c.enabled                    # [[process]] key enabled (switchable at run time)
+        functions.append(f)
+    return ProcessProgram(functions)

@@ -39,7 +39,9 @@ The PLC moves Z only through distance control (HLI control unit, CNC objects):
    surface found (``state_r.actual_position``, mm), the distance held, the travel and the attempts.
 
 While it runs the axis's FREEZE hold is inhibited: the locks (void lock, corner lock) freeze neither
-the probe nor the back-off. An error writes ``V.E.TOUCH_OFF = -1``, writes ``v_max`` back, switches distance control OFF (the
+the probe nor the back-off. Switched off (or reset) while it runs, it ends the touch-off as an error
+(900052) in its next cycle; switched off while idle it does not answer a request (the NC program
+waits at ``#WAIT FOR``). An error writes ``V.E.TOUCH_OFF = -1``, writes ``v_max`` back, switches distance control OFF (the
 offset runs out: the head returns to the programmed height it started from), reports the error with
 the NC line and stops the program. Every command goes through the semaphore handshake (FCT-M3 §8.2).
 
@@ -154,8 +156,25 @@ class TouchOff(ProcessFunction):
         self.errors: list = []
         self.reset()
 
+    @property
+    def enabled(self) -> bool:
+        """The function runs: switched on, or switched off while a touch-off is under way (it then
+        ends that touch-off safely in its next cycle: 900052, OFF, the program stops; dropping it
+        would leave distance control lowering the head at SET_DIST = 0)."""
+        return self.switched_on or getattr(self, "phase", IDLE) != IDLE
+
+    @enabled.setter
+    def enabled(self, on: bool) -> None:
+        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``)
+        self.switched_on = bool(on)
+
     def reset(self) -> None:
-        """Back to the initial state: idle, no command waiting, no attempt counted (the logs stay)."""
+        """Back to the initial state: idle, no command waiting, no attempt counted (the logs stay). A
+        touch-off under way is not dropped: it ends safely in the next cycle (see :attr:`enabled`)."""
+        if getattr(self, "phase", IDLE) != IDLE:
+            self._abort = True
+            return
+        self._abort = False
         self.phase = IDLE
         if self.hold is not None:
             self.hold.inhibitors.discard(self.name)
@@ -200,7 +219,15 @@ class TouchOff(ProcessFunction):
                 return                                # the semaphore is busy: the command waits
         phase = self.phase
         state = unit.state_r.actual_state
+        if self._abort:
+            self._abort = False
+            if phase != IDLE:
+                self._fail(machine, cycle, ErrorId.TOUCH_OFF_FAILED,
+                           f"the touch-off was switched off or reset while {phase}")
+            return
         if phase == IDLE:
+            if not self.switched_on:
+                return
             req = machine.variables.get(self.request, 0.0)
             if req == req and req > 0.5:
                 self._start(machine, unit, cycle, state)

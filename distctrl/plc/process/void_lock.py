@@ -23,19 +23,23 @@ control unit (a probe on encoder 2). A NaN sample counts as unsteady and is not 
 ST equivalent (``aBuf`` a ring buffer of N LREAL, ``i`` its index)::
 
     x := V_E_SIGNAL;
-    lrOld := aBuf[i]; bFull := nFill >= N;
-    aBuf[i] := x; i := (i + 1) MOD N; IF NOT bFull THEN nFill := nFill + 1; END_IF
-    IF NOT bFull OR NOT fbHold.bTrackingOrHeld THEN
-        bLock := FALSE; nOn := 0; nOff := 0;
+    IF NOT fbHold.bTrackingOrHeld THEN          (* the window starts afresh at the select *)
+        nFill := 0; bLock := FALSE; nOn := 0; nOff := 0;
     ELSE
-        lrRate := (x - lrOld) / (N * lrT);
-        IF NOT bLock THEN
-            IF ABS(lrRate) > lrThreshold THEN nOn := nOn + 1; ELSE nOn := 0; END_IF
-            IF nOn >= nOnCycles THEN bLock := TRUE; lrLevel := lrOld; nOff := 0; END_IF
+        lrOld := aBuf[i]; bFull := nFill >= N;
+        aBuf[i] := x; i := (i + 1) MOD N; IF NOT bFull THEN nFill := nFill + 1; END_IF
+        IF NOT bFull THEN
+            bLock := FALSE; nOn := 0; nOff := 0;
         ELSE
-            IF ABS(lrRate) <= lrThreshold AND ABS(x - lrLevel) <= lrBand THEN nOff := nOff + 1;
-            ELSE nOff := 0; END_IF
-            IF nOff >= nOffCycles THEN bLock := FALSE; nOn := 0; END_IF
+            lrRate := (x - lrOld) / (N * lrT);
+            IF NOT bLock THEN
+                IF ABS(lrRate) > lrThreshold THEN nOn := nOn + 1; ELSE nOn := 0; END_IF
+                IF nOn >= nOnCycles THEN bLock := TRUE; lrLevel := lrOld; nOff := 0; END_IF
+            ELSE
+                IF ABS(lrRate) <= lrThreshold AND ABS(x - lrLevel) <= lrBand THEN nOff := nOff + 1;
+                ELSE nOff := 0; END_IF
+                IF nOff >= nOffCycles THEN bLock := FALSE; nOn := 0; END_IF
+            END_IF
         END_IF
     END_IF
     fbHold.bReqVoid := bLock;
@@ -66,8 +70,9 @@ class VoidLock(ProcessFunction):
 
     def __init__(self, axis: str, cycle_time: float, threshold: float, *, variable: str | None = None,
                  window: float = VOID_DEFAULTS["window"], on_cycles: int = VOID_DEFAULTS["on_cycles"],
-                 off_cycles: int = VOID_DEFAULTS["off_cycles"], release_band: float | None = None):
-        super().__init__(axis)
+                 off_cycles: int = VOID_DEFAULTS["off_cycles"], release_band: float | None = None,
+                 enabled: bool = True):
+        super().__init__(axis, enabled)
         self.cycle_time = require_number(cycle_time, "void_lock.cycle_time", lo=0.0, lo_open=True)
         self.threshold = require_number(threshold, "void_lock.threshold", lo=0.0, lo_open=True)
         self.window = require_number(window, "void_lock.window", lo=self.cycle_time, hi=1.0)
@@ -79,10 +84,13 @@ class VoidLock(ProcessFunction):
         self.variable = None if variable is None else (variable if variable[:4].upper() == "V.E."
                                                        else f"V.E.{variable}")
         self.n = max(1, round(self.window / self.cycle_time))
+        self._rate_scale = 1.0 / (self.n * self.cycle_time)
+        self.reset()
+
+    def reset(self) -> None:
         self._buf = [0.0] * self.n
         self._i = 0
         self._fill = 0
-        self._rate_scale = 1.0 / (self.n * self.cycle_time)
         self.locked = False
         self.on_count = 0
         self.off_count = 0
@@ -97,6 +105,13 @@ class VoidLock(ProcessFunction):
     def step(self, machine, cycle: int) -> None:
         x = self._signal(machine)
         finite = math.isfinite(x)
+        if not tracking_or_held(machine.hli[self.axis].state_r.actual_state, self.hold):
+            # the window starts afresh at the select: a sample from before it (the head coming down
+            # to the cut height with distance control off) is no void (issue 16's plates)
+            self._fill = 0
+            self.locked = False
+            self.on_count = self.off_count = 0
+            return
         old = self._buf[self._i]
         full = self._fill >= self.n                    # old is a sample taken N cycles ago
         if finite:
@@ -104,8 +119,7 @@ class VoidLock(ProcessFunction):
             self._i = (self._i + 1) % self.n
             if not full:
                 self._fill += 1
-        unit = machine.hli[self.axis]
-        if not full or not tracking_or_held(unit.state_r.actual_state, self.hold):
+        if not full:
             self.locked = False
             self.on_count = self.off_count = 0
             return

@@ -1,0 +1,305 @@
+"""Write issue 16's two plates: examples/scenarios/plasma_plate.{toml,nc} and laser_sheet.{toml,nc}.
+
+    python tools/make_plates.py            # (re)writes the four files; they are committed
+
+The layouts (docs/process.md, "The two plates"):
+
+* **plasma plate** 600 x 400 mm, 5 m/min, arc voltage with the slow-down model: five 560 x 50 mm
+  parts (4 x 90° corners each, 20 in all), their long edges across six earlier cuts (1.5 mm kerfs
+  along Y at X = 90 ... 540: 6 x 2 x 5 = 60 kerf crossings) and past 40 earlier-cut Ø 10 mm holes
+  (8 a part, 4 on each long edge), each crossed on a chord 4 mm off its centre; warped 4 mm (a dome:
+  the middle 4 mm above the rim).
+* **laser sheet** 500 x 300 mm, 20 m/min, capacitive sensor (Ø 6 mm electrode): the sheet ends at
+  X = 500 mm (the edge); four 100 x 60 mm parts past 16 Ø 10 mm holes (chords 4 mm off their
+  centres), four cuts that run into the edge, one trim cut along the edge 2 mm inside it; 0.5 mm
+  waviness (amplitude) along X and Y.
+
+Every contour: lift to the safe height, rapid to the start, down to the cut height above the plate's
+height at the start (what a touch-off measures there: the script knows the surface), select distance
+control with WAIT, cut, OFF, lift. ``--short`` writes the shortened variants the tests
+run (plasma_plate_short.*, laser_sheet_short.*: the first part, the same features under it).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+OUT = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
+
+# --- plasma plate --------------------------------------------------------------------------------
+P_BASE = 30.0            # mm: the plate's mean top surface
+P_WARP = 2.0             # mm amplitude: the dome's middle 2 mm above, its rim 2 mm below the mean
+P_SIZE = (600.0, 400.0)
+P_KERFS = [90.0 * i for i in range(1, 7)]          # X of the earlier cuts along Y (6)
+P_KERF_W = 1.5
+P_PARTS = [(20.0, 30.0 + 75.0 * i, 580.0, 80.0 + 75.0 * i) for i in range(5)]   # (x0, y0, x1, y1)
+P_HOLE_X = [45.0, 225.0, 315.0, 495.0]             # 4 holes on each long edge, between the kerfs
+HOLE_D = 10.0
+CHORD = 4.0              # mm: the path passes this far from a hole's centre
+P_FEED = 5000.0          # mm/min
+P_SET = 1.5              # mm: the cut height (SET_DIST)
+P_SAFE = 45.0            # Z of the lifts: 11 mm above the dome's top, beyond the arc (range_max 10 mm)
+
+
+def plasma_height(x: float, y: float) -> float:
+    """The warped plate's height (mm) at (x, y): the two sines of the TOML below."""
+    return (P_BASE - P_WARP / 2 * math.cos(2 * math.pi * x / P_SIZE[0])
+            - P_WARP / 2 * math.cos(2 * math.pi * y / P_SIZE[1]))
+
+
+#: "with the functions": the [[process]] tables of each plate, all with their documented defaults
+#: (benchmarks and tests run the plates with them and without them: processes = ())
+PROCESS_PLASMA = """
+# the cutting-process functions (docs/process.md), their defaults: hold the height at the corners
+# (path below 90 % of F) and while the arc voltage changes faster than 500 V/s (kerfs, holes)
+[[process]]
+function = "corner_lock"
+axis = "Z"
+
+[[process]]
+function = "void_lock"
+axis = "Z"
+"""
+PROCESS_LASER = """
+# the cutting-process functions (docs/process.md), their defaults: hold the height at the corners
+# (path below 90 % of F) and while the distance changes faster than 80 mm/s (holes, the edge)
+[[process]]
+function = "corner_lock"
+axis = "Z"
+
+[[process]]
+function = "void_lock"
+axis = "Z"
+"""
+
+
+def plasma_holes(parts):
+    holes = []
+    for x0, y0, x1, y1 in parts:
+        for x in P_HOLE_X:
+            holes.append((x, y0 - CHORD))            # below the lower edge
+            holes.append((x, y1 + CHORD))            # above the upper edge
+    return holes
+
+
+def contour_nc(lines, n, x0, y0, x1, y1, feed, set_dist, safe, height):
+    """One rectangular part, counter-clockwise from (x0, y0); ``height(x, y)`` the plate's height."""
+    approach = round(height(x0, y0) + set_dist, 3)
+    def add(text):
+        nonlocal n
+        n += 10
+        lines.append(f"N{n} {text}")
+    add(f"G0 Z{safe:g}")
+    add(f"G0 X{x0:g} Y{y0:g}")
+    add(f"G0 Z{approach:g}")
+    add(f"Z[DIST_CTRL WAIT ON CONST_DIST SET_DIST={set_dist:g}]")
+    add(f"G1 X{x1:g} F{feed:g}")
+    add(f"G1 Y{y1:g}")
+    add(f"G1 X{x0:g}")
+    add(f"G1 Y{y0:g}")
+    add("Z[DIST_CTRL OFF]")
+    return n
+
+
+def line_nc(lines, n, xa, ya, xb, yb, feed, set_dist, safe, height):
+    """One straight cut from (xa, ya) to (xb, yb); ``height(x, y)`` the plate's height."""
+    approach = round(height(xa, ya) + set_dist, 3)
+    def add(text):
+        nonlocal n
+        n += 10
+        lines.append(f"N{n} {text}")
+    add(f"G0 Z{safe:g}")
+    add(f"G0 X{xa:g} Y{ya:g}")
+    add(f"G0 Z{approach:g}")
+    add(f"Z[DIST_CTRL WAIT ON CONST_DIST SET_DIST={set_dist:g}]")
+    add(f"G1 X{xb:g} Y{yb:g} F{feed:g}")
+    add("Z[DIST_CTRL OFF]")
+    return n
+
+
+def plasma(short: bool) -> tuple[str, str]:
+    parts = P_PARTS[:1] if short else P_PARTS
+    holes = plasma_holes(parts)
+    name = "plasma_plate_short" if short else "plasma_plate"
+    crossings = 2 * len(P_KERFS) * len(parts)
+    lines = [f"%{name.upper()}",
+             f"; {len(parts)} parts at {P_FEED / 1000:g} m/min: {4 * len(parts)} x 90° corners, {crossings} kerf crossings,",
+             f"; {len(holes)} holes passed on a chord; generated by tools/make_plates.py",
+             "N10 G90 G0 Z45",
+             "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]"]
+    n = 20
+    for part in parts:
+        n = contour_nc(lines, n, *part, P_FEED, P_SET, P_SAFE, plasma_height)
+    lines += [f"N{n + 10} G0 Z{P_SAFE:g}", f"N{n + 20} M30", ""]
+    hole_list = ",\n    ".join(", ".join(f"[{x:g}, {y:g}]" for x, y in holes[i:i + 6]) for i in range(0, len(holes), 6))
+    kerfs = "\n".join(f'  {{ type = "step", axis = "X", at = {x:g}, height = -40.0, width = {P_KERF_W:g} }},'
+                      for x in P_KERFS)
+    DURATION = 30.0 if short else 150.0
+    toml = f'''# generated by tools/make_plates.py ({"--short" if short else "the full plate"}); docs/process.md, "The two plates"
+name = "{'plasma plate, shortened (the first part)' if short else 'plasma plate'}: {len(holes)} holes, {crossings} kerf crossings, 90° corners, 4 mm warp, 5 m/min"
+cycle_time = 0.001
+program = "{name}.nc"
+duration = {DURATION}                         # s: an upper bound (the program ends well before)
+
+[axes.X]
+v_max = 500.0
+a_max = 1000.0
+
+[axes.Y]
+v_max = 500.0
+a_max = 1000.0
+
+[axes.Z]
+params = "z_plasma.lis"
+start = {P_SAFE:g}
+kv = 40.0
+v_max = 200.0
+a_max = 5000.0
+
+[surface]
+base = {P_BASE:g}
+features = [
+  # the 4 mm warp: a dome, the middle {P_WARP:g} mm above and the rim {P_WARP:g} mm below the mean surface
+  {{ type = "sine", axis = "X", amplitude = {P_WARP / 2:g}, wavelength = {P_SIZE[0]:g}, phase = -1.5707963267948966 }},
+  {{ type = "sine", axis = "Y", amplitude = {P_WARP / 2:g}, wavelength = {P_SIZE[1]:g}, phase = -1.5707963267948966 }},
+  # six earlier cuts along Y: 1.5 mm kerfs through the plate
+{kerfs}
+  # earlier-cut Ø {HOLE_D:g} mm holes, passed on a chord {CHORD:g} mm off their centres
+  {{ type = "holes", diameter = {HOLE_D:g}, height = -40.0, centers = [
+    {hole_list}] }},
+]
+
+[sensor]
+axis = "Z"
+kind = "arc_voltage"
+variable = "SENSOR"
+voltage_variable = "ARC_VOLTAGE"
+arc_v0 = 95.0
+arc_k = 6.0
+arc_ripple = 2.0
+arc_noise_std = 0.3
+kerf_jump = 30.0                        # V with no sheet under the whole arc root (kerfs, holes)
+footprint_radius = 1.5                  # mm: where the arc root may attach
+# the arc voltage rises as the torch slows below the cut speed (corners): 10 V at rest
+arc_speed_volts = 10.0
+arc_cut_speed = {P_FEED / 60:.4g}                  # mm/s: 5 m/min
+seed = 16
+{PROCESS_PLASMA}'''
+    return toml, "\n".join(lines)
+
+
+# --- laser sheet ---------------------------------------------------------------------------------
+L_BASE = 30.0
+L_WAVE = 0.5             # mm amplitude of the waviness
+L_EDGE = 500.0           # X where the sheet ends
+L_PARTS = [(40.0 + 110.0 * i, 40.0, 140.0 + 110.0 * i, 100.0) for i in range(4)]
+L_HOLE_X = [65.0, 115.0]                            # per part, relative to x0 - 40 ... (see laser_holes)
+L_FEED = 20000.0
+L_SET = 1.0
+L_SAFE = 42.0            # Z of the lifts: 11 mm above the sheet's highest point, beyond the sensor's range
+L_EDGE_CUTS = [(420.0, 150.0 + 30.0 * i, L_EDGE, 150.0 + 30.0 * i) for i in range(4)]   # into the edge
+L_TRIM = (L_EDGE - 2.0, 130.0, L_EDGE - 2.0, 280.0)                                    # along the edge
+
+
+L_WAVE_Y = (L_WAVE / 2, 150.0, 1.0)                # amplitude, wavelength, phase of the Y waviness
+
+
+def laser_height(x: float, y: float) -> float:
+    """The sheet's height (mm) at (x, y) inside the edge: the two sines of the TOML below."""
+    a, lam, ph = L_WAVE_Y
+    return L_BASE + L_WAVE * math.sin(2 * math.pi * x / 200.0) + a * math.sin(2 * math.pi * y / lam + ph)
+
+
+def laser_holes(parts):
+    holes = []
+    for x0, y0, x1, y1 in parts:
+        for dx in (25.0, 75.0):
+            holes.append((x0 + dx, y0 - CHORD))
+            holes.append((x0 + dx, y1 + CHORD))
+    return holes
+
+
+def laser(short: bool) -> tuple[str, str]:
+    parts = L_PARTS[:1] if short else L_PARTS
+    edge_cuts = L_EDGE_CUTS[:1] if short else L_EDGE_CUTS
+    holes = laser_holes(parts)
+    name = "laser_sheet_short" if short else "laser_sheet"
+    lines = [f"%{name.upper()}",
+             f"; {len(parts)} parts, {len(edge_cuts)} cuts into the sheet's edge and a trim cut along it at "
+             f"{L_FEED / 1000:g} m/min;",
+             f"; {len(holes)} holes passed on a chord; generated by tools/make_plates.py",
+             f"N10 G90 G0 Z{L_SAFE:g}",
+             "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]"]
+    n = 20
+    for part in parts:
+        n = contour_nc(lines, n, *part, L_FEED, L_SET, L_SAFE, laser_height)
+    for cut in edge_cuts + [L_TRIM]:
+        n = line_nc(lines, n, *cut, L_FEED, L_SET, L_SAFE, laser_height)
+    lines += [f"N{n + 10} G0 Z{L_SAFE:g}", f"N{n + 20} M30", ""]
+    hole_list = ",\n    ".join(", ".join(f"[{x:g}, {y:g}]" for x, y in holes[i:i + 6]) for i in range(0, len(holes), 6))
+    DURATION = 15.0 if short else 40.0
+    toml = f'''# generated by tools/make_plates.py ({"--short" if short else "the full sheet"}); docs/process.md, "The two plates"
+name = "{'laser sheet, shortened' if short else 'laser sheet'}: an edge, {len(holes)} holes, 0.5 mm waviness, 20 m/min"
+cycle_time = 0.001
+program = "{name}.nc"
+duration = {DURATION}                         # s: an upper bound (the program ends well before)
+
+[axes.X]
+v_max = 500.0
+a_max = 5000.0
+
+[axes.Y]
+v_max = 500.0
+a_max = 5000.0
+
+[axes.Z]
+params = "z_laser.lis"
+start = {L_SAFE:g}
+kv = 60.0
+v_max = 300.0
+a_max = 20000.0
+
+[surface]
+base = {L_BASE:g}
+features = [
+  # 0.5 mm waviness along X and Y
+  {{ type = "sine", axis = "X", amplitude = {L_WAVE:g}, wavelength = 200.0 }},
+  {{ type = "sine", axis = "Y", amplitude = {L_WAVE / 2:g}, wavelength = 150.0, phase = 1.0 }},
+  # the sheet ends at X = {L_EDGE:g} mm: beyond it the support grid is 40 mm lower, out of the sensor's reach
+  {{ type = "step", axis = "X", at = {L_EDGE:g}, height = -40.0 }},
+  # earlier-cut Ø {HOLE_D:g} mm holes, passed on a chord {CHORD:g} mm off their centres
+  {{ type = "holes", diameter = {HOLE_D:g}, height = -40.0, centers = [
+    {hole_list}] }},
+]
+
+[sensor]
+axis = "Z"
+kind = "distance"                       # capacitive sensor writing V.E.SENSOR
+variable = "SENSOR"
+range_max = 10.0
+footprint_radius = 3.0                  # mm: the nozzle's electrode
+noise_std = 0.002
+delay_cycles = 1
+seed = 16
+# plume/spark bursts: on average 2 a second, 20 ms each, 0.05 mm std, reading 0.05 mm too close
+bursts = {{ rate = 2.0, duration = 0.02, amplitude = 0.05, offset = -0.05 }}
+{PROCESS_LASER}'''
+    return toml, "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args()
+    for short in (False, True):
+        for make, stem in ((plasma, "plasma_plate"), (laser, "laser_sheet")):
+            toml, nc = make(short)
+            stem = stem + ("_short" if short else "")
+            (args.out / f"{stem}.toml").write_text(toml, encoding="utf-8")
+            (args.out / f"{stem}.nc").write_text(nc, encoding="utf-8")
+            print(f"wrote {args.out / stem}.toml, .nc")
+
+
+if __name__ == "__main__":
+    main()
