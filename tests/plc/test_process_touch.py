@@ -322,3 +322,40 @@ def test_touch_off_on_a_plasma_torch_with_ripple_and_noise():
     res = f.log[0]
     assert res["surface"] == pytest.approx(32.0, abs=0.4) and res["attempts"] == 1
     assert m.true_distance == pytest.approx(3.0, abs=0.1)
+
+
+PROBE = """
+name = "probe touch"
+cycle_time = 0.001
+duration = 4.0
+program_text = "N10 G90 G0 X20 Z45\\nN30 V.E.TOUCH_OFF = 1\\nN40 #WAIT FOR V.E.TOUCH_OFF == 0\\nN50 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\\nN60 G1 X60 F6000\\nN70 M30\\n"
+[axes.X]
+[axes.Z]
+params = "{lis}"
+start = 45.0
+kv = 60.0
+v_max = 300.0
+a_max = 20000.0
+[surface]
+base = 37.0
+[sensor]
+axis = "Z"
+kind = "encoder"
+range_min = -20.0
+range_max = 20.0
+[[process]]
+function = "touch_off"
+axis = "Z"
+"""
+
+
+def test_touch_off_with_the_probe_on_encoder_2_reads_state_r_actual_distance():
+    sc = scenario_from_text(PROBE.format(lis=(EX / "z_probe.lis").as_posix()), base_dir=EX)
+    assert sc.processes[0].params["variable"] is None and sc.processes[0].params["stroke"] == 10.0
+    m = Machine(sc, load_program(sc))
+    f = touch(m)
+    while not f.log and not errors(m) and m.cycle < 3000:
+        m.step()
+    res = f.log[0]
+    assert res["surface"] == pytest.approx(37.0, abs=1e-3) and res["distance"] == pytest.approx(3.0, abs=0.01)
+    assert m.true_distance == pytest.approx(3.0, abs=0.02)        # the offset stood before the FREEZE

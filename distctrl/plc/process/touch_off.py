@@ -32,7 +32,8 @@ The PLC moves Z only through distance control (HLI control unit, CNC objects):
 4. BACK-OFF: write ``v_max`` back to the value read in 1 and select ON_CONST_DIST with SET_DIST =
    ``pierce_height`` (FREEZE -> active adopts the write: the back-off runs at the normal limits);
    once ``|DIST_CTRL::target_deviation|`` (0x3111, the filtered distance minus the set distance)
-   stays within ``tolerance`` for 5 cycles -> FREEZE; more than 2 s -> error 900052.
+   stays within ``tolerance`` for 5 cycles with the offset (nearly) standing (it moves less than
+   ``tolerance`` per 10 ms) -> FREEZE; more than 2 s -> error 900052.
 5. DONE: in FREEZE, once the drive is in position (its following error, CNC objects
    ``dig cmd pos high_res`` - ``dig act pos`` in drive increments, within ``tolerance``; at most
    2 s, else 900052), the PLC writes ``V.E.TOUCH_OFF = 0``: the program goes on. ``result`` holds the
@@ -71,7 +72,8 @@ ST equivalent (``SEND(t, pos)`` = the semaphore handshake of docs/process.md; mm
                    ELSE nAttempt := nAttempt + 1; nCnt := 0; SEND(4, 0.0); eTouch := PROBING; END_IF
                END_IF
     BACKING_OFF: IF stState.actual_state <> 4 THEN FAIL(900052);
-               ELSIF ABS(DIST_CTRL_target_deviation * 1.0E-8) <= lrTol THEN nOk := nOk + 1; ELSE nOk := 0; END_IF
+               ELSIF ABS(DIST_CTRL_target_deviation * 1.0E-8) <= lrTol
+                     AND ABS(lrOffs - lrOffsLast) <= lrTol * lrT / 0.01 THEN nOk := nOk + 1; ELSE nOk := 0; END_IF
                IF nOk >= 5 THEN SEND(2, 0.0); eTouch := HOLDING; nCnt := 0;
                ELSIF nCnt > nTimeoutCycles THEN FAIL(900052); END_IF; nCnt := nCnt + 1;
     HOLDING:   nCnt := nCnt + 1;
@@ -101,6 +103,8 @@ TOUCH_DEFAULTS = {"request": "TOUCH_OFF", "probe_speed": 10.0, "detect": 0.5, "p
 BACKOFF_TIMEOUT_S = 2.0
 #: cycles within ``tolerance`` before the back-off counts as done
 BACKOFF_OK_CYCLES = 5
+#: s: the back-off is done once the offset would need longer than this to move by ``tolerance``
+STILL_S = 0.01
 #: s: at most this long waiting for the FREEZE to brake
 BRAKE_TIMEOUT_S = 1.0
 _V_MAX = "DIST_CTRL_PARAM[0]::v_max"
@@ -292,7 +296,10 @@ class TouchOff(ProcessFunction):
                            f"the back-off select ended: distance control is {_state_name(state)}")
             else:
                 dev = read_object(machine, self.axis, _TARGET_DEV) * _MM_PER_NM001
-                self._ok = self._ok + 1 if abs(dev) <= self.tolerance else 0
+                # on target and the offset (nearly) standing: it moves less than the tolerance in
+                # STILL_S, so the FREEZE that follows brakes it within a fraction of the tolerance
+                still = abs(offset - self._last_offset) <= self.tolerance * self.cycle_time / STILL_S
+                self._ok = self._ok + 1 if abs(dev) <= self.tolerance and still else 0
                 if self._ok >= BACKOFF_OK_CYCLES:
                     self._send(unit, cycle, _T_FREEZE)
                     self.phase = HOLDING
