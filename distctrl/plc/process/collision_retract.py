@@ -26,7 +26,8 @@ retract. As a PLC program on the HLI control unit and the CNC objects:
    absorbed (docs/states.md: RESET -> INACTIVE at once, the channel takes the offset as its
    position): the head stays up. OFF would run the offset out and put the head back onto the
    obstacle. The error 900053 is reported with the cycle and NC line of the contact and names the
-   X/Y position, the reading, the retract distance and time.
+   X/Y position, the reading, the retract distance and time. The function watches again (the hold
+   is no longer inhibited): the next select arms it.
 
 A state that leaves the sequence (ERROR, e.g. the offset reached max_deviation, P-AXIS-00414)
 ends the retract where it is: the reset and the error follow at once. Switched off (or reset) during a
@@ -61,7 +62,8 @@ ST equivalent::
     END_CASE
     lrOffsLast := lrOffs;
     (* STOP_AND_REPORT: channel reset (INACTIVE, offset absorbed: the head stays up);
-       report 900053 with the contact's cycle, NC line, X/Y, reading, retract distance and time; eColl := DONE *)
+       report 900053 with the contact's cycle, NC line, X/Y, reading, retract distance and time;
+       fbHold.bInhibit := FALSE; nHit := 0; eColl := WATCH (a new select arms it again) *)
 """
 from __future__ import annotations
 
@@ -88,7 +90,7 @@ _ACTIVE, _FREEZE = int(HliState.ACTIVE), int(HliState.FREEZE)
 _ACTIVE_CD = int(HliState.ACTIVE_CONST_DIST)
 _ARMED = (_ACTIVE, _ACTIVE_CD, _FREEZE)
 _T_FREEZE, _T_ON_CD = int(HliTransition.FREEZE), int(HliTransition.ON_CONST_DIST)
-WATCH, FREEZING, RETRACTING, STOPPING, DONE = "WATCH", "FREEZING", "RETRACTING", "STOPPING", "DONE"
+WATCH, FREEZING, RETRACTING, STOPPING = "WATCH", "FREEZING", "RETRACTING", "STOPPING"
 
 
 class CollisionRetract(ProcessFunction):
@@ -182,8 +184,6 @@ class CollisionRetract(ProcessFunction):
             if self._pending is not None:
                 return
         phase = self.phase
-        if phase == DONE:
-            return
         state = unit.state_r.actual_state
         offset = unit.state_r.actual_offset * MM_PER_UNIT
         if phase == WATCH:
@@ -254,7 +254,9 @@ class CollisionRetract(ProcessFunction):
         machine.events.append((c["cycle"] * machine.T, event))
         self.errors.append(event)
         self.log.append(dict(c))
-        self.phase = DONE
+        self.phase = WATCH                              # distance control is INACTIVE: a new select arms it
+        self.hits = 0
+        self.hold.inhibitors.discard(self.name)
 
 
 def _name(state: int) -> str:
