@@ -43,7 +43,8 @@ While it runs the axis's FREEZE hold is inhibited: the locks (void lock, corner 
 the probe nor the back-off. Switched off (or reset) while it runs, it ends the touch-off as an error
 (900052) in its next cycle; switched off while idle it does not answer a request (the NC program
 waits at ``#WAIT FOR``). An error writes ``V.E.TOUCH_OFF = -1``, writes ``v_max`` back, switches distance control OFF (the
-offset runs out: the head returns to the programmed height it started from), reports the error with
+offset runs out at the probe speed: the head returns to the programmed height it started from; the
+written-back v_max is adopted only by the next select), reports the error with
 the NC line and stops the program. Every command goes through the semaphore handshake (FCT-M3 §8.2).
 
 ST equivalent (``SEND(t, pos)`` = the semaphore handshake of docs/process.md; mm on the HLI x 10000)::
