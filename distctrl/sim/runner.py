@@ -254,10 +254,11 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     add_metric = metrics.add
     out3d = machine.out3d if machine.ch3d is not None else None
     in3d = machine.in3d
-    # a process function that moves the axis itself (touch-off, collision retract) inhibits the axis's
-    # FREEZE hold while it does (docs/process.md): those cycles are not tracking, the metrics skip them
-    process = machine.process_program
-    moving = process.holds[dc_axis].inhibitors if process is not None and dc_axis in process.holds else None
+    # cycles in which a process function moves the axis itself (touch-off probe, collision retract:
+    # ACTIVE_CONST_DIST with a set distance that is not the cut's) are not tracking: not in the metrics
+    proc = getattr(machine, "process_program", None)
+    hold = proc.holds.get(dc_axis) if proc is not None and dc_axis is not None else None
+    moved_by_process = hold.inhibitors if hold is not None else frozenset()
     try:
         for k in range(max_cycles):
             step()
@@ -278,7 +279,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                     metrics.gap()
             elif dc_out is not None:
                 state = dc_out.hli_state
-                if moving:
+                if moved_by_process:
                     if metrics.inside:
                         metrics.gap()
                 elif state == 4:

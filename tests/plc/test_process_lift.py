@@ -14,6 +14,7 @@ import pytest
 from distctrl.control import CycleOutput, HliState
 from distctrl.plc.process import LIFT_DEFAULTS, Lift, LiftMotion, ProcessProgram
 from distctrl.plc.process.channel import MOTION_LINEAR, MOTION_NONE, MOTION_RAPID, ChannelPathStatus
+from distctrl.sim import run
 from distctrl.sim.interpolator import AxisLimits, Interpolator
 from distctrl.sim.scenario import ScenarioError, load_scenario, scenario_from_text
 
@@ -97,8 +98,29 @@ def test_lift_waits_for_distance_control_to_stop_tracking():
     assert lm.phase == "UP" and lm.offset > 0.0
 
 
+def test_lift_waits_for_the_offset_to_stand():
+    m = _machine(HliState.TURNING_OFF)                  # an OFF still runs its offset out
+    m.outputs["Z"].offset_velocity = -10.0
+    lm = LiftMotion("Z", T, 5.0, V_Z, A_Z)
+    m.interp.start_linear({"X": 200.0}, None)
+    for _ in range(20):
+        m.interp.step()
+        lm.step(m)
+        m.cycle += 1
+    assert lm.phase == "WAITING" and lm.offset == 0.0   # the sum would exceed the axis's limits
+    m.outputs["Z"].hli_state = int(HliState.INACTIVE)
+    m.outputs["Z"].offset_velocity = 0.0
+    while not m.interp.done or lm.busy:
+        m.interp.step()
+        lm.step(m)
+        m.cycle += 1
+    assert [e for _, e in lm.log] == ["start", "down", "landed"]
+    assert lm.log[0][0] == 20 and lm.peaks == [pytest.approx(5.0)]
+
+
 @pytest.mark.parametrize("target, kwargs", [({"X": 50.0, "Z": 3.0}, {}),          # the G0 moves the lift axis
-                                            ({"X": 5.0}, {"min_distance": 10.0})])  # shorter than min_distance
+                                            ({"X": 5.0}, {"min_distance": 10.0}),  # shorter than min_distance
+                                            ({"X": 0.5}, {"settle_time": 0.05})])   # 26 ms: no time to lift
 def test_suppressed_lifts(target, kwargs):
     m = _machine()
     lm = LiftMotion("Z", T, 5.0, V_Z, A_Z, **kwargs)
@@ -149,6 +171,23 @@ def test_switched_off_during_a_lift_it_keeps_the_freeze_until_the_head_has_lande
         m.interp.step()
         f.motion.step(m)
     assert f.motion.offset == 0.0
+
+
+def test_set_enabled_off_then_on_during_a_lift_switches_it_back_on():
+    # enabled reads true while the head is up: the program must compare with the switch itself
+    f = Lift("Z", T, V_Z, A_Z)
+    prog = ProcessProgram([f])
+    m = _machine()
+    m.hli = {"Z": _Unit(state_r=SimpleNamespace(actual_state=0))}
+    m.interp.start_linear({"X": 200.0}, None)
+    for _ in range(50):
+        m.interp.step()
+        f.motion.step(m)
+    assert f.motion.lift_active
+    prog.set_enabled("lift", "Z", False)
+    assert not f.switched_on
+    prog.set_enabled("lift", "Z", True)               # on again before the head has landed
+    assert f.switched_on and f.enabled
 
 
 def test_a_feed_hold_keeps_the_head_up_and_the_landing_follows_the_resumed_path():
@@ -347,3 +386,31 @@ def test_served_machine_lifts_and_the_plc_freezes_and_re_activates():
     assert [t for _, t in hold.log] == [2, 4]             # FREEZE for the lift, ON_CONST_DIST after it
     assert hold.log[0][0] < [c for c, e in lm.log if e == "start"][-1]   # frozen before Z rose
     assert m.hli["Z"].state_r.actual_state == 4 and m.hli["Z"].state_r.command_source == 1
+
+
+def _switch_off_at(cycle, keep_freeze):
+    sc = load_scenario(EX / "process_lift.toml")
+
+    def plc(m, k):
+        if k == cycle:                       # mid-lift over the first rapid between two holes (0.85 .. 1.03 s)
+            f = m.process_program.function("lift")
+            assert f.motion.offset > 1.0
+            if keep_freeze:                  # as ProcessProgram.set_enabled does: switch, reset, withdraw
+                f.enabled = False
+                f.reset()
+                f.hold.withdraw(f.name)
+            else:                            # a PLC part that just stops: the hold releases at once
+                f.step = lambda *a: None
+    r = run(sc, plc_program=plc)
+    t = r.trace.data[:, 0]
+    d = r.trace.data[:, r.trace.columns.index("true.distance")]
+    return r, d[(t > 0.85) & (t < 1.3)].min()
+
+
+def test_switched_off_mid_lift_in_a_run_the_head_lands_without_diving():
+    r, dmin = _switch_off_at(900, keep_freeze=True)
+    assert r.completed and r.metrics["collisions"] == 0 and dmin > 1.2
+    # why: distance control re-activated while the head is up pulls it down (100 mm/s) and cannot
+    # follow the landing (156 mm/s): the torch hits the plate
+    r, dmin = _switch_off_at(900, keep_freeze=False)
+    assert dmin < 0.0 and r.metrics["collisions"] >= 1

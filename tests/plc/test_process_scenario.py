@@ -145,3 +145,14 @@ def test_enabled_key_switches_a_function_off_at_start():
     with pytest.raises(ScenarioError) as exc:
         scenario('[[process]]\nfunction = "corner_lock"\naxis = "Z"\nenabled = "yes"\n')
     assert exc.value.key == "process[0].enabled" and "true or false" in str(exc.value)
+
+
+@pytest.mark.parametrize("name, max_err_mm", [("process_collision.toml", 5.0), ("process_touch.toml", 2.5)])
+def test_tracking_metrics_leave_out_the_cycles_a_process_function_moves_the_axis(name, max_err_mm):
+    # the retract selects ON_CONST_DIST far above any reading, the touch-off probes with SET_DIST 0:
+    # distance control is ACTIVE_CONST_DIST, but it is not tracking the set distance of the cut (before:
+    # max 1003 mm / 7.1 mm; the touch-off example keeps the 2 mm step from the pierce height to the cut)
+    res = run(load_scenario(EX / name))
+    assert res.metrics["distance_error_max"] is not None
+    assert res.metrics["distance_error_max"] < max_err_mm
+    assert res.metrics["oscillation_amplitude_mm"] is None or res.metrics["oscillation_amplitude_mm"] < max_err_mm

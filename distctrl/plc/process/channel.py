@@ -68,7 +68,7 @@ class ChannelPathStatus:
 
     @property
     def motion_type(self) -> int:
-        """The running block's motion: 0 none, 1 G0, 2 G1, 3 dwell (a distctrl extension, module docstring)."""
+        """The running block's motion: 0 none, 1 G0, 2 G1, 3 dwell (a distctrl extension, see above)."""
         return _MOTION.get(self._m.interp.block, MOTION_NONE)
 
     @property

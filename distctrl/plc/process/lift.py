@@ -3,25 +3,27 @@
 Between two cuts the head travels at the cut height over a plate with cut-out parts, tipped-up
 edges and slag: a collision risk. Lifting before the rapid and lowering after it costs time when
 done in separate blocks (``G0 Z..``, ``G0 X.. Y..``, ``G0 Z..``). Cutting controls overlap the lift
-with the rapid instead: Beckhoff TF5290 "Lift" (ISG FCT-A11 "Collision avoidance by lift function",
-Advanced Lifting: the CNC lifts the lift axis during the positioning blocks independently of the
-path and lowers it so that it reaches the target height at the start of the next contour), FANUC's
-rapid retract/approach of laser controls, the "frog jump" of laser heads.
+with the rapid instead: Beckhoff TF5290 "Lift" (TwinCAT CNC Cutting Plus; ISG functional description
+FCT-A11, the lift function, *Advanced Lifting*: the CNC lifts the lift axis during the positioning
+blocks independently of the path and lowers it so that it reaches the target height at the start of
+the next contour), FANUC's rapid retract/approach of laser controls, the "frog jump" of laser heads.
 
 Two parts, as on a TwinCAT CNC:
 
 * **the CNC part** (:class:`LiftMotion`, run by the machine in the GEO cycle after the interpolator):
-  in every G0 block that does not move the lift axis and is at least ``min_distance`` long (TF5290's
-  P-CHAN-00244 ``lift_min_dist``; a shorter one is "lift suppressed"), it superimposes on the axis's
-  programmed position a lift of up to ``height`` at ``v_max`` / ``a_max`` (the axis's limits by
-  default): up as soon as distance control no longer tracks, down again when the time the rapid
-  still needs (its velocity profile at the current override) has come down to the time the landing
-  needs, so the head is back at the programmed height when the path stops. A short rapid gets a
-  lower lift (what fits); where the landing still runs when the path stops, the next block waits
-  for it. On a TwinCAT CNC the program marks the range with ``Z[LIFT_START POS_LIMIT=..]`` /
-  ``Z[LIFT_END]``; distctrl's NC has no such words, so the scenario's ``lift`` table enables it for
-  every G0 block. ``lift_active`` / ``lift_suppressed`` are TF5290's CNC objects of that name
-  (GEO, index offsets 0x<AID>0095 / 0x<AID>0094, BOOLEAN), here attributes.
+  in every G0 block that does not move the lift axis, is at least ``min_distance`` long (TF5290's
+  P-CHAN-00244 ``lift_min_dist``) and takes longer than ``settle_time`` (else: "lift suppressed"),
+  it superimposes on the axis's programmed position a lift of up to ``height`` at ``v_max`` /
+  ``a_max`` (the axis's limits by default): up as soon as distance control no longer tracks and its
+  offset stands (FREEZE has braked, an OFF has run out), down again when the time the rapid still
+  needs (its velocity profile at the current override) has come down to the time the landing needs
+  plus ``settle_time``, so the head is back at the programmed height before the path stops. A short
+  rapid gets a lower lift (what fits); where the landing still runs when the path stops, the next
+  block waits for it. On a TwinCAT CNC the program marks the range with
+  ``Z[LIFT_START POS_LIMIT=..]`` / ``Z[LIFT_END]``; distctrl's NC has no such words, so the
+  scenario's ``lift`` table enables it for every G0 block. ``lift_active`` / ``lift_suppressed`` are
+  TF5290's CNC objects of that name (GEO, index offsets 0x<AID>0095 / 0x<AID>0094, BOOLEAN), here
+  attributes.
 * **the PLC part** (:class:`Lift`, this process function): FCT-M3 §5.2, "when the Z axis is lifted,
   distance control must be frozen (FREEZE) or deactivated (OFF), otherwise distance control prevents
   lifting/lowering". While ``lift_active`` it requests the axis's FREEZE hold (:mod:`.hold`), which
@@ -31,9 +33,10 @@ Two parts, as on a TwinCAT CNC:
   TwinCAT PLC would freeze on the M function that ends the cut, before the G0).
 
 Switching the function off (``enabled``) stops new lifts; a lift under way lands, and until it has
-landed the function still keeps distance control frozen (``enabled`` reads true until then). The frozen
-offset is kept over the rapid, so the head comes down to the height it had at the end of the cut;
-distance control then corrects for the plate under the new position.
+landed the function still keeps distance control frozen (``enabled`` reads true until then). The
+frozen offset is kept over the rapid, so the head comes down to the height it had at the end of the
+cut; distance control, re-activated ``settle_time`` before the rapid ends, then corrects for the
+plate under the new position.
 
 ST equivalent of the PLC part (``fbHold`` the axis's hold, :mod:`.hold`; ``bLiftActive`` the CNC
 object ``lift_active`` read every cycle)::
@@ -44,14 +47,14 @@ and of the CNC part (what the CNC's lift does each GEO cycle; ``lrTau`` the time
 ``lrZ``/``lrW`` lift offset and its velocity, ``lrA``/``lrV`` the lift's limits)::
 
     IF bNewRapid THEN
-        bSuppressed := bLiftAxisInBlock OR lrPathLength < lrMinDist;
+        bSuppressed := bLiftAxisInBlock OR lrPathLength < lrMinDist OR lrTau <= lrSettle + 4.0 * lrT;
         IF NOT bSuppressed AND bEnabled THEN eLift := WAITING; END_IF
     END_IF
     CASE eLift OF
-    WAITING: IF NOT bRapid THEN eLift := IDLE;
-             ELSIF NOT (nDcState = 1 OR nDcState = 4) THEN eLift := UP; END_IF
+    WAITING: IF NOT bRapid OR NOT bEnabled THEN eLift := IDLE;
+             ELSIF NOT (nDcState = 1 OR nDcState = 4) AND lrOffsetVelocity = 0.0 THEN eLift := UP; END_IF
     UP:      lrH := lrZ + SEL(lrW > 0.0, 0.0, lrW * lrW / (2.0 * lrA));
-             IF lrTau <= SEL(lrW > 0.0, 0.0, lrW / lrA) + TrapezoidTime(lrH, lrV, lrA) + 2.0 * lrT THEN
+             IF lrTau <= SEL(lrW > 0.0, 0.0, lrW / lrA) + TrapezoidTime(lrH, lrV, lrA) + lrSettle + 2.0 * lrT THEN
                  eLift := DOWN;
              END_IF
     END_CASE
@@ -81,8 +84,8 @@ class LiftMotion:
 
     ``offset`` (mm) is superimposed on the axis's programmed position; ``velocity`` (mm/s) is its
     rate. ``lift_active`` / ``lift_suppressed``: TF5290's CNC objects. ``log``: ``(cycle, event)``
-    with the events ``"start"`` (rising), ``"down"`` (landing begins, with the height reached in
-    :attr:`peaks`), ``"landed"``, ``"suppressed"``.
+    with the events ``"start"`` (rising), ``"down"`` (landing begins), ``"landed"`` (the highest
+    offset of that lift in :attr:`peaks`), ``"suppressed"``.
     """
 
     def __init__(self, axis: str, cycle_time: float, height: float, v_max: float, a_max: float,
@@ -104,8 +107,9 @@ class LiftMotion:
         self.lift_suppressed = False
         self._was_rapid = False
         self.log: list[tuple[int, str]] = []
-        #: the height (mm) of every lift when its landing began
+        #: the highest offset (mm) of every lift that landed
         self.peaks: list[float] = []
+        self._top = 0.0
 
     @property
     def busy(self) -> bool:
@@ -131,7 +135,8 @@ class LiftMotion:
         if rapid and not self._was_rapid:                       # a G0 block started this cycle
             self.lift_suppressed = False
             if self.phase == IDLE and switched_on:
-                if self.axis in interp.moving_axes or interp.path_length < self.min_distance:
+                if (self.axis in interp.moving_axes or interp.path_length < self.min_distance
+                        or interp.remaining_time() <= self.settle_time + (_MARGIN_CYCLES + 2) * self.T):
                     self.lift_suppressed = True
                     self.log.append((cycle, "suppressed"))
                 else:
@@ -141,14 +146,15 @@ class LiftMotion:
         if phase == WAITING:
             if not rapid or not switched_on:                    # nothing lifted yet: no lift
                 phase = IDLE
-            elif machine.outputs[self.axis].hli_state not in _TRACKING:
-                phase = UP
-                self.log.append((cycle, "start"))
+            else:
+                out = machine.outputs[self.axis]
+                if out.hli_state not in _TRACKING and out.offset_velocity == 0.0:   # FREEZE has braked
+                    phase = UP
+                    self.log.append((cycle, "start"))
         if phase == UP:
             tau = interp.remaining_time() if rapid else 0.0
             if tau <= self.land_time() + self.settle_time + _MARGIN_CYCLES * self.T:
                 phase = DOWN
-                self.peaks.append(self.offset)
                 self.log.append((cycle, "down"))
         if phase == UP:
             self._move(self.height)
@@ -156,7 +162,11 @@ class LiftMotion:
             self._move(0.0)
             if self.offset == 0.0 and self.velocity == 0.0:
                 phase = IDLE
+                self.peaks.append(self._top)
+                self._top = 0.0
                 self.log.append((cycle, "landed"))
+        if self.offset > self._top:
+            self._top = self.offset
         self.phase = phase
         self.lift_active = phase != IDLE
 
@@ -226,7 +236,8 @@ class Lift(ProcessFunction):
 
     @enabled.setter
     def enabled(self, on: bool) -> None:
-        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``): no new lift while off
+        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``):
+        #: no new lift while off
         self.switched_on = bool(on)
 
     @property

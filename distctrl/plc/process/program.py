@@ -51,8 +51,7 @@ class ProcessProgram:
             raise KeyError(f"no process function {name!r} on axis {axis!r}; configured: "
                            + (", ".join(f"{g.name}@{g.axis}" for g in self.functions) or "none"))
         on = bool(on)
-        # a function that finishes a sequence after being switched off (lift, touch-off, collision
-        # retract) reads enabled until then; what counts is its switch
+        # the switch itself: a function may read enabled while it finishes (a lift landing)
         if on == getattr(f, "switched_on", f.enabled):
             return
         f.enabled = on
