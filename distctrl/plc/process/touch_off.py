@@ -150,6 +150,8 @@ class TouchOff(ProcessFunction):
         self.tolerance = require_number(tolerance, n + "tolerance", lo=0.0, hi=10.0, lo_open=True)
         self.variable = None if variable is None else _ve(variable)
         self.request = _ve(request)
+        #: the V.E. variables the machine creates (0) at the start: the handshake
+        self.declares = (self.request,)
         self.verify_cycles = max(1, round(self.verify_time / self.cycle_time))
         self.timeout_cycles = round(BACKOFF_TIMEOUT_S / self.cycle_time)
         self.brake_cycles = round(BRAKE_TIMEOUT_S / self.cycle_time)
