@@ -15,7 +15,6 @@ from .config import (
                      PROCESS_COMMON_KEYS,
                      PROCESS_FUNCTIONS,
                      PROCESS_KEYS,
-                     PROCESS_NOT_IMPLEMENTED,
                      ProcessConfig,
                      make_process_program,
                      process_configs,
@@ -29,7 +28,7 @@ from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, V
 
 __all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS", "CALIBRATE_DEFAULTS", "Calibrate", "CalibrationRecord",
            "AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
-           "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
+           "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
            "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
            "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_MARGIN", "CollisionRetract",
