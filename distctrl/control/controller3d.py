@@ -26,7 +26,7 @@ from ..errors import ErrorEvent
 from ..errors3d import event_to_3d, make_event_3d
 from ..params.channel import ChannelParameters
 from .commands import Action, Command, ObjectWrite
-from .commands3d import Command3D, CompensationMode
+from .commands3d import CompensationMode
 from .controller import AxisDistanceController
 from .cycle_io import CycleInput, CycleOutput, Result
 from .kinds import SensorSource

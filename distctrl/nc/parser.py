@@ -428,7 +428,7 @@ def _check_dist_ctrl_3d_rules(outside: list[DistCtrlArg], inside: list[DistCtrlA
 def _kinematic_ids(tokens: list[Token], texts: list[str]) -> tuple[int, ...]:
     ids = tuple(int(text) for text in texts)
     if any(kin_id < 1 for kin_id in ids):
-        raise _error(f"kinematic ID 0 does not exist, expected IDs >= 1 (e.g. 9, 98)", tokens[0])
+        raise _error("kinematic ID 0 does not exist, expected IDs >= 1 (e.g. 9, 98)", tokens[0])
     return ids
 
 

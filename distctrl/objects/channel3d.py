@@ -41,7 +41,7 @@ from ..control.commands import ObjectWrite
 from ..control.controller import check_object_value
 from ..errors import ErrorEvent, ErrorId
 from .registry import (ADS_PORT, COLUMNS, READ, READ_WRITE, STRING_LENGTH, TASK, ObjectAccessError, ObjectSpec,
-                       ObjectValueError, decode, encode, format_object_table, format_value, object_row, read_value)
+                       ObjectValueError, decode, encode, format_object_table, object_row, read_value)
 from .units import (INT32_MAX, INT32_MIN, PER_MM_01UM, UM_PER_MM, mm_to_increments, mm_to_nm001,
                     round_saturate)
 

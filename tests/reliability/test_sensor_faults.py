@@ -35,7 +35,7 @@ from distctrl.control import Action, Command, HliState
 from distctrl.control.states import MONITORED_STATES
 from distctrl.params import AxisParameters
 
-from ..control.conftest import InvariantError, Plant, axis_parameters
+from ..control.conftest import Plant, axis_parameters
 from .conftest import RELIABILITY, tally
 
 S = HliState

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 
-import pytest
 from hypothesis import event, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule

@@ -13,7 +13,7 @@ from distctrl.control.filters import FilterConfig
 from distctrl.control.kinds import FilterType
 from distctrl.errors import DistCtrlError
 from distctrl.trace import Trace
-from distctrl.workbench.filters import (DEFAULT_SPECS, FilterResult, FilterSpecError, RecordingError,
+from distctrl.workbench.filters import (FilterResult, FilterSpecError, RecordingError,
                                         RecordingWarning, WorkbenchError, WorkbenchWarning, compare,
                                         default_configs, find_edges, format_table, load_recording,
                                         obstacle_signal, parse_filter_spec, plot_overlay, signal_noise_rms,

@@ -25,7 +25,7 @@ from distctrl.control.kinds import FilterType
 from distctrl.cli.demo import plain_const_dist_scenario
 from distctrl.sim.runner import run
 from distctrl.sim.scenario import load_scenario
-from distctrl.workbench.margins import (MarginResult, MarginsError, analyse, filter_coefficients, loop_model,
+from distctrl.workbench.margins import (MarginsError, analyse, filter_coefficients, loop_model,
                                         model_from_parts)
 from distctrl.workbench.step import StepSetting, run_steps, step_scenario
 
