@@ -236,6 +236,20 @@ def test_void_lock_releases_after_a_kerf_with_mains_ripple_on_the_voltage():
     assert not f.locked and m.taken[-1] == (int(HliTransition.ON_CONST_DIST), 1.5)
 
 
+def test_void_lock_releases_when_the_signal_comes_back_below_its_level():
+    # the torch dived before the lock caught the void: past it the voltage is 10 V below the level
+    # (the torch 1.7 mm closer); re-activating moves it away from the sheet, so the lock releases.
+    # Back above the level by more than the band (the plate lower beyond a kerf) it keeps holding.
+    for after, released in ((100.0, True), (120.0, False)):
+        m = FakeMachine()
+        f, prog = void(m, window=0.002, on_cycles=1, off_cycles=5, release_band=3.0)
+        k = run_cycles(m, prog, 5, feed_signal([110.0] * 5))
+        k = run_cycles(m, prog, 3, feed_signal([140.0] * 3), start=k)
+        assert f.locked
+        run_cycles(m, prog, 20, feed_signal([after] * 20), start=k)
+        assert f.locked is not released, after
+
+
 def test_void_lock_window_starts_at_the_select_not_before_it():
     # the head comes down to the cut height with distance control off (the arc voltage falls from
     # 150 V to 104 V), then the NC selects: the window must not compare against the descent

@@ -10,7 +10,8 @@ change over a window of ``window`` seconds,
 and holds the height (FREEZE) after ``on_cycles`` consecutive cycles with ``|rate| > threshold``. It
 re-activates distance control (FREEZE -> ON / ON_CONST_DIST, :mod:`.hold`) after ``off_cycles``
 consecutive cycles in which the signal is steady again: ``|rate| <= threshold`` and the window's
-mean within ``release_band`` of the level before the void (the window's mean N cycles before the
+mean at most ``release_band`` above the level before the void (below it the head is closer than
+before: re-activating moves it away from the sheet) (the window's mean N cycles before the
 cycle that locked; within 2·N cycles of the select ``x[k - N]``). A window of 20 ms (a whole 50 Hz
 period) cancels the mains ripple of an arc voltage, in the rate and in the means. The window starts
 afresh at every select.
@@ -47,7 +48,7 @@ ST equivalent (``aBuf`` a ring buffer of N LREAL, ``i`` its index)::
                     bLock := TRUE; lrLevel := SEL(bMFull, lrOld, lrMeanOld); nOff := 0;
                 END_IF
             ELSE
-                IF ABS(lrRate) <= lrThreshold AND ABS(lrMean - lrLevel) <= lrBand THEN nOff := nOff + 1;
+                IF ABS(lrRate) <= lrThreshold AND lrMean - lrLevel <= lrBand THEN nOff := nOff + 1;
                 ELSE nOff := 0; END_IF
                 IF nOff >= nOffCycles THEN bLock := FALSE; nOn := 0; END_IF
             END_IF
@@ -158,7 +159,9 @@ class VoidLock(ProcessFunction):
                 self.level = mean_old if mean_full else old
                 self.off_count = 0
         else:
-            if steady and abs(self.mean - self.level) <= self.release_band:
+            # back within the band of the level, or below it (the head closer than before the void:
+            # re-activating moves it away from the sheet; a signal above it keeps the hold)
+            if steady and self.mean - self.level <= self.release_band:
                 self.off_count += 1
             else:
                 self.off_count = 0
