@@ -12,7 +12,7 @@ The layouts (docs/process.md, "The two plates"):
 * **laser sheet** 500 x 300 mm, 20 m/min, capacitive sensor (Ø 6 mm electrode): the sheet ends at
   X = 500 mm (the edge); four 100 x 60 mm parts across 16 Ø 10 mm holes (through their centres),
   four cuts that run into the edge, one trim cut along the edge 2 mm inside it; 0.5 mm
-  waviness (amplitude) along X and Y.
+  waviness (peak to peak) along X and Y.
 
 Every contour: lift to the safe height, rapid to the start, down to the cut height above the plate's
 height at the start (what a touch-off measures there: the script knows the surface), wait 0.15 s in
@@ -194,7 +194,7 @@ seed = 16
 
 # --- laser sheet ---------------------------------------------------------------------------------
 L_BASE = 30.0
-L_WAVE = 0.5             # mm amplitude of the waviness
+L_WAVE = 0.15            # mm amplitude of the waviness along X (with 0.10 along Y: 0.5 mm peak to peak)
 L_EDGE = 500.0           # X where the sheet ends
 L_PARTS = [(40.0 + 110.0 * i, 40.0, 140.0 + 110.0 * i, 100.0) for i in range(4)]
 L_HOLE_X = [65.0, 115.0]                            # per part, relative to x0 - 40 ... (see laser_holes)
@@ -205,7 +205,7 @@ L_EDGE_CUTS = [(420.0, 150.0 + 30.0 * i, L_EDGE, 150.0 + 30.0 * i) for i in rang
 L_TRIM = (L_EDGE - 2.0, 130.0, L_EDGE - 2.0, 280.0)                                    # along the edge
 
 
-L_WAVE_Y = (L_WAVE / 2, 150.0, 1.0)                # amplitude, wavelength, phase of the Y waviness
+L_WAVE_Y = (0.10, 150.0, 1.0)                       # amplitude, wavelength, phase of the Y waviness
 
 
 def laser_height(x: float, y: float) -> float:
@@ -266,9 +266,9 @@ a_max = 20000.0
 [surface]
 base = {L_BASE:g}
 features = [
-  # 0.5 mm waviness along X and Y
+  # 0.5 mm waviness (peak to peak): 0.15 mm amplitude along X, 0.10 mm along Y
   {{ type = "sine", axis = "X", amplitude = {L_WAVE:g}, wavelength = 200.0 }},
-  {{ type = "sine", axis = "Y", amplitude = {L_WAVE / 2:g}, wavelength = 150.0, phase = 1.0 }},
+  {{ type = "sine", axis = "Y", amplitude = {L_WAVE_Y[0]:g}, wavelength = {L_WAVE_Y[1]:g}, phase = {L_WAVE_Y[2]:g} }},
   # the sheet ends at X = {L_EDGE:g} mm: beyond it the support grid is 40 mm lower, out of the sensor's reach
   {{ type = "step", axis = "X", at = {L_EDGE:g}, height = -40.0 }},
   # earlier-cut Ø {HOLE_D:g} mm holes through the plate, crossed through their centres

@@ -63,13 +63,16 @@ import math
 from ...sim.config_errors import require_int, require_number
 from .base import ProcessFunction, tracking_or_held
 
-__all__ = ["VoidLock", "VOID_DEFAULTS", "VOID_THRESHOLD_V_S", "VOID_THRESHOLD_MM_S"]
+__all__ = ["VoidLock", "VOID_DEFAULTS", "VOID_THRESHOLD_V_S", "VOID_THRESHOLD_MM_S", "VOID_WINDOW_DISTANCE_S"]
 
 #: V/s: the default threshold on an arc voltage (QtPlasmaC's void slope default)
 VOID_THRESHOLD_V_S = 500.0
 #: mm/s: the default threshold on a distance (500 V/s at a typical arc gradient of 6 V/mm ~ 83 mm/s)
 VOID_THRESHOLD_MM_S = 80.0
 VOID_DEFAULTS = {"window": 0.02, "on_cycles": 3, "off_cycles": 20}
+#: s: the default window on a distance (no mains ripple to average over; at 20 m/min it spans 1.7 mm,
+#: so a void is seen while a capacitive electrode slides onto it)
+VOID_WINDOW_DISTANCE_S = 0.005
 _MM_PER_UNIT = 1e-4
 
 
