@@ -8,7 +8,8 @@ from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapp
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .program import ProcessProgram
-from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VOID_WINDOW_DISTANCE_S, VoidLock
+from .void_lock import (VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VOID_WINDOW_DISTANCE_S,
+                        VoidLock)
 
 __all__ = ["ProcessConfig", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
            "make_process_program"]
