@@ -16,11 +16,13 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(PY) -m distctrl demo
 
-# the HTML report's rendering test opens the report in headless Chromium (Debian's package); if it
-# cannot be installed the test skips and says why
+# the browser tests (the HTML report's rendering test, tests/ui's live page) drive Debian's Chromium
+# (/usr/bin/chromium); they never skip, so make test stops here if it cannot be installed
 chromium:
 	@command -v chromium >/dev/null 2>&1 || (apt-get update -qq && apt-get install -y -qq chromium >/dev/null) \
-		|| echo "chromium could not be installed: the report rendering test will be skipped"
+		|| (echo "make: Debian's chromium is needed for the browser tests (tests/workbench/test_report.py, tests/ui) and could not be installed (apt-get install chromium)" >&2; exit 1)
+	@command -v chromium >/dev/null 2>&1 \
+		|| (echo "make: chromium is still not on PATH after apt-get install chromium" >&2; exit 1)
 
 # ads-client (npm, pinned in tests/ads/node/package-lock.json) is the tests' second real ADS client
 # (issue 14). Node.js and npm come from Debian's packages; if they cannot be installed, make test stops

@@ -45,6 +45,11 @@ class ErrorId(IntEnum):
     COLLISION = 900030             # simulator: the tool went into the surface (true distance <= -collision_depth)
     OSCILLATION = 900032           # simulator warning: the distance error oscillated for whole seconds of tracking
     SENSOR_NOT_READ = 900031       # simulator warning: the distance sensor writes a V.E. variable the axis does not read
+    # --- process functions (PLC programs, docs/process.md) ---
+    TOUCH_OFF_NO_SURFACE = 900050  # touch-off: no surface within the stroke
+    TOUCH_OFF_RETRIES = 900051     # touch-off: every detection was false (the signal did not stay), retries exhausted
+    TOUCH_OFF_FAILED = 900052      # touch-off refused or ended by distance control (state, refused select, back-off timeout)
+    COLLISION_RETRACT = 900053     # collision detected by the sensor: the head retracted, distance control off, program stopped
 
 
 #: ID -> (severity, short text). Severity "error" puts the controller into ERROR, "warning" does not.
@@ -75,6 +80,11 @@ CATALOGUE: dict[int, tuple[str, str]] = {
                         "settle band) in a whole second of tracking"),
     900031: ("warning", "The distance sensor writes a V.E. variable, but the axis reads the second encoder "
                         "(SENSOR_SOURCE is not VARIABLE): nobody reads the sensor"),
+    900050: ("error", "Touch-off: no surface within the stroke"),
+    900051: ("error", "Touch-off: retries exhausted (the surface reading did not stay once the head had stopped)"),
+    900052: ("error", "Touch-off could not run or was ended by distance control"),
+    900053: ("error", "Collision: the sensor reported contact; the head retracted and distance control was "
+                      "switched off"),
     900024: ("warning", "3D distance control: the set distance differs from the tool length of the kinematic "
                         "transformation (FCT-M3 §12.1.2: tool length = set distance)"),
 }

@@ -11,7 +11,8 @@ lock, so every request sees one consistent cycle):
 * AMS port 851 (PLC): symbols by name — every field of each axis's HLI DistanceControl control unit
   (``gpAx[i].lr_mc_control.distance_control.command_w.transition`` …, docs/plc.md), the channel's
   3D status (``gpCh[1].bahn_state.virt_tool_length_r``, ``inclination_r``) and the V.E.
-  variables (``V.E.NAME``, LREAL). ``state_r`` is read-only; ``command_w`` is locked while the
+  variables (``V.E.NAME``, LREAL), and with ``[[process]]`` tables each function's switch
+  ``Process.<axis>.<function>.enabled`` (BOOL) and status. ``state_r`` is read-only; ``command_w`` is locked while the
   semaphore is TRUE (ADS 0x704). Symbols live in index group 0x4020 so that sum commands work.
 """
 from __future__ import annotations
@@ -33,8 +34,9 @@ from ..objects.registry import (
     write_bytes,
 )
 from ..plc.hli import SemaphoreBusyError
-from ..plc.symbols import STRUCT_MEMBERS, channel_status_symbols, hli_symbols
+from ..plc.symbols import STRUCT_MEMBERS, channel_status_symbols, hli_symbols, process_symbols
 from . import AdsError, AdsServer, SymbolInfo
+from .datatypes import DataType, struct_type
 from .errors import (
     ADSERR_DEVICE_INVALIDACCESS,
     ADSERR_DEVICE_INVALIDDATA,
@@ -43,7 +45,6 @@ from .errors import (
     ADSERR_DEVICE_INVALIDPARM,
     ADSERR_DEVICE_INVALIDSIZE,
 )
-from .datatypes import DataType, struct_type
 from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64
 
 log = logging.getLogger("distctrl.serve")
@@ -141,7 +142,8 @@ class CncObjectDevice:
 
 
 class PlcDevice:
-    """AMS port 851: the HLI control units and the V.E. variables by symbol name."""
+    """AMS port 851: the HLI control units, the V.E. variables and the process functions' switches by
+    symbol name."""
 
     name = "distctrl PLC"
     version = (0, 1, 0)
@@ -153,6 +155,8 @@ class PlcDevice:
         for i, n in enumerate(machine.axis_names):
             self.specs.update(hli_symbols(i + 1, machine.hli[n]))
         self.specs.update(channel_status_symbols(1, machine.channel_status))
+        if machine.process_program is not None:      # the [[process]] functions' switches (docs/process.md)
+            self.specs.update(process_symbols(machine.process_program))
         for name in sorted(machine.variables):
             if name.startswith("V.E."):
                 self.specs[name] = _variable_symbol(machine.variables, name)
@@ -346,6 +350,9 @@ class ServedMachine:
             self.discovery = DiscoveryResponder(TargetInfo(net_id, tc_version=self.system.version), discovery_port)
             self.server.attached.append(self.discovery)
         self.session = SessionLog(self.machine)
+        #: called after every cycle in the cycle thread, under the lock (the live page's recorder,
+        #: distctrl/ui/hub.py): keep them to a few microseconds
+        self.observers: list = []
         self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock)
 
     def step(self) -> None:
@@ -355,6 +362,8 @@ class ServedMachine:
             return
         self.machine.step()
         self.session.after_cycle()
+        for observer in self.observers:
+            observer()
 
     def set_paused(self, paused: bool) -> None:
         if paused != self.paused:

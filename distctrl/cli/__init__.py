@@ -18,6 +18,7 @@ LAZY_COMMANDS = {
     "step": "distctrl.workbench.step_cli:step",
     "sweep": "distctrl.tuning.cli:sweep",
     "tune": "distctrl.tuning.cli:tune_cmd",
+    "ui": "distctrl.ui.cli:ui_cmd",
 }
 
 
@@ -347,47 +348,33 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
 
 @main.command()
 @click.argument("scenario", type=click.Path(dir_okay=False))
-@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on.")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (ADS and the --ui page).")
 @click.option("--port", default=48898, show_default=True, help="AMS/TCP port.")
 @click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
-              help="Client address or network allowed to connect (like an ADS route); repeat for more.")
+              help="Client address or network allowed to connect (like an ADS route; also to the --ui page); "
+                   "repeat for more.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
 @click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
 @click.option("--no-discovery", is_flag=True,
               help="Do not answer route discovery and add-route on UDP 48899 (answered by default, "
                    "to the --allow networks).")
+@click.option("--ui", "with_ui", is_flag=True,
+              help="Also serve the live page (scope, object browser, PLC panel, machine view; docs/ui.md).")
+@click.option("--ui-port", default=8050, show_default=True, type=click.IntRange(0, 65535),
+              help="--ui: HTTP port of the live page (0: a free port).")
+@click.option("--export-dir", default=".", show_default=True, type=click.Path(file_okay=False),
+              help="--ui: folder the scope's Export CSV writes its trace files to.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object at the end (addresses, page sessions, cycle lateness in µs).")
 def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id: str, duration: float | None,
-          no_discovery: bool) -> None:
+          no_discovery: bool, with_ui: bool, ui_port: int, export_dir: str, as_json: bool) -> None:
     """Run SCENARIO.toml in real time and serve it over ADS (CNC objects on AMS port 551, the PLC
     interface and V.E. variables by symbol name on port 851; route discovery and add-route on UDP
-    48899). Reports the cycle jitter at the end."""
-    import logging
-    import time
+    48899); with --ui also the live page. Reports the cycle jitter at the end."""
+    from ..ui.cli import serve_session
 
-    from ..ads.machine import ServedMachine
-    from ..sim.scenario import load_scenario
-
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
-    try:
-        served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id,
-                               discovery_port=None if no_discovery else 48899)
-        served.start()
-    except (DistCtrlError, OSError, ValueError) as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(1)
-    click.echo(f"serving {served.scenario.name}: ADS {net_id} on {host}:{served.server.port}, "
-               f"allowed {', '.join(allowed)}; Ctrl-C stops")
-    try:
-        t_end = None if duration is None else time.monotonic() + duration
-        while t_end is None or time.monotonic() < t_end:
-            time.sleep(0.2)
-            if served.loop.error is not None:
-                raise served.loop.error
-    except KeyboardInterrupt:
-        pass
-    stats = served.stop()
-    click.echo("cycle jitter: " + ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
-                                           for k, v in stats.items()))
+    serve_session(scenario, host=host, port=port, allowed=allowed, net_id=net_id, duration=duration,
+                  no_discovery=no_discovery, ui=with_ui, ui_port=ui_port, export_dir=export_dir, as_json=as_json)
 
 
 @main.command(short_help="The diagnosis block of distance control (layout of FCT-M3 Fig. 56).")

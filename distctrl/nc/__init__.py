@@ -14,7 +14,7 @@ from .parser import parse_file, parse_program
 from .program import (
     ACTION_KEYWORDS, FLAG_KEYWORDS, FLAG_KEYWORDS_3D, KIN98_PARAM_COUNT, KINEMATICS_KINDS, NAME_KEYWORDS,
     NAME_KEYWORDS_3D, NUMBER_KEYWORDS, NUMBER_KEYWORDS_3D, OUTSIDE_KEYWORDS_3D, PROGRAM_END_M_CODES,
-    VALUE_RANGES, Assignment, BinOp, Block, DistCtrl3DWord, DistCtrlArg, DistCtrlWord, Expr, ExprError,
+    VALUE_RANGES, Assignment, BinOp, Block, Compare, DistCtrl3DWord, DistCtrlArg, DistCtrlWord, Expr, ExprError,
     KinematicsWord, Lookup, NcSyntaxError, Neg, Num, Program, ValueRange, Var, dist_ctrl_range_error,
     kin_param_var,
 )
@@ -22,7 +22,7 @@ from .program import (
 __all__ = [
     "parse_program", "parse_file", "NcSyntaxError", "ExprError",
     "Program", "Block", "Assignment", "DistCtrlWord", "DistCtrlArg", "DistCtrl3DWord", "KinematicsWord",
-    "Expr", "Num", "Var", "BinOp", "Neg", "Lookup",
+    "Expr", "Num", "Var", "BinOp", "Neg", "Compare", "Lookup",
     "dist_ctrl_range_error", "ValueRange", "VALUE_RANGES", "kin_param_var",
     "ACTION_KEYWORDS", "FLAG_KEYWORDS", "NUMBER_KEYWORDS", "NAME_KEYWORDS", "PROGRAM_END_M_CODES",
     "FLAG_KEYWORDS_3D", "NUMBER_KEYWORDS_3D", "NAME_KEYWORDS_3D", "OUTSIDE_KEYWORDS_3D", "KINEMATICS_KINDS",

@@ -100,6 +100,7 @@ class NcInterpreter:
         self._end_pending = False         # M30 in a block with motion: ends when the motion is done
         self._waits: list[tuple[str, Action]] = []   # DIST_CTRL WAIT commands the block waits for
         self._waits_3d: list[Action] = []            # #DIST CTRL WAIT commands the block waits for
+        self._wait_for = None                        # the #WAIT FOR condition the program waits on
 
     @property
     def running(self) -> bool:
@@ -127,6 +128,8 @@ class NcInterpreter:
             if not all(ch.dist_ctrl_3d_done(action) for action in self._waits_3d):
                 return
             self._waits_3d = []
+        if self._wait_for is not None and not self._condition_holds():
+            return
         if self._end_pending:
             self.ended = True
             return
@@ -153,6 +156,19 @@ class NcInterpreter:
                 return
         self.abort(NcRuntimeError(NC_RUNTIME_ERROR, self.line,
                                   f"more than {MAX_BLOCKS_PER_CYCLE} blocks without motion in one cycle"))
+
+    def _condition_holds(self) -> bool:
+        """``#WAIT FOR``: is the condition fulfilled (> 0.5)? Evaluated every cycle the channel is idle;
+        a condition that cannot be evaluated (an undefined variable) stops the program (900010)."""
+        try:
+            value = self._wait_for.evaluate(self._lookup)
+        except (ExprError, ZeroDivisionError, OverflowError, ValueError) as exc:
+            self.abort(NcRuntimeError(NC_RUNTIME_ERROR, self.line, f"#WAIT FOR: {exc}"))
+            return False
+        if value > 0.5:
+            self._wait_for = None
+            return True
+        return False
 
     # ------------------------------------------------------------------ one block
     def _lookup(self, name: str) -> float:
@@ -226,6 +242,9 @@ class NcInterpreter:
                 raise ValueError(f"#TIME {seconds:g}: the dwell must be >= 0 s")
             ch.start_dwell(seconds)
             takes_time = True
+        if block.wait_for is not None:
+            self._wait_for = block.wait_for
+            return not self._condition_holds()     # fulfilled at once: the next block in this cycle
         if block.ends_program:
             self.end_line = block.line
             if takes_time:

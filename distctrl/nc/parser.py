@@ -23,7 +23,7 @@ from ..control.commands3d import DIRECTION_NAMES, SENSOR_SOURCES_3D, Compensatio
 from ..control.kinds import FILTER_TYPE_NAMES, FilterType, SensorSource
 from .program import (
     ACTION_KEYWORDS, FLAG_KEYWORDS_3D, KIN98_PARAM_COUNT, MAX_EXPR_DEPTH, NAME_KEYWORDS_3D,
-    NUMBER_KEYWORDS_3D, OUTSIDE_KEYWORDS_3D, Assignment, BinOp, Block, DistCtrl3DWord, DistCtrlArg, DistCtrlWord, Expr, ExprError,
+    NUMBER_KEYWORDS_3D, OUTSIDE_KEYWORDS_3D, Assignment, BinOp, Block, Compare, DistCtrl3DWord, DistCtrlArg, DistCtrlWord, Expr, ExprError,
     KinematicsWord, NcSyntaxError, Neg, Num, Program, Var, dist_ctrl_range_error, kin_param_var, no_variables,
 )
 
@@ -305,6 +305,17 @@ class _ProgramBuilder(Transformer):
         return _kinematics(token, KinematicsWord("CS", switch=state, values=exprs, line=token.line,
                                                  column=token.column))
 
+    def wait_for(self, children):
+        token, left, *rest = children
+        cond = _checked(left, token, "#WAIT FOR")
+        if rest:
+            op, right = rest
+            cond = Compare(str(op), cond, _checked(right, token, "#WAIT FOR"))
+        if cond.is_constant:
+            raise _error("#WAIT FOR needs a condition on a variable (e.g. '#WAIT FOR V.E.DONE == 1'): "
+                         "a constant condition waits for ever or not at all", token)
+        return _Word("wait_for", cond, token.line, token.column, name="#WAIT FOR")
+
     def channel_init(self, children):
         (token,) = children
         return _kinematics(token, KinematicsWord("CHANNEL_INIT", line=token.line, column=token.column))
@@ -476,6 +487,8 @@ def _build_block(children: list) -> Block:
             block.dist_ctrl_3d.append(word.value)
         elif word.kind == "kinematics":
             block.kinematics.append(word.value)
+        elif word.kind == "wait_for":
+            block.wait_for = word.value
     return block
 
 
@@ -512,6 +525,8 @@ _TERMINAL_NAMES = {
     "CS": "#CS",
     "SWITCH": "ON or OFF",
     "CHANNEL_INIT": "#CHANNEL INIT",
+    "WAIT_FOR": "#WAIT FOR",
+    "CMP_OP": "a comparison (== != < <= > >=)",
     "INT": "a kinematic ID (integer)",
     "COMMA": "','",
     "NUMBER": "a number",
@@ -530,8 +545,9 @@ _TERMINAL_NAMES = {
 _GROUPS = (
     # (trigger terminal, terminals replaced, readable phrase)
     ("G_CODE", {"G_CODE", "M_CODE", "FEED", "AXIS", "TIME", "VAR", "DIST_CTRL_3D", "KIN", "TRAFO", "CS",
-                "CHANNEL_INIT"},
-     "an NC word (G, M, F, X Y Z A B C, #TIME, #DIST CTRL, #KIN, #TRAFO, #CS, #CHANNEL INIT or V.E.NAME=)"),
+                "CHANNEL_INIT", "WAIT_FOR"},
+     "an NC word (G, M, F, X Y Z A B C, #TIME, #DIST CTRL, #KIN, #TRAFO, #CS, #CHANNEL INIT, #WAIT FOR "
+     "or V.E.NAME=)"),
     ("DC_FLAG", {"DC_FLAG", "DC_NUMBER_KEY", "DC_NAME_KEY"}, "a DIST_CTRL keyword"),
     ("STAR", {"STAR", "SLASH", "PLUS", "MINUS"}, "an operator (+ - * /)"),
     ("NUMBER", {"NUMBER", "VAR", "LSQB", "LPAR", "MINUS", "PLUS"},
@@ -539,7 +555,7 @@ _GROUPS = (
 )
 #: order of phrases in a message: terminals not listed come last
 _ORDER = ["$END", "_NL", "HEADER", "BLOCK_NUMBER", "G_CODE", "M_CODE", "FEED", "AXIS", "TIME", "DIST_CTRL",
-          "DIST_CTRL_3D", "KIN", "TRAFO", "CS", "CHANNEL_INIT", "KIN_ID", "SWITCH",
+          "DIST_CTRL_3D", "KIN", "TRAFO", "CS", "CHANNEL_INIT", "WAIT_FOR", "KIN_ID", "SWITCH",
           "EQUAL", "DC_FLAG", "STAR", "NUMBER", "VAR", "NAME", "KIN_IDS", "INT", "LPAR", "LSQB",
           "PLUS", "MINUS", "COMMA", "RPAR", "RSQB"]
 _KEYWORD_LIST = ("ON, OFF, NO_MOVE, FREEZE, DRYRUN, CONST_DIST, CHECK_POS, REF, WAIT, SET_POS=, SET_DIST=, "

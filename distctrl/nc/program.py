@@ -161,6 +161,38 @@ class BinOp(Expr):
         return self.left.variables() | self.right.variables()
 
 
+_COMPARISONS: dict[str, Callable[[float, float], bool]] = {
+    "==": lambda a, b: a == b,
+    "!=": lambda a, b: a != b,
+    "<": lambda a, b: a < b,
+    "<=": lambda a, b: a <= b,
+    ">": lambda a, b: a > b,
+    ">=": lambda a, b: a >= b,
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Compare(Expr):
+    """``left op right`` with ``op`` one of ``== != < <= > >=``: 1.0 when it holds, else 0.0 (the
+    condition of ``#WAIT FOR``)."""
+
+    op: str
+    left: Expr
+    right: Expr
+    depth: int = field(default=0, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.op not in _COMPARISONS:
+            raise ValueError(f"unknown comparison {self.op!r}")
+        object.__setattr__(self, "depth", max(self.left.depth, self.right.depth) + 1)
+
+    def evaluate(self, lookup: Lookup) -> float:
+        return 1.0 if _COMPARISONS[self.op](self.left.evaluate(lookup), self.right.evaluate(lookup)) else 0.0
+
+    def variables(self) -> frozenset[str]:
+        return self.left.variables() | self.right.variables()
+
+
 def no_variables(name: str) -> float:
     """Lookup for constant expressions: any variable is unknown."""
     raise KeyError(name)
@@ -514,6 +546,8 @@ class Block:
     dist_ctrl: list[DistCtrlWord] = field(default_factory=list)
     dist_ctrl_3d: list[DistCtrl3DWord] = field(default_factory=list)
     kinematics: list[KinematicsWord] = field(default_factory=list)
+    #: ``#WAIT FOR <condition>``: the block completes once the condition is > 0.5 (stands alone)
+    wait_for: Expr | None = None
 
     @property
     def ends_program(self) -> bool:
@@ -523,7 +557,7 @@ class Block:
     def is_empty(self) -> bool:
         return not (self.g_codes or self.feed is not None or self.axes or self.m_codes
                     or self.dwell is not None or self.assignments or self.dist_ctrl
-                    or self.dist_ctrl_3d or self.kinematics)
+                    or self.dist_ctrl_3d or self.kinematics or self.wait_for is not None)
 
 
 @dataclass(slots=True)

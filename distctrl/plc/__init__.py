@@ -4,9 +4,9 @@ from .hli import (MM_PER_UNIT, ChannelDistanceStatus, DistanceControlUnit, HliCy
                   HliDistanceControlCommand, HliDistanceControlState, RejectedCommand, SemaphoreBusyError,
                   transition_number)
 from .symbols import (SymbolSpec, SymbolValueError, axis_unit_path, channel_status_path, channel_status_symbols,
-                      cyclic_command_path, hli_symbols)
+                      cyclic_command_path, hli_symbols, process_path, process_symbols)
 
 __all__ = ["MM_PER_UNIT", "ChannelDistanceStatus", "DistanceControlUnit", "HliCyclicCommand",
            "HliDistanceControlCommand", "HliDistanceControlState", "RejectedCommand", "SemaphoreBusyError",
            "transition_number", "SymbolSpec", "SymbolValueError", "axis_unit_path", "channel_status_path",
-           "channel_status_symbols", "cyclic_command_path", "hli_symbols"]
+           "channel_status_symbols", "cyclic_command_path", "hli_symbols", "process_path", "process_symbols"]

@@ -199,3 +199,46 @@ def channel_status_symbols(channel_index: int, status: ChannelDistanceStatus) ->
         SymbolSpec(f"{base}.inclination_r", 4, ADST_INT32, "DINT",
                    _field(lambda: status, "inclination_r", "<i"), None, "0.0001°: tool inclination angle"),
     )}
+
+
+# ---------------------------------------------------------------------- process functions (issue 16)
+def process_path(axis: str, function: str | None = None) -> str:
+    """``Process.<axis>`` or ``Process.<axis>.<function>``: the process functions' PLC variables, named
+    as a PLC program ``Process`` with one instance per axis and function."""
+    return f"Process.{axis}" if function is None else f"Process.{axis}.{function}"
+
+
+def process_symbols(program) -> dict[str, SymbolSpec]:
+    """The run-time switch and status of every function of a
+    :class:`~distctrl.plc.process.ProcessProgram` (docs/process.md, *Switching at run time*):
+
+    * ``Process.<axis>.<function>.enabled`` (BOOL, read/write): the function runs; writing FALSE
+      switches it off (its hold request is withdrawn, a FREEZE it held is released by the hold),
+      TRUE on again (it starts afresh); ``ProcessProgram.set_enabled``;
+    * ``Process.<axis>.<function>.hold_request`` (BOOL, read): it requested the FREEZE hold in the
+      last cycle;
+    * ``Process.<axis>.hold_active`` (BOOL, read): the axis's hold owns distance control (it commanded
+      the FREEZE and has not re-activated yet: FREEZING, FROZEN or RELEASING).
+    """
+    syms: list[SymbolSpec] = []
+
+    def flag(get) -> Callable[[], bytes]:
+        return lambda: b"\x01" if get() else b"\x00"
+
+    for f in program.functions:
+        base = process_path(f.axis, f.name)
+
+        def set_enabled(data: bytes, f=f, base=base) -> None:
+            program.set_enabled(f.name, f.axis, _sized(data, 1, f"{base}.enabled") != b"\x00")
+
+        syms.append(SymbolSpec(f"{base}.enabled", 1, ADST_BIT, "BOOL", flag(lambda f=f: f.enabled), set_enabled,
+                               f"{f.name} on axis {f.axis} runs; FALSE switches it off and withdraws its hold "
+                               "request"))
+        syms.append(SymbolSpec(f"{base}.hold_request", 1, ADST_BIT, "BOOL", flag(lambda f=f: f.requesting_hold),
+                               None, f"{f.name} requested the FREEZE hold in the last cycle"))
+    for axis, hold in program.holds.items():
+        syms.append(SymbolSpec(f"{process_path(axis)}.hold_active", 1, ADST_BIT, "BOOL",
+                               flag(lambda hold=hold: hold.held_by_us), None,
+                               f"the process functions' hold owns distance control of {axis} (FREEZE it "
+                               "commanded, not re-activated yet)"))
+    return {s.name: s for s in syms}

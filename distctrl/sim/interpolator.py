@@ -118,6 +118,38 @@ class Interpolator:
         """True when no block is running (the next block may be started)."""
         return self.block == "idle"
 
+    @property
+    def moving_axes(self) -> tuple[str, ...]:
+        """The axes the running G0/G1 block moves (empty while no block runs)."""
+        if self.block != "linear" and self.block != "rapid":
+            return ()
+        return tuple(m[0] for m in self._moving)
+
+    def remaining_time(self) -> float:
+        """Time (s) the running G0/G1 block still needs at the current override, from its velocity
+        profile (continuous trapezoid; the discrete profile needs at most about a cycle more); 0 while
+        no G0/G1 runs, ``inf`` while the override holds the path (feed hold)."""
+        if self.block != "linear" and self.block != "rapid":
+            return 0.0
+        r = self.path_length - self.path_position
+        if r <= 0.0:
+            return 0.0
+        ov = self.feed_override
+        V = min(self._v_block * ov, self._v_axis_cap) if ov > 0.0 else 0.0
+        if V <= 0.0:
+            return math.inf
+        A = self._dv / self.cycle_time
+        v0 = self.path_velocity
+        peak = min(V, math.sqrt(A * r + 0.5 * v0 * v0))
+        if peak >= v0:                       # accelerate (or cruise), then brake
+            cruise = max(0.0, r - (peak * peak - v0 * v0) / (2.0 * A) - peak * peak / (2.0 * A))
+            return (peak - v0) / A + cruise / peak + peak / A
+        if r < v0 * v0 / (2.0 * A) or V >= v0:   # braking to the end
+            return 2.0 * r / v0
+        # an override drop: decelerate to V, cruise, brake
+        cruise = max(0.0, r - v0 * v0 / (2.0 * A))
+        return (v0 - V) / A + cruise / V + V / A
+
     def set_position(self, positions: dict[str, float]) -> None:
         """Set programmed positions (mm) without motion, e.g. the start of a run; only when idle."""
         if getattr(self, "block", "idle") != "idle":

@@ -130,6 +130,10 @@ class Machine:
         process_plc = scenario.make_process_program() if getattr(scenario, "processes", ()) else None
         #: the process functions' program (None without [[process]] tables)
         self.process_program = process_plc
+        #: the CNC's lift motions of the scenario's ``lift`` functions (docs/process.md "Lift"): each is
+        #: stepped after the interpolator and superimposed on its axis's programmed position
+        self.lift_motions = tuple(f.cnc_lift for f in process_plc.functions if hasattr(f, "cnc_lift")) \
+            if process_plc is not None else ()
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
         #: program, the ADS server); a batch run without readers publishes once at the end
         self.publish_hli = (plc_program is not None or process_plc is not None) if publish_hli is None \
@@ -250,6 +254,8 @@ class Machine:
         self.interp.start_dwell(seconds)
 
     def motion_done(self) -> bool:
+        if self.lift_motions and any(lm.busy for lm in self.lift_motions):
+            return False                      # the CNC's lift lands before the next block starts
         return self.interp.done
 
     def dist_ctrl(self, axis: str, command: Command) -> None:
@@ -653,6 +659,13 @@ class Machine:
             return self._cycle_start(k, t)
         return nc.line if nc is not None else None      # the common cycle: a block runs, nothing due
 
+    def _lift(self, prog: dict) -> None:
+        """The CNC's lift (TF5290 Lift, docs/process.md): superimposed on the programmed positions."""
+        for lm in self.lift_motions:
+            lm.step(self)
+            if lm.offset:
+                prog[lm.axis] += lm.offset
+
     def _step_axes(self) -> None:
         """One GEO cycle of the axis variant (no kinematics, no 3D distance control)."""
         k = self.cycle
@@ -662,6 +675,8 @@ class Machine:
         line = self._cycle_line(k, t)
         interp.feed_override = self.channel_override
         prog = interp.step()
+        if self.lift_motions:
+            self._lift(prog)
         drives = self.drives
         # the real geometry under the tool: the true nozzle positions (the motor plus a drive's
         # resonant deflection; the motor for a rigid drive), not the quantised motor encoder
@@ -692,6 +707,8 @@ class Machine:
         ch3d = self.ch3d
         interp.feed_override = self.channel_override
         prog = interp.step()
+        if self.lift_motions:
+            self._lift(prog)
         # programmed TCP in machine coordinates (#CS frame), plus a taken-over 3D offset
         x, y, z = self._tcp_from_programmed(prog.get("X", 0.0), prog.get("Y", 0.0), prog.get("Z", 0.0))
         if self._shift3d_any:
@@ -841,6 +858,8 @@ class Machine:
         axis follows the sensor noise and is not waited for. Otherwise an offset still moving (e.g.
         braking into FREEZE or ERROR) is."""
         if not self.interp.done and self.interp.path_velocity != 0.0:
+            return False
+        if any(lm.velocity != 0.0 for lm in self.lift_motions):
             return False
         tracking = set()
         for name in self.dc_axes:

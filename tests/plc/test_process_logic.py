@@ -8,7 +8,7 @@ import pytest
 from distctrl.control import CycleOutput
 from distctrl.control.states import HliState, HliTransition
 from distctrl.plc import DistanceControlUnit
-from distctrl.plc.process import (AutoSetValue, CornerLock, FreezeHold, ProcessProgram, VoidLock)
+from distctrl.plc.process import (AutoSetValue, CornerLock, ProcessProgram, VoidLock)
 from distctrl.plc.process.channel import ChannelPathStatus
 from distctrl.sim.config_errors import ConfigError
 
@@ -335,3 +335,85 @@ def test_channel_path_status_units():
     assert s.D_CommandFeed == 50_000 and s.D_ActiveFeed == 41_667 and s.override == 0.8
     _M.interp.block = "idle"
     assert s.D_ActiveFeed == 0
+
+
+# ------------------------------------------------------------------ switching at run time
+def test_set_enabled_off_releases_the_freeze_a_function_holds_and_on_again_starts_afresh():
+    m = FakeMachine()
+    f, prog = corner(m)
+    m.channel_path.D_ActiveFeed = 50_000
+    k = run_cycles(m, prog, 2)                             # armed
+    m.channel_path.D_ActiveFeed = 0                        # slow: FREEZE
+    k = run_cycles(m, prog, 3, start=k)
+    assert m.hli["Z"].state_r.actual_state == FREEZE and f.requesting_hold
+    assert f.status() == {"name": "corner_lock", "axis": "Z", "enabled": True, "requesting_hold": True}
+    prog.set_enabled("corner_lock", "Z", False)            # still slow, but the lock is off
+    assert not f.requesting_hold and not f.armed and not f.locked
+    k = run_cycles(m, prog, 3, start=k)
+    assert m.taken == [(int(HliTransition.FREEZE), 0.0), (int(HliTransition.ON_CONST_DIST), 1.5)]
+    assert m.hli["Z"].state_r.actual_state == ACTIVE_CD and prog.holds["Z"].phase == "IDLE"
+    assert f.status()["enabled"] is False and not f.armed  # a disabled function is not stepped
+    prog.set_enabled("corner_lock", "Z", True)             # on again while slow: not armed, no FREEZE
+    k = run_cycles(m, prog, 5, start=k)
+    assert len(m.taken) == 2 and not f.armed
+    m.channel_path.D_ActiveFeed = 50_000                   # back at speed: armed; then slow: FREEZE again
+    k = run_cycles(m, prog, 2, start=k)
+    m.channel_path.D_ActiveFeed = 0
+    run_cycles(m, prog, 2, start=k)
+    assert [t for t, _ in m.taken] == [2, 4, 2]
+
+
+def test_set_enabled_off_keeps_the_hold_while_another_function_requests_it():
+    m = FakeMachine()
+    c = CornerLock("Z")
+    v = VoidLock("Z", m.T, 80.0, variable="SENSOR", window=0.002, on_cycles=1)
+    prog = ProcessProgram([c, v])
+    m.variables["V.E.SENSOR"] = 1.5
+    m.channel_path.D_ActiveFeed = 50_000
+    k = run_cycles(m, prog, 4)
+    m.channel_path.D_ActiveFeed = 0                        # corner lock freezes
+    m.variables["V.E.SENSOR"] = 4.0                        # and a void: the void lock too
+    k = run_cycles(m, prog, 3, start=k)
+    assert c.requesting_hold and v.requesting_hold and m.hli["Z"].state_r.actual_state == FREEZE
+    prog.set_enabled("corner_lock", "Z", False)
+    run_cycles(m, prog, 3, start=k)
+    assert [t for t, _ in m.taken] == [2]                  # the void lock still holds
+    assert prog.status() == [{"name": "corner_lock", "axis": "Z", "enabled": False, "requesting_hold": False},
+                             {"name": "void_lock", "axis": "Z", "enabled": True, "requesting_hold": True}]
+
+
+def test_auto_set_value_switched_on_during_a_cut_waits_for_the_next_cut():
+    m = FakeMachine(state=int(HliState.INACTIVE))
+    a = AutoSetValue("Z", m.T, delay=0.0, sample_time=0.002, enabled=False)
+    prog = ProcessProgram([a])
+    m.hli["Z"].state_r.actual_state = ACTIVE_CD            # the cut runs while the function is off
+    k = run_cycles(m, prog, 3)
+    prog.set_enabled("auto_set_value", "Z", True)
+    k = run_cycles(m, prog, 5, start=k)
+    assert m.taken == [] and a.phase == "DONE"
+    m.hli["Z"].state_r.actual_state = int(HliState.INACTIVE)
+    k = run_cycles(m, prog, 1, start=k)
+    m.hli["Z"].state_r.actual_state = ACTIVE_CD            # the next cut: sampled
+    run_cycles(m, prog, 1, start=k)
+    assert a.phase != "DONE" and m.taken == [(int(HliTransition.FREEZE), 0.0)]
+
+
+def test_set_enabled_names_unknown_functions_and_reset_returns_to_the_initial_state():
+    m = FakeMachine()
+    f, prog = corner(m)
+    with pytest.raises(KeyError, match="corner_lock@Z"):
+        prog.set_enabled("void_lock", "Z", False)
+    m.channel_path.D_ActiveFeed = 50_000
+    k = run_cycles(m, prog, 2)
+    m.channel_path.D_ActiveFeed = 0
+    run_cycles(m, prog, 2, start=k)
+    assert f.locked and prog.holds["Z"].phase == "FROZEN"
+    prog.reset()
+    assert not f.armed and not f.locked and prog.holds["Z"].phase == "IDLE" and not prog.holds["Z"].requested
+    assert f.enabled and prog.holds["Z"].log                 # reset keeps the switch and the log
+
+
+@pytest.mark.parametrize("value", ["no", 0, 1])
+def test_enabled_must_be_a_boolean(value):
+    with pytest.raises(ConfigError, match="corner_lock.enabled"):
+        CornerLock("Z", enabled=value)

@@ -50,8 +50,7 @@ def test_void_lock_on_the_distance_variable_defaults_to_mm_per_s():
 
 
 @pytest.mark.parametrize("body, key, words", [
-    ('function = "lift"\naxis = "Z"', "process[0].function", "not implemented yet"),
-    ('function = "touch_off"\naxis = "Z"', "process[0].function", "not implemented yet"),
+    ('function = "calibrate"\naxis = "Z"', "process[0].function", "not implemented yet"),
     ('function = "dive"\naxis = "Z"', "process[0].function", "corner_lock"),
     ('function = "corner_lock"\naxis = "Q"', "process[0].axis", "Z"),
     ('function = "corner_lock"\naxis = "X"', "process[0].axis", "distance control is off"),
@@ -129,7 +128,7 @@ def test_distctrl_run_accepts_process_tables(name):
 
 
 def test_distctrl_run_refuses_a_function_not_implemented(tmp_path):
-    text = (EX / "process_corner.toml").read_text().replace('function = "corner_lock"', 'function = "lift"')
+    text = (EX / "process_corner.toml").read_text().replace('function = "corner_lock"', 'function = "calibrate"')
     (tmp_path / "s.toml").write_text(text.replace('program = "process_corner.nc"',
                                                   f'program = "{(EX / "process_corner.nc").as_posix()}"')
                                      .replace('params = "z_plasma.lis"',
@@ -138,3 +137,14 @@ def test_distctrl_run_refuses_a_function_not_implemented(tmp_path):
                           text=True, timeout=600)
     assert proc.returncode == 1
     assert "not implemented yet" in proc.stderr + proc.stdout and "Traceback" not in proc.stderr
+
+
+def test_enabled_key_switches_a_function_off_at_start():
+    sc = scenario('[[process]]\nfunction = "corner_lock"\naxis = "Z"\nenabled = false\n'
+                  '[[process]]\nfunction = "void_lock"\naxis = "Z"\n')
+    assert [p.enabled for p in sc.processes] == [False, True]
+    prog = sc.make_process_program()
+    assert [f.enabled for f in prog.functions] == [False, True]
+    with pytest.raises(ScenarioError) as exc:
+        scenario('[[process]]\nfunction = "corner_lock"\naxis = "Z"\nenabled = "yes"\n')
+    assert exc.value.key == "process[0].enabled" and "true or false" in str(exc.value)

@@ -237,9 +237,9 @@ def _chromium_run(exe: str, profile: Path, *args: str) -> subprocess.CompletedPr
 
 def test_report_renders_in_headless_chromium(ok_report, tmp_path):
     exe = _chromium()
-    if exe is None:
-        pytest.skip("chromium not found on PATH (Debian: apt-get install -y chromium); "
-                    "the report's content is checked by the other tests")
+    # never a silent skip: `make test` installs Debian's chromium (the Makefile's chromium target fails
+    # loudly when it cannot)
+    assert exe is not None, "chromium not found on PATH (Debian: apt-get install -y chromium, or make chromium)"
     _, _, page, text = ok_report
     url = page.resolve().as_uri()
     shot = tmp_path / "report.png"

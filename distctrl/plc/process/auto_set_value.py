@@ -64,23 +64,30 @@ class AutoSetValue(ProcessFunction):
     name = "auto_set_value"
 
     def __init__(self, axis: str, cycle_time: float, delay: float = AUTO_DEFAULTS["delay"],
-                 sample_time: float = AUTO_DEFAULTS["sample_time"]):
-        super().__init__(axis)
+                 sample_time: float = AUTO_DEFAULTS["sample_time"], enabled: bool = True):
+        super().__init__(axis, enabled)
         self.cycle_time = require_number(cycle_time, "auto_set_value.cycle_time", lo=0.0, lo_open=True)
         self.delay = require_number(delay, "auto_set_value.delay", lo=0.0, hi=10.0)
         self.sample_time = require_number(sample_time, "auto_set_value.sample_time", lo=self.cycle_time,
                                           hi=10.0)
         self.delay_cycles = round(self.delay / self.cycle_time)
         self.sample_cycles = max(1, round(self.sample_time / self.cycle_time))
+        #: (cycle, mean mm) of every sampling that completed (kept by reset())
+        self.log: list[tuple[int, float]] = []
+        #: the last sampled mean (mm), NaN before the first (kept by reset())
+        self.result = math.nan
+        self.reset()
+        self._last_state = _INACTIVE                   # the PLC starts with nLastState = 0 (INACTIVE)
+
+    def reset(self) -> None:
+        """No sampling under way, and the state seen last forgotten: a function switched on (or off
+        and on again) while distance control already runs waits for the next cut (INACTIVE ->
+        ACTIVE) instead of taking the running one for a new cut. ``result`` and ``log`` are kept."""
         self.phase = DONE
-        self._last_state = _INACTIVE
+        self._last_state = None
         self._count = 0
         self._sum = 0.0
         self.const_dist = False
-        #: the last sampled mean (mm), NaN before the first
-        self.result = math.nan
-        #: (cycle, mean mm) of every sampling that completed
-        self.log: list[tuple[int, float]] = []
 
     def step(self, machine, cycle: int) -> None:
         state_r = machine.hli[self.axis].state_r

@@ -1,10 +1,12 @@
-"""What every process function shares: the axis, its FREEZE hold, and the HLI state it reads."""
+"""What every process function shares: the axis, its FREEZE hold, the HLI state it reads, and the
+switch that turns it on and off while the machine runs."""
 from __future__ import annotations
 
 from ...control.states import HliState
+from ...sim.config_errors import ConfigError
 from .hold import RUNNING_TRACKING, FreezeHold
 
-__all__ = ["ProcessFunction", "tracking_or_held"]
+__all__ = ["ProcessFunction", "tracking_or_held", "require_bool"]
 
 _FREEZE = int(HliState.FREEZE)
 
@@ -14,20 +16,47 @@ def tracking_or_held(state: int, hold: FreezeHold) -> bool:
     return state in RUNNING_TRACKING or (state == _FREEZE and hold.held_by_us)
 
 
+def require_bool(value: object, key: str) -> bool:
+    """``value`` if it is a boolean; else :class:`ConfigError` naming ``key``."""
+    if not isinstance(value, bool):
+        raise ConfigError(key, value, "true or false", "not a boolean:")
+    return value
+
+
 class ProcessFunction:
     """One process function on one distance-controlled axis. :meth:`step` runs once per PLC cycle
-    (the GEO cycle) and may call ``self.hold.request(self.name)``; the
-    :class:`~distctrl.plc.process.program.ProcessProgram` binds the hold and runs the holds after
-    every function."""
+    (the GEO cycle) while :attr:`enabled` and may call ``self.hold.request(self.name)``; the
+    :class:`~distctrl.plc.process.program.ProcessProgram` binds the hold, runs the enabled functions
+    and then the holds after every cycle, and switches functions on and off
+    (:meth:`~distctrl.plc.process.program.ProcessProgram.set_enabled`).
+
+    Every function implements :meth:`reset` (back to the state it was built in; the program calls it
+    whenever the function is switched on or off, so a function switched on again starts afresh).
+    """
 
     name = "process"
 
-    def __init__(self, axis: str):
+    def __init__(self, axis: str, enabled: bool = True):
         self.axis = axis
         self.hold: FreezeHold | None = None
+        #: the function runs (``[[process]]`` key ``enabled``; ADS ``Process.<axis>.<name>.enabled``)
+        self.enabled = require_bool(enabled, f"{self.name}.enabled")
 
     def bind(self, hold: FreezeHold) -> None:
         self.hold = hold
 
     def step(self, machine, cycle: int) -> None:  # pragma: no cover - every function overrides it
         raise NotImplementedError
+
+    def reset(self) -> None:  # pragma: no cover - every function overrides it
+        raise NotImplementedError
+
+    @property
+    def requesting_hold(self) -> bool:
+        """The function requested the FREEZE hold in the last cycle it ran (it still wants it)."""
+        return self.hold is not None and self.hold.requested_by(self.name)
+
+    def status(self) -> dict:
+        """What a UI shows of the function: ``name``, ``axis``, ``enabled``, ``requesting_hold``."""
+        return {"name": self.name, "axis": self.axis, "enabled": self.enabled,
+                "requesting_hold": self.requesting_hold}

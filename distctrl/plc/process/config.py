@@ -6,12 +6,16 @@ from dataclasses import dataclass, field
 
 from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
+from .base import require_bool
+from .collision_retract import COLLISION_DEFAULTS, CollisionRetract
 from .corner_lock import CORNER_DEFAULTS, CornerLock
+from .lift import LIFT_DEFAULTS, Lift
 from .program import ProcessProgram
+from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import (VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VOID_WINDOW_DISTANCE_S,
                         VoidLock)
 
-__all__ = ["ProcessConfig", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
+__all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
            "make_process_program"]
 
 #: the functions a [[process]] table may name, and their own keys (besides function and axis)
@@ -19,10 +23,21 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     "corner_lock": ("share", "hysteresis"),
     "void_lock": ("variable", "threshold", "window", "on_cycles", "off_cycles", "release_band"),
     "auto_set_value": ("delay", "sample_time"),
+    # --- touch-off (docs/process.md "Touch-off")
+    "touch_off": ("variable", "request", "probe_speed", "detect", "pierce_height", "stroke", "retries",
+                  "verify_time", "verify_band", "tolerance"),
+    # --- collision retract (docs/process.md "Collision retract")
+    "collision_retract": ("variable", "threshold", "short_circuit", "confirm_cycles", "retract", "retract_speed",
+                          "retract_accel"),
+    # --- lift (issue 16, h16-lift) ---
+    "lift": ("height", "min_distance", "v_max", "a_max", "settle_time"),
 }
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
+#: the keys every function has besides function and axis: ``enabled`` (bool, default true) switches it
+#: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
+PROCESS_COMMON_KEYS = ("enabled",)
 #: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED = ("touch_off", "lift", "collision_retract", "calibrate")
+PROCESS_NOT_IMPLEMENTED = ("calibrate",)
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -34,6 +49,7 @@ class ProcessConfig:
     axis: str
     params: dict = field(default_factory=dict)
     index: int = 0
+    enabled: bool = True
 
     def make(self, cycle_time: float):
         p = self.params
@@ -42,6 +58,14 @@ class ProcessConfig:
         if self.function == "void_lock":
             return VoidLock(self.axis, cycle_time, p["threshold"], variable=p["variable"], window=p["window"],
                             on_cycles=p["on_cycles"], off_cycles=p["off_cycles"], release_band=p["release_band"])
+        if self.function == "touch_off":
+            return TouchOff(self.axis, cycle_time, **p)
+        if self.function == "collision_retract":
+            return CollisionRetract(self.axis, cycle_time, **p)
+        # --- lift (issue 16, h16-lift) ---
+        if self.function == "lift":
+            return Lift(self.axis, cycle_time, p["v_max"], p["a_max"], height=p["height"],
+                        min_distance=p["min_distance"], settle_time=p["settle_time"])
         return AutoSetValue(self.axis, cycle_time, p["delay"], p["sample_time"])
 
 
@@ -63,7 +87,8 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
     if "function" not in cfg:
         raise ConfigError(f"{key}.function", MISSING, "one of " + ", ".join(repr(f) for f in PROCESS_FUNCTIONS))
     fn = _function(cfg["function"], f"{key}.function")
-    require_mapping(cfg, key, ("function", "axis") + PROCESS_KEYS[fn], required=("axis",))
+    require_mapping(cfg, key, ("function", "axis") + PROCESS_COMMON_KEYS + PROCESS_KEYS[fn], required=("axis",))
+    enabled = require_bool(cfg.get("enabled", True), f"{key}.enabled")
     if has_3d:
         raise ConfigError(f"{key}.axis", cfg["axis"], "an axis of the axis variant: the process functions do "
                           "not drive the channel's 3D distance control yet", "3D distance control:")
@@ -106,11 +131,82 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
                   "off_cycles": require_int(cfg.get("off_cycles", VOID_DEFAULTS["off_cycles"]), k + "off_cycles",
                                             lo=1, hi=100000),
                   "release_band": band}
+    elif fn == "touch_off":
+        params = _touch_off(cfg, k, axes[axis], sensor, cycle_time)
+    elif fn == "collision_retract":
+        params = _collision_retract(cfg, k, axes[axis], sensor)
+    # --- lift (issue 16, h16-lift) ---
+    elif fn == "lift":
+        ax = axes[axis]
+        params = {"height": require_number(cfg.get("height", LIFT_DEFAULTS["height"]), k + "height", lo=0.0,
+                                           hi=1000.0, lo_open=True),
+                  "min_distance": require_number(cfg.get("min_distance", LIFT_DEFAULTS["min_distance"]),
+                                                 k + "min_distance", lo=0.0, hi=1.0e6),
+                  "v_max": require_number(cfg.get("v_max", ax.v_max), k + "v_max", lo=0.0, hi=ax.v_max,
+                                          lo_open=True),
+                  "a_max": require_number(cfg.get("a_max", ax.a_max), k + "a_max", lo=0.0, hi=ax.a_max,
+                                          lo_open=True),
+                  "settle_time": require_number(cfg.get("settle_time", LIFT_DEFAULTS["settle_time"]),
+                                                k + "settle_time", lo=0.0, hi=1.0)}
     else:
         params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
                                                 k + "sample_time", lo=cycle_time, hi=10.0)}
-    return ProcessConfig(fn, axis, params, n)
+    return ProcessConfig(fn, axis, params, n, enabled)
+
+
+def _signal_variable(cfg: dict, k: str, sensor) -> str | None:
+    """The ``variable`` key of the motion functions: a V.E. distance in mm; default the sensor's
+    distance variable (a distance sensor's, or the linearised one of an arc-voltage sensor); none for
+    the probe on encoder 2 (``state_r.actual_distance``)."""
+    default = sensor.variable if sensor is not None and sensor.kind in ("distance", "arc_voltage") else None
+    var = cfg.get("variable", default)
+    if var is not None:
+        if not isinstance(var, str) or not _VAR_RE.match(var):
+            raise ConfigError(k + "variable", var, "a V.E. variable name holding the distance in mm (e.g. \"SENSOR\")")
+        var = var[4:] if var.startswith("V.E.") else var
+    return var
+
+
+def _touch_off(cfg: dict, k: str, axis_cfg, sensor, cycle_time: float) -> dict:
+    d = TOUCH_DEFAULTS
+    request = cfg.get("request", d["request"])
+    if not isinstance(request, str) or not _VAR_RE.match(request):
+        raise ConfigError(k + "request", request, "a V.E. variable name (the NC handshake, e.g. \"TOUCH_OFF\")")
+    max_dev = axis_cfg.params.max_deviation
+    stroke = require_number(cfg.get("stroke", min(d["stroke"], 0.9 * max_dev)), k + "stroke", lo=0.0,
+                            hi=max_dev, lo_open=True, hi_open=True)
+    return {"variable": _signal_variable(cfg, k, sensor), "request": request[4:] if request.startswith("V.E.") else request,
+            "probe_speed": require_number(cfg.get("probe_speed", d["probe_speed"]), k + "probe_speed", lo=0.001,
+                                          hi=min(1000.0, axis_cfg.v_max)),
+            "detect": require_number(cfg.get("detect", d["detect"]), k + "detect", lo=0.0, hi=100.0),
+            "pierce_height": require_number(cfg.get("pierce_height", d["pierce_height"]), k + "pierce_height",
+                                            lo=0.0, hi=100.0, lo_open=True),
+            "stroke": stroke,
+            "retries": require_int(cfg.get("retries", d["retries"]), k + "retries", lo=0, hi=10),
+            "verify_time": require_number(cfg.get("verify_time", d["verify_time"]), k + "verify_time", lo=0.0,
+                                          hi=1.0),
+            "verify_band": require_number(cfg.get("verify_band", d["verify_band"]), k + "verify_band", lo=0.0,
+                                          hi=100.0),
+            "tolerance": require_number(cfg.get("tolerance", d["tolerance"]), k + "tolerance", lo=0.0, hi=10.0,
+                                        lo_open=True)}
+
+
+def _collision_retract(cfg: dict, k: str, axis_cfg, sensor) -> dict:
+    d = COLLISION_DEFAULTS
+    sc = cfg.get("short_circuit", d["short_circuit"])
+    return {"variable": _signal_variable(cfg, k, sensor),
+            "threshold": require_number(cfg.get("threshold", d["threshold"]), k + "threshold", lo=0.0, hi=100.0),
+            "short_circuit": None if sc is None else require_number(sc, k + "short_circuit"),
+            "confirm_cycles": require_int(cfg.get("confirm_cycles", d["confirm_cycles"]), k + "confirm_cycles",
+                                          lo=1, hi=1000),
+            "retract": require_number(cfg.get("retract", d["retract"]), k + "retract", lo=0.0, hi=1000.0,
+                                      lo_open=True),
+            # the retract runs at the axis's limits unless slower ones are given
+            "retract_speed": require_number(cfg.get("retract_speed", axis_cfg.v_max), k + "retract_speed", lo=0.001,
+                                            hi=axis_cfg.v_max),
+            "retract_accel": require_number(cfg.get("retract_accel", axis_cfg.a_max), k + "retract_accel", lo=1.0,
+                                            hi=axis_cfg.a_max)}
 
 
 def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: bool = False
@@ -134,4 +230,9 @@ def make_process_program(configs, cycle_time: float) -> ProcessProgram | None:
     """One :class:`ProcessProgram` running every configured function in file order; None without any."""
     if not configs:
         return None
-    return ProcessProgram([c.make(cycle_time) for c in configs])
+    functions = []
+    for c in configs:
+        f = c.make(cycle_time)
+        f.enabled = c.enabled                    # [[process]] key enabled (switchable at run time)
+        functions.append(f)
+    return ProcessProgram(functions)

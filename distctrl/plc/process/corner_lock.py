@@ -48,14 +48,17 @@ class CornerLock(ProcessFunction):
     name = "corner_lock"
 
     def __init__(self, axis: str, share: float = CORNER_DEFAULTS["share"],
-                 hysteresis: float = CORNER_DEFAULTS["hysteresis"]):
-        super().__init__(axis)
+                 hysteresis: float = CORNER_DEFAULTS["hysteresis"], enabled: bool = True):
+        super().__init__(axis, enabled)
         self.share = require_number(share, "corner_lock.share", lo=0.0, hi=1.0, lo_open=True)
         self.hysteresis = require_number(hysteresis, "corner_lock.hysteresis", lo=0.0, hi=0.5)
         if self.share + self.hysteresis > 1.0:
             raise ConfigError("corner_lock.hysteresis", hysteresis,
                               f"share + hysteresis <= 1 (share = {self.share:g}): the path must be able "
                               "to reach the release level at 100 % override", "out of range:")
+        self.reset()
+
+    def reset(self) -> None:
         self.armed = False
         self.locked = False
 

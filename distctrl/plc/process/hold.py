@@ -68,6 +68,18 @@ class FreezeHold:
 
     def __init__(self, axis: str):
         self.axis = axis
+        #: (cycle, transition) of every command this hold sent (diagnosis, tests; kept by reset())
+        self.log: list[tuple[int, int]] = []
+        self._ctx = None
+        #: functions that move the axis themselves for now (touch-off, collision retract): while any
+        #: is listed the hold sends nothing, drops the requests and forgets its phase (an interlock;
+        #: the functions add and remove themselves, reset() keeps it)
+        self.inhibitors: set[str] = set()
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to IDLE with no request and no command pending (the log is kept). A FREEZE the hold
+        commanded stays in force: the hold no longer owns it, as after another command."""
         self.phase = IDLE
         self.const_dist = False
         #: mm: the set value the re-activation commands (SET_POS or SET_DIST)
@@ -76,9 +88,6 @@ class FreezeHold:
         self._requested_now: set[str] = set()
         self._pending: tuple[int, float] | None = None
         self._sent = False
-        self._ctx = None
-        #: (cycle, transition) of every command this hold sent (diagnosis, tests)
-        self.log: list[tuple[int, int]] = []
 
     # ------------------------------------------------------------------ requesters
     def request(self, who: str) -> None:
@@ -86,8 +95,14 @@ class FreezeHold:
         self._requested_now.add(who)
 
     def withdraw(self, who: str) -> None:
-        """``who`` takes back its request of this cycle (e.g. its sampling ended this cycle)."""
+        """``who`` takes back its request (e.g. its sampling ended this cycle, or it was switched off):
+        the hold releases at its next step unless another function still requests it."""
         self._requested_now.discard(who)
+        self._requests.discard(who)
+
+    def requested_by(self, who: str) -> bool:
+        """``who`` requested the hold in the last cycle (or in this one, before the hold's step)."""
+        return who in self._requests or who in self._requested_now
 
     @property
     def requested(self) -> bool:
@@ -108,6 +123,10 @@ class FreezeHold:
     # ------------------------------------------------------------------ once per cycle
     def step(self, machine, cycle: int) -> None:
         self._requests, self._requested_now = self._requested_now, set()
+        if self.inhibitors:
+            self.phase = IDLE
+            self._pending = None
+            return
         unit = machine.hli[self.axis]
         state = unit.state_r.actual_state
         if self._pending is not None:                     # waiting for the semaphore

@@ -7,11 +7,12 @@ __all__ = ["ProcessProgram"]
 
 
 class ProcessProgram:
-    """Runs every function in order, then each axis's :class:`FreezeHold`.
+    """Runs every enabled function in order, then each axis's :class:`FreezeHold`.
 
     One :class:`FreezeHold` per axis is shared by the functions of that axis. The machine runs this
     program in its PLC task after the sensor's program and before a run's own
-    (:func:`distctrl.plc.chain.chain`).
+    (:func:`distctrl.plc.chain.chain`). :meth:`set_enabled` switches a function on or off while the
+    machine runs (``distctrl serve``: the ADS symbol ``Process.<axis>.<function>.enabled``).
     """
 
     def __init__(self, functions):
@@ -25,7 +26,8 @@ class ProcessProgram:
 
     def __call__(self, machine, cycle: int) -> None:
         for f in self.functions:
-            f.step(machine, cycle)
+            if f.enabled:
+                f.step(machine, cycle)
         for h in self._holds:
             h.step(machine, cycle)
 
@@ -36,5 +38,38 @@ class ProcessProgram:
                 return f
         return None
 
+    def set_enabled(self, name: str, axis: str, on: bool) -> None:
+        """Switch the function ``name`` on ``axis`` on or off (between two cycles, or from within a
+        cycle before the holds run). A change resets the function (:meth:`ProcessFunction.reset`);
+        switched off it does nothing and its hold request is withdrawn, so a FREEZE it held is
+        released through the normal hold logic (FREEZE -> ON / ON_CONST_DIST with the set value
+        remembered, unless another function of the axis still requests the hold). Switched on again
+        it starts afresh: a lock arms as after a select, the automatic set value waits for the next
+        cut. An unknown name/axis raises KeyError."""
+        f = self.function(name, axis)
+        if f is None:
+            raise KeyError(f"no process function {name!r} on axis {axis!r}; configured: "
+                           + (", ".join(f"{g.name}@{g.axis}" for g in self.functions) or "none"))
+        on = bool(on)
+        # the switch itself: a function may read enabled while it finishes (a lift landing)
+        if on == getattr(f, "switched_on", f.enabled):
+            return
+        f.enabled = on
+        f.reset()
+        if not on:
+            f.hold.withdraw(f.name)
+
+    def reset(self) -> None:
+        """Every function and every hold back to its initial state (``enabled`` unchanged)."""
+        for f in self.functions:
+            f.reset()
+        for h in self._holds:
+            h.reset()
+
+    def status(self) -> list[dict]:
+        """Every function's :meth:`~ProcessFunction.status`, in program order."""
+        return [f.status() for f in self.functions]
+
     def __repr__(self) -> str:
-        return "ProcessProgram(" + ", ".join(f"{f.name}@{f.axis}" for f in self.functions) + ")"
+        return "ProcessProgram(" + ", ".join(f"{f.name}@{f.axis}" + ("" if f.enabled else " (off)")
+                                             for f in self.functions) + ")"

@@ -85,8 +85,9 @@ class VoidLock(ProcessFunction):
 
     def __init__(self, axis: str, cycle_time: float, threshold: float, *, variable: str | None = None,
                  window: float = VOID_DEFAULTS["window"], on_cycles: int = VOID_DEFAULTS["on_cycles"],
-                 off_cycles: int = VOID_DEFAULTS["off_cycles"], release_band: float | None = None):
-        super().__init__(axis)
+                 off_cycles: int = VOID_DEFAULTS["off_cycles"], release_band: float | None = None,
+                 enabled: bool = True):
+        super().__init__(axis, enabled)
         self.cycle_time = require_number(cycle_time, "void_lock.cycle_time", lo=0.0, lo_open=True)
         self.threshold = require_number(threshold, "void_lock.threshold", lo=0.0, lo_open=True)
         self.window = require_number(window, "void_lock.window", lo=self.cycle_time, hi=1.0)
@@ -98,6 +99,10 @@ class VoidLock(ProcessFunction):
         self.variable = None if variable is None else (variable if variable[:4].upper() == "V.E."
                                                        else f"V.E.{variable}")
         self.n = max(1, round(self.window / self.cycle_time))
+        self._rate_scale = 1.0 / (self.n * self.cycle_time)
+        self.reset()
+
+    def reset(self) -> None:
         self._buf = [0.0] * self.n
         self._i = 0
         self._fill = 0
@@ -106,7 +111,6 @@ class VoidLock(ProcessFunction):
         self._mfill = 0
         #: the mean of the signal over the window (signal unit; NaN until the window is full)
         self.mean = math.nan
-        self._rate_scale = 1.0 / (self.n * self.cycle_time)
         self.locked = False
         self.on_count = 0
         self.off_count = 0

@@ -1,0 +1,204 @@
+"""The live page's web server: a Bokeh server embedded in ``distctrl serve`` (docs/ui.md).
+
+It runs in its own thread with its own event loop (Tornado's IOLoop on a new asyncio loop), beside the
+ADS server's thread and the 1 ms cycle thread; it never takes the machine's lock except for the few
+microseconds of a page's write (:mod:`distctrl.ui.hub`).
+
+* Bokeh's JavaScript and CSS come from the installed bokeh package (``/static/`` of this server); the
+  page makes no outside request, and a Content-Security-Policy allows scripts and styles from this
+  server (and the inline document bootstrap) only, connections to this server only.
+* Listening on ``host`` (default 127.0.0.1); a client outside the ``allowed`` networks is closed at once
+  and logged (``refused <ip> (UI)``), as the ADS server does; the websocket accepts only pages from
+  this server's own address (Origin check), so a page of another web site cannot drive the machine.
+* Several pages at once: every page (a Bokeh session) reads the same :class:`~distctrl.ui.hub.MachineHub`.
+"""
+from __future__ import annotations
+
+import asyncio
+import ipaddress
+import logging
+import socket
+import threading
+from pathlib import Path
+
+from .hub import MachineHub
+
+log = logging.getLogger("distctrl.ui")
+
+#: what the page may load and connect to: this server only ('self' also covers its websocket)
+CSP = ("default-src 'none'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
+       "img-src 'self' data: blob:; font-src 'self' data:; connect-src 'self'; base-uri 'none'; "
+       "form-action 'none'")
+#: frames per second of every page (the scope's stream, the panels' values)
+FRAME_MS = 50
+
+
+def free_port(host: str) -> int:
+    """A free TCP port on ``host`` (for ``--ui-port 0``)."""
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+class UiServer:
+    """The Bokeh server of the live page over one served machine.
+
+    :param served: a started or not yet started :class:`~distctrl.ads.machine.ServedMachine`.
+    :param host: address to listen on; ``port`` 0 picks a free port (:attr:`port` tells which).
+    :param allowed: networks (CIDR) whose clients may connect, like the ADS server's ``--allow``.
+    :param export_dir: where the scope's "Export CSV" writes its trace files.
+    """
+
+    def __init__(self, served, *, host: str = "127.0.0.1", port: int = 8050, allowed=("127.0.0.0/8",),
+                 export_dir: str | Path = ".", buffer_s: float = 60.0):
+        self.served = served
+        self.host = host
+        self.port = int(port) or free_port(host)
+        self.allowed = [ipaddress.ip_network(a, strict=False) for a in ([allowed] if isinstance(allowed, str)
+                                                                         else allowed)]
+        self.export_dir = Path(export_dir)
+        self.hub = MachineHub(served, buffer_s=buffer_s)
+        self.refused = 0
+        self.sessions = 0
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._server = None
+        self._io_loop = None
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        if self.host in ("0.0.0.0", "::"):
+            host = "127.0.0.1"
+        return f"http://{host}:{self.port}/"
+
+    def is_allowed(self, ip: str) -> bool:
+        try:
+            addr = ipaddress.ip_address(ip.split("%", 1)[0])
+        except ValueError:
+            return False
+        if addr.version == 6 and addr.ipv4_mapped is not None:
+            addr = addr.ipv4_mapped
+        return any(addr.version == net.version and addr in net for net in self.allowed)
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> None:
+        """Start the server thread; returns once it listens (raises OSError if it cannot bind)."""
+        self._thread = threading.Thread(target=self._run, name="distctrl-ui", daemon=True)
+        self._thread.start()
+        self._ready.wait(30.0)
+        if self._error is not None:
+            raise self._error
+        log.info("live page on %s (Bokeh server, allowed %s)", self.url, ", ".join(map(str, self.allowed)))
+
+    def stop(self) -> None:
+        io, server = self._io_loop, self._server
+        if io is None:
+            return
+
+        def _stop():
+            try:
+                server.stop()
+            finally:
+                io.stop()
+        io.add_callback(_stop)
+        if self._thread is not None:
+            self._thread.join(10.0)
+        self._io_loop = self._server = None
+
+    def __enter__(self):
+        self.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    def _run(self) -> None:
+        from bokeh.application import Application
+        from bokeh.application.handlers.function import FunctionHandler
+        from bokeh.server.server import Server
+        from tornado.ioloop import IOLoop, PeriodicCallback
+
+        asyncio.set_event_loop(asyncio.new_event_loop())
+        io = IOLoop.current()
+        try:
+            origins = [f"127.0.0.1:{self.port}", f"localhost:{self.port}"]
+            if self.host not in ("127.0.0.1", "localhost", "0.0.0.0", "::"):
+                origins.append(f"{self.host}:{self.port}")
+            if self.host in ("0.0.0.0", "::"):
+                origins.append(f"*:{self.port}")
+            server = Server({"/": Application(FunctionHandler(self._make_document))}, io_loop=io,
+                            address=self.host, port=self.port, allow_websocket_origin=origins,
+                            extra_patterns=[(r"/export/([^/]+)", _export_handler(), {"hub": self.hub})],
+                            check_unused_sessions_milliseconds=2000, unused_session_lifetime_milliseconds=5000)
+            self._guard(server)
+            server.start()
+        except BaseException as exc:   # noqa: BLE001 - handed to start()
+            self._error = exc
+            self._ready.set()
+            return
+        self._server, self._io_loop = server, io
+        PeriodicCallback(self.hub.pump, FRAME_MS // 2).start()
+        self._ready.set()
+        io.start()
+
+    def _guard(self, server) -> None:
+        """Close connections from outside the allowed networks at once (as an ADS route does)."""
+        http = server._http
+        handle = http.handle_stream
+
+        def handle_stream(stream, address):
+            ip = address[0] if isinstance(address, tuple) else str(address)
+            if not self.is_allowed(ip):
+                self.refused += 1
+                log.warning("refused %s (UI)", ip)
+                stream.close()
+                return None
+            return handle(stream, address)
+        http.handle_stream = handle_stream
+
+    # ------------------------------------------------------------------ one page
+    def _make_document(self, doc) -> None:
+        from .page import build_page
+
+        self.sessions += 1
+        build_page(doc, self.hub, self.export_dir, FRAME_MS)
+        doc.template = _template()
+
+
+_TEMPLATE = None
+
+
+def _template():
+    global _TEMPLATE
+    if _TEMPLATE is None:
+        from bokeh.core.templates import get_env
+
+        _TEMPLATE = get_env().from_string(
+            '{% extends "file.html.jinja" %}{% block preamble %}'
+            f'<meta http-equiv="Content-Security-Policy" content="{CSP}">'
+            '<meta name="referrer" content="no-referrer">{% endblock %}')
+    return _TEMPLATE
+
+
+def _export_handler():
+    from tornado.web import HTTPError, RequestHandler
+
+    class ExportHandler(RequestHandler):
+        """The files the scope exported, by name only (nothing else on disk is reachable)."""
+
+        def initialize(self, hub: MachineHub) -> None:
+            self.hub = hub
+
+        def get(self, name: str) -> None:
+            path = self.hub.exports.get(name)
+            if path is None or not path.is_file():
+                raise HTTPError(404)
+            self.set_header("Content-Type", "text/csv; charset=utf-8" if name.endswith(".csv")
+                            else "application/json")
+            self.set_header("Content-Disposition", f'attachment; filename="{name}"')
+            self.set_header("Content-Security-Policy", "default-src 'none'")
+            self.write(path.read_bytes())
+
+    return ExportHandler

@@ -1,0 +1,103 @@
+"""``distctrl ui SCENARIO``: serve the scenario (as ``distctrl serve --ui``) and open the live page in
+the browser; and :func:`serve_session`, the session loop both commands share."""
+from __future__ import annotations
+
+import sys
+
+import click
+
+from ..errors import DistCtrlError
+
+
+def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ...], net_id: str,
+                  duration: float | None, no_discovery: bool, ui: bool, ui_port: int, export_dir: str,
+                  open_browser: bool = False, as_json: bool = False) -> None:
+    """Serve SCENARIO over ADS (and the live page with ``ui``) until ``duration`` or Ctrl-C; print the
+    cycle's lateness at the end."""
+    import logging
+    import time
+
+    from ..ads.machine import ServedMachine
+    from ..cli.common import emit_json, fail
+    from ..sim.scenario import load_scenario
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    logging.getLogger("bokeh").setLevel(logging.WARNING)
+    logging.getLogger("tornado.access").setLevel(logging.WARNING)
+    page = None
+    try:
+        served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id,
+                               discovery_port=None if no_discovery else 48899)
+        if ui:
+            from .app import UiServer
+
+            # the page's server starts before the cycle does: importing and setting up Bokeh is heavy
+            page = UiServer(served, host=host, port=ui_port, allowed=allowed, export_dir=export_dir)
+            try:
+                page.start()
+            except OSError as exc:
+                fail(f"cannot serve the live page on {host}:{ui_port}: {exc.strerror or exc} "
+                     "(--ui-port chooses another port)")
+        try:
+            served.start()
+        except BaseException:
+            if page is not None:
+                page.stop()
+            raise
+    except (DistCtrlError, OSError, ValueError) as exc:
+        fail(str(exc))
+    if not as_json:
+        click.echo(f"serving {served.scenario.name}: ADS {net_id} on {host}:{served.server.port}, "
+                   f"allowed {', '.join(allowed)}; Ctrl-C stops")
+    if page is not None:
+        if not as_json:
+            click.echo(f"live page: {page.url}")
+        if open_browser:
+            import webbrowser
+
+            if not webbrowser.open(page.url) and not as_json:
+                click.echo(f"no browser could be started here: open {page.url} yourself", err=True)
+    try:
+        t_end = None if duration is None else time.monotonic() + duration
+        while t_end is None or time.monotonic() < t_end:
+            time.sleep(0.2)
+            if served.loop.error is not None:
+                raise served.loop.error
+    except KeyboardInterrupt:
+        pass
+    if page is not None:
+        page.stop()
+    stats = served.stop()
+    if as_json:
+        emit_json({"scenario": scenario, "ads": f"{host}:{served.server.port}", "net_id": net_id,
+                   "ui_url": page.url if page is not None else None,
+                   "ui_sessions": page.sessions if page is not None else 0, "cycle_lateness": stats})
+        return
+    click.echo("cycle jitter: " + ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
+                                           for k, v in stats.items()))
+
+
+@click.command("ui")
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address the page and ADS listen on.")
+@click.option("--ui-port", default=8050, show_default=True, type=click.IntRange(0, 65535),
+              help="HTTP port of the live page (0: a free port).")
+@click.option("--port", default=48898, show_default=True, help="AMS/TCP port.")
+@click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
+              help="Client address or network allowed to connect to the page and over ADS; repeat for more.")
+@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
+@click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--no-discovery", is_flag=True, help="Do not answer route discovery on UDP 48899.")
+@click.option("--export-dir", default=".", show_default=True, type=click.Path(file_okay=False),
+              help="Folder the scope's Export CSV writes its trace files to.")
+@click.option("--no-browser", is_flag=True, help="Only print the page's address, open no browser.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object at the end (addresses, page sessions, cycle lateness in µs).")
+def ui_cmd(scenario: str, host: str, ui_port: int, port: int, allowed: tuple[str, ...], net_id: str,
+           duration: float | None, no_discovery: bool, export_dir: str, no_browser: bool, as_json: bool) -> None:
+    """Serve SCENARIO.toml in real time over ADS with the live page (scope, object browser, PLC panel,
+    machine view; docs/ui.md) and open the page in the browser."""
+    serve_session(scenario, host=host, port=port, allowed=allowed, net_id=net_id, duration=duration,
+                  no_discovery=no_discovery, ui=True, ui_port=ui_port, export_dir=export_dir,
+                  open_browser=not no_browser, as_json=as_json)
+    sys.stdout.flush()

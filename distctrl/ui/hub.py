@@ -1,0 +1,362 @@
+"""One served machine, many pages: what every page of ``distctrl serve --ui`` reads and does.
+
+:class:`MachineHub` hangs two hooks into the served machine's cycle (they run in the cycle thread,
+under the machine's lock, right after the step, inside the cycle's slack, so the page never takes the
+lock at a time the cycle is due):
+
+* every cycle one trace row (the columns of ``distctrl run --trace``, :func:`~distctrl.sim.runner.trace_columns`)
+  goes into a queue; the page thread moves the rows into a ring buffer of ``buffer_s`` seconds;
+* every ``snapshot_every`` cycles (20: 50 per second at 1 ms) a snapshot of plain values: every CNC
+  object of every axis (raw value and pending write), each HLI control unit, the machine's events,
+  the NC line, override and the head over the surface. Objects sampled this way are the scope's
+  CNC-object signals (a second, slower ring buffer).
+
+Actions of a page (PLC commands, override, feed hold, reset, sensor faults, object writes, process
+functions) take the lock for the few microseconds of the write, as an ADS write does. Every action
+returns ``(ok, message)``; nothing a page sends raises into the server.
+"""
+from __future__ import annotations
+
+import collections
+import math
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from ..control.states import HliTransition
+from ..errors import DistCtrlError
+from ..objects.browser import value_text
+from ..objects.registry import (
+    SERVED_OBJECTS,
+    ObjectAccessError,
+    ObjectValueError,
+    find_spec,
+    index_offset,
+    read_value,
+    write_value,
+)
+from ..sim.runner import row_builder, trace_columns
+from ..trace.recorder import HLI_STATE_NAMES
+
+#: the fault buttons of the PLC panel: kind -> (default value, unit, what it does)
+FAULTS = {"jump": (30.0, "mm", "adds the value to the reading"),
+          "dropout": (0.0, "mm", "the sensor reports the value instead of the distance"),
+          "noise_burst": (0.5, "mm", "adds Gaussian noise of this std")}
+NUMERIC_TYPES = ("REAL64", "SGN64", "SGN32", "UNS32", "BOOLEAN")
+TRANSITIONS = ("ON", "ON_CONST_DIST", "DRYRUN", "CONST_DIST", "FREEZE", "REF", "OFF")
+
+
+class MachineHub:
+    """The shared state of the live pages over one :class:`~distctrl.ads.machine.ServedMachine`."""
+
+    def __init__(self, served, *, buffer_s: float = 60.0, snapshot_every: int = 20):
+        m = self.machine = served.machine
+        self.served, self.lock, self.T = served, served.lock, m.T
+        self.columns, self.units = trace_columns(m)
+        self._build_row = row_builder(m)
+        self.capacity = max(2, int(round(buffer_s / m.T)))
+        self.data = np.full((self.capacity, len(self.columns)), np.nan)
+        self.rows = 0                                   # rows written into the ring so far
+        self._queue: collections.deque = collections.deque(maxlen=self.capacity)
+        self.snapshot_every = max(1, int(snapshot_every))
+        self.contexts = served.cnc.contexts             # axis_id -> AxisObjectContext
+        #: the numeric CNC objects as scope signals: "<axis>.obj.<name>" -> (axis_id, spec)
+        self.object_signals = {f"{c.axis_name}.obj.{s.name}": (i, s) for i, c in self.contexts.items()
+                               for s in SERVED_OBJECTS if s.type in NUMERIC_TYPES}
+        self._obj_keys = list(self.object_signals)
+        self.obj_capacity = max(2, int(round(buffer_s / (m.T * self.snapshot_every))))
+        self.obj_data = np.full((self.obj_capacity, 1 + len(self._obj_keys)), np.nan)
+        self.obj_rows = 0
+        self._obj_queue: collections.deque = collections.deque(maxlen=self.obj_capacity)
+        self.snapshot: dict = {}
+        self.events: list[dict] = []                    # every event of the machine, as dicts
+        self._events_seen = 0
+        self.override = 1.0
+        self.feed_hold = False
+        self.exports: dict[str, Path] = {}              # file name -> path, served by the page's download route
+        self._export_lock = threading.Lock()
+        self.program_lines = _program_lines(served.scenario)
+        served.observers.append(self._after_cycle)
+        with self.lock:
+            self._take_snapshot()
+
+    # ------------------------------------------------------------------ the cycle thread (under the lock)
+    def _after_cycle(self) -> None:
+        m = self.machine
+        k = m.cycle - 1
+        nc = m.nc
+        line = nc.line if nc is not None else None
+        self._queue.append(self._build_row(k * self.T, -1 if line is None else line))
+        if k % self.snapshot_every == 0:
+            self._take_snapshot()
+
+    def _take_snapshot(self) -> None:
+        m = self.machine
+        t = max(m.cycle - 1, 0) * m.T
+        objects = {}
+        for axis_id, ctx in self.contexts.items():
+            for spec in SERVED_OBJECTS:
+                pending = ctx.pending(spec.write_name) if spec.writable else None
+                objects[(axis_id, spec.name)] = (read_value(spec, ctx), pending)
+        self._obj_queue.append((t, [float(objects[(i, s.name)][0]) for i, s in self.object_signals.values()]))
+        units = {}
+        for n in m.axis_names:
+            u = m.hli[n]
+            s = u.state_r
+            units[n] = {"index": u.axis_index, "transition": u.command_w.transition, "position": u.command_w.position,
+                        "enable_w": u.enable_w, "semaphore": u.command_semaphore_rw, "actual_state": s.actual_state,
+                        "actual_position": s.actual_position, "actual_offset": s.actual_offset,
+                        "command_source": s.command_source, "actual_distance": s.actual_distance,
+                        "consumed": u.consumed, "rejected": [r.reason for r in u.rejected[-3:]],
+                        "dc_on": u.distance_control_on, "state": int(m.outputs[n].hli_state),
+                        "offset": m.outputs[n].offset, "act": m.drives[n].actual}
+        new_events = []
+        if len(m.events) != self._events_seen:
+            new_events = [{"t": when, "id": int(ev.id), "severity": ev.severity, "line": ev.line,
+                           "message": ev.message} for when, ev in m.events[self._events_seen:]]
+            self._events_seen = len(m.events)
+        nc = m.nc
+        proc = m.process_program
+        self.snapshot = {
+            "t": t, "cycle": m.cycle, "objects": objects, "units": units, "new_events": new_events,
+            "line": nc.line if nc is not None else None,
+            "nc_state": "none" if nc is None else "aborted" if nc.aborted else "ended" if nc.ended else "running",
+            "override": m.channel_override, "paused": self.served.paused,
+            "x": m.drives["X"].nozzle if "X" in m.drives else 0.0,
+            "true_surface": m.true_surface, "true_distance": m.true_distance,
+            "process": [] if proc is None else [(f.name, f.axis, bool(getattr(f, "enabled", True)))
+                                                for f in proc.functions],
+        }
+        if new_events:
+            self.events.extend(new_events)
+
+    # ------------------------------------------------------------------ the page thread
+    def pump(self) -> None:
+        """Move the queued rows into the ring buffers (the page thread, every frame)."""
+        q, data, cap = self._queue, self.data, self.capacity
+        n = len(q)
+        if n:
+            block = np.array([q.popleft() for _ in range(n)], dtype=np.float64)
+            self.rows = _ring_put(data, cap, self.rows, block)
+        q2 = self._obj_queue
+        n2 = len(q2)
+        if n2:
+            items = [q2.popleft() for _ in range(n2)]
+            block = np.array([[t, *v] for t, v in items], dtype=np.float64)
+            self.obj_rows = _ring_put(self.obj_data, self.obj_capacity, self.obj_rows, block)
+
+    def rows_since(self, cursor: int, step: int = 1) -> tuple[int, np.ndarray]:
+        """``(new cursor, rows)``: the trace rows written since ``cursor`` (every ``step``-th row by its
+        absolute index, so that every page thins the same rows), at most one buffer."""
+        return _ring_since(self.data, self.capacity, self.rows, cursor, step)
+
+    def object_rows_since(self, cursor: int) -> tuple[int, np.ndarray]:
+        return _ring_since(self.obj_data, self.obj_capacity, self.obj_rows, cursor, 1)
+
+    def column(self, name: str) -> int:
+        return self.columns.index(name)
+
+    def object_column(self, name: str) -> int:
+        return 1 + self._obj_keys.index(name)
+
+    def signal_unit(self, name: str) -> str:
+        if name in self.object_signals:
+            spec = self.object_signals[name][1]
+            return spec.unit
+        return self.units.get(name, "")
+
+    # ------------------------------------------------------------------ actions of a page
+    def plc_command(self, axis: str, transition: str, position_mm: float) -> tuple[bool, str]:
+        """command_w (transition, position), enable_w and the semaphore, as a PLC writes them; refused
+        while the semaphore is still TRUE (the CNC has not taken the last command)."""
+        if axis not in self.machine.hli or transition not in HliTransition.__members__:
+            return False, f"unknown axis {axis!r} or transition {transition!r}"
+        if not isinstance(position_mm, (int, float)) or not math.isfinite(position_mm):
+            return False, f"position {position_mm!r} mm is not a finite number"
+        with self.lock:
+            ok = self.machine.hli[axis].plc_command(transition, float(position_mm))
+        if not ok:
+            return False, f"{axis}: command_semaphore_rw is still TRUE, the CNC has not taken the last command"
+        return True, f"{axis}: {transition} {position_mm:.4f} mm written, command_semaphore_rw TRUE"
+
+    def set_override(self, value: float) -> tuple[bool, str]:
+        from ..sim.scenario import OVERRIDE_PATH_MAX
+
+        if not (isinstance(value, (int, float)) and 0.0 <= value <= OVERRIDE_PATH_MAX):
+            return False, f"override {value!r}: allowed 0 .. {OVERRIDE_PATH_MAX:g}"
+        self.override = float(value)
+        with self.lock:
+            if not self.feed_hold:
+                self.machine.channel_override = self.override
+        return True, f"override {value * 100:.0f} %"
+
+    def set_feed_hold(self, on: bool) -> tuple[bool, str]:
+        self.feed_hold = bool(on)
+        with self.lock:
+            self.machine.channel_override = 0.0 if on else self.override
+        return True, "feed hold ON (path override 0 %)" if on else f"feed hold OFF (override {self.override * 100:.0f} %)"
+
+    def reset(self) -> tuple[bool, str]:
+        with self.lock:
+            self.machine.reset()
+        return True, "CNC reset: the program stops, distance control is deselected"
+
+    def sensor_fault(self, kind: str, value: float, duration_s: float | None) -> tuple[bool, str]:
+        from ..sim.scenario import Event
+
+        if self.machine.sensor is None:
+            return False, "this scenario has no [sensor]: no sensor fault to inject"
+        if kind not in FAULTS:
+            return False, f"unknown fault {kind!r}; allowed: {', '.join(FAULTS)}"
+        data = {"kind": kind, "value": float(value)}
+        if duration_s is not None:
+            data["duration"] = float(duration_s)
+        try:
+            with self.lock:
+                self.machine.apply_event(Event(self.machine.cycle * self.T, "sensor_fault", data))
+        except DistCtrlError as exc:
+            return False, str(exc)
+        until = "until reset of the page" if duration_s is None else f"for {duration_s:g} s"
+        return True, f"sensor fault {kind} {value:g} mm {until}"
+
+    def clear_faults(self) -> tuple[bool, str]:
+        if self.machine.sensor is None:
+            return False, "this scenario has no [sensor]"
+        with self.lock:
+            self.machine.sensor.clear_faults()
+        return True, "sensor faults cleared"
+
+    def write_object(self, axis_id: int, name: str, value: float) -> tuple[bool, str]:
+        """A write to a read/write CNC object, range-checked as over ADS; queued into the axis's
+        controller, pending until the next INACTIVE→active or FREEZE→active transition."""
+        ctx = self.contexts.get(axis_id)
+        try:
+            spec = find_spec(name)
+        except (KeyError, DistCtrlError, ValueError):
+            return False, f"no CNC object {name!r}"
+        if ctx is None:
+            return False, f"no axis {axis_id}"
+        try:
+            command = write_value(spec, ctx, value)
+        except (ObjectAccessError, ObjectValueError) as exc:
+            return False, str(exc)
+        with self.lock:
+            self.machine.inputs[ctx.axis_name].commands.append(command)
+        return True, (f"{name} (axis {axis_id} {ctx.axis_name}, 0x{spec.index_group:X}:"
+                      f"0x{index_offset(axis_id, spec):X}) = {value:g} {spec.unit}: pending until "
+                      "INACTIVE→active or FREEZE→active")
+
+    def set_process(self, name: str, axis: str, on: bool) -> tuple[bool, str]:
+        proc = self.machine.process_program
+        setter = getattr(proc, "set_enabled", None)
+        if proc is None:
+            return False, "this scenario has no [[process]] functions"
+        if setter is None:
+            return False, "this build cannot switch process functions at run time (ProcessProgram.set_enabled)"
+        try:
+            with self.lock:
+                setter(name, axis, bool(on))
+        except (KeyError, ValueError, DistCtrlError) as exc:
+            return False, str(exc)
+        return True, f"process function {name} on {axis} {'enabled' if on else 'disabled'}"
+
+    # ------------------------------------------------------------------ export
+    def export_csv(self, folder: Path, signals: list[str] | None = None) -> Path:
+        """The ring buffer as a trace CSV with its ``.meta.json`` (what ``distctrl plot`` reads): every
+        trace column at every cycle, plus the chosen CNC objects held between their samples."""
+        from ..trace import Trace
+
+        self.pump()
+        n = min(self.rows, self.capacity)
+        start = self.rows - n
+        idx = np.arange(start, self.rows) % self.capacity
+        data = self.data[idx]
+        columns, units = list(self.columns), dict(self.units)
+        for s in signals or ():
+            if s in self.object_signals:
+                on = min(self.obj_rows, self.obj_capacity)
+                oidx = np.arange(self.obj_rows - on, self.obj_rows) % self.obj_capacity
+                ot, ov = self.obj_data[oidx, 0], self.obj_data[oidx, self.object_column(s)]
+                pos = np.searchsorted(ot, data[:, 0], side="right") - 1
+                col = np.where(pos >= 0, ov[np.clip(pos, 0, None)], np.nan) if on else np.full(n, np.nan)
+                name = s.replace("::", ".").replace(" ", "_")
+                columns.append(name)
+                units[name] = self.signal_unit(s)
+                data = np.column_stack([data, col])
+        meta = {"scenario": self.served.scenario.name, "source": "distctrl serve --ui (scope buffer)",
+                "cycle_time": self.T, "errors": [e for e in self.events if e["severity"] == "error"],
+                "warnings": [e for e in self.events if e["severity"] != "error"]}
+        folder.mkdir(parents=True, exist_ok=True)
+        t0 = data[0, 0] if n else 0.0
+        with self._export_lock:
+            path = folder / f"scope_{len(self.exports) + 1:03d}_t{t0:.0f}s.csv"
+            Trace(columns, data, units, meta).to_csv(path)
+            self.exports[path.name] = path
+            self.exports[path.name + ".meta.json"] = Path(str(path) + ".meta.json")
+        return path
+
+
+def state_name(code: int) -> str:
+    return HLI_STATE_NAMES.get(int(code), str(code))
+
+
+def object_table(hub: MachineHub) -> dict[str, list]:
+    """The object browser's columns from the hub's last snapshot."""
+    snap = hub.snapshot
+    cols: dict[str, list] = {k: [] for k in ("axis", "group", "offset", "name", "type", "unit", "raw", "value",
+                                             "access", "pending", "axis_id")}
+    for axis_id, ctx in hub.contexts.items():
+        for spec in SERVED_OBJECTS:
+            raw, pending = snap["objects"][(axis_id, spec.name)]
+            cols["axis"].append(f"{axis_id} {ctx.axis_name}")
+            cols["axis_id"].append(axis_id)
+            cols["group"].append(f"0x{spec.index_group:X}")
+            cols["offset"].append(f"0x{index_offset(axis_id, spec):X}")
+            cols["name"].append(spec.name)
+            cols["type"].append(spec.type)
+            cols["unit"].append(spec.unit)
+            cols["raw"].append(raw if isinstance(raw, str) else f"{raw:.10g}" if isinstance(raw, float) else str(raw))
+            cols["value"].append(value_text(spec, raw, ctx.drive_resolution_mm))
+            cols["access"].append(spec.access)
+            if not spec.writable:
+                cols["pending"].append("")
+            elif pending is None:
+                cols["pending"].append("adopted")
+            else:
+                cols["pending"].append(f"pending {pending / spec.write_scale:.10g}")
+    return cols
+
+
+def _ring_put(data: np.ndarray, cap: int, written: int, block: np.ndarray) -> int:
+    if len(block) > cap:
+        written += len(block) - cap
+        block = block[-cap:]
+    idx = (written + np.arange(len(block))) % cap
+    data[idx] = block
+    return written + len(block)
+
+
+def _ring_since(data: np.ndarray, cap: int, written: int, cursor: int, step: int) -> tuple[int, np.ndarray]:
+    start = max(cursor, written - cap)
+    if step > 1:
+        start += (-start) % step
+    if start >= written:
+        return max(cursor, written), data[:0]
+    idx = np.arange(start, written, step) % cap
+    return written, data[idx]
+
+
+def _program_lines(scenario) -> dict[int, str]:
+    """NC line number -> its text (for the machine view's "NC block")."""
+    text = None
+    if scenario.program_text is not None:
+        text = scenario.program_text
+    elif scenario.program_file is not None:
+        try:
+            text = Path(scenario.program_file).read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return {}
+    if text is None:
+        return {}
+    return {i + 1: line.rstrip() for i, line in enumerate(text.splitlines())}

@@ -1,0 +1,79 @@
+"""The object browser of the live page: the CNC objects of every axis (FCT-M3 §7.6 / §9.4, docs/objects.md).
+
+Name, index group and offset (task GEO, ADS port 551), type, unit, the raw value in the object's unit
+and the value in mm / mm/s / mm/s², live (five times a second). The read/write objects (kp, i_tn, d_tv,
+DIST_CTRL_PARAM[0]::v_max / a_max and their DISTCTRL:: aliases) can be written here with the range
+check of an ADS write; the write is "pending" until the controller adopts it on the next
+INACTIVE→active or FREEZE→active transition, then "adopted".
+"""
+from __future__ import annotations
+
+import html
+
+from bokeh.layouts import column, row
+from bokeh.models import Button, ColumnDataSource, DataTable, Div, NumericInput, Select, TableColumn
+
+from ..objects.registry import SERVED_OBJECTS
+from .hub import MachineHub, object_table
+
+COLUMNS = (("axis", "Axis", 60), ("group", "Group", 80), ("offset", "Offset", 80), ("name", "Name", 260),
+           ("type", "Type", 70), ("unit", "Unit", 80), ("raw", "Raw value", 130), ("value", "Value", 140),
+           ("access", "Access", 80), ("pending", "Write", 140))
+#: frames between two refreshes of the table (at 25 frames/s: 5 per second)
+EVERY = 5
+
+
+class ObjectBrowser:
+    """One page's object browser."""
+
+    def __init__(self, hub: MachineHub):
+        self.hub = hub
+        self.source = ColumnDataSource(object_table(hub))
+        self.table = DataTable(source=self.source, columns=[TableColumn(field=f, title=t, width=w)
+                                                            for f, t, w in COLUMNS],
+                               height=560, sizing_mode="stretch_width", index_position=None,
+                               css_classes=["obj-table"])
+        writable = [s.name for s in SERVED_OBJECTS if s.writable]
+        axes = [f"{i} {c.axis_name}" for i, c in hub.contexts.items()]
+        dc = [f"{i} {c.axis_name}" for i, c in hub.contexts.items() if c.axis_name in hub.machine.dc_axes]
+        self.axis = Select(title="Axis", options=axes, value=(dc or axes)[0], width=90, css_classes=["obj-axis"])
+        self.name = Select(title="Read/write object", options=writable, value=writable[0], width=240,
+                           css_classes=["obj-name"])
+        self.value = NumericInput(title="Value (object unit)", mode="float", width=150, css_classes=["obj-value"])
+        self.write = Button(label="Write", button_type="primary", width=90, css_classes=["obj-write"])
+        self.write.on_click(self._write)
+        self.message = Div(text="", width=900, css_classes=["obj-message"])
+        self.status = Div(text="", width=900, css_classes=["obj-status"])
+        self.layout = column(row(self.axis, self.name, self.value, self.write), self.message, self.status,
+                             self.table, sizing_mode="stretch_width")
+        self._frame = 0
+
+    def _write(self, _event=None) -> None:
+        axis_id = int(self.axis.value.split()[0])
+        if self.value.value is None:
+            self._say(False, "enter a value first")
+            return
+        ok, msg = self.hub.write_object(axis_id, self.name.value, float(self.value.value))
+        self._say(ok, msg)
+        self._frame = EVERY                   # show the pending state at once
+
+    def _say(self, ok: bool, message: str) -> None:
+        colour = "green" if ok else "red"
+        self.message.text = f'<span style="color:{colour}">{html.escape(message)}</span>'
+
+    def update(self, visible: bool = True) -> None:
+        self._frame += 1
+        if not visible or self._frame < EVERY:
+            return
+        self._frame = 0
+        data = object_table(self.hub)
+        self.source.data = data
+        axis_id = int(self.axis.value.split()[0])
+        i = next((k for k, (a, n) in enumerate(zip(data["axis_id"], data["name"]))
+                  if a == axis_id and n == self.name.value), None)
+        if i is not None:
+            text = (f"{html.escape(self.name.value)} of axis {html.escape(self.axis.value)}: raw "
+                    f"{html.escape(data['raw'][i])} {html.escape(data['unit'][i])}, "
+                    f"<b class='obj-state'>{html.escape(data['pending'][i])}</b>")
+            if self.status.text != text:
+                self.status.text = text

@@ -1,0 +1,193 @@
+"""Collision retract (issue 16, docs/process.md): contact detection, the retract at the axis limits,
+distance control off with the head up, the error with the place; no false trigger on normal plates."""
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from distctrl.errors import ErrorId
+from distctrl.plc.process import CollisionRetract
+from distctrl.plc.process.collision_retract import DONE, WATCH
+from distctrl.plc.process.config import ProcessConfig
+from distctrl.sim import run
+from distctrl.sim.machine import Machine
+from distctrl.sim.runner import load_program
+from distctrl.sim.scenario import ScenarioError, load_scenario, scenario_from_text
+
+EX = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
+COLLISION_ID = int(ErrorId.COLLISION_RETRACT)
+
+
+def with_collision_retract(sc, **keys):
+    """``sc`` with a collision_retract on its sensor's axis (the scenario defaults, ``keys`` on top)."""
+    ax = sc.sensor.axis
+    a = sc.axes[ax]
+    var = sc.sensor.variable if sc.sensor.kind in ("distance", "arc_voltage") else None
+    params = {"variable": var, "threshold": 0.2, "short_circuit": None, "confirm_cycles": 2, "retract": 5.0,
+              "retract_speed": a.v_max, "retract_accel": a.a_max, **keys}
+    return dataclasses.replace(sc, processes=sc.processes + (ProcessConfig("collision_retract", ax, params,
+                                                                           len(sc.processes)),))
+
+
+def simulate(sc, seconds):
+    m = Machine(sc, load_program(sc))
+    for _ in range(int(round(seconds / sc.cycle_time))):
+        m.step()
+    return m
+
+
+# ------------------------------------------------------------------ configuration
+def test_defaults_are_the_axis_limits():
+    sc = load_scenario(EX / "process_collision.toml")
+    (pc,) = sc.processes
+    assert pc.params == {"variable": "SENSOR", "threshold": 0.2, "short_circuit": None, "confirm_cycles": 2,
+                         "retract": 5.0, "retract_speed": 300.0, "retract_accel": 20000.0}
+    f = pc.make(sc.cycle_time)
+    assert isinstance(f, CollisionRetract) and f.phase == WATCH
+
+
+@pytest.mark.parametrize("line, key, words", [
+    ("retract_speed = 301", "process[0].retract_speed", "out of range"),     # above the axis's v_max
+    ("retract_accel = 30000", "process[0].retract_accel", "out of range"),
+    ("threshold = -1", "process[0].threshold", "out of range"),
+    ("retract = 0", "process[0].retract", "out of range"),
+    ("confirm_cycles = 0", "process[0].confirm_cycles", "out of range"),
+    ('short_circuit = "x"', "process[0].short_circuit", "number"),
+    ("lift = 3", "process[0].lift", "unknown key"),
+])
+def test_invalid_keys_name_key_value_and_range(line, key, words):
+    text = (EX / "process_collision.toml").read_text() + line + "\n"
+    with pytest.raises(ScenarioError) as exc:
+        scenario_from_text(text, base_dir=EX)
+    assert exc.value.key == key and words in str(exc.value)
+
+
+# ------------------------------------------------------------------ the example: a tipped-up part
+def test_the_head_hits_the_part_retracts_at_the_axis_limits_and_the_program_stops_with_the_place():
+    sc = load_scenario(EX / "process_collision.toml")
+    result = run(sc)
+    assert result.outcome == "aborted" and result.exit_code == 2 and result.final_state == "INACTIVE"
+    (err,) = result.errors
+    assert err["id"] == COLLISION_ID and err["line"] == 7                       # N50 G1 X200
+    assert err["t"] == pytest.approx(0.889, abs=0.002)
+    msg = err["message"]
+    assert "X=120.6" in msg and "Y=10.000 mm" in msg and "read 0.000 mm" in msg
+    assert "retracted 5.0" in msg and "distance control is off" in msg
+    tr = result.trace
+    t, z = np.asarray(tr["t"]), np.asarray(tr["Z.act"])
+    v = np.diff(z) / sc.cycle_time
+    a = np.diff(v) / sc.cycle_time
+    assert np.abs(v).max() <= 300.0 + 1e-6 and np.abs(a).max() <= 20000.0 + 1e-6   # the axis limits
+    i = int(np.searchsorted(t, err["t"]))
+    assert z[-1] - z[i] == pytest.approx(5.1, abs=0.2)               # up by the retract and stays up
+    assert np.abs(np.diff(z[-200:])).max() <= 1.5e-4                  # at rest (one encoder increment)
+    assert np.asarray(tr["true.distance"])[-1] > 2.0                  # above the part
+    assert np.asarray(tr["Z.dc.state"])[-1] == 0
+
+
+def test_retract_figures_on_the_function():
+    sc = load_scenario(EX / "process_collision.toml")
+    m = simulate(sc, 1.2)
+    f = m.process_program.function("collision_retract", "Z")
+    (c,) = f.log
+    assert f.phase == DONE and c["line"] == 7 and c["reading"] <= 0.2
+    assert c["retract"] == pytest.approx(5.0, abs=0.15) and c["retract_time"] < 0.05
+    assert m.nc.aborted and m.hli["Z"].state_r.actual_state == 0
+    assert m.process_program.holds["Z"].inhibitors == {"collision_retract"}
+
+
+def test_without_the_function_the_head_runs_through_the_part():
+    sc = dataclasses.replace(load_scenario(EX / "process_collision.toml"), processes=())
+    result = run(sc, keep_trace=False)
+    assert result.outcome == "completed" and result.metrics["collisions"] == 1
+    assert result.metrics["min_distance_mm"] < -2.9
+
+
+def test_distctrl_run_json_exit_code_and_error():
+    proc = subprocess.run([sys.executable, "-m", "distctrl", "run", str(EX / "process_collision.toml"), "--json"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2, proc.stderr
+    data = json.loads(proc.stdout)
+    assert [e["id"] for e in data["errors"]] == [COLLISION_ID]
+
+
+def test_a_lock_does_not_freeze_the_retract():
+    # the corner lock wants FREEZE as soon as the path slows down (the stop): the retract owns the axis
+    sc = load_scenario(EX / "process_collision.toml")
+    text = (EX / "process_collision.toml").read_text().replace(
+        '[[process]]\nfunction = "collision_retract"', '[[process]]\nfunction = "corner_lock"\naxis = "Z"\n'
+        '[[process]]\nfunction = "collision_retract"')
+    sc = scenario_from_text(text, base_dir=EX)
+    m = simulate(sc, 1.2)
+    (c,) = m.process_program.function("collision_retract", "Z").log
+    assert c["retract"] == pytest.approx(5.0, abs=0.15)
+
+
+# ------------------------------------------------------------------ short circuit, touch-off, reset
+SHEET = """
+name = "sheet"
+cycle_time = 0.001
+duration = 3.0
+program_text = "N10 G90 G0 X0 Z31\\nN20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]\\nN30 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\\nN40 G1 X200 F6000\\nN50 M30\\n"
+[axes.X]
+[axes.Z]
+params = "{lis}"
+start = 31.0
+kv = 60.0
+v_max = 300.0
+a_max = 20000.0
+[surface]
+base = 30.0
+[sensor]
+axis = "Z"
+kind = "distance"
+variable = "SENSOR"
+range_max = 10.0
+noise_std = 0.002
+[[events]]
+t = 1.0
+sensor_fault = {{ kind = "dropout", value = 9.5 }}
+"""
+
+
+def test_the_short_circuit_value_triggers_and_the_retract_does_not_rely_on_the_reading():
+    # the amplifier reports 9.5 mm on contact (its short-circuit value, inside the range: no run-out error):
+    # a distance control following it dives
+    sc = scenario_from_text(SHEET.format(lis=(EX / "z_laser.lis").as_posix()), base_dir=EX)
+    without = run(sc, keep_trace=False)
+    assert without.metrics["collisions"] >= 1
+    m = simulate(with_collision_retract(sc, short_circuit=9.5), 1.5)
+    f = m.process_program.function("collision_retract", "Z")
+    (c,) = f.log
+    assert c["cycle"] == pytest.approx(1002, abs=2) and c["reading"] == 9.5
+    assert c["retract"] == pytest.approx(5.0, abs=0.15)               # up, although the reading says "far"
+    assert m.true_distance > 5.0 and m.hli["Z"].state_r.actual_state == 0
+    assert [ev.id for _, ev in m.events if ev.severity == "error"] == [COLLISION_ID]
+
+
+def test_no_trigger_while_a_touch_off_probes():
+    # detect 0.1 mm: the probe reads below the collision threshold before it stops
+    text = (EX / "process_touch.toml").read_text() + 'detect = 0.1\n[[process]]\nfunction = "collision_retract"\naxis = "Z"\n'
+    result = run(scenario_from_text(text, base_dir=EX), keep_trace=False)
+    assert result.outcome == "completed" and result.errors == []
+    assert 0.0 < result.metrics["min_distance_mm"] < 0.2
+
+
+@pytest.mark.parametrize("name", ["process_void.toml", "process_corner.toml", "capacitive_edge.toml",
+                                  "process_auto.toml"])
+def test_no_false_trigger_on_normal_plates(name):
+    result = run(with_collision_retract(load_scenario(EX / name)), keep_trace=False)
+    assert result.outcome == "completed" and result.errors == [] and result.metrics["collisions"] == 0
+
+
+def test_reset_returns_to_watching_and_releases_the_hold():
+    sc = load_scenario(EX / "process_collision.toml")
+    m = simulate(sc, 1.2)
+    f = m.process_program.function("collision_retract", "Z")
+    assert f.phase == DONE and f.hold.inhibitors
+    f.reset()
+    assert f.phase == WATCH and f.hits == 0 and f.contact is None and not f.hold.inhibitors
