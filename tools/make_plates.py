@@ -14,9 +14,11 @@ The layouts (docs/process.md, "The two plates"):
   four cuts that run into the edge, one trim cut along the edge 2 mm inside it; 0.5 mm
   waviness (peak to peak) along X and Y.
 
-Every contour: lift to the safe height, rapid to the start, down to the cut height above the plate's
-height at the start (what a touch-off measures there: the script knows the surface), wait 0.15 s in
-position (the drive's lag), select distance control with WAIT, cut, OFF, lift. ``--short`` writes the shortened variants the tests
+The program: rapid to the first start, down to the cut height above the plate's height there (what a
+touch-off measures: the script knows the surface), 0.15 s in position (the drive's lag), distance
+control selected once (WAIT), then the cuts with a G0 at the cut height from each cut's end to the
+next start: the ``lift`` function lifts the head over these rapids ("frog jump"); without it they run
+at the cut height with distance control on. OFF and up at the end. ``--short`` writes the shortened variants the tests
 run (plasma_plate_short.*, laser_sheet_short.*: the first part, the same features under it).
 """
 from __future__ import annotations
@@ -51,24 +53,34 @@ def plasma_height(x: float, y: float) -> float:
 #: (benchmarks and tests run the plates with them and without them: processes = ())
 PROCESS_PLASMA = """
 # the cutting-process functions (docs/process.md), their defaults: hold the height at the corners
-# (path below 90 % of F) and while the arc voltage changes faster than 500 V/s (kerfs, holes)
+# (path below 90 % of F) and while the arc voltage changes faster than 500 V/s (kerfs, holes); lift the head
+# 5 mm over the rapids between the cuts while X/Y move
 [[process]]
 function = "corner_lock"
 axis = "Z"
 
 [[process]]
 function = "void_lock"
+axis = "Z"
+
+[[process]]
+function = "lift"
 axis = "Z"
 """
 PROCESS_LASER = """
 # the cutting-process functions (docs/process.md), their defaults: hold the height at the corners
-# (path below 90 % of F) and while the distance changes faster than 80 mm/s (holes, the edge)
+# (path below 90 % of F) and while the distance changes faster than 80 mm/s (holes, the edge); lift the head
+# 5 mm over the rapids between the cuts while X/Y move
 [[process]]
 function = "corner_lock"
 axis = "Z"
 
 [[process]]
 function = "void_lock"
+axis = "Z"
+
+[[process]]
+function = "lift"
 axis = "Z"
 """
 
@@ -82,41 +94,38 @@ def plasma_holes(parts):
     return holes
 
 
-def contour_nc(lines, n, x0, y0, x1, y1, feed, set_dist, safe, height):
-    """One rectangular part, counter-clockwise from (x0, y0); ``height(x, y)`` the plate's height."""
-    approach = round(height(x0, y0) + set_dist, 3)
+def program_nc(lines, cuts, feed, set_dist, safe, height):
+    """The cuts (polylines [(x, y), ...]) as one program: down to the cut height at the first start,
+    distance control selected once, G1 along each cut, a G0 at the cut height from one cut's end to
+    the next cut's start (the lift function lifts the head over it), OFF and up at the end."""
+    n = 20
+
     def add(text):
         nonlocal n
         n += 10
         lines.append(f"N{n} {text}")
-    add(f"G0 Z{safe:g}")
+    x0, y0 = cuts[0][0]
     add(f"G0 X{x0:g} Y{y0:g}")
-    add(f"G0 Z{approach:g}")
-    add("#TIME 0.15")                        # in position: the Z drive's lag settles (an in-position window)
+    add(f"G0 Z{round(height(x0, y0) + set_dist, 3):g}")
+    add("#TIME 0.15                          ; in position: the Z drive's lag settles")
     add(f"Z[DIST_CTRL WAIT ON CONST_DIST SET_DIST={set_dist:g}]")
-    add(f"G1 X{x1:g} F{feed:g}")
-    add(f"G1 Y{y1:g}")
-    add(f"G1 X{x0:g}")
-    add(f"G1 Y{y0:g}")
+    for k, cut in enumerate(cuts):
+        if k:
+            add(f"G0 X{cut[0][0]:g} Y{cut[0][1]:g}")
+        first = True
+        for (xa, ya), (xb, yb) in zip(cut, cut[1:]):
+            words = (f"X{xb:g} " if xb != xa else "") + (f"Y{yb:g}" if yb != ya else "")
+            add(f"G1 {words.strip()}" + (f" F{feed:g}" if first else ""))
+            first = False
     add("Z[DIST_CTRL OFF]")
-    return n
-
-
-def line_nc(lines, n, xa, ya, xb, yb, feed, set_dist, safe, height):
-    """One straight cut from (xa, ya) to (xb, yb); ``height(x, y)`` the plate's height."""
-    approach = round(height(xa, ya) + set_dist, 3)
-    def add(text):
-        nonlocal n
-        n += 10
-        lines.append(f"N{n} {text}")
     add(f"G0 Z{safe:g}")
-    add(f"G0 X{xa:g} Y{ya:g}")
-    add(f"G0 Z{approach:g}")
-    add("#TIME 0.15")                        # in position: the Z drive's lag settles (an in-position window)
-    add(f"Z[DIST_CTRL WAIT ON CONST_DIST SET_DIST={set_dist:g}]")
-    add(f"G1 X{xb:g} Y{yb:g} F{feed:g}")
-    add("Z[DIST_CTRL OFF]")
-    return n
+    add("M30")
+    lines.append("")
+
+
+def rectangle(x0, y0, x1, y1):
+    """A rectangular part, counter-clockwise from (x0, y0) back to it."""
+    return [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
 
 
 def plasma(short: bool) -> tuple[str, str]:
@@ -127,12 +136,9 @@ def plasma(short: bool) -> tuple[str, str]:
     lines = [f"%{name.upper()}",
              f"; {len(parts)} parts at {P_FEED / 1000:g} m/min: {4 * len(parts)} x 90° corners, {crossings} kerf crossings,",
              f"; {len(holes)} holes crossed; generated by tools/make_plates.py",
-             "N10 G90 G0 Z45",
+             f"N10 G90 G0 Z{P_SAFE:g}",
              "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]"]
-    n = 20
-    for part in parts:
-        n = contour_nc(lines, n, *part, P_FEED, P_SET, P_SAFE, plasma_height)
-    lines += [f"N{n + 10} G0 Z{P_SAFE:g}", f"N{n + 20} M30", ""]
+    program_nc(lines, [rectangle(*part) for part in parts], P_FEED, P_SET, P_SAFE, plasma_height)
     hole_list = ",\n    ".join(", ".join(f"[{x:g}, {y:g}]" for x, y in holes[i:i + 6]) for i in range(0, len(holes), 6))
     kerfs = "\n".join(f'  {{ type = "step", axis = "X", at = {x:g}, height = -40.0, width = {P_KERF_W:g} }},'
                       for x in P_KERFS)
@@ -234,12 +240,8 @@ def laser(short: bool) -> tuple[str, str]:
              f"; {len(holes)} holes crossed; generated by tools/make_plates.py",
              f"N10 G90 G0 Z{L_SAFE:g}",
              "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]"]
-    n = 20
-    for part in parts:
-        n = contour_nc(lines, n, *part, L_FEED, L_SET, L_SAFE, laser_height)
-    for cut in edge_cuts + [L_TRIM]:
-        n = line_nc(lines, n, *cut, L_FEED, L_SET, L_SAFE, laser_height)
-    lines += [f"N{n + 10} G0 Z{L_SAFE:g}", f"N{n + 20} M30", ""]
+    cuts = [rectangle(*part) for part in parts] + [[(xa, ya), (xb, yb)] for xa, ya, xb, yb in edge_cuts + [L_TRIM]]
+    program_nc(lines, cuts, L_FEED, L_SET, L_SAFE, laser_height)
     hole_list = ",\n    ".join(", ".join(f"[{x:g}, {y:g}]" for x, y in holes[i:i + 6]) for i in range(0, len(holes), 6))
     DURATION = 15.0 if short else 40.0
     toml = f'''# generated by tools/make_plates.py ({"--short" if short else "the full sheet"}); docs/process.md, "The two plates"

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from distctrl.sim.plates import EXAMPLES, TARGET_MIN_SHARE, compare
+from distctrl.sim.plates import EXAMPLES, TARGET_LIFT_INCREASE, TARGET_MIN_SHARE, compare
 from distctrl.sim.scenario import load_scenario
 from distctrl.sim.surface import Holes, Sine, Step
 
@@ -25,10 +25,17 @@ def figures(request):
 def test_with_the_functions_the_head_keeps_30_percent_and_never_collides(figures):
     name, f = figures
     w = f["with"]
-    assert w["functions"] == ["corner_lock", "void_lock"]
+    assert w["functions"] == ["corner_lock", "void_lock", "lift"]
     assert w["completed"] and not w["errors"], name
     assert w["collisions"] == 0, name
     assert w["min_distance_mm"] >= TARGET_MIN_SHARE * w["set_distance_mm"], (name, w)
+
+
+def test_the_lift_adds_at_most_5_percent_to_the_path_time(figures):
+    name, f = figures
+    assert f["with"]["lifts"] >= 1 and f["no_lift"]["lifts"] == 0, name
+    assert f["no_lift"]["functions"] == ["corner_lock", "void_lock"]
+    assert f["lift_path_time_increase"] <= TARGET_LIFT_INCREASE, (name, f["lift_path_time_increase"])
 
 
 def test_without_the_functions_the_same_plate_shows_the_dive(figures):
@@ -57,8 +64,8 @@ def _crossings(nc_text: str, kerfs: list[float]) -> tuple[int, int]:
             if last_dir is not None and d != last_dir:
                 corners += 1
             last_dir = d
-        elif "DIST_CTRL OFF" in line:
-            last_dir = None
+        elif " G0 " in f" {line} " or "DIST_CTRL OFF" in line:
+            last_dir = None                          # a rapid or the end: the next cut starts afresh
         x, y = nx, ny
     return crossings, corners
 
