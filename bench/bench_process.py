@@ -42,7 +42,7 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     plates = [p + "_short" for p in PLATES] if args.short else list(PLATES)
     data, lines = {}, ["", "## cutting-process functions on issue 16's plates", "",
-                       "| plate | functions | min true distance | time below ½ set | collisions | path time | "
+                       "| plate | functions | min true distance (cuts only) | time below ½ set | collisions | path time | "
                        "target |", "|---|---|---:|---:|---:|---:|---|"]
     all_ok = True
     for name in plates:
@@ -60,13 +60,15 @@ def main(argv=None) -> dict:
         data[name] = {**res, "ok_with": ok_with, "dive_without": dive, "ok_lift": ok_lift, "wall_s": round(wall, 2)}
         for label, f, verdict in ((", ".join(w["functions"]), w, "PASS" if ok_with else "FAIL"),
                                   ("none", wo, "dive shown" if dive else "NO DIVE")):
-            lines.append(f"| {name} (set {f['set_distance_mm']:g} mm) | {label} | {_fmt(f['min_distance_mm'])} mm | "
+            lines.append(f"| {name} (set {f['set_distance_mm']:g} mm) | {label} | {_fmt(f['min_distance_mm'])} mm "
+                         f"({_fmt(f['min_cut_distance_mm'])} mm) | "
                          f"{_fmt(f['time_below_half_s'])} s | {f['collisions']} | {_fmt(f['path_time_s'])} s | "
                          f"{verdict} |")
         if "no_lift" in res:
             nl = res["no_lift"]
             lines.append(f"| {name} (set {nl['set_distance_mm']:g} mm) | {', '.join(nl['functions'])} (no lift) | "
-                         f"{_fmt(nl['min_distance_mm'])} mm | {_fmt(nl['time_below_half_s'])} s | {nl['collisions']} | "
+                         f"{_fmt(nl['min_distance_mm'])} mm ({_fmt(nl['min_cut_distance_mm'])} mm) | "
+                         f"{_fmt(nl['time_below_half_s'])} s | {nl['collisions']} | "
                          f"{_fmt(nl['path_time_s'])} s | lift: {w['lifts']} rapids, path time {inc:+.1%} "
                          f"({'PASS' if ok_lift else 'FAIL'}, ≤ {TARGET_LIFT_INCREASE:.0%}) |")
         print(f"{name}: with {_fmt(w['min_distance_mm'])} mm, {w['collisions']} collisions; without "
@@ -79,7 +81,7 @@ def main(argv=None) -> dict:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "process.json").write_text(json.dumps(data, indent=2))
     summary = {f"process_{name}_{k}_{m}": data[name][k][m] for name in data for k in ("with", "without")
-               for m in ("min_distance_mm", "time_below_half_s", "collisions", "path_time_s")}
+               for m in ("min_distance_mm", "min_cut_distance_mm", "time_below_half_s", "collisions", "path_time_s")}
     summary.update({f"process_{name}_lift_path_time_increase": data[name].get("lift_path_time_increase")
                     for name in data})
     summary["process_ok"] = all_ok

@@ -14,9 +14,11 @@ The layouts (docs/process.md, "The two plates"):
   four cuts that run into the edge, one trim cut along the edge 2 mm inside it; 0.5 mm
   waviness (peak to peak) along X and Y.
 
-The program: rapid to the first start, down to the cut height above the plate's height there (what a
-touch-off measures: the script knows the surface), 0.15 s in position (the drive's lag), distance
-control selected once (WAIT), then the cuts with a G0 at the cut height from each cut's end to the
+The program: rapid to the first start, down to 2 mm above the plate's highest point, 0.15 s in position
+(the drive's lag), the touch-off (``V.E.TOUCH_OFF = V.E.IHS``, ``#WAIT FOR V.E.TOUCH_OFF == 0``: with
+the scenario variable IHS = 1 the touch_off function probes down and backs off to the pierce height;
+the runs without the functions set IHS = 0 and the select comes down instead), distance control
+selected once (WAIT), then the cuts with a G0 at the cut height from each cut's end to the
 next start: the ``lift`` function lifts the head over these rapids ("frog jump"); without it they run
 at the cut height with distance control on. OFF and up at the end. ``--short`` writes the shortened variants the tests
 run (plasma_plate_short.*, laser_sheet_short.*: the first part, the same features under it).
@@ -40,21 +42,21 @@ P_HOLE_X = [45.0, 225.0, 315.0, 495.0]             # 4 holes on each long edge, 
 HOLE_D = 10.0
 P_FEED = 5000.0          # mm/min
 P_SET = 1.5              # mm: the cut height (SET_DIST)
-P_SAFE = 45.0            # Z of the lifts: 11 mm above the dome's top, beyond the arc (range_max 10 mm)
-
-
-def plasma_height(x: float, y: float) -> float:
-    """The warped plate's height (mm) at (x, y): the two sines of the TOML below."""
-    return (P_BASE - P_WARP / 2 * math.cos(2 * math.pi * x / P_SIZE[0])
-            - P_WARP / 2 * math.cos(2 * math.pi * y / P_SIZE[1]))
+P_SAFE = 45.0            # Z at the start and the end: 13 mm above the dome's top
+P_APPROACH = 34.0        # Z the touch-off starts from: 2 mm above the dome's top (30 + 2)
 
 
 #: "with the functions": the [[process]] tables of each plate, all with their documented defaults
 #: (benchmarks and tests run the plates with them and without them: processes = ())
 PROCESS_PLASMA = """
-# the cutting-process functions (docs/process.md), their defaults: hold the height at the corners
+# the cutting-process functions (docs/process.md), their defaults: touch off at the first start (probe
+# at 10 mm/s, back off to 3 mm), hold the height at the corners
 # (path below 90 % of F) and while the arc voltage changes faster than 500 V/s (kerfs, holes); lift the head
 # 5 mm over the rapids between the cuts while X/Y move
+[[process]]
+function = "touch_off"
+axis = "Z"
+
 [[process]]
 function = "corner_lock"
 axis = "Z"
@@ -68,9 +70,14 @@ function = "lift"
 axis = "Z"
 """
 PROCESS_LASER = """
-# the cutting-process functions (docs/process.md), their defaults: hold the height at the corners
+# the cutting-process functions (docs/process.md), their defaults: touch off at the first start (probe
+# at 10 mm/s, back off to 3 mm), hold the height at the corners
 # (path below 90 % of F) and while the distance changes faster than 80 mm/s (holes, the edge); lift the head
 # 5 mm over the rapids between the cuts while X/Y move
+[[process]]
+function = "touch_off"
+axis = "Z"
+
 [[process]]
 function = "corner_lock"
 axis = "Z"
@@ -94,9 +101,9 @@ def plasma_holes(parts):
     return holes
 
 
-def program_nc(lines, cuts, feed, set_dist, safe, height):
-    """The cuts (polylines [(x, y), ...]) as one program: down to the cut height at the first start,
-    distance control selected once, G1 along each cut, a G0 at the cut height from one cut's end to
+def program_nc(lines, cuts, feed, set_dist, safe, approach):
+    """The cuts (polylines [(x, y), ...]) as one program: down to ``approach`` at the first start, the
+    touch-off (when the scenario variable IHS is 1), distance control selected once, G1 along each cut, a G0 at the cut height from one cut's end to
     the next cut's start (the lift function lifts the head over it), OFF and up at the end."""
     n = 20
 
@@ -106,8 +113,10 @@ def program_nc(lines, cuts, feed, set_dist, safe, height):
         lines.append(f"N{n} {text}")
     x0, y0 = cuts[0][0]
     add(f"G0 X{x0:g} Y{y0:g}")
-    add(f"G0 Z{round(height(x0, y0) + set_dist, 3):g}")
+    add(f"G0 Z{approach:g}                         ; above the highest point of the plate")
     add("#TIME 0.15                          ; in position: the Z drive's lag settles")
+    add("V.E.TOUCH_OFF = V.E.IHS             ; initial height sense when IHS = 1 (the PLC's touch_off)")
+    add("#WAIT FOR V.E.TOUCH_OFF == 0        ; done: FREEZE at the pierce height")
     add(f"Z[DIST_CTRL WAIT ON CONST_DIST SET_DIST={set_dist:g}]")
     for k, cut in enumerate(cuts):
         if k:
@@ -138,7 +147,7 @@ def plasma(short: bool) -> tuple[str, str]:
              f"; {len(holes)} holes crossed; generated by tools/make_plates.py",
              f"N10 G90 G0 Z{P_SAFE:g}",
              "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]"]
-    program_nc(lines, [rectangle(*part) for part in parts], P_FEED, P_SET, P_SAFE, plasma_height)
+    program_nc(lines, [rectangle(*part) for part in parts], P_FEED, P_SET, P_SAFE, P_APPROACH)
     hole_list = ",\n    ".join(", ".join(f"[{x:g}, {y:g}]" for x, y in holes[i:i + 6]) for i in range(0, len(holes), 6))
     kerfs = "\n".join(f'  {{ type = "step", axis = "X", at = {x:g}, height = -40.0, width = {P_KERF_W:g} }},'
                       for x in P_KERFS)
@@ -148,6 +157,9 @@ name = "{'plasma plate, shortened (the first part)' if short else 'plasma plate'
 cycle_time = 0.001
 program = "{name}.nc"
 duration = {DURATION}                         # s: an upper bound (the program ends well before)
+# the machine's initial height sense: 1 = the program asks the touch_off function for it (V.E.TOUCH_OFF);
+# the runs without the functions set it 0 (distctrl.sim.plates): distance control's select comes down
+variables = {{ IHS = 1 }}
 
 [axes.X]
 v_max = 500.0
@@ -206,18 +218,13 @@ L_PARTS = [(40.0 + 110.0 * i, 40.0, 140.0 + 110.0 * i, 100.0) for i in range(4)]
 L_HOLE_X = [65.0, 115.0]                            # per part, relative to x0 - 40 ... (see laser_holes)
 L_FEED = 20000.0
 L_SET = 1.0
-L_SAFE = 42.0            # Z of the lifts: 11 mm above the sheet's highest point, beyond the sensor's range
+L_SAFE = 42.0            # Z at the start and the end: 11.75 mm above the sheet's highest point
+L_APPROACH = 33.0        # Z the touch-off starts from: 2.75 mm above the sheet's highest point
 L_EDGE_CUTS = [(420.0, 150.0 + 30.0 * i, L_EDGE, 150.0 + 30.0 * i) for i in range(4)]   # into the edge
 L_TRIM = (L_EDGE - 2.0, 130.0, L_EDGE - 2.0, 280.0)                                    # along the edge
 
 
 L_WAVE_Y = (0.10, 150.0, 1.0)                       # amplitude, wavelength, phase of the Y waviness
-
-
-def laser_height(x: float, y: float) -> float:
-    """The sheet's height (mm) at (x, y) inside the edge: the two sines of the TOML below."""
-    a, lam, ph = L_WAVE_Y
-    return L_BASE + L_WAVE * math.sin(2 * math.pi * x / 200.0) + a * math.sin(2 * math.pi * y / lam + ph)
 
 
 def laser_holes(parts):
@@ -241,7 +248,7 @@ def laser(short: bool) -> tuple[str, str]:
              f"N10 G90 G0 Z{L_SAFE:g}",
              "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]"]
     cuts = [rectangle(*part) for part in parts] + [[(xa, ya), (xb, yb)] for xa, ya, xb, yb in edge_cuts + [L_TRIM]]
-    program_nc(lines, cuts, L_FEED, L_SET, L_SAFE, laser_height)
+    program_nc(lines, cuts, L_FEED, L_SET, L_SAFE, L_APPROACH)
     hole_list = ",\n    ".join(", ".join(f"[{x:g}, {y:g}]" for x, y in holes[i:i + 6]) for i in range(0, len(holes), 6))
     DURATION = 15.0 if short else 40.0
     toml = f'''# generated by tools/make_plates.py ({"--short" if short else "the full sheet"}); docs/process.md, "The two plates"
@@ -249,6 +256,9 @@ name = "{'laser sheet, shortened' if short else 'laser sheet'}: an edge, {len(ho
 cycle_time = 0.001
 program = "{name}.nc"
 duration = {DURATION}                         # s: an upper bound (the program ends well before)
+# the machine's initial height sense: 1 = the program asks the touch_off function for it (V.E.TOUCH_OFF);
+# the runs without the functions set it 0 (distctrl.sim.plates): distance control's select comes down
+variables = {{ IHS = 1 }}
 
 [axes.X]
 v_max = 500.0

@@ -4,12 +4,14 @@
 them with ``functions=False``) and measures, as docs/process.md "The two plates" defines them:
 
 * ``min_distance_mm`` - the minimum true distance of the nozzle over the whole run (mm; negative:
-  into the plate);
+  into the plate), a touch-off's probe included; ``min_cut_distance_mm`` the same while a G1 block
+  runs (the cuts);
 * ``time_below_half_s`` - how long the true distance was below half the set distance in force while
   distance control ran (ACTIVE, ACTIVE_CONST_DIST or FREEZE; s);
 * ``collisions`` - contacts with the plate (warning 900030, docs/run.md "Collisions");
 * ``path_time_s`` - from the start until the NC program ended (s);
-* ``set_distance_mm`` - the largest set distance in force while distance control ran (mm), and
+* ``set_distance_mm`` - the cut's set distance: the median of the set distance in force while
+  distance control ran (mm; a touch-off's probe and pierce height are brief), and
   ``min_share`` = min_distance_mm / set_distance_mm.
 
 ``compare(scenario)`` gives both (``{"with": ..., "without": ...}``), and with a ``lift`` table the
@@ -19,6 +21,7 @@ examples/scenarios/plasma_plate.toml and laser_sheet.toml (tools/make_plates.py 
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 __all__ = ["PLATES", "EXAMPLES", "plate_figures", "compare", "TARGET_MIN_SHARE", "TARGET_LIFT_INCREASE"]
@@ -45,12 +48,18 @@ def plate_figures(scenario, functions: bool = True, drop: tuple = ()) -> dict:
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     keep = tuple(p for p in sc.processes if functions and p.function not in drop)
     sc = dataclasses.replace(sc, processes=keep)
-    ended = {"cycle": None, "lifts": 0, "up": False}
+    if "IHS" in sc.variables and not any(p.function == "touch_off" for p in keep):
+        # the plates' programs ask for the touch-off when IHS = 1 and wait for the PLC's answer: without
+        # the function the machine's initial height sense is off (distance control's select comes down)
+        sc = dataclasses.replace(sc, variables={**sc.variables, "IHS": 0.0})
+    ended = {"cycle": None, "lifts": 0, "up": False, "cut_min": math.inf}
 
     def watch(machine, cycle):          # a PLC program that only reads: the cycle the program ran last
         nc = machine.nc
         if nc is not None and nc.running:
             ended["cycle"] = cycle
+        if machine.channel_path.motion_type == 2 and machine.true_distance < ended["cut_min"]:
+            ended["cut_min"] = machine.true_distance       # the cuts (G1) only: no touch-off, no rapid
         up = any(lm.lift_active for lm in machine.lift_motions)
         if up and not ended["up"]:
             ended["lifts"] += 1
@@ -64,13 +73,16 @@ def plate_figures(scenario, functions: bool = True, drop: tuple = ()) -> dict:
     state = tr.data[:, col(f"{axis}.dc.state")]
     set_dist = tr.data[:, col(f"{axis}.dc.set_dist")]
     on = np.isin(state, _RUNNING)
-    set_max = float(set_dist[on].max()) if on.any() else float("nan")
+    # the cut's set distance: the one in force for most of the time distance control ran (a touch-off's
+    # SET_DIST = 0 probe and its pierce height are brief)
+    set_cut = float(np.median(set_dist[on])) if on.any() else float("nan")
     below = int(np.count_nonzero(on & (d < 0.5 * set_dist)))
     m = r.metrics
     path = None if ended["cycle"] is None else (ended["cycle"] + 1) * sc.cycle_time
-    return {"min_distance_mm": m["min_distance_mm"], "time_below_half_s": below * sc.cycle_time,
-            "collisions": m["collisions"], "path_time_s": path, "set_distance_mm": set_max,
-            "min_share": (m["min_distance_mm"] / set_max) if m["min_distance_mm"] is not None else None,
+    cut_min = ended["cut_min"] if math.isfinite(ended["cut_min"]) else None
+    return {"min_distance_mm": m["min_distance_mm"], "min_cut_distance_mm": cut_min, "time_below_half_s": below * sc.cycle_time,
+            "collisions": m["collisions"], "path_time_s": path, "set_distance_mm": set_cut,
+            "min_share": (m["min_distance_mm"] / set_cut) if m["min_distance_mm"] is not None else None,
             "completed": r.completed, "errors": [e["id"] for e in r.errors],
             "functions": [p.function for p in sc.processes], "lifts": ended["lifts"]}
 

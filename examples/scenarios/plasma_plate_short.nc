@@ -4,13 +4,15 @@
 N10 G90 G0 Z45
 N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]
 N30 G0 X20 Y30
-N40 G0 Z29.631
+N40 G0 Z34                         ; above the highest point of the plate
 N50 #TIME 0.15                          ; in position: the Z drive's lag settles
-N60 Z[DIST_CTRL WAIT ON CONST_DIST SET_DIST=1.5]
-N70 G1 X580 F5000
-N80 G1 Y80
-N90 G1 X20
-N100 G1 Y30
-N110 Z[DIST_CTRL OFF]
-N120 G0 Z45
-N130 M30
+N60 V.E.TOUCH_OFF = V.E.IHS             ; initial height sense when IHS = 1 (the PLC's touch_off)
+N70 #WAIT FOR V.E.TOUCH_OFF == 0        ; done: FREEZE at the pierce height
+N80 Z[DIST_CTRL WAIT ON CONST_DIST SET_DIST=1.5]
+N90 G1 X580 F5000
+N100 G1 Y80
+N110 G1 X20
+N120 G1 Y30
+N130 Z[DIST_CTRL OFF]
+N140 G0 Z45
+N150 M30
