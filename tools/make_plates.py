@@ -26,7 +26,6 @@ run (plasma_plate_short.*, laser_sheet_short.*: the first part, the same feature
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 OUT = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
