@@ -60,7 +60,8 @@ def test_demo_prints_the_plate_with_and_without_the_functions(capsys):
     from distctrl.cli.demo import plate_table
     res = plate_table(Console(width=120), "plasma_plate_short")
     out = capsys.readouterr().out
-    assert "with corner_lock, void_lock, lift" in out and "without" in out
+    assert "with touch_off, corner_lock, void_lock, lift" in out and "without" in out
+    assert f"{res['with']['min_cut_distance_mm']:.3f} mm" in out
     assert f"{res['with']['min_distance_mm']:.3f} mm" in out and f"{res['without']['min_distance_mm']:.3f} mm" in out
     assert f"{res['with']['path_time_s']:.3f} s" in out and "SET_DIST" in out
     assert res["without"]["collisions"] > 0 and f"{res['without']['collisions']}" in out
