@@ -120,6 +120,7 @@ class ExitCode(IntEnum):
     INVALID_INPUT = 1       # a file, value or option is invalid (also click usage errors); nothing ran
     ABORTED = 2             # a control error (ID, NC line, time) aborted the NC program
     TIME_LIMIT = 3          # stopped at the run's time limit (duration) before the program ended
+    CHECK_FAILED = 4        # it ran, but a check it makes failed (calibrate: the runs differ beyond the tolerance)
     INTERRUPTED = 130       # Ctrl-C / SIGINT (128 + 2, the shell's convention)
 
 

@@ -145,7 +145,7 @@ def test_the_exit_codes_are_one_table():
     from distctrl.errors import ExitCode
 
     assert {c.name: int(c) for c in ExitCode} == {"OK": 0, "INVALID_INPUT": 1, "ABORTED": 2, "TIME_LIMIT": 3,
-                                                   "INTERRUPTED": 130}
+                                                   "CHECK_FAILED": 4, "INTERRUPTED": 130}
 
 
 def test_the_command_list_shows_whole_short_helps():

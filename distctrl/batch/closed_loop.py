@@ -208,6 +208,9 @@ def _check_sensor(sensor) -> None:
         if sensor.bursts is not None:
             raise ClosedLoopError("[sensor] bursts: plume/spark noise bursts are not modelled by the closed-loop "
                                   f"kernel: {_SENSORS}, without bursts")
+        if getattr(sensor, "linearisation", None) is not None:
+            raise ClosedLoopError("[sensor] linearisation: the PLC's linearisation table is not modelled by the "
+                                  f"closed-loop kernel: {_SENSORS}, without a linearisation")
 
 
 def _variable_source(cmd, kc: int, sensor_var: str, k_first):

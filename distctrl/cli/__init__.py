@@ -11,6 +11,7 @@ from .common import DistctrlGroup
 
 #: the commands that live beside what they serve, imported when used
 LAZY_COMMANDS = {
+    "calibrate": "distctrl.workbench.calibrate_cli:calibrate_cmd",
     "filters": "distctrl.workbench.filters_cli:filters",
     "identify": "distctrl.workbench.identify_cli:identify_cmd",
     "margins": "distctrl.workbench.margins_cli:margins",

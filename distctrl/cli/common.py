@@ -1,7 +1,8 @@
 """What every ``distctrl`` command shares: the exit codes, error lines, JSON output, the command group.
 
 * :class:`~distctrl.errors.ExitCode`: 0 ok, 1 invalid input (also click's usage errors, which click
-  itself would end with 2), 2 a control error aborted the program, 3 the time limit, 130 Ctrl-C.
+  itself would end with 2), 2 a control error aborted the program, 3 the time limit, 4 a check the
+  command makes failed (calibrate's repeatability), 130 Ctrl-C.
 * :func:`fail`: one ``error: ...`` line on stderr and the exit code; never a traceback.
 * :func:`emit_json`: one JSON object on stdout; NaN and infinities become ``null`` (a metric that
   cannot be computed is null, never a number that is wrong).

@@ -254,6 +254,11 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     add_metric = metrics.add
     out3d = machine.out3d if machine.ch3d is not None else None
     in3d = machine.in3d
+    # cycles in which a process function moves the axis itself (touch-off probe, collision retract:
+    # ACTIVE_CONST_DIST with a set distance that is not the cut's) are not tracking: not in the metrics
+    proc = getattr(machine, "process_program", None)
+    hold = proc.holds.get(dc_axis) if proc is not None and dc_axis is not None else None
+    moved_by_process = hold.inhibitors if hold is not None else frozenset()
     try:
         for k in range(max_cycles):
             step()
@@ -274,7 +279,10 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                     metrics.gap()
             elif dc_out is not None:
                 state = dc_out.hli_state
-                if state == 4:
+                if moved_by_process:
+                    if metrics.inside:
+                        metrics.gap()
+                elif state == 4:
                     add_metric(k, line, machine.true_distance - dc_out.set_distance,
                                machine.true_surface)
                 elif state == 1:

@@ -70,13 +70,16 @@ SENSOR_KEYS = ("axis", "kind", "mode", "variable", "noise_std", "delay_cycles", 
                "footprint_radius", "footprint_points", "field_range", "bursts", "voltage_variable", "arc_v0", "arc_k", "arc_ripple",
                "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0", "plc_k",
                # issue 16: the arc voltage's rise when the torch slows (docs/sim-models.md)
-               "arc_speed_volts", "arc_cut_speed", "arc_speed_tau")
+               "arc_speed_volts", "arc_cut_speed", "arc_speed_tau",
+               # issue 16: the PLC's linearisation table of a distance sensor (distctrl calibrate)
+               "linearisation", "raw_variable")
 #: sensor keys that only some kinds accept
 _SENSOR_KIND_ONLY = {"variable": ("distance", "arc_voltage"), "characteristic": ("distance",),
                      "resolution": ("distance",), "range_min": ("encoder",), "reading_at_contact": ("encoder",),
                      "footprint_radius": ("distance", "arc_voltage"), "field_range": ("distance", "arc_voltage"),
                      "footprint_points": ("distance", "arc_voltage"),
                      "bursts": ("distance", "arc_voltage"),
+                     "linearisation": ("distance",), "raw_variable": ("distance",),
                      **{k: ("arc_voltage",) for k in ("voltage_variable", "arc_v0", "arc_k", "arc_ripple",
                                                       "arc_ripple_hz", "arc_noise_std", "kerf_jump", "plc_v0",
                                                       "plc_k", "arc_speed_volts", "arc_cut_speed",
@@ -233,16 +236,29 @@ class SensorConfig:
     #: arc voltage: the PLC linearisation's V0 (V) and k (V/mm); None = the arc's own (calibrated)
     plc_v0: float | None = None
     plc_k: float | None = None
+    # --- issue 16: the PLC linearises a distance sensor's reading through a table (distctrl calibrate) ---
+    #: distance: (reading mm, distance mm) pairs the PLC interpolates (None = the sensor writes ``variable``)
+    linearisation: tuple[tuple[float, float], ...] | None = None
+    #: distance with a linearisation: the V.E. variable the sensor writes its reading to (bare name)
+    raw_variable: str | None = None
+    #: the TOML file the table came from (``linearisation = "table.toml"``), else None
+    linearisation_file: Path | None = None
 
     @property
     def output_variable(self) -> str | None:
         """The bare V.E. name the sensor writes: the voltage variable of an arc-voltage sensor, the
         distance variable of a distance sensor, None for the probe (encoder 2)."""
-        return self.voltage_variable if self.kind == "arc_voltage" else self.variable
+        if self.kind == "arc_voltage":
+            return self.voltage_variable
+        return self.raw_variable if self.linearisation is not None else self.variable
 
     def make_plc_program(self):
         """The PLC program the sensor needs (the arc voltage's linearisation,
-        :class:`distctrl.plc.arc_voltage.ArcVoltageLinearisation`), or None."""
+        :class:`distctrl.plc.arc_voltage.ArcVoltageLinearisation`; a distance sensor's table,
+        :class:`distctrl.plc.linearisation.DistanceLinearisation`), or None."""
+        if self.kind == "distance" and self.linearisation is not None:
+            from distctrl.plc.linearisation import DistanceLinearisation
+            return DistanceLinearisation(self.linearisation, f"V.E.{self.raw_variable}", f"V.E.{self.variable}")
         if self.kind != "arc_voltage":
             return None
         from distctrl.plc.arc_voltage import ArcVoltageLinearisation
@@ -480,7 +496,8 @@ def _fault(cfg: dict, key: str, *, start_time: float | None = None) -> Fault:
 
 
 def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_time: float,
-                   has_3d: bool = False, surface: Surface | None = None) -> SensorConfig:
+                   has_3d: bool = False, surface: Surface | None = None,
+                   base_dir: Path = Path(".")) -> SensorConfig:
     key = "sensor"
     require_mapping(cfg, key, SENSOR_KEYS, required=("kind",))
     assert isinstance(cfg, dict)
@@ -535,6 +552,8 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
         fp = _footprint_keys(cfg, key, range_max, cycle_time)
         if kind == "arc_voltage":
             fp.update(_arc_keys(cfg, key, cycle_time, variable))
+        if kind == "distance":
+            fp.update(_linearisation_keys(cfg, key, variable, base_dir))
         if "characteristic" in cfg:
             ch = cfg["characteristic"]
             if not isinstance(ch, list):
@@ -591,6 +610,38 @@ def _footprint_keys(cfg: dict, key: str, range_max: float, cycle_time: float) ->
             duration=require_number(b["duration"], f"{bkey}.duration", lo=cycle_time, hi=60.0),
             amplitude=require_number(b["amplitude"], f"{bkey}.amplitude", lo=0.0, hi=range_max),
             offset=require_number(b.get("offset", 0.0), f"{bkey}.offset", lo=-range_max, hi=range_max))
+    return out
+
+
+def _linearisation_keys(cfg: dict, key: str, variable: str, base_dir: Path) -> dict:
+    """``linearisation`` (a table of [reading_mm, distance_mm] pairs, or a TOML file with one) and
+    ``raw_variable`` of a distance sensor (issue 16, docs/process.md *Calibration run*)."""
+    from distctrl.plc.linearisation import check_table
+    if "linearisation" not in cfg:
+        if "raw_variable" in cfg:
+            raise ConfigError(f"{key}.raw_variable", cfg["raw_variable"], "only with sensor.linearisation (the "
+                              "sensor writes its reading there, the PLC's table the distance)", "not used:")
+        return {}
+    table = cfg["linearisation"]
+    lkey, file = f"{key}.linearisation", None
+    if isinstance(table, str):
+        file = _file(table, lkey, base_dir, "linearisation table (TOML with linearisation = [[reading_mm, "
+                                            "distance_mm], ...], as distctrl calibrate writes it)")
+        try:
+            data = tomllib.loads(file.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise ConfigError(lkey, table, "a TOML file with linearisation = [[reading_mm, distance_mm], ...]",
+                              f"unreadable ({exc}):") from None
+        if "linearisation" not in data:
+            raise ConfigError(lkey, table, "a TOML file with a top-level key linearisation = [[reading_mm, "
+                              "distance_mm], ...]", "no linearisation key in")
+        lkey, table = f"{lkey} ({file.name})", data["linearisation"]
+    out = {"linearisation": check_table(table, lkey), "linearisation_file": file,
+           "raw_variable": _var_name(cfg.get("raw_variable", "SENSOR_RAW"), f"{key}.raw_variable")}
+    if out["raw_variable"] == variable:
+        raise ConfigError(f"{key}.raw_variable", cfg.get("raw_variable", "SENSOR_RAW"),
+                          f"a V.E. variable other than the distance variable {variable!r} (sensor.variable): the "
+                          "sensor writes its reading, the PLC's linearisation the distance", "the same as variable:")
     return out
 
 
@@ -798,7 +849,7 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
 
     sensor = None
     if "sensor" in data:
-        sensor = _sensor_config(data["sensor"], axes, seed, cycle_time, has_3d, surface)
+        sensor = _sensor_config(data["sensor"], axes, seed, cycle_time, has_3d, surface, base_dir)
 
     events_cfg = data.get("events", [])
     if not isinstance(events_cfg, list):
@@ -840,6 +891,8 @@ def _check_declared(extv: dict, extv_file: Path, variables: dict, sensor, events
         raise ConfigError("sensor.variable", sensor.variable, allowed, "not declared:")
     if sensor is not None and sensor.voltage_variable is not None and sensor.voltage_variable not in extv:
         raise ConfigError("sensor.voltage_variable", sensor.voltage_variable, allowed, "not declared:")
+    if sensor is not None and sensor.raw_variable is not None and sensor.raw_variable not in extv:
+        raise ConfigError("sensor.raw_variable", sensor.raw_variable, allowed, "not declared:")
     for ev in events:
         if ev.kind == "variable" and ev.data["name"] not in extv:
             raise ConfigError(f"events[{ev.index}].name", ev.data["name"], allowed, "not declared:")

@@ -87,6 +87,24 @@ def test_pyads_switches_a_process_function_off_and_on_while_served():
         gc.unfreeze()
 
 
+def test_served_machine_runs_the_calibration_and_publishes_its_switch():
+    served = ServedMachine(load_scenario(EX / "calibrate_capacitive.toml"), port=0, discovery_port=None)
+    m = served.machine
+    assert "Process.Z.calibrate.enabled" in served.plc.infos
+    f = m.process_program.function("calibrate", "Z")
+    while f.phase not in ("DONE", "FAILED") and m.cycle < 30000:
+        served.step()
+    assert f.phase == "DONE" and set(f.completed.run) == {1, 2}
+    # a client switches it off and on again: it calibrates once more (the head is at rest again)
+    spec = served.plc.specs["Process.Z.calibrate.enabled"]
+    spec.set(b"\x00")
+    assert spec.get() == b"\x00" and f.phase == "WAITING"
+    spec.set(b"\x01")
+    for _ in range(1000):
+        served.step()
+    assert f.phase == "DOWN" and f.status()["samples"] > 0
+
+
 # ------------------------------------------------------------------ touch-off and collision retract (h16-touch)
 def test_served_machine_runs_the_touch_off():
     served = ServedMachine(load_scenario(EX / "process_touch.toml"), port=0, discovery_port=None)

@@ -8,6 +8,7 @@ them as one :class:`ProcessProgram` after the sensor's PLC program and before a 
 """
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import ProcessFunction
+from .calibrate import CALIBRATE_DEFAULTS, Calibrate, CalibrationRecord
 from .channel import ChannelPathStatus
 from .collision_retract import COLLISION_DEFAULTS, RETRACT_SET_DIST, CollisionRetract
 from .config import (
@@ -26,7 +27,7 @@ from .program import ProcessProgram
 from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
-__all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS",
+__all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS", "CALIBRATE_DEFAULTS", "Calibrate", "CalibrationRecord",
            "AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
            "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import require_bool
+from .calibrate import CALIBRATE_DEFAULTS, Calibrate
 from .collision_retract import COLLISION_DEFAULTS, CollisionRetract
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .lift import LIFT_DEFAULTS, Lift
@@ -23,6 +24,8 @@ PROCESS_KEYS: dict[str, tuple[str, ...]] = {
     "corner_lock": ("share", "hysteresis"),
     "void_lock": ("variable", "threshold", "window", "on_cycles", "off_cycles", "release_band"),
     "auto_set_value": ("delay", "sample_time"),
+    # capacitive calibration run (distctrl calibrate)
+    "calibrate": ("speed", "bottom", "settle", "runs", "variable"),
     # --- touch-off (docs/process.md "Touch-off")
     "touch_off": ("variable", "request", "probe_speed", "detect", "pierce_height", "stroke", "retries",
                   "verify_time", "verify_band", "tolerance"),
@@ -37,7 +40,7 @@ PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
 #: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
 PROCESS_COMMON_KEYS = ("enabled",)
 #: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED = ("calibrate",)
+PROCESS_NOT_IMPLEMENTED: tuple[str, ...] = ()
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -58,6 +61,9 @@ class ProcessConfig:
         if self.function == "void_lock":
             return VoidLock(self.axis, cycle_time, p["threshold"], variable=p["variable"], window=p["window"],
                             on_cycles=p["on_cycles"], off_cycles=p["off_cycles"], release_band=p["release_band"])
+        if self.function == "calibrate":
+            return Calibrate(self.axis, cycle_time, p["variable"], speed=p["speed"], bottom=p["bottom"],
+                             settle=p["settle"], runs=p["runs"])
         if self.function == "touch_off":
             return TouchOff(self.axis, cycle_time, **p)
         if self.function == "collision_retract":
@@ -131,6 +137,8 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
                   "off_cycles": require_int(cfg.get("off_cycles", VOID_DEFAULTS["off_cycles"]), k + "off_cycles",
                                             lo=1, hi=100000),
                   "release_band": band}
+    elif fn == "calibrate":
+        params = _calibrate_params(cfg, k, axis, sensor, cycle_time)
     elif fn == "touch_off":
         params = _touch_off(cfg, k, axes[axis], sensor, cycle_time)
     elif fn == "collision_retract":
@@ -153,6 +161,26 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
                   "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
                                                 k + "sample_time", lo=cycle_time, hi=10.0)}
     return ProcessConfig(fn, axis, params, n, enabled)
+
+
+def _calibrate_params(cfg: dict, k: str, axis: str, sensor, cycle_time: float) -> dict:
+    """The calibration run's keys: it records a distance sensor's reading on the axis it measures."""
+    if sensor is None or sensor.kind != "distance" or sensor.axis != axis:
+        what = "no [sensor]" if sensor is None else f"a {sensor.kind!r} sensor on {sensor.axis}"
+        raise ConfigError(k + "axis", axis, "the axis of a [sensor] with kind = 'distance' (the calibration run "
+                          f"records a distance sensor's reading; the scenario has {what})", "no distance sensor on")
+    default_var = sensor.output_variable          # the raw reading when a linearisation is in force
+    var = cfg.get("variable", default_var)
+    if not isinstance(var, str) or not _VAR_RE.match(var):
+        raise ConfigError(k + "variable", var, "a V.E. variable name (default: the one the sensor writes)")
+    var = var[4:] if var.startswith("V.E.") else var
+    d = CALIBRATE_DEFAULTS
+    speed = require_number(cfg.get("speed", d["speed"]), k + "speed", lo=0.0, hi=20.0, lo_open=True)
+    bottom = require_number(cfg.get("bottom", d["bottom"]), k + "bottom", lo=0.0, hi=sensor.range_max,
+                            lo_open=True, hi_open=True)
+    return {"speed": speed, "bottom": bottom,
+            "settle": require_number(cfg.get("settle", d["settle"]), k + "settle", lo=cycle_time, hi=10.0),
+            "runs": require_int(cfg.get("runs", d["runs"]), k + "runs", lo=1, hi=10), "variable": var}
 
 
 def _signal_variable(cfg: dict, k: str, sensor) -> str | None:

@@ -380,6 +380,38 @@ def _quasi_static(r: _Rec, T: float, settle: float) -> np.ndarray:
     return ok
 
 
+def characteristic_points(x: np.ndarray, y: np.ndarray, bin_width: float = CHAR_BIN, min_samples: int = 30):
+    """Points of a static characteristic y(x) from quasi-static samples: ``x`` cut into bins of
+    ``bin_width`` (aligned to multiples of it); in each bin with at least ``min_samples`` samples a
+    straight line through them gives the point at the bin's centre (clamped to the samples; a bin
+    spanning less than a fifth of its width gives the means). Returns ``(points, residuals, slopes)``:
+    the (x, y) points in bin order, per bin the samples' residuals from its line, the fitted slopes.
+    Used by ``distctrl identify`` (the sensor characteristic) and ``distctrl calibrate`` (the
+    linearisation table)."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    edges = np.arange(math.floor(x.min() / bin_width) * bin_width, x.max() + bin_width, bin_width)
+    which = np.digitize(x, edges)
+    pts, resid, slopes = [], [], []
+    for b in np.unique(which):
+        m = which == b
+        if int(m.sum()) < min_samples:
+            continue
+        xb, yb = x[m], y[m]
+        span = float(np.ptp(xb))
+        if span >= 0.2 * bin_width:
+            c = 0.5 * (edges[b - 1] + edges[b]) if 0 < b < edges.size else float(np.mean(xb))
+            c = min(max(c, float(xb.min())), float(xb.max()))
+            p = np.polyfit(xb - c, yb, 1)
+            pts.append((c, float(p[1])))
+            slopes.append(float(p[0]))
+            resid.append(yb - np.polyval(p, xb - c))
+        else:
+            pts.append((float(np.mean(xb)), float(np.mean(yb))))
+            resid.append(yb - np.mean(yb))
+    return pts, resid, slopes
+
+
 def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float, surface: float | None,
                     calibrated_at: float | None, gain: float | None, res: Identification) -> dict:
     xs, ys = [], []
@@ -394,25 +426,7 @@ def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float,
         _warn(res.warnings, f"noise_std and characteristic: too few quasi-static samples ({x.size}); record "
                             f"{RECORD_STANDSTILL} and {RECORD_RAMP}")
         return out
-    edges = np.arange(math.floor(x.min() / CHAR_BIN) * CHAR_BIN, x.max() + CHAR_BIN, CHAR_BIN)
-    which = np.digitize(x, edges)
-    pts, resid, slopes = [], [], []
-    for b in np.unique(which):
-        m = which == b
-        if int(m.sum()) < 30:
-            continue
-        xb, yb = x[m], y[m]
-        span = float(np.ptp(xb))
-        if span >= 0.2 * CHAR_BIN:
-            c = 0.5 * (edges[b - 1] + edges[b]) if 0 < b < edges.size else float(np.mean(xb))
-            c = min(max(c, float(xb.min())), float(xb.max()))
-            p = np.polyfit(xb - c, yb, 1)
-            pts.append((c, float(p[1])))
-            slopes.append(float(p[0]))
-            resid.append(yb - np.polyval(p, xb - c))
-        else:
-            pts.append((float(np.mean(xb)), float(np.mean(yb))))
-            resid.append(yb - np.mean(yb))
+    pts, resid, slopes = characteristic_points(x, y)
     if resid:
         rr = np.concatenate(resid)
         std = float(np.sqrt(np.mean(rr * rr)))
