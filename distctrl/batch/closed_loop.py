@@ -37,7 +37,7 @@ Restrictions (checked by :func:`prepare`, a :class:`ClosedLoopError` says which 
   ``footprint_radius``, no ``bursts``; the program switches to it with ``SENSOR_SOURCE=VARIABLE``,
   ``SENSOR_VAR`` naming its variable, with or before the select), ``mode = "axis"``; no
   ``kind = "arc_voltage"``;
-* no scenario ``events`` and no sensor ``faults``;
+* no scenario ``events``, no sensor ``faults`` and no ``[[process]]`` functions (PLC programs);
 * the program's DIST_CTRL commands address the sensor axis only; before the select only value-
   setting commands (``SET_POS=``/``SET_DIST=`` without an action), then one ``ON`` (SET_POS or
   CONST_DIST) from the NC; no ``WAIT`` (its end depends on the control), no tuning words in the
@@ -255,6 +255,10 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     if sc.events:
         raise ClosedLoopError(f"scenario events are not replayed by the closed-loop kernel ({len(sc.events)} "
                               "events: PLC commands, overrides, faults, resets ...)")
+    if getattr(sc, "processes", ()):
+        raise ClosedLoopError(f"[[process]] functions are not replayed by the closed-loop kernel "
+                              f"({', '.join(p.function for p in sc.processes)}: PLC programs that command "
+                              "distance control; run the scenario with distctrl run)")
     axis = sensor.axis
     if not sc.axes[axis].params.enabled:
         raise ClosedLoopError(f"distance control is not enabled on the sensor axis {axis}")

@@ -148,6 +148,11 @@ class Machine:
         self.surface = scenario.surface
         self.variables: dict[str, float] = {f"V.E.{k}": float(v) for k, v in scenario.variables.items()}
         self.variables["V.G.WZ_AKT.L"] = float(scenario.tool_length)
+        # the V.E. variables the process functions hand over to the NC program (the touch-off's request):
+        # they exist from the start (0), so the program can wait on them and ADS serves them as symbols
+        for f in (process_plc.functions if process_plc is not None else ()):
+            for name in getattr(f, "declares", ()):
+                self.variables.setdefault(name, 0.0)
         self.shift = {n: 0.0 for n in axes}            # absorbed offsets the channel has not taken yet
         self.channel_override = 1.0
         self.cycle = 0

@@ -11,7 +11,7 @@ import pytest
 
 from distctrl.errors import ErrorId
 from distctrl.plc.process import CollisionRetract
-from distctrl.plc.process.collision_retract import DONE, WATCH
+from distctrl.plc.process.collision_retract import WATCH
 from distctrl.plc.process.config import ProcessConfig
 from distctrl.sim import run
 from distctrl.sim.machine import Machine
@@ -94,10 +94,10 @@ def test_retract_figures_on_the_function():
     m = simulate(sc, 1.2)
     f = m.process_program.function("collision_retract", "Z")
     (c,) = f.log
-    assert f.phase == DONE and c["line"] == 7 and c["reading"] <= 0.2
+    assert f.phase == WATCH and c["line"] == 7 and c["reading"] <= 0.2
     assert c["retract"] == pytest.approx(5.0, abs=0.15) and c["retract_time"] < 0.05
     assert m.nc.aborted and m.hli["Z"].state_r.actual_state == 0
-    assert m.process_program.holds["Z"].inhibitors == {"collision_retract"}
+    assert not m.process_program.holds["Z"].inhibitors                  # released after the retract
 
 
 def test_without_the_function_the_head_runs_through_the_part():
@@ -113,14 +113,16 @@ def test_distctrl_run_json_exit_code_and_error():
     assert proc.returncode == 2, proc.stderr
     data = json.loads(proc.stdout)
     assert [e["id"] for e in data["errors"]] == [COLLISION_ID]
+    # the retract is not tracking: the largest distance error is the wall's 4 mm before the contact
+    assert data["metrics"]["distance_error_max"] == pytest.approx(4.0, abs=0.05)
 
 
 def test_a_lock_does_not_freeze_the_retract():
-    # the corner lock wants FREEZE as soon as the path slows down (the stop): the retract owns the axis
-    sc = load_scenario(EX / "process_collision.toml")
+    # a void lock at 20 mm/s sees the reading change at the wall and during the retract and wants FREEZE:
+    # the retract owns the axis (the hold is inhibited; without that it stops after 0.24 mm)
     text = (EX / "process_collision.toml").read_text().replace(
-        '[[process]]\nfunction = "collision_retract"', '[[process]]\nfunction = "corner_lock"\naxis = "Z"\n'
-        '[[process]]\nfunction = "collision_retract"')
+        '[[process]]\nfunction = "collision_retract"', '[[process]]\nfunction = "void_lock"\naxis = "Z"\n'
+        'threshold = 20.0\n[[process]]\nfunction = "collision_retract"')
     sc = scenario_from_text(text, base_dir=EX)
     m = simulate(sc, 1.2)
     (c,) = m.process_program.function("collision_retract", "Z").log
@@ -184,10 +186,48 @@ def test_no_false_trigger_on_normal_plates(name):
     assert result.outcome == "completed" and result.errors == [] and result.metrics["collisions"] == 0
 
 
-def test_reset_returns_to_watching_and_releases_the_hold():
+def test_after_the_retract_a_new_select_arms_it_again():
+    # served: after the retract the PLC selects distance control again and the head runs into the
+    # obstacle a second time -> a second contact, a second retract
     sc = load_scenario(EX / "process_collision.toml")
     m = simulate(sc, 1.2)
     f = m.process_program.function("collision_retract", "Z")
-    assert f.phase == DONE and f.hold.inhibitors
+    assert len(f.log) == 1 and f.phase == WATCH
+    unit = m.hli["Z"]
+    assert unit.plc_command("ON_CONST_DIST", -3.0)     # a distance below the part's top: down into it again
+    for _ in range(500):
+        m.step()
+    assert len(f.log) == 2 and f.log[1]["retract"] == pytest.approx(5.0, abs=0.15)
+    assert [ev.id for _, ev in m.events if ev.severity == "error"] == [COLLISION_ID, COLLISION_ID]
+
+
+def test_reset_returns_to_watching():
+    sc = load_scenario(EX / "process_collision.toml")
+    m = simulate(sc, 0.5)
+    f = m.process_program.function("collision_retract", "Z")
+    f.hits = 1
     f.reset()
     assert f.phase == WATCH and f.hits == 0 and f.contact is None and not f.hold.inhibitors
+
+
+def test_switched_off_during_the_retract_it_finishes_the_retract_first():
+    sc = load_scenario(EX / "process_collision.toml")
+    m = Machine(sc, load_program(sc))
+    f = m.process_program.function("collision_retract", "Z")
+    while f.phase not in ("RETRACTING",) and m.cycle < 1200:
+        m.step()
+    assert f.phase == "RETRACTING"
+    m.process_program.set_enabled("collision_retract", "Z", False)
+    assert f.enabled and f.phase == "RETRACTING"            # not dropped half-way
+    for _ in range(100):
+        m.step()
+    (c,) = f.log
+    assert c["retract"] == pytest.approx(5.0, abs=0.15) and f.phase == WATCH and not f.enabled
+    f.reset()
+    assert f.phase == WATCH and not f.hold.inhibitors
+
+
+def test_switched_off_it_does_not_watch():
+    text = (EX / "process_collision.toml").read_text() + "enabled = false\n"
+    result = run(scenario_from_text(text, base_dir=EX), keep_trace=False)
+    assert result.outcome == "completed" and result.metrics["collisions"] == 1 and result.errors == []

@@ -117,6 +117,15 @@ def test_served_machine_runs_the_touch_off():
     assert m.variables["V.E.TOUCH_OFF"] == 0.0 and m.nc.running and m.events == []
 
 
+
+def test_the_touch_off_request_is_an_ads_symbol_from_the_start():
+    # an HMI / external PLC can watch and write the handshake before the program first assigns it
+    served = ServedMachine(load_scenario(EX / "process_touch.toml"), port=0, discovery_port=None)
+    assert served.machine.variables["V.E.TOUCH_OFF"] == 0.0
+    info = served.plc.symbols()["V.E.TOUCH_OFF"]
+    assert info.type_name == "LREAL" and not info.read_only
+
+
 def test_served_machine_runs_the_collision_retract():
     served = ServedMachine(load_scenario(EX / "process_collision.toml"), port=0, discovery_port=None)
     m = served.machine

@@ -190,13 +190,40 @@ def test_a_request_while_distance_control_tracks_is_refused_with_900052():
     assert m.nc.aborted
 
 
-def test_reset_returns_to_idle():
+def test_reset_while_probing_ends_the_touch_off_safely_and_when_idle_returns_to_the_initial_state():
     sc = scenario()
     m = simulate(sc, 0.3)
     f = touch(m)
-    assert f.phase == PROBING
+    assert f.phase == PROBING and f.hold.inhibitors == {"touch_off"}
+    f.reset()                                    # dropped now, distance control would go on down at SET_DIST 0
+    assert f.phase == PROBING and f.enabled
+    m.step()
+    (ev,) = errors(m)
+    assert ev.id == int(ErrorId.TOUCH_OFF_FAILED) and "reset while PROBING" in ev.message
+    assert f.phase == IDLE and not f.hold.inhibitors and m.nc.aborted
     f.reset()
-    assert f.phase == IDLE and f.attempts == 0 and f.result is None and f._pending is None
+    assert f.phase == IDLE and f.attempts == 0 and f.result is None and f._pending is None and not f._abort
+
+
+def test_switched_off_during_the_probe_it_ends_it_then_stays_off():
+    sc = scenario()
+    m = simulate(sc, 0.3)
+    f = touch(m)
+    m.process_program.set_enabled("touch_off", "Z", False)
+    assert f.enabled and not f.switched_on                  # still ending the probe
+    for _ in range(300):
+        m.step()
+    (ev,) = errors(m)
+    assert ev.id == int(ErrorId.TOUCH_OFF_FAILED) and "switched off" in ev.message
+    assert not f.enabled and m.hli["Z"].state_r.actual_state == 0      # OFF ran the offset out
+    assert m.variables["V.E.TOUCH_OFF"] == -1.0
+
+
+def test_switched_off_before_the_request_nobody_answers_and_the_program_waits():
+    sc = scenario(keys="enabled = false")
+    m = simulate(sc, 1.5)
+    assert not errors(m) and not touch(m).log and m.nc.running and m.nc.line == 4    # at #WAIT FOR
+    assert m.hli["Z"].state_r.actual_state == 0
 
 
 # ------------------------------------------------------------------ the example through distctrl run
@@ -208,6 +235,8 @@ def test_example_through_distctrl_run_json():
     assert data["outcome"] == "completed" and data["errors"] == []
     m = data["metrics"]
     assert m["collisions"] == 0 and 0.2 < m["min_distance_mm"] < 0.5     # the touch came within 0.5 mm
+    # the probe and the back-off are not tracking: the metrics start with the NC's select (3 mm -> 1 mm)
+    assert m["distance_error_max"] == pytest.approx(2.02, abs=0.05)
 
 
 def test_example_figures():
@@ -221,3 +250,112 @@ def test_example_figures():
     assert res["distance"] == pytest.approx(3.0, abs=0.05)            # state_r.actual_distance
     assert math.isclose(m.true_distance, 3.0, abs_tol=0.05)
     assert 0.6 < res["cycle"] * sc.cycle_time < 1.2                   # probe 0.65 s + back-off + settling
+
+
+def test_an_axis_that_does_not_read_the_sensor_ends_the_probe_with_900052():
+    # without SENSOR_SOURCE=VARIABLE the axis reads its second encoder: the head never moves down
+    sc = scenario()
+    text = PROGRAM.format(start=40.0, before="").replace(
+        "N20 Z[DIST_CTRL SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]\\n", "")
+    sc = scenario_from_text(SCENARIO.format(duration=4.0, program=text, lis=(EX / "z_laser.lis").as_posix(),
+                                            start=40.0, base=33.2, events="", keys=""), base_dir=EX)
+    f_cycles = touch(Machine(sc, load_program(sc))).probe_cycles
+    assert f_cycles == round((2 * 7.2 / 10.0 + 1.0) / 0.001)
+    m = simulate(sc, 3.0)
+    (ev,) = errors(m)
+    assert ev.id == int(ErrorId.TOUCH_OFF_FAILED) and "SENSOR_SOURCE" in ev.message
+    assert m.nc.aborted and m.variables["V.E.TOUCH_OFF"] == -1.0
+
+
+def test_a_void_lock_does_not_freeze_the_back_off():
+    # the back-off lifts the head at 200 mm/s: the distance changes faster than the void lock's 80 mm/s,
+    # so the lock asks for FREEZE; the touch-off inhibits the hold while it runs
+    sc = scenario(keys='[[process]]\nfunction = "void_lock"\naxis = "Z"\n')
+    m = simulate(sc, 2.5)
+    assert not errors(m) and touch(m).log and m.nc.ended
+    assert not m.process_program.holds["Z"].inhibitors
+    void = m.process_program.function("void_lock", "Z")
+    assert void.rate == void.rate                                     # it did watch
+
+
+PLASMA = """
+name = "plasma touch"
+cycle_time = 0.001
+duration = 4.0
+program_text = "{program}"
+[axes.X]
+[axes.Z]
+params = "{lis}"
+start = 40.0
+kv = 40.0
+v_max = 200.0
+a_max = 5000.0
+[surface]
+base = 32.0
+[sensor]
+axis = "Z"
+kind = "arc_voltage"
+variable = "SENSOR"
+voltage_variable = "ARC_VOLTAGE"
+arc_v0 = 95.0
+arc_k = 6.0
+arc_ripple = 2.0
+arc_noise_std = 0.3
+seed = 3
+[[process]]
+function = "touch_off"
+axis = "Z"
+"""
+
+
+def test_touch_off_on_a_plasma_torch_with_ripple_and_noise():
+    # the linearised arc voltage carries a 0.33 mm 50 Hz ripple; the back-off is judged on the filtered
+    # distance (target deviation) and the drive's following error
+    sc = scenario_from_text(PLASMA.format(program=PROGRAM.format(start=40.0, before=""),
+                                          lis=(EX / "z_plasma.lis").as_posix()), base_dir=EX)
+    assert sc.processes[0].params["stroke"] == pytest.approx(9.0)     # 0.9 x max_deviation 10 mm
+    m = Machine(sc, load_program(sc))
+    f = touch(m)
+    while not f.log and not errors(m) and m.cycle < 3000:
+        m.step()
+    assert not errors(m)
+    res = f.log[0]
+    assert res["surface"] == pytest.approx(32.0, abs=0.4) and res["attempts"] == 1
+    assert m.true_distance == pytest.approx(3.0, abs=0.1)
+
+
+PROBE = """
+name = "probe touch"
+cycle_time = 0.001
+duration = 4.0
+program_text = "N10 G90 G0 X20 Z45\\nN30 V.E.TOUCH_OFF = 1\\nN40 #WAIT FOR V.E.TOUCH_OFF == 0\\nN50 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\\nN60 G1 X60 F6000\\nN70 M30\\n"
+[axes.X]
+[axes.Z]
+params = "{lis}"
+start = 45.0
+kv = 60.0
+v_max = 300.0
+a_max = 20000.0
+[surface]
+base = 37.0
+[sensor]
+axis = "Z"
+kind = "encoder"
+range_min = -20.0
+range_max = 20.0
+[[process]]
+function = "touch_off"
+axis = "Z"
+"""
+
+
+def test_touch_off_with_the_probe_on_encoder_2_reads_state_r_actual_distance():
+    sc = scenario_from_text(PROBE.format(lis=(EX / "z_probe.lis").as_posix()), base_dir=EX)
+    assert sc.processes[0].params["variable"] is None and sc.processes[0].params["stroke"] == 10.0
+    m = Machine(sc, load_program(sc))
+    f = touch(m)
+    while not f.log and not errors(m) and m.cycle < 3000:
+        m.step()
+    res = f.log[0]
+    assert res["surface"] == pytest.approx(37.0, abs=1e-3) and res["distance"] == pytest.approx(3.0, abs=0.01)
+    assert m.true_distance == pytest.approx(3.0, abs=0.02)        # the offset stood before the FREEZE

@@ -10,12 +10,11 @@ from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import ProcessFunction
 from .calibrate import CALIBRATE_DEFAULTS, Calibrate, CalibrationRecord
 from .channel import ChannelPathStatus
-from .collision_retract import COLLISION_DEFAULTS, RETRACT_SET_DIST, CollisionRetract
+from .collision_retract import COLLISION_DEFAULTS, RETRACT_MARGIN, CollisionRetract
 from .config import (
                      PROCESS_COMMON_KEYS,
                      PROCESS_FUNCTIONS,
                      PROCESS_KEYS,
-                     PROCESS_NOT_IMPLEMENTED,
                      ProcessConfig,
                      make_process_program,
                      process_configs,
@@ -29,8 +28,8 @@ from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, V
 
 __all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS", "CALIBRATE_DEFAULTS", "Calibrate", "CalibrationRecord",
            "AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
-           "PROCESS_NOT_IMPLEMENTED", "ProcessConfig", "make_process_program", "process_configs",
+           "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
            "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
-           "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_SET_DIST", "CollisionRetract",
+           "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_MARGIN", "CollisionRetract",
            "LIFT_DEFAULTS", "Lift", "LiftMotion"]

@@ -15,9 +15,10 @@ retract. As a PLC program on the HLI control unit and the CNC objects:
    limits and holds). From now on the axis's FREEZE hold is inhibited: no lock freezes the retract.
 2. FREEZE (2) if distance control tracks, and write ``DIST_CTRL_PARAM[0]::v_max`` = ``retract_speed``
    (µm/s) and ``a_max`` = ``retract_accel`` (mm/s²): pending, adopted by the next select.
-3. In FREEZE: select ON_CONST_DIST (4) with SET_DIST = :data:`RETRACT_SET_DIST` (far above any
-   reading: the offset rises at the retract limits whatever the sensor reads while it touches, a
-   short-circuit value included).
+3. In FREEZE: select ON_CONST_DIST (4) with SET_DIST = the reading at the contact + ``retract`` +
+   :data:`RETRACT_MARGIN` (1 mm): above every reading while the head rises by ``retract``, so the
+   offset rises at the retract limits whatever the sensor reads while it touches, a short-circuit
+   value included.
 4. RETRACTING: once the offset (``state_r.actual_offset``) has risen by ``retract`` minus the
    braking distance ``v²/(2·retract_accel)`` at its current velocity: FREEZE; the head stops about
    ``retract`` above the contact.
@@ -25,10 +26,13 @@ retract. As a PLC program on the HLI control unit and the CNC objects:
    absorbed (docs/states.md: RESET -> INACTIVE at once, the channel takes the offset as its
    position): the head stays up. OFF would run the offset out and put the head back onto the
    obstacle. The error 900053 is reported with the cycle and NC line of the contact and names the
-   X/Y position, the reading, the retract distance and time.
+   X/Y position, the reading, the retract distance and time. The function watches again (the hold
+   is no longer inhibited): the next select arms it.
 
 A state that leaves the sequence (ERROR, e.g. the offset reached max_deviation, P-AXIS-00414)
-ends the retract where it is: the reset and the error follow at once.
+ends the retract where it is: the reset and the error follow at once. Switched off (or reset) during a
+retract, the function finishes it first (``enabled`` reads true until then); switched off while
+watching, it stops watching.
 
 ST equivalent::
 
@@ -47,7 +51,8 @@ ST equivalent::
                  IF stState.actual_state <> 2 THEN SEND(2, 0.0); END_IF
                  eColl := FREEZING;
              END_IF
-    FREEZING: IF stState.actual_state = 2 THEN lrOffs0 := lrOffs; SEND(4, RETRACT_SET_DIST); eColl := RETRACTING;
+    FREEZING: IF stState.actual_state = 2 THEN lrOffs0 := lrOffs; SEND(4, MAX(lrHit, 0.0) + lrRetract + 1.0);
+                  eColl := RETRACTING;
               ELSE STOP_AND_REPORT(); END_IF
     RETRACTING: lrV := (lrOffs - lrOffsLast) / lrT;
               IF stState.actual_state <> 4 THEN STOP_AND_REPORT();
@@ -57,7 +62,8 @@ ST equivalent::
     END_CASE
     lrOffsLast := lrOffs;
     (* STOP_AND_REPORT: channel reset (INACTIVE, offset absorbed: the head stays up);
-       report 900053 with the contact's cycle, NC line, X/Y, reading, retract distance and time; eColl := DONE *)
+       report 900053 with the contact's cycle, NC line, X/Y, reading, retract distance and time;
+       fbHold.bInhibit := FALSE; nHit := 0; eColl := WATCH (a new select arms it again) *)
 """
 from __future__ import annotations
 
@@ -69,12 +75,14 @@ from ...sim.config_errors import require_int, require_number
 from .base import ProcessFunction
 from .plc_io import MM_PER_UNIT, read_signal, write_object
 
-__all__ = ["CollisionRetract", "COLLISION_DEFAULTS", "RETRACT_SET_DIST"]
+__all__ = ["CollisionRetract", "COLLISION_DEFAULTS", "RETRACT_MARGIN"]
 
 #: threshold mm, confirm_cycles, retract mm; retract_speed / retract_accel default to the axis's limits
 COLLISION_DEFAULTS = {"threshold": 0.2, "confirm_cycles": 2, "retract": 5.0, "short_circuit": None}
-#: mm: SET_DIST of the retract select, far above any reading: the offset rises at the retract limits
-RETRACT_SET_DIST = 1000.0
+#: mm: SET_DIST of the retract select = the reading at the contact + retract + this: above every reading
+#: while the head rises by ``retract`` (the reading grows by at most the rise), so the offset rises at
+#: the retract limits whatever the sensor reads while it touches
+RETRACT_MARGIN = 1.0
 #: s: the longest the head may take to stop after the retract
 STOP_TIMEOUT_S = 1.0
 _SHORT_BAND = 1e-3
@@ -82,7 +90,7 @@ _ACTIVE, _FREEZE = int(HliState.ACTIVE), int(HliState.FREEZE)
 _ACTIVE_CD = int(HliState.ACTIVE_CONST_DIST)
 _ARMED = (_ACTIVE, _ACTIVE_CD, _FREEZE)
 _T_FREEZE, _T_ON_CD = int(HliTransition.FREEZE), int(HliTransition.ON_CONST_DIST)
-WATCH, FREEZING, RETRACTING, STOPPING, DONE = "WATCH", "FREEZING", "RETRACTING", "STOPPING", "DONE"
+WATCH, FREEZING, RETRACTING, STOPPING = "WATCH", "FREEZING", "RETRACTING", "STOPPING"
 
 
 class CollisionRetract(ProcessFunction):
@@ -114,8 +122,28 @@ class CollisionRetract(ProcessFunction):
         self.errors: list = []
         self.reset()
 
+    @property
+    def busy(self) -> bool:
+        """A retract is under way (the function moves the axis)."""
+        return getattr(self, "phase", WATCH) in (FREEZING, RETRACTING, STOPPING)
+
+    @property
+    def enabled(self) -> bool:
+        """The function runs: switched on, or switched off while a retract is under way (it is
+        finished: stopped half-way the head would stay on the obstacle, distance control in the
+        retract's select)."""
+        return self.switched_on or self.busy
+
+    @enabled.setter
+    def enabled(self, on: bool) -> None:
+        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``)
+        self.switched_on = bool(on)
+
     def reset(self) -> None:
-        """Back to the initial state: watching, no contact counted, no command waiting (logs stay)."""
+        """Back to the initial state: watching, no contact counted, no command waiting (logs stay). A
+        retract under way is finished first (see :attr:`enabled`)."""
+        if self.busy:
+            return
         self.phase = WATCH
         if self.hold is not None:
             self.hold.inhibitors.discard(self.name)
@@ -156,11 +184,11 @@ class CollisionRetract(ProcessFunction):
             if self._pending is not None:
                 return
         phase = self.phase
-        if phase == DONE:
-            return
         state = unit.state_r.actual_state
         offset = unit.state_r.actual_offset * MM_PER_UNIT
         if phase == WATCH:
+            if not self.switched_on:
+                return
             signal = read_signal(machine, self.axis, self.variable)
             armed = state in _ARMED and not self._touch_off_busy(machine)
             self.hits = self.hits + 1 if armed and self._is_contact(signal) else 0
@@ -171,7 +199,8 @@ class CollisionRetract(ProcessFunction):
         elif phase == FREEZING:
             if state == _FREEZE:
                 self._offset0 = offset
-                self._send(unit, cycle, _T_ON_CD, RETRACT_SET_DIST)
+                set_dist = max(self.contact["reading"], 0.0) + self.retract + RETRACT_MARGIN
+                self._send(unit, cycle, _T_ON_CD, set_dist if set_dist == set_dist else self.retract + RETRACT_MARGIN)
                 self.phase = RETRACTING
                 self._count = 0
             else:
@@ -225,7 +254,9 @@ class CollisionRetract(ProcessFunction):
         machine.events.append((c["cycle"] * machine.T, event))
         self.errors.append(event)
         self.log.append(dict(c))
-        self.phase = DONE
+        self.phase = WATCH                              # distance control is INACTIVE: a new select arms it
+        self.hits = 0
+        self.hold.inhibitors.discard(self.name)
 
 
 def _name(state: int) -> str:

@@ -16,7 +16,7 @@ from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import (VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VOID_WINDOW_DISTANCE_S,
                         VoidLock)
 
-__all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_FUNCTIONS", "PROCESS_NOT_IMPLEMENTED", "PROCESS_KEYS", "process_configs",
+__all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_FUNCTIONS", "PROCESS_KEYS", "process_configs",
            "make_process_program"]
 
 #: the functions a [[process]] table may name, and their own keys (besides function and axis)
@@ -39,8 +39,6 @@ PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
 #: the keys every function has besides function and axis: ``enabled`` (bool, default true) switches it
 #: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
 PROCESS_COMMON_KEYS = ("enabled",)
-#: named by issue 16, not implemented yet: refused with a clear message
-PROCESS_NOT_IMPLEMENTED: tuple[str, ...] = ()
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -77,9 +75,6 @@ class ProcessConfig:
 
 def _function(value: object, key: str) -> str:
     allowed = "one of " + ", ".join(repr(f) for f in PROCESS_FUNCTIONS)
-    if isinstance(value, str) and value in PROCESS_NOT_IMPLEMENTED:
-        raise ConfigError(key, value, allowed + " (issue 16: " + ", ".join(PROCESS_NOT_IMPLEMENTED)
-                          + " are not implemented yet)", "not implemented yet:")
     if not isinstance(value, str) or value not in PROCESS_FUNCTIONS:
         raise ConfigError(key, value, allowed)
     return value

@@ -23,22 +23,28 @@ The PLC moves Z only through distance control (HLI control unit, CNC objects):
    speed. Any other state: error 900052.
 2. PROBING: the signal (the sensor's distance variable, or ``state_r.actual_distance``) at or below
    ``detect`` reports the surface -> FREEZE (2; braked within a_max). The offset's travel
-   (``state_r.actual_offset`` since the start) beyond ``stroke`` without it -> error 900050.
+   (``state_r.actual_offset`` since the start) beyond ``stroke`` without it -> error 900050. A probe
+   that takes longer than twice the stroke at the probe speed plus 1 s (the axis does not read the
+   sensor the signal comes from, e.g. no ``SENSOR_SOURCE=VARIABLE``) -> error 900052.
 3. VERIFY: once the offset stands, after ``verify_time`` the signal must still be at or below
    ``detect + verify_band``; otherwise the detection was false (a spike, a spark): probe on
    (FREEZE -> ON_CONST_DIST, SET_DIST = 0) up to ``retries`` times, then error 900051.
 4. BACK-OFF: write ``v_max`` back to the value read in 1 and select ON_CONST_DIST with SET_DIST =
    ``pierce_height`` (FREEZE -> active adopts the write: the back-off runs at the normal limits);
    once ``|DIST_CTRL::target_deviation|`` (0x3111, the filtered distance minus the set distance)
-   stays within ``tolerance`` for 5 cycles -> FREEZE; more than 2 s -> error 900052.
+   stays within ``tolerance`` for 5 cycles with the offset (nearly) standing (it moves less than
+   ``tolerance`` per 10 ms) -> FREEZE; more than 2 s -> error 900052.
 5. DONE: in FREEZE, once the drive is in position (its following error, CNC objects
    ``dig cmd pos high_res`` - ``dig act pos`` in drive increments, within ``tolerance``; at most
    2 s, else 900052), the PLC writes ``V.E.TOUCH_OFF = 0``: the program goes on. ``result`` holds the
    surface found (``state_r.actual_position``, mm), the distance held, the travel and the attempts.
 
 While it runs the axis's FREEZE hold is inhibited: the locks (void lock, corner lock) freeze neither
-the probe nor the back-off. An error writes ``V.E.TOUCH_OFF = -1``, writes ``v_max`` back, switches distance control OFF (the
-offset runs out: the head returns to the programmed height it started from), reports the error with
+the probe nor the back-off. Switched off (or reset) while it runs, it ends the touch-off as an error
+(900052) in its next cycle; switched off while idle it does not answer a request (the NC program
+waits at ``#WAIT FOR``). An error writes ``V.E.TOUCH_OFF = -1``, writes ``v_max`` back, switches distance control OFF (the
+offset runs out at the probe speed: the head returns to the programmed height it started from; the
+written-back v_max is adopted only by the next select), reports the error with
 the NC line and stops the program. Every command goes through the semaphore handshake (FCT-M3 §8.2).
 
 ST equivalent (``SEND(t, pos)`` = the semaphore handshake of docs/process.md; mm on the HLI x 10000)::
@@ -50,11 +56,13 @@ ST equivalent (``SEND(t, pos)`` = the semaphore handshake of docs/process.md; mm
                    IF stState.actual_state <> 0 AND stState.actual_state <> 2 THEN FAIL(900052);
                    ELSE nVmaxSaved := DIST_CTRL_PARAM_v_max;                  (* CNC object 0x3500, um/s *)
                         DIST_CTRL_PARAM_v_max := LREAL_TO_DINT(lrProbeSpeed * 1000.0);
-                        lrOffs0 := lrOffs; nAttempt := 0; SEND(4, 0.0); eTouch := PROBING; END_IF
+                        lrOffs0 := lrOffs; nAttempt := 0; nCnt := 0; SEND(4, 0.0); eTouch := PROBING; END_IF
                END_IF
-    PROBING:   IF stState.actual_state <> 4 THEN FAIL(900052);
+    PROBING:   nCnt := nCnt + 1;
+               IF stState.actual_state <> 4 THEN FAIL(900052);
                ELSIF lrSig <= lrDetect THEN SEND(2, 0.0); eTouch := BRAKING;
-               ELSIF lrOffs0 - lrOffs > lrStroke THEN FAIL(900050); END_IF
+               ELSIF lrOffs0 - lrOffs > lrStroke THEN FAIL(900050);
+               ELSIF nCnt > nProbeCycles THEN FAIL(900052); END_IF
     BRAKING:   IF stState.actual_state <> 2 THEN FAIL(900052);
                ELSIF lrOffs = lrOffsLast THEN nCnt := 0; eTouch := VERIFY; END_IF
     VERIFY:    nCnt := nCnt + 1;
@@ -62,10 +70,11 @@ ST equivalent (``SEND(t, pos)`` = the semaphore handshake of docs/process.md; mm
                    IF lrSig <= lrDetect + lrVerifyBand THEN
                        DIST_CTRL_PARAM_v_max := nVmaxSaved; SEND(4, lrPierce); eTouch := BACKING_OFF; nCnt := 0;
                    ELSIF nAttempt >= nRetries THEN FAIL(900051);
-                   ELSE nAttempt := nAttempt + 1; SEND(4, 0.0); eTouch := PROBING; END_IF
+                   ELSE nAttempt := nAttempt + 1; nCnt := 0; SEND(4, 0.0); eTouch := PROBING; END_IF
                END_IF
     BACKING_OFF: IF stState.actual_state <> 4 THEN FAIL(900052);
-               ELSIF ABS(DIST_CTRL_target_deviation * 1.0E-8) <= lrTol THEN nOk := nOk + 1; ELSE nOk := 0; END_IF
+               ELSIF ABS(DIST_CTRL_target_deviation * 1.0E-8) <= lrTol
+                     AND ABS(lrOffs - lrOffsLast) <= lrTol * lrT / 0.01 THEN nOk := nOk + 1; ELSE nOk := 0; END_IF
                IF nOk >= 5 THEN SEND(2, 0.0); eTouch := HOLDING; nCnt := 0;
                ELSIF nCnt > nTimeoutCycles THEN FAIL(900052); END_IF; nCnt := nCnt + 1;
     HOLDING:   nCnt := nCnt + 1;
@@ -95,6 +104,8 @@ TOUCH_DEFAULTS = {"request": "TOUCH_OFF", "probe_speed": 10.0, "detect": 0.5, "p
 BACKOFF_TIMEOUT_S = 2.0
 #: cycles within ``tolerance`` before the back-off counts as done
 BACKOFF_OK_CYCLES = 5
+#: s: the back-off is done once the offset would need longer than this to move by ``tolerance``
+STILL_S = 0.01
 #: s: at most this long waiting for the FREEZE to brake
 BRAKE_TIMEOUT_S = 1.0
 _V_MAX = "DIST_CTRL_PARAM[0]::v_max"
@@ -139,17 +150,38 @@ class TouchOff(ProcessFunction):
         self.tolerance = require_number(tolerance, n + "tolerance", lo=0.0, hi=10.0, lo_open=True)
         self.variable = None if variable is None else _ve(variable)
         self.request = _ve(request)
+        #: the V.E. variables the machine creates (0) at the start: the handshake
+        self.declares = (self.request,)
         self.verify_cycles = max(1, round(self.verify_time / self.cycle_time))
         self.timeout_cycles = round(BACKOFF_TIMEOUT_S / self.cycle_time)
         self.brake_cycles = round(BRAKE_TIMEOUT_S / self.cycle_time)
+        #: the longest a probe may take: the stroke at the probe speed, twice, plus 1 s
+        self.probe_cycles = round((2.0 * self.stroke / self.probe_speed + 1.0) / self.cycle_time)
         #: every completed touch-off: {"cycle", "surface", "distance", "travel", "attempts"} (mm)
         self.log: list[dict] = []
         #: the errors this function reported (ErrorEvent)
         self.errors: list = []
         self.reset()
 
+    @property
+    def enabled(self) -> bool:
+        """The function runs: switched on, or switched off while a touch-off is under way (it then
+        ends that touch-off safely in its next cycle: 900052, OFF, the program stops; dropping it
+        would leave distance control lowering the head at SET_DIST = 0)."""
+        return self.switched_on or getattr(self, "phase", IDLE) != IDLE
+
+    @enabled.setter
+    def enabled(self, on: bool) -> None:
+        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``)
+        self.switched_on = bool(on)
+
     def reset(self) -> None:
-        """Back to the initial state: idle, no command waiting, no attempt counted (the logs stay)."""
+        """Back to the initial state: idle, no command waiting, no attempt counted (the logs stay). A
+        touch-off under way is not dropped: it ends safely in the next cycle (see :attr:`enabled`)."""
+        if getattr(self, "phase", IDLE) != IDLE:
+            self._abort = True
+            return
+        self._abort = False
         self.phase = IDLE
         if self.hold is not None:
             self.hold.inhibitors.discard(self.name)
@@ -194,7 +226,15 @@ class TouchOff(ProcessFunction):
                 return                                # the semaphore is busy: the command waits
         phase = self.phase
         state = unit.state_r.actual_state
+        if self._abort:
+            self._abort = False
+            if phase != IDLE:
+                self._fail(machine, cycle, ErrorId.TOUCH_OFF_FAILED,
+                           f"the touch-off was switched off or reset while {phase}")
+            return
         if phase == IDLE:
+            if not self.switched_on:
+                return
             req = machine.variables.get(self.request, 0.0)
             if req == req and req > 0.5:
                 self._start(machine, unit, cycle, state)
@@ -216,6 +256,15 @@ class TouchOff(ProcessFunction):
                            f"probed {self._offset0 - offset:.3f} mm down (stroke {self.stroke:g} mm) at "
                            f"{self.probe_speed:g} mm/s, the signal still reads {signal:.3f} mm "
                            f"(surface at <= {self.detect:g} mm)")
+            else:
+                self._count += 1
+                if self._count > self.probe_cycles:
+                    self._fail(machine, cycle, ErrorId.TOUCH_OFF_FAILED,
+                               f"the head went only {self._offset0 - offset:.3f} mm down in "
+                               f"{self._count * self.cycle_time:.3f} s (stroke {self.stroke:g} mm at "
+                               f"{self.probe_speed:g} mm/s); distance control reads "
+                               f"{unit.state_r.actual_distance * MM_PER_UNIT:.3f} mm, the signal "
+                               f"{signal:.3f} mm: does the axis read the sensor (SENSOR_SOURCE, SENSOR_VAR)?")
         elif phase == BRAKING:
             self._count += 1
             if state != _FREEZE:
@@ -242,6 +291,7 @@ class TouchOff(ProcessFunction):
                     self.attempts += 1
                     self._send(unit, cycle, _T_ON_CD, 0.0)
                     self.phase = PROBING
+                    self._count = 0
         elif phase == BACKING_OFF:
             self._count += 1
             if state != _ACTIVE_CD:
@@ -249,7 +299,10 @@ class TouchOff(ProcessFunction):
                            f"the back-off select ended: distance control is {_state_name(state)}")
             else:
                 dev = read_object(machine, self.axis, _TARGET_DEV) * _MM_PER_NM001
-                self._ok = self._ok + 1 if abs(dev) <= self.tolerance else 0
+                # on target and the offset (nearly) standing: it moves less than the tolerance in
+                # STILL_S, so the FREEZE that follows brakes it within a fraction of the tolerance
+                still = abs(offset - self._last_offset) <= self.tolerance * self.cycle_time / STILL_S
+                self._ok = self._ok + 1 if abs(dev) <= self.tolerance and still else 0
                 if self._ok >= BACKOFF_OK_CYCLES:
                     self._send(unit, cycle, _T_FREEZE)
                     self.phase = HOLDING
@@ -289,6 +342,7 @@ class TouchOff(ProcessFunction):
         self._offset0 = unit.state_r.actual_offset * MM_PER_UNIT
         self._last_offset = math.nan
         self._send(unit, cycle, _T_ON_CD, 0.0)
+        self._count = 0
         self._set_phase(PROBING)
 
     def _set_phase(self, phase: str) -> None:
