@@ -27,7 +27,7 @@ def test_params_bad_file_exits_1_naming_line_and_range(tmp_path):
 
 def test_demo_runs_the_scenarios_and_writes_traces_and_plots(tmp_path):
     from distctrl.cli.demo import main as demo
-    results = demo(tmp_path)
+    results = demo(tmp_path, plate=None)          # the plate's table: test_demo_prints_the_plate_with_and_without
     assert len(results) == 3
     for r in results:
         assert r.completed and r.errors == []
@@ -44,12 +44,27 @@ def test_demo_output_shows_units_oscillation_and_every_collision(tmp_path, capsy
     header keeps its [mm] (rich would swallow it as markup)."""
     from distctrl.cli.demo import main as demo
 
-    both, plain, _ = demo(tmp_path)
+    both, plain, _ = demo(tmp_path, plate=None)
     out = capsys.readouterr().out
     assert "[mm]" in out and "WARNING EXAMPLE" in out
     assert plain.metrics["collisions"] > 0 and plain.metrics["oscillation_frequency_hz"] is not None
     assert f"900030×{plain.metrics['collisions']}" in out and " Hz, ±" in out
     assert both.metrics["collisions"] == 1 and "X = 250 mm" in out
+
+
+def test_demo_prints_the_plate_with_and_without_the_functions(capsys):
+    """make demo's plasma plate (issue 16; here the shortened plate): both columns, every figure with
+    its unit, the collisions of the run without the functions."""
+    from rich.console import Console
+
+    from distctrl.cli.demo import plate_table
+    res = plate_table(Console(width=120), "plasma_plate_short")
+    out = capsys.readouterr().out
+    assert "with touch_off, corner_lock, void_lock, lift" in out and "without" in out
+    assert f"{res['with']['min_cut_distance_mm']:.3f} mm" in out
+    assert f"{res['with']['min_distance_mm']:.3f} mm" in out and f"{res['without']['min_distance_mm']:.3f} mm" in out
+    assert f"{res['with']['path_time_s']:.3f} s" in out and "SET_DIST" in out
+    assert res["without"]["collisions"] > 0 and f"{res['without']['collisions']}" in out
 
 
 def test_objects_lists_the_object_browser_table_for_a_scenario():

@@ -419,7 +419,8 @@ def diag(scenario: str, seconds: float, axis_filter: str | None, as_json: bool) 
 
 @main.command()
 def demo() -> None:
-    """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, with a summary table."""
+    """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, and the plasma plate with and
+    without the cutting-process functions, with summary tables."""
     from .demo import main as run_demo
 
     run_demo()

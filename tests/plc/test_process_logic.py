@@ -2,6 +2,7 @@
 V.E. variables, the channel path status and the CNC objects, as a PLC sees them."""
 import math
 
+import numpy as np
 import pytest
 
 from distctrl.control import CycleOutput
@@ -216,6 +217,37 @@ def test_void_lock_reads_state_r_actual_distance_without_a_variable():
         m.hli["Z"].state_r.actual_distance = 15000 if k < 5 else 25000   # 1.5 mm, then 2.5 mm
     run_cycles(m, prog, 6, before)
     assert f.locked
+
+
+def test_void_lock_releases_after_a_kerf_with_mains_ripple_on_the_voltage():
+    # 104 V with a 2 V, 50 Hz ripple; a 30 V kerf for 15 ms; after it the voltage is back where it was
+    # (the head held): the lock must release although single samples differ by up to 4 V + noise
+    m = FakeMachine()
+    f, prog = void(m)                                     # the defaults: 20 ms, 500 V/s, band 5 V
+    rng = np.random.default_rng(1)
+
+    def volts(k):
+        kerf = 30.0 if 300 <= k < 315 else 0.0
+        return 104.0 + 2.0 * math.sin(2 * math.pi * 50 * k * 0.001 + 1.3) + 0.3 * rng.standard_normal() + kerf
+    k = run_cycles(m, prog, 320, feed_signal([volts(k) for k in range(320)]))
+    assert f.locked and m.taken == [(int(HliTransition.FREEZE), 0.0)]
+    assert abs(f.level - 104.0) < 0.5                       # the level before the kerf, the ripple averaged out
+    run_cycles(m, prog, 200, feed_signal([volts(k) for k in range(320, 520)]), start=k)
+    assert not f.locked and m.taken[-1] == (int(HliTransition.ON_CONST_DIST), 1.5)
+
+
+def test_void_lock_releases_when_the_signal_comes_back_below_its_level():
+    # the torch dived before the lock caught the void: past it the voltage is 10 V below the level
+    # (the torch 1.7 mm closer); re-activating moves it away from the sheet, so the lock releases.
+    # Back above the level by more than the band (the plate lower beyond a kerf) it keeps holding.
+    for after, released in ((100.0, True), (120.0, False)):
+        m = FakeMachine()
+        f, prog = void(m, window=0.002, on_cycles=1, off_cycles=5, release_band=3.0)
+        k = run_cycles(m, prog, 5, feed_signal([110.0] * 5))
+        k = run_cycles(m, prog, 3, feed_signal([140.0] * 3), start=k)
+        assert f.locked
+        run_cycles(m, prog, 20, feed_signal([after] * 20), start=k)
+        assert f.locked is not released, after
 
 
 def test_void_lock_window_starts_at_the_select_not_before_it():

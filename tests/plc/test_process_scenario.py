@@ -44,6 +44,9 @@ def test_defaults_are_filled_in():
 def test_void_lock_on_the_distance_variable_defaults_to_mm_per_s():
     sc = scenario('[[process]]\nfunction = "void_lock"\naxis = "Z"\nvariable = "SENSOR"\n')
     assert sc.processes[0].params["threshold"] == 80.0
+    # no mains ripple to average over: a 5 ms window (at 20 m/min 1.7 mm, within a capacitive electrode)
+    assert sc.processes[0].params["window"] == 0.005
+    assert sc.processes[0].params["release_band"] == pytest.approx(0.2)
 
 
 @pytest.mark.parametrize("body, key, words", [

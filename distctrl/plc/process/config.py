@@ -13,7 +13,8 @@ from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .lift import LIFT_DEFAULTS, Lift
 from .program import ProcessProgram
 from .touch_off import TOUCH_DEFAULTS, TouchOff
-from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
+from .void_lock import (VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VOID_WINDOW_DISTANCE_S,
+                        VoidLock)
 
 __all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_FUNCTIONS", "PROCESS_KEYS", "process_configs",
            "make_process_program"]
@@ -119,7 +120,10 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
         is_voltage = var is not None and var == voltage
         threshold = require_number(cfg.get("threshold", VOID_THRESHOLD_V_S if is_voltage else VOID_THRESHOLD_MM_S),
                                    k + "threshold", lo=0.0, lo_open=True)
-        window = require_number(cfg.get("window", VOID_DEFAULTS["window"]), k + "window", lo=cycle_time, hi=1.0)
+        # a mains period on an arc voltage; on a distance (no ripple) a short window (issue 16's laser sheet)
+        window = require_number(cfg.get("window", VOID_DEFAULTS["window"] if is_voltage
+                                        else max(VOID_WINDOW_DISTANCE_S, cycle_time)),
+                                k + "window", lo=cycle_time, hi=1.0)
         band = require_number(cfg.get("release_band", 0.5 * threshold * window), k + "release_band", lo=0.0,
                               lo_open=True)
         params = {"variable": var, "threshold": threshold, "window": window,

@@ -9,9 +9,12 @@ change over a window of ``window`` seconds,
 
 and holds the height (FREEZE) after ``on_cycles`` consecutive cycles with ``|rate| > threshold``. It
 re-activates distance control (FREEZE -> ON / ON_CONST_DIST, :mod:`.hold`) after ``off_cycles``
-consecutive cycles in which the signal is steady again: ``|rate| <= threshold`` and within
-``release_band`` of the level it had before the void (``x[k - N]`` of the cycle that locked). A
-window of 20 ms (a whole 50 Hz period) cancels the mains ripple of an arc voltage.
+consecutive cycles in which the signal is steady again: ``|rate| <= threshold`` and the window's
+mean at most ``release_band`` above the level before the void (below it the head is closer than
+before: re-activating moves it away from the sheet) (the window's mean N cycles before the
+cycle that locked; within 2·N cycles of the select ``x[k - N]``). A window of 20 ms (a whole 50 Hz
+period) cancels the mains ripple of an arc voltage, in the rate and in the means. The window starts
+afresh at every select.
 
 It follows QtPlasmaC's void lock ("void anti-dive": a voltage slope in V/s with on/off cycle counts,
 500 V/s by default) and LinuxCNC's kerfcross component (a voltage change per sample period and a
@@ -24,19 +27,28 @@ ST equivalent (``aBuf`` a ring buffer of N LREAL, ``i`` its index)::
 
     x := V_E_SIGNAL;
     IF NOT fbHold.bTrackingOrHeld THEN          (* the window starts afresh at the select *)
-        nFill := 0; bLock := FALSE; nOn := 0; nOff := 0;
+        nFill := 0; nMFill := 0; lrSum := 0.0; bLock := FALSE; nOn := 0; nOff := 0;
     ELSE
         lrOld := aBuf[i]; bFull := nFill >= N;
-        aBuf[i] := x; i := (i + 1) MOD N; IF NOT bFull THEN nFill := nFill + 1; END_IF
+        lrMeanOld := aMean[i]; bMFull := nMFill >= N;       (* the window mean N cycles ago *)
+        aBuf[i] := x; lrSum := lrSum + x - SEL(bFull, 0.0, lrOld);
+        IF NOT bFull THEN nFill := nFill + 1; END_IF
+        IF nFill >= N THEN
+            lrMean := lrSum / N; aMean[i] := lrMean;
+            IF nMFill < N THEN nMFill := nMFill + 1; END_IF
+        END_IF
+        i := (i + 1) MOD N;
         IF NOT bFull THEN
             bLock := FALSE; nOn := 0; nOff := 0;
         ELSE
             lrRate := (x - lrOld) / (N * lrT);
             IF NOT bLock THEN
                 IF ABS(lrRate) > lrThreshold THEN nOn := nOn + 1; ELSE nOn := 0; END_IF
-                IF nOn >= nOnCycles THEN bLock := TRUE; lrLevel := lrOld; nOff := 0; END_IF
+                IF nOn >= nOnCycles THEN
+                    bLock := TRUE; lrLevel := SEL(bMFull, lrOld, lrMeanOld); nOff := 0;
+                END_IF
             ELSE
-                IF ABS(lrRate) <= lrThreshold AND ABS(x - lrLevel) <= lrBand THEN nOff := nOff + 1;
+                IF ABS(lrRate) <= lrThreshold AND lrMean - lrLevel <= lrBand THEN nOff := nOff + 1;
                 ELSE nOff := 0; END_IF
                 IF nOff >= nOffCycles THEN bLock := FALSE; nOn := 0; END_IF
             END_IF
@@ -51,13 +63,16 @@ import math
 from ...sim.config_errors import require_int, require_number
 from .base import ProcessFunction, tracking_or_held
 
-__all__ = ["VoidLock", "VOID_DEFAULTS", "VOID_THRESHOLD_V_S", "VOID_THRESHOLD_MM_S"]
+__all__ = ["VoidLock", "VOID_DEFAULTS", "VOID_THRESHOLD_V_S", "VOID_THRESHOLD_MM_S", "VOID_WINDOW_DISTANCE_S"]
 
 #: V/s: the default threshold on an arc voltage (QtPlasmaC's void slope default)
 VOID_THRESHOLD_V_S = 500.0
 #: mm/s: the default threshold on a distance (500 V/s at a typical arc gradient of 6 V/mm ~ 83 mm/s)
 VOID_THRESHOLD_MM_S = 80.0
 VOID_DEFAULTS = {"window": 0.02, "on_cycles": 3, "off_cycles": 20}
+#: s: the default window on a distance (no mains ripple to average over; at 20 m/min it spans 1.7 mm,
+#: so a void is seen while a capacitive electrode slides onto it)
+VOID_WINDOW_DISTANCE_S = 0.005
 _MM_PER_UNIT = 1e-4
 
 
@@ -91,6 +106,11 @@ class VoidLock(ProcessFunction):
         self._buf = [0.0] * self.n
         self._i = 0
         self._fill = 0
+        self._sum = 0.0                        # of the samples in the window
+        self._means = [0.0] * self.n           # the window means of the last N cycles (ring, index _i)
+        self._mfill = 0
+        #: the mean of the signal over the window (signal unit; NaN until the window is full)
+        self.mean = math.nan
         self.locked = False
         self.on_count = 0
         self.off_count = 0
@@ -108,17 +128,28 @@ class VoidLock(ProcessFunction):
         if not tracking_or_held(machine.hli[self.axis].state_r.actual_state, self.hold):
             # the window starts afresh at the select: a sample from before it (the head coming down
             # to the cut height with distance control off) is no void (issue 16's plates)
-            self._fill = 0
+            self._fill = self._mfill = 0
+            self._sum = 0.0
+            self.mean = math.nan
             self.locked = False
             self.on_count = self.off_count = 0
             return
-        old = self._buf[self._i]
+        i = self._i
+        old = self._buf[i]
         full = self._fill >= self.n                    # old is a sample taken N cycles ago
+        mean_old = self._means[i]                      # the window mean N cycles ago
+        mean_full = self._mfill >= self.n
         if finite:
-            self._buf[self._i] = x
-            self._i = (self._i + 1) % self.n
+            self._buf[i] = x
+            self._sum += x - old if full else x
             if not full:
                 self._fill += 1
+            if self._fill >= self.n:
+                self.mean = self._sum / self.n
+                self._means[i] = self.mean
+                if self._mfill < self.n:
+                    self._mfill += 1
+            self._i = (i + 1) % self.n
         if not full:
             self.locked = False
             self.on_count = self.off_count = 0
@@ -130,10 +161,14 @@ class VoidLock(ProcessFunction):
             self.on_count = 0 if steady else self.on_count + 1
             if self.on_count >= self.on_cycles:
                 self.locked = True
-                self.level = old
+                # the level before the void: the window mean N cycles ago (a whole mains period: the
+                # ripple averages out); right after the select the sample N cycles ago
+                self.level = mean_old if mean_full else old
                 self.off_count = 0
         else:
-            if steady and abs(x - self.level) <= self.release_band:
+            # back within the band of the level, or below it (the head closer than before the void:
+            # re-activating moves it away from the sheet; a signal above it keeps the hold)
+            if steady and self.mean - self.level <= self.release_band:
                 self.off_count += 1
             else:
                 self.off_count = 0
