@@ -61,8 +61,8 @@ def main(argv=None) -> None:
             time.sleep(0.5)
             page.locator(".plc-Z-ON button").click()
             time.sleep(1.0)
-            page.locator(".plc-fault-jump input").fill("0.3")       # a small jump: a step in the reading
-            page.locator(".plc-fault-jump input").press("Enter")
+            page.locator(".plc-fault-value-jump input").fill("0.3")       # a small jump: a step in the reading
+            page.locator(".plc-fault-value-jump input").press("Enter")
             page.locator(".plc-fault-jump button").click()
             time.sleep(1.5)
             page.screenshot(path=str(args.out / "ui_plc.png"), full_page=True)

@@ -59,7 +59,8 @@ class PlcPanel:
         self.fault_duration = NumericInput(title="fault duration (s, empty: until cleared)", mode="float",
                                            value=None, width=230)
         for kind, (value, unit_, what) in FAULTS.items():
-            v = NumericInput(title=f"{kind} ({unit_}): {what}", mode="float", value=value, width=260)
+            v = NumericInput(title=f"{kind} ({unit_}): {what}", mode="float", value=value, width=260,
+                             css_classes=[f"plc-fault-value-{kind}"])
             b = Button(label=f"Sensor {kind.replace('_', ' ')}", width=160, button_type="warning",
                        css_classes=[f"plc-fault-{kind}"])
             b.on_click(lambda _e=None, kind=kind, v=v: self._say(*hub.sensor_fault(

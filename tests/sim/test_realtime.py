@@ -67,5 +67,7 @@ def test_the_cycle_thread_asks_for_sched_fifo_and_says_what_it_got():
     assert loop.stats.cycles == 5
     plain = RealTimeLoop(lambda: policies.__setitem__("plain", os.sched_getscheduler(0)), 0.001)
     plain.start(max_cycles=2)
-    plain.stop()
+    deadline = _time.monotonic() + 2.0
+    while plain.running and _time.monotonic() < deadline:
+        _time.sleep(0.005)
     assert plain.scheduling == "normal" and policies["plain"] == os.SCHED_OTHER
