@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import struct
 import threading
+import time
 
 from ..objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
 from ..objects.channel3d import read_bytes as read_bytes_3d
@@ -328,7 +329,7 @@ class ServedMachine:
     (:mod:`distctrl.ads.discovery`; if that port cannot be bound, one warning and TCP is served)."""
 
     def __init__(self, scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
-                 net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899):
+                 net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899, rt_priority: int = 0):
         from ..sim.machine import Machine
         from ..sim.realtime import RealTimeLoop
         from ..sim.runner import load_program
@@ -353,7 +354,7 @@ class ServedMachine:
         #: called after every cycle in the cycle thread, under the lock (the live page's recorder,
         #: distctrl/ui/hub.py): keep them to a few microseconds
         self.observers: list = []
-        self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock)
+        self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock, rt_priority=rt_priority)
 
     def step(self) -> None:
         """One cycle of the machine, then the session log (under the loop's lock); nothing while the
@@ -378,6 +379,12 @@ class ServedMachine:
                  CNC_PORT, PLC_PORT)
         for line in self.session.axis_lines():
             log.info("%s", line)
+        if self.loop.rt_priority > 0:
+            deadline = time.monotonic() + 1.0
+            while self.loop.scheduling == "normal" and time.monotonic() < deadline and self.loop.running:
+                time.sleep(0.001)
+            log.log(logging.INFO if self.loop.scheduling.startswith("SCHED") else logging.WARNING,
+                    "cycle thread: %s", self.loop.scheduling)
 
     def stop(self) -> dict:
         self.loop.stop()

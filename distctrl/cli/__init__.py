@@ -365,17 +365,22 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
               help="--ui: HTTP port of the live page (0: a free port).")
 @click.option("--export-dir", default=".", show_default=True, type=click.Path(file_okay=False),
               help="--ui: folder the scope's Export CSV writes its trace files to.")
+@click.option("--rt-priority", default=10, show_default=True, type=click.IntRange(0, 99),
+              help="Run the 1 ms cycle thread with the real-time policy SCHED_FIFO at this priority where the "
+                   "OS allows it (root, CAP_SYS_NICE or an rtprio limit; otherwise one warning and normal "
+                   "priority); 0: normal priority.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object at the end (addresses, page sessions, cycle lateness in µs).")
 def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id: str, duration: float | None,
-          no_discovery: bool, with_ui: bool, ui_port: int, export_dir: str, as_json: bool) -> None:
+          no_discovery: bool, with_ui: bool, ui_port: int, export_dir: str, rt_priority: int, as_json: bool) -> None:
     """Run SCENARIO.toml in real time and serve it over ADS (CNC objects on AMS port 551, the PLC
     interface and V.E. variables by symbol name on port 851; route discovery and add-route on UDP
     48899); with --ui also the live page. Reports the cycle jitter at the end."""
     from ..ui.cli import serve_session
 
     serve_session(scenario, host=host, port=port, allowed=allowed, net_id=net_id, duration=duration,
-                  no_discovery=no_discovery, ui=with_ui, ui_port=ui_port, export_dir=export_dir, as_json=as_json)
+                  no_discovery=no_discovery, ui=with_ui, ui_port=ui_port, export_dir=export_dir, as_json=as_json,
+                  rt_priority=rt_priority)
 
 
 @main.command(short_help="The diagnosis block of distance control (layout of FCT-M3 Fig. 56).")

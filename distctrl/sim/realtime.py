@@ -43,7 +43,7 @@ class RealTimeLoop:
     """Calls ``step()`` every ``cycle_time`` seconds of wall-clock time until ``stop()``."""
 
     def __init__(self, step, cycle_time: float, lock: threading.Lock | None = None, max_lag: float = 0.1,
-                 clock=time.perf_counter, sleep=time.sleep):
+                 clock=time.perf_counter, sleep=time.sleep, rt_priority: int = 0):
         self.step = step
         self.cycle_time = float(cycle_time)
         self.lock = lock or threading.Lock()
@@ -53,6 +53,10 @@ class RealTimeLoop:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.error: BaseException | None = None
+        #: ask for the real-time policy SCHED_FIFO at this priority (1..99) for the cycle thread; 0: no
+        self.rt_priority = int(rt_priority)
+        #: what the cycle thread runs with: "SCHED_FIFO 10", or "normal (...why...)"
+        self.scheduling = "normal"
 
     def run(self, max_cycles: int | None = None) -> JitterStats:
         """Run in the calling thread until stopped or ``max_cycles`` cycles have run."""
@@ -81,12 +85,30 @@ class RealTimeLoop:
     def start(self, max_cycles: int | None = None) -> None:
         """Run in a background thread (an exception there is kept in ``error`` and stops the loop)."""
         def target():
+            self._set_scheduling()
             try:
                 self.run(max_cycles)
             except BaseException as exc:          # noqa: BLE001 - reported to the owner, not lost
                 self.error = exc
         self._thread = threading.Thread(target=target, name="distctrl-geo-cycle", daemon=True)
         self._thread.start()
+
+    def _set_scheduling(self) -> None:
+        """The real-time policy for the calling (cycle) thread, where the OS allows it (Linux: root,
+        CAP_SYS_NICE or an rtprio limit). Another process's load (a browser drawing the live page)
+        then no longer delays the cycle's wake-up; the thread sleeps between cycles, and the kernel's
+        real-time throttling (sched_rt_runtime_us) bounds what a runaway could take."""
+        if self.rt_priority <= 0:
+            return
+        import os
+
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.rt_priority))
+        except (AttributeError, OSError, ValueError) as exc:
+            why = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+            self.scheduling = f"normal (SCHED_FIFO {self.rt_priority} not allowed: {why})"
+            return
+        self.scheduling = f"SCHED_FIFO {self.rt_priority}"
 
     def stop(self, timeout: float = 2.0) -> None:
         self._stop.set()

@@ -15,6 +15,7 @@ microseconds of a page's write (:mod:`distctrl.ui.hub`).
 from __future__ import annotations
 
 import asyncio
+import gc
 import ipaddress
 import logging
 import socket
@@ -91,6 +92,12 @@ class UiServer:
         if self._error is not None:
             raise self._error
         log.info("live page on %s (Bokeh server, allowed %s)", self.url, ", ".join(map(str, self.allowed)))
+        gc.freeze()
+
+    # The page's Bokeh documents are large, long-lived object graphs: a full garbage collection that
+    # traverses them stops every thread of the process (also the 1 ms cycle) for tens of ms. What is
+    # set up (the server, each page once built) is moved out of the collector's generations
+    # (gc.freeze); the short-lived objects of every frame are still collected as usual.
 
     def stop(self) -> None:
         io, server = self._io_loop, self._server
@@ -165,9 +172,14 @@ class UiServer:
         self.sessions += 1
         build_page(doc, self.hub, self.export_dir, FRAME_MS)
         doc.template = _template()
+        doc.add_next_tick_callback(_freeze)
 
 
 _TEMPLATE = None
+
+
+async def _freeze() -> None:
+    gc.freeze()
 
 
 def _template():

@@ -11,7 +11,7 @@ from ..errors import DistCtrlError
 
 def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ...], net_id: str,
                   duration: float | None, no_discovery: bool, ui: bool, ui_port: int, export_dir: str,
-                  open_browser: bool = False, as_json: bool = False) -> None:
+                  open_browser: bool = False, as_json: bool = False, rt_priority: int = 10) -> None:
     """Serve SCENARIO over ADS (and the live page with ``ui``) until ``duration`` or Ctrl-C; print the
     cycle's lateness at the end."""
     import logging
@@ -27,7 +27,7 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
     page = None
     try:
         served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id,
-                               discovery_port=None if no_discovery else 48899)
+                               discovery_port=None if no_discovery else 48899, rt_priority=rt_priority)
         if ui:
             from .app import UiServer
 
@@ -70,11 +70,19 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
     stats = served.stop()
     if as_json:
         emit_json({"scenario": scenario, "ads": f"{host}:{served.server.port}", "net_id": net_id,
+                   "cycle_thread": served.loop.scheduling,
                    "ui_url": page.url if page is not None else None,
                    "ui_sessions": page.sessions if page is not None else 0, "cycle_lateness": stats})
         return
     click.echo("cycle jitter: " + ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
                                            for k, v in stats.items()))
+
+
+RT_OPTION = click.option(
+    "--rt-priority", default=10, show_default=True, type=click.IntRange(0, 99),
+    help="Run the 1 ms cycle thread with the real-time policy SCHED_FIFO at this priority where the OS "
+         "allows it (root, CAP_SYS_NICE or an rtprio limit; otherwise one warning and normal priority); "
+         "0: normal priority. Keeps the cycle's timing while a browser draws the live page.")
 
 
 @click.command("ui")
@@ -91,13 +99,15 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
 @click.option("--export-dir", default=".", show_default=True, type=click.Path(file_okay=False),
               help="Folder the scope's Export CSV writes its trace files to.")
 @click.option("--no-browser", is_flag=True, help="Only print the page's address, open no browser.")
+@RT_OPTION
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object at the end (addresses, page sessions, cycle lateness in µs).")
 def ui_cmd(scenario: str, host: str, ui_port: int, port: int, allowed: tuple[str, ...], net_id: str,
-           duration: float | None, no_discovery: bool, export_dir: str, no_browser: bool, as_json: bool) -> None:
+           duration: float | None, no_discovery: bool, export_dir: str, no_browser: bool, rt_priority: int,
+           as_json: bool) -> None:
     """Serve SCENARIO.toml in real time over ADS with the live page (scope, object browser, PLC panel,
     machine view; docs/ui.md) and open the page in the browser."""
     serve_session(scenario, host=host, port=port, allowed=allowed, net_id=net_id, duration=duration,
                   no_discovery=no_discovery, ui=True, ui_port=ui_port, export_dir=export_dir,
-                  open_browser=not no_browser, as_json=as_json)
+                  open_browser=not no_browser, as_json=as_json, rt_priority=rt_priority)
     sys.stdout.flush()

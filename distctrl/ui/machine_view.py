@@ -46,7 +46,7 @@ class MachineView:
                   legend_label="nozzle")
         p.legend.location = "top_left"
         self.plot = p
-        self.info = Div(text="", width=900, css_classes=["machine-info"])
+        self.info = Div(text="", width=1250, height=22, css_classes=["machine-info"])
         self.layout = column(self.info, p, sizing_mode="stretch_width")
         self._cols = {}
         hub_cols = hub.columns

@@ -42,8 +42,8 @@ class ObjectBrowser:
         self.value = NumericInput(title="Value (object unit)", mode="float", width=150, css_classes=["obj-value"])
         self.write = Button(label="Write", button_type="primary", width=90, css_classes=["obj-write"])
         self.write.on_click(self._write)
-        self.message = Div(text="", width=900, css_classes=["obj-message"])
-        self.status = Div(text="", width=900, css_classes=["obj-status"])
+        self.message = Div(text="", width=1200, height=22, css_classes=["obj-message"])
+        self.status = Div(text="", width=1200, height=22, css_classes=["obj-status"])
         self.layout = column(row(self.axis, self.name, self.value, self.write), self.message, self.status,
                              self.table, sizing_mode="stretch_width")
         self._frame = 0
@@ -67,7 +67,15 @@ class ObjectBrowser:
             return
         self._frame = 0
         data = object_table(self.hub)
-        self.source.data = data
+        old = self.source.data
+        # only the cells that changed (a table redrawn whole five times a second costs the browser)
+        patches = {}
+        for key in ("raw", "value", "pending"):
+            changed = [(i, v) for i, (v, w) in enumerate(zip(data[key], old[key])) if v != w]
+            if changed:
+                patches[key] = changed
+        if patches:
+            self.source.patch(patches)
         axis_id = int(self.axis.value.split()[0])
         i = next((k for k, (a, n) in enumerate(zip(data["axis_id"], data["name"]))
                   if a == axis_id and n == self.name.value), None)

@@ -27,7 +27,7 @@ class PlcPanel:
     def __init__(self, hub: MachineHub):
         self.hub = hub
         m = hub.machine
-        self.message = Div(text="", css_classes=["plc-message"], width=900)
+        self.message = Div(text="", css_classes=["plc-message"], width=900, height=22)
         self.units: dict[str, Div] = {}
         axis_blocks = []
         for n in m.axis_names:
@@ -41,7 +41,7 @@ class PlcPanel:
                 b.on_click(lambda _e=None, n=n, tr=tr, pos=pos: self._say(
                     *hub.plc_command(n, tr, float(pos.value if pos.value is not None else 0.0))))
                 buttons.append(b)
-            status = Div(text="", css_classes=[f"plc-status-{n}"], width=430)
+            status = Div(text="", css_classes=[f"plc-status-{n}"], width=560, height=100)
             self.units[n] = status
             title = Div(text=f"<b>axis {n}</b> — gpAx[{unit.axis_index}].lr_mc_control.distance_control"
                              + ("" if unit.distance_control_on else
@@ -59,7 +59,8 @@ class PlcPanel:
         self.fault_duration = NumericInput(title="fault duration (s, empty: until cleared)", mode="float",
                                            value=None, width=230)
         for kind, (value, unit_, what) in FAULTS.items():
-            v = NumericInput(title=f"{kind} ({unit_}): {what}", mode="float", value=value, width=260)
+            v = NumericInput(title=f"{kind} ({unit_}): {what}", mode="float", value=value, width=260,
+                             css_classes=[f"plc-fault-value-{kind}"])
             b = Button(label=f"Sensor {kind.replace('_', ' ')}", width=160, button_type="warning",
                        css_classes=[f"plc-fault-{kind}"])
             b.on_click(lambda _e=None, kind=kind, v=v: self._say(*hub.sensor_fault(
@@ -79,7 +80,7 @@ class PlcPanel:
                         + ("" if switchable or not procs else
                            " — <i>this build cannot switch them at run time</i>"))
         self.procs.disabled = not switchable
-        self.events = Div(text="", css_classes=["plc-events"], width=900)
+        self.events = Div(text="", css_classes=["plc-events"], width=1200, height=170)
         self.layout = column(*axis_blocks, Div(text="<b>Channel</b>"), row(self.override, self.hold, reset),
                              Div(text="<b>Sensor faults</b> (the scenario's sensor_fault events, now)"),
                              self.fault_duration, *faults, clear, proc_note, self.procs, self.message, self.events)

@@ -65,7 +65,7 @@ class Scope:
         self.trig_signal = Select(title="on signal", options=options, value=self.choice.value[0], width=200)
         self.trig_level = NumericInput(title="level", value=0.0, mode="float", width=90)
         self.export = Button(label="Export CSV", width=110, css_classes=["scope-export"])
-        self.info = Div(text="", width=900, css_classes=["scope-info"])
+        self.info = Div(text="", width=1200, height=22, css_classes=["scope-info"])
         self.markers = ColumnDataSource({"t": [], "color": [], "label": []})
         self.plot = self._figure()
         self.layout = column(row(self.choice, self.window, self.pause, self.export),

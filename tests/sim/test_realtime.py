@@ -46,3 +46,28 @@ def test_background_thread_holds_the_lock_during_a_step_and_stops():
     wait_for(lambda: len(inside) >= 3, timeout=10.0)      # a few steps, however slow the machine
     loop.stop()
     assert not loop.running and inside and all(inside) and loop.error is None
+
+
+def test_the_cycle_thread_asks_for_sched_fifo_and_says_what_it_got():
+    import os
+    import time as _time
+
+    from distctrl.sim.realtime import RealTimeLoop
+
+    policies = {}
+    loop = RealTimeLoop(lambda: policies.setdefault("policy", os.sched_getscheduler(0)), 0.001, rt_priority=10)
+    loop.start(max_cycles=5)
+    deadline = _time.monotonic() + 2.0
+    while loop.running and _time.monotonic() < deadline:
+        _time.sleep(0.005)
+    if os.geteuid() == 0:                    # root may: the step ran under SCHED_FIFO
+        assert loop.scheduling == "SCHED_FIFO 10" and policies["policy"] == os.SCHED_FIFO
+    else:                                    # refused: said so, and the loop ran all the same
+        assert loop.scheduling.startswith("normal (SCHED_FIFO 10 not allowed")
+    assert loop.stats.cycles == 5
+    plain = RealTimeLoop(lambda: policies.__setitem__("plain", os.sched_getscheduler(0)), 0.001)
+    plain.start(max_cycles=2)
+    deadline = _time.monotonic() + 2.0
+    while plain.running and _time.monotonic() < deadline:
+        _time.sleep(0.005)
+    assert plain.scheduling == "normal" and policies["plain"] == os.SCHED_OTHER
