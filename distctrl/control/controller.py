@@ -144,6 +144,13 @@ class AxisDistanceController:
         self._w_v = p.v_weight_down if p.v_weight_down > 0 else 1.0
         self._w_a = p.a_weight_down if p.a_weight_down > 0 else 1.0
         self._tuning_stamp = object()      # identity token: outputs showing older tuning refresh
+        # the parameters and working values the cycle reads, as attributes of the controller
+        self._kp, self._v_max, self._inv_T = t.kp, t.v_max, 1.0 / T
+        self._sign_reversal, self._ref_offset = p.sensor_sign_reversal, p.ref_offset
+        self._min_pos, self._max_pos = p.min_pos, p.max_pos
+        self._optimized, self._both_encoders = p.optimized_scheduling, p.use_both_encoders
+        self._adaptive, self._sw_limits = p.use_adaptive_acceleration, p.check_sw_limit_switch
+        self._dev_lo, self._dev_hi = -p.max_deviation, p.max_deviation
         a_candidates = [self._a_base]
         if p.use_adaptive_acceleration:
             a_candidates.append(p.a_min)
@@ -154,15 +161,18 @@ class AxisDistanceController:
     # ------------------------------------------------------------------ public API
     def update(self, inp: CycleInput, out: CycleOutput) -> Result:
         """Run one GEO cycle: consume ``inp.commands``, compute, fill ``out``. Never raises on
-        cycle data; errors are returned as events in ``out.events``."""
+        cycle data; errors are returned as events in ``out.events``.
+
+        The common cycle (no command, nothing out of range) runs straight through this method with
+        the constants of :meth:`_derive` in locals; the rare steps (commands, PLC cyclic values,
+        monitoring errors, bound errors, the run-out to INACTIVE, tuning outputs) are methods of
+        their own."""
         st = self.state
-        p = self.params
         T = self.T
         st.cycle += 1
         events: list[ErrorEvent] = []
         st.no_move_this_cycle = False
         absorbed = 0.0
-        line = inp.nc_line
 
         # 1. inputs made safe
         finite_inputs = True
@@ -178,17 +188,18 @@ class AxisDistanceController:
             act, finite_inputs = st.last_a, False
 
         # 2. sensor pipeline: s now (mm); with optimized scheduling off the law sees last cycle's
+        modulo = self._modulo
         incr = inp.sensor_increments
         if st.sensor_source is _ENCODER and -_HUGE < incr < _HUGE:
             # fast path of _read_sensor for the axis default source (same law function)
-            s_now = law.encoder_reading(incr, self._mm_per_incr, p.sensor_sign_reversal,
-                                        p.ref_offset + st.ref_shift, self._modulo, p.min_pos, p.max_pos)
+            s_now = _encoder_reading(incr, self._mm_per_incr, self._sign_reversal, self._ref_offset + st.ref_shift,
+                                     modulo, self._min_pos, self._max_pos)
             sensor_ok = True
         else:
             s_now, sensor_ok = self._read_sensor(inp)
-        if self._modulo and sensor_ok:
+        if modulo and sensor_ok:
             s_now = self._unwrap(s_now)
-        if p.optimized_scheduling:
+        if self._optimized:
             s = s_now
         else:
             prev = st.s_delayed
@@ -199,50 +210,30 @@ class AxisDistanceController:
 
         # 3. commands
         if inp.commands:
-            for cmd in inp.commands:
-                absorbed += self._apply(cmd, inp, events, s_now, sensor_ok)
-            inp.commands.clear()
-            if self._rebased:
-                # REF or a sensor-source change: the reading has a new reference; use it at once (a
-                # delayed value of the old reference would look like a jump) and restart monitoring
-                self._rebased = False
-                st.has_unwrap = False
-                s_now, sensor_ok = self._read_sensor(inp)
-                if self._modulo and sensor_ok:
-                    s_now = self._unwrap(s_now)
-                s = st.s_delayed = s_now
-                st.has_last_s = False
+            absorbed, s_now, s, sensor_ok = self._apply_commands(inp, events, s_now, s, sensor_ok)
 
         state = st.hli_state
-        # PLC cyclic set values (re-read every cycle while PLC-commanded)
         running = state in MONITORED_STATES
-        if running and st.source is _PLC:
-            if st.mode is _SET_POS and inp.cyclic_set_pos is not None and _finite(inp.cyclic_set_pos):
-                st.set_pos = inp.cyclic_set_pos
-            elif st.mode is _CONST_DIST and inp.cyclic_set_dist is not None and _finite(inp.cyclic_set_dist):
-                st.set_dist = inp.cyclic_set_dist
-
-        # 4. monitoring (running states only; not in FREEZE: lifting Z while frozen is allowed)
         if running:
+            # PLC cyclic set values (re-read every cycle while PLC-commanded)
+            if st.source is _PLC:
+                self._cyclic_set_values(inp)
+            # 4. monitoring (running states only; not in FREEZE: lifting Z while frozen is allowed)
             if not finite_inputs:
-                self._raise(ErrorId.INPUT_NOT_FINITE, events, line)
+                self._raise(ErrorId.INPUT_NOT_FINITE, events, inp.nc_line)
+                state = st.hli_state
+                running = state in MONITORED_STATES
+            elif st.has_last_s and abs(s - st.last_s) > self._jump_limit:
+                self._sensor_jump(s, events, inp.nc_line)
+                state = st.hli_state
+                running = state in MONITORED_STATES
             else:
-                if st.has_last_s and abs(s - st.last_s) > self._jump_limit:
-                    unit = p.length_unit
-                    self._raise(ErrorId.SENSOR_JUMP, events, line,
-                                f"|Δs| = {abs(s - st.last_s):.6g} {unit} in {T:g} s, limit "
-                                f"{p.max_act_value_change:g} {unit}/s")
-                else:
-                    # the window applies to the reading as the sensor gives it (wrapped if modulo)
-                    s_window = law.modulo_wrap(s, p.min_pos, p.max_pos) if self._modulo else s
-                    if s_window > self._s_hi:
-                        self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line,
-                                    f"s = {s_window:.6g} {p.length_unit}")
-                    elif s_window < self._s_lo:
-                        self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line,
-                                    f"s = {s_window:.6g} {p.length_unit}")
-            state = st.hli_state
-            running = state in MONITORED_STATES
+                # the window applies to the reading as the sensor gives it (wrapped if modulo)
+                s_window = _modulo_wrap(s, self._min_pos, self._max_pos) if modulo else s
+                if s_window > self._s_hi or s_window < self._s_lo:
+                    self._sensor_run_out(s_window, events, inp.nc_line)
+                    state = st.hli_state
+                    running = state in MONITORED_STATES
         if sensor_ok:
             st.last_s = s
             st.has_last_s = True
@@ -251,17 +242,15 @@ class AxisDistanceController:
 
         # 5. feedback, filter, error, PID
         d = -s
-        surface = act - d
         o = st.offset
-        mode = st.mode
-        const = mode is _CONST_DIST
-        feedback = law.feedback_value(const, p.use_both_encoders, d, act, prog + o)
+        const = st.mode is _CONST_DIST
+        feedback = _feedback_value(const, self._both_encoders, d, act, prog + o)
         if state in _FILTERING:
             if st.need_seed:
                 law.filter_seed(self._fc, self._fs, self._buf, feedback)
                 st.need_seed = False
                 st.m_prev = -feedback if const else feedback
-            filtered = law.filter_step(self._fc, self._fs, self._buf, feedback)
+            filtered = _filter_step(self._fc, self._fs, self._buf, feedback)
             if state == _FREEZE:
                 st.m_prev = -filtered if const else filtered   # no D kick when tracking resumes
         else:
@@ -272,17 +261,17 @@ class AxisDistanceController:
         target_dev = 0.0
         e = 0.0
         u = 0.0
-        i_cand = st.integral
+        integral = i_cand = st.integral
         set_dist = st.set_dist
         scale = inp.set_distance_scale
         if scale != 1.0 and -_HUGE < scale < _HUGE:
             set_dist = set_dist * scale                 # 3D: the orthogonal set distance (SPEC §11)
         if running:
-            target_dev, e, m = law.mode_error(const, filtered, set_dist if const else st.set_pos, o)
-            u, i_cand = law.pid_step(self.tuning.kp, self._i_gain, self._d_gain, st.integral, st.m_prev, e, m)
+            target_dev, e, m = _mode_error(const, filtered, set_dist if const else st.set_pos, o)
+            u, i_cand = _pid_step(self._kp, self._i_gain, self._d_gain, integral, st.m_prev, e, m)
             st.m_prev = m
             if not (-_HUGE < u < _HUGE and -_HUGE < i_cand < _HUGE):   # (rare: no call per cycle)
-                u, i_cand = law.finite_step(u, i_cand, st.integral)   # never let inf/NaN through
+                u, i_cand = law.finite_step(u, i_cand, integral)   # never let inf/NaN through
         elif state == _TURNING_OFF:
             e = -o
             u = -o
@@ -293,12 +282,13 @@ class AxisDistanceController:
             override = 0.0
         elif override > 1.0:
             override = 1.0
-        hold = override == 0.0 or state not in (_ACTIVE, _ACTIVE_CD, _TURNING_OFF)
-        v_lim = self.tuning.v_max * override
+        hold = override == 0.0 or state not in _MOVING
+        v_lim = self._v_max * override
         a_lim = a_brake = self._a_base
-        if p.use_adaptive_acceleration and state in _TRACKING:
+        if self._adaptive and state in _TRACKING:
             # Fig. 31 keyed on the remaining control error e in every mode (SPEC §6); the braking
             # bound uses the acceleration that is left on the way to e = 0
+            p = self.params
             e_abs = abs(e)
             a_lim = law.adaptive_acceleration(e_abs, p.a_min, self._a_base, p.dist_error_a_min,
                                               p.dist_error_a_max)
@@ -308,96 +298,171 @@ class AxisDistanceController:
             u_lim, e_lim = 0.0, 0.0                    # wanted step 0: decelerate and stay
         else:
             u_lim, e_lim = u, e
-        v, a_applied, v_applied = law.slope_limit(u_lim, e_lim, st.velocity, T, v_lim, a_lim, a_brake,
-                                                  self._w_v, self._w_a)
-        lo, hi = -p.max_deviation, p.max_deviation
-        sw_active = p.check_sw_limit_switch
-        if sw_active:
+        v_prev = st.velocity
+        v, a_applied, v_applied = _slope_limit(u_lim, e_lim, v_prev, T, v_lim, a_lim, a_brake,
+                                               self._w_v, self._w_a)
+        lo, hi = self._dev_lo, self._dev_hi
+        if self._sw_limits:
+            p = self.params
             lo = max(lo, p.sw_limit_min - prog)
             hi = min(hi, p.sw_limit_max - prog)
         # a lowered acceleration (object write adopted while the offset still moves) must not make
         # the bounds brake harder than the motion allows: keep the old floor until at rest
-        a_bound = self._a_floor if st.velocity == 0.0 else max(self._a_floor, st.a_bound)
+        a_bound = self._a_floor
+        if v_prev != 0.0 and st.a_bound > a_bound:     # max(a_floor, st.a_bound)
+            a_bound = st.a_bound
         st.a_bound = a_bound
         v_limited = v
-        v = law.bound_velocity(v, o, T, lo, hi, a_bound)
+        v = _bound_velocity(v, o, T, lo, hi, a_bound)
         if v != v_limited and a_bound > a_applied:
             a_applied = a_bound                        # report the deceleration actually allowed
-        o_new = law.advance_offset(o, v, T, lo, hi)
-        # at a bound and wanting beyond it: 70331 (max_deviation) or the software limit
+        o_new = _advance_offset(o, v, T, lo, hi)
         if not hold:
+            # at a bound and wanting beyond it: 70331 (max_deviation) or the software limit
             wanted = o + u_lim
-            if wanted > hi + _LAND and hi - o_new <= _LAND:
-                self._raise(ErrorId.MAX_DEVIATION if hi >= p.max_deviation - _LAND else ErrorId.SW_LIMIT,
-                            events, line, f"wanted offset {wanted:.6g} mm, limit {hi:.6g} mm")
-            elif wanted < lo - _LAND and o_new - lo <= _LAND:
-                self._raise(ErrorId.MAX_DEVIATION if lo <= -p.max_deviation + _LAND else ErrorId.SW_LIMIT,
-                            events, line, f"wanted offset {wanted:.6g} mm, limit {lo:.6g} mm")
-            state = st.hli_state
-        # integrator: keep the candidate only if the limiter did not clip in its direction
-        if state in _TRACKING and not hold:
-            st.integral = law.integrator_after_limiter(st.integral, i_cand, u_lim, v, e, T)
-        v_real = (o_new - o) * (1.0 / T)
+            if (wanted > hi + _LAND and hi - o_new <= _LAND) or (wanted < lo - _LAND and o_new - lo <= _LAND):
+                self._bound_error(wanted, o_new, lo, hi, events, inp.nc_line)
+                state = st.hli_state
+            # integrator: keep the candidate only if the limiter did not clip in its direction
+            if state in _TRACKING:
+                st.integral = _integrator_after_limiter(integral, i_cand, u_lim, v, e, T)
+        v_real = (o_new - o) * self._inv_T
         st.velocity = v_real
         st.offset = o_new
         if st.pending_dryrun is not None:
-            if state != _FREEZE:
-                st.pending_dryrun = None
-            elif v_real == 0.0:
-                st.hli_state = state = st.pending_dryrun
-                st.pending_dryrun = None
+            state = self._pending_dryrun(state, v_real)
         if state == _TURNING_OFF and abs(o_new) <= _LAND and abs(v_real) <= a_applied * T:
-            # run out: INACTIVE with the offset exactly 0; the velocity of this last step is kept so
-            # that the next cycle (at rest, or a new select) continues within the acceleration bound
-            st.offset = o_new = 0.0
-            if o * v > 0.0:
-                # o had overshot 0 by rounding (~1e-17 mm): the snap moves against v, so report the
-                # velocity and limit of the step actually made (SPEC §6 weighting by direction)
-                st.velocity = v_real = -o * (1.0 / T)
-                v_applied = v_lim if o < 0.0 else v_lim * self._w_v
-            self._to_inactive()
+            o_new, v_applied = self._run_out(o, v, v_lim, v_applied)
             state = _INACTIVE
 
         # 7. outputs
-        tol = self._wait_tol
         out.offset = o_new
         out.m_actual_offset = o_new
         out.command_position = prog + o_new + absorbed
         out.absorbed_offset = absorbed
-        out.set_pos = st.set_pos if state != _INACTIVE or st.programmed_set_pos is None else st.programmed_set_pos
-        out.set_distance = set_dist if state != _INACTIVE or st.programmed_set_dist is None \
-            else st.programmed_set_dist
+        if state != _INACTIVE:
+            out.set_pos = st.set_pos
+            out.set_distance = set_dist
+        else:
+            out.set_pos = st.set_pos if st.programmed_set_pos is None else st.programmed_set_pos
+            out.set_distance = set_dist if st.programmed_set_dist is None else st.programmed_set_dist
         out.target_deviation = target_dev
         out.delta_deviation_pre_limiter = u
         out.sloped_delta_deviation = v * T
         out.delta_offset = o_new - o
         out.offset_velocity = st.velocity
-        out.sensor_value = st.last_var if st.sensor_source is _VARIABLE else \
-            (law.modulo_wrap(s, p.min_pos, p.max_pos) if self._modulo else s)
+        source = st.sensor_source
+        out.sensor_value = st.last_var if source is _VARIABLE else \
+            (_modulo_wrap(s, self._min_pos, self._max_pos) if modulo else s)
         out.feedback_value = feedback
         out.filtered_feedback = filtered
         out.hli_state = _INT[state]
         out.state = _INTERNAL_OF[state] if state != _ERROR and not st.no_move_this_cycle \
             else int(self._internal_state(state))
-        out.v_max_int, out.a_max_int = v_applied, a_applied
+        out.v_max_int = v_applied
+        out.a_max_int = a_applied
         if out.tuning_stamp is not self._tuning_stamp:  # tuning outputs change rarely
-            t = self.tuning
-            out.kp, out.i_tn, out.d_tv = t.kp, t.i_tn, t.d_tv
-            out.smoothing_fact, out.kalman_sigma = t.filter.smoothing_factor, t.filter.kalman_sigma
-            out.n_cycles, out.filter_type = t.filter.effective_n, t.filter.filter_type.name   # n in use
-            out.v_max_param, out.a_max_param = t.v_max, t.a_max
-            out.tuning_stamp = self._tuning_stamp
-        out.surface_position = surface
+            self._tuning_outputs(out)
+        out.surface_position = act - d
         out.measured_distance = d
-        out.command_source = int(st.source)
-        out.target_reached = state == _INACTIVE or (state in MONITORED_STATES and abs(e) <= tol)
+        out.command_source = _INT_SOURCE[st.source]
+        out.target_reached = state == _INACTIVE or (state in MONITORED_STATES and abs(e) <= self._wait_tol)
         out.sensor_valid = sensor_ok
         out.cycle = st.cycle
         out.vals = st.vals
         out.events = events
         if not events:
-            return Result.OK
+            return _OK
         return Result.ERROR if any(ev.severity == "error" for ev in events) else Result.WARNING
+
+    # ------------------------------------------------------------------ the rare steps of a cycle
+    def _apply_commands(self, inp: CycleInput, events: list, s_now: float, s: float,
+                        sensor_ok: bool) -> tuple[float, float, float, bool]:
+        """Step 3: the queued commands in order; returns (absorbed offset, s now, s, sensor ok),
+        the reading taken anew after a REF or a sensor-source change."""
+        st = self.state
+        absorbed = 0.0
+        for cmd in inp.commands:
+            absorbed += self._apply(cmd, inp, events, s_now, sensor_ok)
+        inp.commands.clear()
+        if self._rebased:
+            # REF or a sensor-source change: the reading has a new reference; use it at once (a
+            # delayed value of the old reference would look like a jump) and restart monitoring
+            self._rebased = False
+            st.has_unwrap = False
+            s_now, sensor_ok = self._read_sensor(inp)
+            if self._modulo and sensor_ok:
+                s_now = self._unwrap(s_now)
+            s = st.s_delayed = s_now
+            st.has_last_s = False
+        return absorbed, s_now, s, sensor_ok
+
+    def _cyclic_set_values(self, inp: CycleInput) -> None:
+        """PLC-commanded and running: the cyclic set value of the mode (when given and finite)."""
+        st = self.state
+        if st.mode is _SET_POS and inp.cyclic_set_pos is not None and _finite(inp.cyclic_set_pos):
+            st.set_pos = inp.cyclic_set_pos
+        elif st.mode is _CONST_DIST and inp.cyclic_set_dist is not None and _finite(inp.cyclic_set_dist):
+            st.set_dist = inp.cyclic_set_dist
+
+    def _sensor_jump(self, s: float, events: list, line: int | None) -> None:
+        """70329: the reading changed by more than max_act_value_change in one cycle."""
+        p = self.params
+        unit = p.length_unit
+        self._raise(ErrorId.SENSOR_JUMP, events, line,
+                    f"|Δs| = {abs(s - self.state.last_s):.6g} {unit} in {self.T:g} s, limit "
+                    f"{p.max_act_value_change:g} {unit}/s")
+
+    def _sensor_run_out(self, s_window: float, events: list, line: int | None) -> None:
+        """70330 / 70576: the reading left the sensor window (max_pos / min_pos less the tolerance)."""
+        if s_window > self._s_hi:
+            self._raise(ErrorId.SENSOR_RUN_OUT_MAX, events, line, f"s = {s_window:.6g} {self.params.length_unit}")
+        else:
+            self._raise(ErrorId.SENSOR_RUN_OUT_MIN, events, line, f"s = {s_window:.6g} {self.params.length_unit}")
+
+    def _bound_error(self, wanted: float, o_new: float, lo: float, hi: float, events: list,
+                     line: int | None) -> None:
+        """At a bound and wanting beyond it: 70331 (max_deviation) or the software limit."""
+        max_dev = self.params.max_deviation
+        if wanted > hi + _LAND and hi - o_new <= _LAND:
+            self._raise(ErrorId.MAX_DEVIATION if hi >= max_dev - _LAND else ErrorId.SW_LIMIT,
+                        events, line, f"wanted offset {wanted:.6g} mm, limit {hi:.6g} mm")
+        else:
+            self._raise(ErrorId.MAX_DEVIATION if lo <= -max_dev + _LAND else ErrorId.SW_LIMIT,
+                        events, line, f"wanted offset {wanted:.6g} mm, limit {lo:.6g} mm")
+
+    def _pending_dryrun(self, state: HliState, v_real: float) -> HliState:
+        """A DRYRUN selected while the offset still braked (FREEZE): it begins once the offset stands."""
+        st = self.state
+        if state != _FREEZE:
+            st.pending_dryrun = None
+        elif v_real == 0.0:
+            st.hli_state = state = st.pending_dryrun
+            st.pending_dryrun = None
+        return state
+
+    def _run_out(self, o: float, v: float, v_lim: float, v_applied: float) -> tuple[float, float]:
+        """TURNING_OFF has run its offset out: INACTIVE with the offset exactly 0; the velocity of
+        this last step is kept so that the next cycle (at rest, or a new select) continues within the
+        acceleration bound. Returns (offset 0, the velocity limit applied)."""
+        st = self.state
+        st.offset = 0.0
+        if o * v > 0.0:
+            # o had overshot 0 by rounding (~1e-17 mm): the snap moves against v, so report the
+            # velocity and limit of the step actually made (SPEC §6 weighting by direction)
+            st.velocity = -o * self._inv_T
+            v_applied = v_lim if o < 0.0 else v_lim * self._w_v
+        self._to_inactive()
+        return 0.0, v_applied
+
+    def _tuning_outputs(self, out: CycleOutput) -> None:
+        """The working tuning values behind the CNC objects (written when the tuning changed)."""
+        t = self.tuning
+        out.kp, out.i_tn, out.d_tv = t.kp, t.i_tn, t.d_tv
+        out.smoothing_fact, out.kalman_sigma = t.filter.smoothing_factor, t.filter.kalman_sigma
+        out.n_cycles, out.filter_type = t.filter.effective_n, t.filter.filter_type.name   # n in use
+        out.v_max_param, out.a_max_param = t.v_max, t.a_max
+        out.tuning_stamp = self._tuning_stamp
 
     def law_constants(self) -> dict:
         """The derived constants the law runs with now (for the batch kernel, which must use the
@@ -741,6 +806,14 @@ class AxisDistanceController:
 
 
 _HUGE = law.HUGE
+_OK = Result.OK
+_MOVING = frozenset({_ACTIVE, _ACTIVE_CD, _TURNING_OFF})   # the offset may move (not held)
+_INT_SOURCE = {s: int(s) for s in CommandSource}
+# the law functions of the common cycle, bound once (the same functions: law.py is the only copy)
+_encoder_reading, _modulo_wrap, _feedback_value = law.encoder_reading, law.modulo_wrap, law.feedback_value
+_filter_step, _mode_error, _pid_step = law.filter_step, law.mode_error, law.pid_step
+_slope_limit, _bound_velocity, _advance_offset = law.slope_limit, law.bound_velocity, law.advance_offset
+_integrator_after_limiter = law.integrator_after_limiter
 _ENCODER, _VARIABLE, _PLC = SensorSource.SECOND_ENCODER, SensorSource.VARIABLE, CommandSource.PLC
 _SET_POS, _CONST_DIST = Mode.SET_POS, Mode.CONST_DIST
 _MAX_I_GAIN = 1e6          # T / i_tn is bounded: i_tn below T*1e-6 acts as T*1e-6

@@ -428,8 +428,14 @@ class SensorBase:
         """
         fp = self._footprint
         v = self._sense_sign * (axis_z - surface_z) if fp is None else fp(axis_z, surface_z, x, y)
-        if self.noise_std:
-            v += self.noise_std * self._normal()
+        noise_std = self.noise_std
+        if noise_std:
+            i = self._noise_i                      # _normal() without the call while the block lasts
+            if i < len(self._noise):
+                self._noise_i = i + 1
+                v += noise_std * self._noise[i]
+            else:
+                v += noise_std * self._normal()
         if self.bursts is not None:
             v += self._plume_value(cycle)
         faults = self.faults

@@ -113,6 +113,9 @@ class Step:
         hi = None if self.width is None else self.width / 2.0
         self.ramp_length = require_number(ramp_length, "Step.ramp_length", lo=0.0, hi=hi)
         self._on_y = self.axis == "Y"
+        # per-cycle constants: a vertical edge (ramp_length 0) is the comparison of _unit_ramp's first line
+        self._vertical = self.ramp_length <= 0.0
+        self._fall_at = None if self.width is None else self.at + self.width - self.ramp_length
 
     def _profile(self, u: float) -> float:
         up = _unit_ramp(u, self.at, self.ramp_length)
@@ -121,7 +124,13 @@ class Step:
         return up - _unit_ramp(u, self.at + self.width - self.ramp_length, self.ramp_length)
 
     def z(self, x: float, y: float) -> float:
-        return self.height * self._profile(y if self._on_y else x)
+        u = y if self._on_y else x
+        if self._vertical:                      # _profile with _unit_ramp's step, without the calls
+            up = 1.0 if u >= self.at else 0.0
+            if self._fall_at is None:
+                return self.height * up
+            return self.height * (up - (1.0 if u >= self._fall_at else 0.0))
+        return self.height * self._profile(u)
 
     def z_array(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         xs, ys = np.broadcast_arrays(np.asarray(xs, float), np.asarray(ys, float))
