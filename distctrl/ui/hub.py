@@ -258,7 +258,7 @@ class MachineHub:
             with self.lock:
                 setter(name, axis, bool(on))
         except (KeyError, ValueError, DistCtrlError) as exc:
-            return False, str(exc)
+            return False, str(exc.args[0]) if exc.args else str(exc)
         return True, f"process function {name} on {axis} {'enabled' if on else 'disabled'}"
 
     # ------------------------------------------------------------------ export

@@ -1,0 +1,58 @@
+"""The PLC panel's process functions switched while the program runs (issue 17 with issue 16's
+``ProcessProgram.set_enabled``), in the browser."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import expect
+
+from distctrl.ads.machine import ServedMachine
+from distctrl.sim.scenario import load_scenario
+from distctrl.ui import UiServer
+from tests.ui.test_page import ARGS, CHROMIUM, tab
+
+SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "process_corner.toml"
+
+
+@pytest.fixture(scope="module")
+def served():
+    served = ServedMachine(load_scenario(SCN), port=0, discovery_port=None)
+    ui = UiServer(served, port=0)
+    ui.start()
+    served.start()
+    try:
+        yield served, ui
+    finally:
+        ui.stop()
+        served.stop()
+
+
+def test_a_process_function_is_switched_off_and_on_from_the_page(served):
+    from playwright.sync_api import sync_playwright
+
+    sm, ui = served
+    corner = sm.machine.process_program.function("corner_lock", "Z")
+    assert corner.enabled
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1300, "height": 900})
+        page.goto(ui.url)
+        page.locator(".scope-plot").first.wait_for(timeout=15000)
+        tab(page, "PLC panel")
+        box = page.locator(".plc-process input[type=checkbox]").first
+        expect(box).to_be_checked()
+        expect(box).to_be_enabled()
+        box.uncheck()
+        expect(page.locator(".plc-message .bk-clearfix")).to_contain_text("corner_lock on Z disabled")
+        assert not corner.enabled
+        box.check()
+        expect(page.locator(".plc-message .bk-clearfix")).to_contain_text("corner_lock on Z enabled")
+        assert corner.enabled
+        browser.close()
+
+
+def test_an_unknown_function_is_refused_by_the_hub(served):
+    _, ui = served
+    ok, message = ui.hub.set_process("void_lock", "Z", False)
+    assert not ok and "no process function 'void_lock'" in message
