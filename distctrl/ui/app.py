@@ -19,6 +19,7 @@ import gc
 import ipaddress
 import logging
 import socket
+import sys
 import threading
 from pathlib import Path
 
@@ -30,6 +31,9 @@ log = logging.getLogger("distctrl.ui")
 CSP = ("default-src 'none'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
        "img-src 'self' data: blob:; font-src 'self' data:; connect-src 'self'; base-uri 'none'; "
        "form-action 'none'")
+#: Python's thread switch interval while the page is served (default 5 ms): a thread holding the GIL
+#: gives it up after this long when another (the 1 ms cycle) waits for it
+SWITCH_INTERVAL = 0.0005
 #: frames per second of every page (the scope's stream, the panels' values)
 FRAME_MS = 50
 
@@ -86,6 +90,9 @@ class UiServer:
     # ------------------------------------------------------------------ life cycle
     def start(self) -> None:
         """Start the server thread; returns once it listens (raises OSError if it cannot bind)."""
+        if getattr(self.served.loop, "rt_priority", 0) > 0:
+            # the cycle thread waits at most this long for Python's GIL while the page's thread works
+            sys.setswitchinterval(SWITCH_INTERVAL)
         self._thread = threading.Thread(target=self._run, name="distctrl-ui", daemon=True)
         self._thread.start()
         self._ready.wait(30.0)
@@ -128,6 +135,7 @@ class UiServer:
         from tornado.ioloop import IOLoop, PeriodicCallback
 
         asyncio.set_event_loop(asyncio.new_event_loop())
+        self._set_scheduling()
         io = IOLoop.current()
         try:
             origins = [f"127.0.0.1:{self.port}", f"localhost:{self.port}"]
@@ -149,6 +157,20 @@ class UiServer:
         PeriodicCallback(self.hub.pump, FRAME_MS // 2).start()
         self._ready.set()
         io.start()
+
+    def _set_scheduling(self) -> None:
+        """With the cycle thread on SCHED_FIFO, this thread too (one priority level below): it holds
+        Python's GIL while it serialises a frame, and preempted then by another process (the browser
+        drawing the page) it would keep the cycle thread waiting for the GIL (priority inversion)."""
+        prio = getattr(self.served.loop, "rt_priority", 0)
+        if prio <= 1:
+            return
+        import os
+
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio - 1))
+        except (AttributeError, OSError, ValueError):
+            pass
 
     def _guard(self, server) -> None:
         """Close connections from outside the allowed networks at once (as an ADS route does)."""
