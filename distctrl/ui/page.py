@@ -38,6 +38,7 @@ def clock_text(hub: MachineHub) -> str:
 #: frames between two updates of the clock and of the machine view (the browser restyles the page on
 #: every change of a text: the clock runs at 4 per second, the status line changes only when it must)
 CLOCK_EVERY = 5
+STATUS_MS = 20
 MACHINE_EVERY = 2
 
 
@@ -56,12 +57,14 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
 
     frames = [0]
 
-    def frame() -> None:
-        frames[0] += 1
-        n = frames[0]
+    def status_line() -> None:
         text = status_text(hub)
         if status.text != text:
             status.text = text
+
+    def frame() -> None:
+        frames[0] += 1
+        n = frames[0]
         if n % CLOCK_EVERY == 0:
             clock.text = clock_text(hub)
         scope.update()
@@ -75,3 +78,6 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
     doc.add_root(column(row(clock, status), tabs, sizing_mode="stretch_width"))
     doc.title = f"distctrl — {hub.served.scenario.name}"
     doc.add_periodic_callback(frame, frame_ms)
+    # the status line is checked more often than the frames are drawn (it changes seldom, and then
+    # should show at once: a state change, the override, an error)
+    doc.add_periodic_callback(status_line, STATUS_MS)
