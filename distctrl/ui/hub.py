@@ -6,7 +6,7 @@ lock at a time the cycle is due):
 
 * every cycle one trace row (the columns of ``distctrl run --trace``, :func:`~distctrl.sim.runner.trace_columns`)
   goes into a queue; the page thread moves the rows into a ring buffer of ``buffer_s`` seconds;
-* every ``snapshot_every`` cycles (20: 50 per second at 1 ms) a snapshot of plain values: every CNC
+* every ``snapshot_every`` cycles (10: 100 per second at 1 ms, about 60 µs for two axes) a snapshot of plain values: every CNC
   object of every axis (raw value and pending write), each HLI control unit, the machine's events,
   the NC line, override and the head over the surface. Objects sampled this way are the scope's
   CNC-object signals (a second, slower ring buffer).
@@ -50,7 +50,7 @@ TRANSITIONS = ("ON", "ON_CONST_DIST", "DRYRUN", "CONST_DIST", "FREEZE", "REF", "
 class MachineHub:
     """The shared state of the live pages over one :class:`~distctrl.ads.machine.ServedMachine`."""
 
-    def __init__(self, served, *, buffer_s: float = 60.0, snapshot_every: int = 20):
+    def __init__(self, served, *, buffer_s: float = 60.0, snapshot_every: int = 10):
         m = self.machine = served.machine
         self.served, self.lock, self.T = served, served.lock, m.T
         self.columns, self.units = trace_columns(m)

@@ -1,7 +1,7 @@
 """The scope of the live page: any trace signal or CNC object of any axis, live, like TwinCAT Scope.
 
 * Signals: the columns of ``distctrl run --trace`` (every cycle) and the CNC objects of every axis
-  (``<axis>.obj.<name>``, sampled every 20 ms). One y axis per unit.
+  (``<axis>.obj.<name>``, sampled every 10 ms). One y axis per unit.
 * Display: every ``DECIMATE``-th cycle (10 ms at 1 ms) streamed with rollover (``ColumnDataSource.stream``)
   over the last ``window`` seconds; the ring buffer of the last 60 s (every cycle) stays on the server.
 * Pause loads the whole ring buffer into the page (the buffer keeps filling; Run goes live again), zoom and pan (Bokeh's tools), cursors (crosshair
