@@ -107,6 +107,9 @@ class UiServer:
     # (gc.freeze); the short-lived objects of every frame are still collected as usual.
 
     def stop(self) -> None:
+        with self.served.lock:                     # the machine serves on without this page's recorder
+            if self.hub._after_cycle in self.served.observers:
+                self.served.observers.remove(self.hub._after_cycle)
         io, server = self._io_loop, self._server
         if io is None:
             return

@@ -217,8 +217,19 @@ def test_export_writes_a_trace_csv_that_distctrl_plot_reads(served, page, tmp_pa
 def test_a_client_outside_the_allowed_networks_is_refused(served):
     import socket
 
-    _, ui = served
+    sm, ui = served
     assert ui.is_allowed("127.0.0.1") and not ui.is_allowed("192.168.10.5")
     with socket.create_connection((HOST, ui.port), timeout=2) as s:     # loopback is allowed
         s.sendall(b"GET / HTTP/1.0\r\n\r\n")
         assert s.recv(12).startswith(b"HTTP/1.")
+    # a page server that allows only another network closes a loopback client at once, unanswered
+    other = UiServer(sm, host=HOST, port=0, allowed=["192.168.10.0/24"])
+    other.start()
+    try:
+        with socket.create_connection((HOST, other.port), timeout=2) as s:
+            s.sendall(b"GET / HTTP/1.0\r\n\r\n")
+            assert s.recv(12) == b""
+        assert other.refused == 1
+    finally:
+        other.stop()
+    assert other.hub._after_cycle not in sm.observers
