@@ -101,10 +101,10 @@ class UiServer:
         log.info("live page on %s (Bokeh server, allowed %s)", self.url, ", ".join(map(str, self.allowed)))
         gc.freeze()
 
-    # The page's Bokeh documents are large, long-lived object graphs: a full garbage collection that
-    # traverses them stops every thread of the process (also the 1 ms cycle) for tens of ms. What is
-    # set up (the server, each page once built) is moved out of the collector's generations
-    # (gc.freeze); the short-lived objects of every frame are still collected as usual.
+    # What is set up once (the served machine, the Bokeh server) lives as long as the process: it is
+    # moved out of the garbage collector's generations (gc.freeze), so that a full collection does not
+    # traverse it while the cycle waits for the GIL. The pages are not frozen: a closed page's objects
+    # must be collected.
 
     def stop(self) -> None:
         with self.served.lock:                     # the machine serves on without this page's recorder
@@ -197,14 +197,9 @@ class UiServer:
         self.sessions += 1
         build_page(doc, self.hub, self.export_dir, FRAME_MS)
         doc.template = _template()
-        doc.add_next_tick_callback(_freeze)
 
 
 _TEMPLATE = None
-
-
-async def _freeze() -> None:
-    gc.freeze()
 
 
 def _template():
