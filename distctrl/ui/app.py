@@ -90,6 +90,7 @@ class UiServer:
     # ------------------------------------------------------------------ life cycle
     def start(self) -> None:
         """Start the server thread; returns once it listens (raises OSError if it cannot bind)."""
+        self._switch_interval = sys.getswitchinterval()
         if getattr(self.served.loop, "rt_priority", 0) > 0:
             # the cycle thread waits at most this long for Python's GIL while the page's thread works
             sys.setswitchinterval(SWITCH_INTERVAL)
@@ -110,6 +111,8 @@ class UiServer:
         with self.served.lock:                     # the machine serves on without this page's recorder
             if self.hub._after_cycle in self.served.observers:
                 self.served.observers.remove(self.hub._after_cycle)
+        if getattr(self, "_switch_interval", None) is not None:
+            sys.setswitchinterval(self._switch_interval)
         io, server = self._io_loop, self._server
         if io is None:
             return
