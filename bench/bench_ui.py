@@ -3,6 +3,9 @@
 In one process: the served machine (examples/scenarios/serve_z.toml, 1 ms cycle) with the live page's
 Bokeh server (distctrl/ui). Headless Chromium (Debian's, driven by Playwright) opens pages on it.
 
+Headless Chromium is driven by Playwright from a second process (this script with ``--browser``), so
+the measured process holds what ``distctrl serve --ui`` holds.
+
 1. **Cycle lateness under load.** The cycle-start lateness p99 over ``--seconds`` with the page server
    running and no page open, then over the same time with two pages open on the scope (streaming at
    25 frames/s), in alternating windows (none, two, none, two, ...) so that both see the same machine
@@ -22,6 +25,7 @@ import json
 import pathlib
 import re
 import statistics
+import subprocess
 import sys
 import time
 
@@ -72,19 +76,53 @@ def p99(samples: list[float]) -> float:
     return s[min(len(s) - 1, int(0.99 * len(s)))] if s else float("nan")
 
 
+def browser_child(url: str) -> None:
+    """The browser side (its own process): commands on stdin, one JSON answer per line on stdout."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        pages = []
+        for line in sys.stdin:
+            cmd = line.split()
+            answer = None
+            if cmd[0] == "open":
+                for _ in range(int(cmd[1])):
+                    page = browser.new_page(viewport={"width": 1300, "height": 900})
+                    page.goto(url)
+                    page.locator(".scope-plot").first.wait_for()
+                    if "observe" in cmd:
+                        page.locator(".override").first.wait_for()
+                        page.evaluate(OBSERVER_JS)
+                    pages.append(page)
+            elif cmd[0] == "close":
+                for page in pages:
+                    page.close()
+                pages = []
+            elif cmd[0] == "collect":
+                answer = [page.evaluate("window.__seen") for page in pages]
+            elif cmd[0] == "quit":
+                print("null", flush=True)
+                break
+            print(json.dumps(answer), flush=True)
+        browser.close()
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="short windows (smoke test)")
     ap.add_argument("--seconds", type=float, default=None, help="length of each window (default 5 s, quick 2 s)")
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "bench")
+    ap.add_argument("--browser", metavar="URL", help=argparse.SUPPRESS)     # the browser process
     ap.add_argument("--rt-priority", type=int, default=10,
                     help="the cycle thread's SCHED_FIFO priority, as `distctrl serve` (0: normal priority)")
     args = ap.parse_args(argv)
+    if args.browser:
+        browser_child(args.browser)
+        return {}
     window = args.seconds or (2.0 if args.quick else 5.0)
     rounds = 2 if args.quick else 4
     changes = 10 if args.quick else 40
-    from playwright.sync_api import sync_playwright
-
     served = ServedMachine(load_scenario(SCENARIO), port=0, discovery_port=None, rt_priority=args.rt_priority)
     ui = UiServer(served, port=0, export_dir=args.out / "ui_exports")
     served.start()
@@ -92,45 +130,46 @@ def main(argv=None) -> dict:
     none_s: list[float] = []
     two_s: list[float] = []
     latencies: list[float] = []
+    # the browser is driven from a process of its own (this script with --browser URL): the served
+    # process then holds only what `distctrl serve --ui` holds, not Playwright's client too
+    child = subprocess.Popen([sys.executable, __file__, "--browser", ui.url], stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, text=True, bufsize=1)
+
+    def ask(command: str):
+        child.stdin.write(command + "\n")
+        child.stdin.flush()
+        return json.loads(child.stdout.readline())
+
     try:
-        time.sleep(1.0)
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-            for _ in range(rounds):
-                none_s += lateness_window(served, window)
-                pages = [browser.new_page(viewport={"width": 1300, "height": 900}) for _ in range(2)]
-                for page in pages:
-                    page.goto(ui.url)
-                    page.locator(".scope-plot").first.wait_for()
-                time.sleep(1.0)                        # the pages are up and streaming
-                two_s += lateness_window(served, window)
-                for page in pages:
-                    page.close()
-                time.sleep(1.0)                        # their sessions are gone
-            # update latency: two pages, override changes noted in the page
-            pages = [browser.new_page(viewport={"width": 1300, "height": 900}) for _ in range(2)]
-            for page in pages:
-                page.goto(ui.url)
-                page.locator(".override").first.wait_for()
-                page.evaluate(OBSERVER_JS)
-            time.sleep(1.5)
-            sent = []
-            for i in range(changes):
-                value = 0.50 + 0.01 * (i % 40)
-                with served.lock:
-                    served.machine.channel_override = value
-                    t = time.time() * 1000.0
-                sent.append((f"{value * 100:.0f}", t))
-                time.sleep(0.25 + 0.013 * (i % 7))     # not in step with the pages' frames
-            time.sleep(0.5)
-            for page in pages:
-                seen = page.evaluate("window.__seen")
-                for text, t_sent in sent:
-                    t_seen = next((ts for v, ts in seen if v == text and ts >= t_sent - 1.0), None)
-                    if t_seen is not None:
-                        latencies.append(t_seen - t_sent)
-            browser.close()
+        ask("hello")
+        for _ in range(rounds):
+            none_s += lateness_window(served, window)
+            ask("open 2")
+            time.sleep(1.0)                        # the pages are up and streaming
+            two_s += lateness_window(served, window)
+            ask("close")
+            time.sleep(1.0)                        # their sessions are gone
+        # update latency: two pages, override changes noted in the page
+        ask("open 2 observe")
+        time.sleep(1.5)
+        sent = []
+        for i in range(changes):
+            value = 0.50 + 0.01 * (i % 40)
+            with served.lock:
+                served.machine.channel_override = value
+                t = time.time() * 1000.0
+            sent.append((f"{value * 100:.0f}", t))
+            time.sleep(0.25 + 0.013 * (i % 7))     # not in step with the pages' frames
+        time.sleep(0.5)
+        for seen in ask("collect"):
+            for text, t_sent in sent:
+                t_seen = next((ts for v, ts in seen if v == text and ts >= t_sent - 1.0), None)
+                if t_seen is not None:
+                    latencies.append(t_seen - t_sent)
+        ask("quit")
     finally:
+        child.kill()
+        child.wait()
         ui.stop()
         served.stop()
     p_none, p_two = p99(none_s), p99(two_s)
