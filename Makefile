@@ -61,7 +61,7 @@ docs: $(STAMP)
 	$(PY) -m distctrl.params.docgen --channel > docs/parameters-channel.md
 	$(PY) -m distctrl.objects.docgen > docs/objects.md
 	$(PY) -m distctrl.objects.channel3d > docs/objects-3d.md
-	$(PY) -m distctrl.errors3d > docs/errors-3d.md
+	$(PY) -m distctrl.errors.three_d > docs/errors-3d.md
 	$(PY) tools/law_figures.py --write
 	$(PY) tools/traceability.py --write
 

@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass, field
 
 from ..errors import ErrorEvent
-from ..errors3d import event_to_3d, make_event_3d
+from ..errors.three_d import event_to_3d, make_event_3d
 from ..params.channel import ChannelParameters
 from .commands import Action, Command, ObjectWrite
 from .commands3d import CompensationMode

@@ -31,7 +31,7 @@ from ..control import (Action, AxisDistanceController, Command, CycleInput, Cycl
 from ..control.commands3d import Command3D, CompensationMode
 from ..control.controller3d import ChannelDistanceController, Cycle3DInput, Cycle3DOutput
 from ..errors import ErrorEvent, ErrorId, ParameterError
-from ..errors3d import make_event_3d, severity_and_text
+from ..errors.three_d import make_event_3d, severity_and_text
 from ..kinematics.frames import Frame
 from ..kinematics.kin98 import InclinationViolation, Kinematic98Params
 from ..nc.interpreter import NcAbort, NcInterpreter

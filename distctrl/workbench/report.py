@@ -11,22 +11,22 @@ The page loads nothing: plots are PNG images embedded as ``data:`` URIs, the CSS
 no fonts or external scripts, and a Content-Security-Policy allows nothing but inline styles, inline
 script and ``data:`` images. A few lines of inline script mark each ``<img>`` with
 ``data-loaded="1"`` once it has decoded (used by the headless-browser test). All text is escaped.
-See docs/workbench-report.md.
+The markup is jinja2 templates shipped with the package (``distctrl/workbench/templates/``, rendered
+by :mod:`distctrl.workbench.pages`). See docs/workbench-report.md.
 """
 from __future__ import annotations
 
 import base64
 import dataclasses
 import datetime as _dt
-import html
-import math
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..trace.recorder import HLI_STATE_NAMES
+from .pages import fmt, render
 from .plot_cli import add_event_markers, distance_error, events_from_meta, figure_bytes, slice_trace
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -64,125 +64,14 @@ _ZOOM_FRACTION = 0.05
 _ZOOM_MIN_S, _ZOOM_MAX_S = 0.05, 0.5
 _PLOT_3D = ("dc3d.offset", "dc3d.delta", "dc3d.comp_x", "dc3d.comp_y", "dc3d.comp_z", "dc3d.inclination")
 
-_CSS = """
-:root { --fg:#1d232a; --muted:#5b6770; --line:#d5dbe0; --bg:#ffffff; --band:#f4f6f8;
-        --ok:#1a7f37; --bad:#c62828; --warn:#b26a00; }
-* { box-sizing: border-box; }
-body { margin: 0; padding: 0 2rem 3rem; color: var(--fg); background: var(--bg);
-       font: 15px/1.45 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif; }
-header { padding: 1.2rem 0 .6rem; border-bottom: 2px solid var(--line); margin-bottom: 1rem; }
-h1 { font-size: 1.6rem; margin: 0 0 .2rem; }
-h2 { font-size: 1.25rem; margin: 2rem 0 .6rem; padding-bottom: .2rem; border-bottom: 1px solid var(--line); }
-h3 { font-size: 1.05rem; margin: 1.2rem 0 .4rem; }
-.sub { color: var(--muted); margin: 0; }
-nav { font-size: .92rem; margin: .5rem 0 0; }
-nav a { margin-right: 1rem; color: #0b5cad; text-decoration: none; }
-table { border-collapse: collapse; margin: .3rem 0 .8rem; font-size: .92rem; }
-th, td { border: 1px solid var(--line); padding: .25rem .55rem; text-align: left; vertical-align: top; }
-th { background: var(--band); font-weight: 600; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
-tr.sev-error td { background: #fdecea; }
-tr.sev-warning td { background: #fff4e0; }
-pre { background: var(--band); border: 1px solid var(--line); padding: .6rem .8rem; overflow-x: auto;
-      font: 13px/1.4 ui-monospace, "DejaVu Sans Mono", Menlo, Consolas, monospace; margin: .3rem 0 .8rem; }
-pre.program span.ln { color: var(--muted); user-select: none; display: inline-block; width: 3.2em; }
-pre.program span.hit { background: #fdd; display: inline-block; width: 100%; }
-details { margin: .2rem 0 .8rem; }
-summary { cursor: pointer; color: #0b5cad; }
-.badge { display: inline-block; padding: .15rem .6rem; border-radius: 1rem; font-weight: 600; color: #fff; }
-.badge.ok { background: var(--ok); }
-.badge.bad { background: var(--bad); }
-.badge.warn { background: var(--warn); }
-figure { margin: .4rem 0 1.2rem; }
-figure img { max-width: 100%; height: auto; border: 1px solid var(--line); }
-figcaption { color: var(--muted); font-size: .9rem; margin-top: .2rem; }
-.note { color: var(--muted); font-style: italic; }
-.cols { display: flex; flex-wrap: wrap; gap: 0 2.5rem; }
-"""
-
-# marks every image once it has decoded: data-loaded="1" and its natural size (headless-browser test)
-_SCRIPT = """
-(function () {
-  function mark() {
-    var imgs = document.querySelectorAll("img");
-    var ok = 0;
-    for (var i = 0; i < imgs.length; i++) {
-      var im = imgs[i];
-      var good = im.complete && im.naturalWidth > 0;
-      im.setAttribute("data-loaded", good ? "1" : "0");
-      im.setAttribute("data-natural-width", String(im.naturalWidth));
-      if (good) { ok++; }
-    }
-    document.body.setAttribute("data-images-loaded", ok + "/" + imgs.length);
-  }
-  if (document.readyState === "complete") { mark(); } else { window.addEventListener("load", mark); }
-})();
-"""
-
-_CSP = ("default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'; "
-        "base-uri 'none'; form-action 'none'")
-
-
 # ------------------------------------------------------------------------------------------------------
-# small HTML helpers
+# small helpers. The markup is in templates/ (distctrl.workbench.pages): report_page.html.j2 (the
+# frame: CSP, report.css, nav, report.js), run_report.html.j2, trace_report.html.j2,
+# report_sections.html.j2 (metrics, errors and warnings, plots), macros.html.j2 (table, figure, note).
+# This module prepares the values (rows, texts, PNGs in base64); the templates escape all text.
 # ------------------------------------------------------------------------------------------------------
-def _e(value: Any) -> str:
-    return html.escape(str(value), quote=True)
-
-
-def _fmt(value: Any, digits: int = 6) -> str:
-    """A value as text: floats with ``digits`` significant digits, None as an en dash."""
-    if value is None:
-        return "–"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, (float, np.floating)):
-        v = float(value)
-        if math.isnan(v):
-            return "NaN"
-        return f"{v:.{digits}g}"
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    return str(value)
-
-
-def _table(headers: Iterable[str], rows: Iterable[Iterable[Any]], cls: str = "",
-           row_classes: Iterable[str] | None = None, numeric: Iterable[int] = ()) -> str:
-    num = set(numeric)
-    head = "".join(f"<th>{_e(h)}</th>" for h in headers)
-    body = []
-    rcls = list(row_classes) if row_classes is not None else None
-    for i, row in enumerate(rows):
-        tds = "".join(f'<td class="num">{_e(_fmt(c))}</td>' if j in num else f"<td>{_e(_fmt(c))}</td>"
-                      for j, c in enumerate(row))
-        rc = f' class="{_e(rcls[i])}"' if rcls and rcls[i] else ""
-        body.append(f"<tr{rc}>{tds}</tr>")
-    c = f' class="{_e(cls)}"' if cls else ""
-    return f"<table{c}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
-
-
-def _img(png: bytes, alt: str, caption: str, ident: str) -> str:
-    b64 = base64.b64encode(png).decode("ascii")
-    return (f'<figure id="{_e(ident)}"><img src="data:image/png;base64,{b64}" alt="{_e(alt)}">'
-            f"<figcaption>{_e(caption)}</figcaption></figure>")
-
-
-def _kv_table(pairs: Iterable[tuple[str, Any]]) -> str:
-    return _table(("key", "value"), [(k, v) for k, v in pairs])
-
-
-def _page(title: str, subtitle: str, nav: list[tuple[str, str]], body: list[str]) -> str:
-    links = "".join(f'<a href="#{_e(a)}">{_e(t)}</a>' for a, t in nav)
-    return (
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
-        f'<meta http-equiv="Content-Security-Policy" content="{_e(_CSP)}">\n'
-        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-        '<meta name="generator" content="distctrl.workbench.report">\n'
-        f"<title>{_e(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
-        f"<header><h1>{_e(title)}</h1><p class=\"sub\">{_e(subtitle)}</p><nav>{links}</nav></header>\n"
-        + "\n".join(body)
-        + f"\n<script>{_SCRIPT}</script>\n</body>\n</html>\n"
-    )
+def _b64(png: bytes) -> str:
+    return base64.b64encode(png).decode("ascii")
 
 
 def _now(now: _dt.datetime | None) -> str:
@@ -336,40 +225,15 @@ def _metric_unit(key: str) -> str:
     return "–"
 
 
-def _metrics_section(metrics: dict, extra_note: str = "") -> str:
-    rows = [(k, v, _metric_unit(k), METRIC_TEXT.get(k, "")) for k, v in metrics.items()]
-    note = f'<p class="note">{_e(extra_note)}</p>' if extra_note else ""
-    return ('<section id="metrics"><h2>Metrics</h2>'
-            + _table(("metric", "value", "unit", "meaning"), rows, cls="metrics", numeric=(1,))
-            + '<p class="note">– : not reached or not measured (e.g. distance control never tracked).</p>'
-            + note + "</section>")
+def _metrics_rows(metrics: dict) -> list[tuple]:
+    return [(k, v, _metric_unit(k), METRIC_TEXT.get(k, "")) for k, v in metrics.items()]
 
 
-def _events_section(events: list[dict], timeline_png: bytes | None) -> str:
-    parts = ['<section id="events"><h2>Errors and warnings</h2>']
-    if events:
-        rows = [(f"{ev['t']:.4f}", ev["id"], ev.get("line"), ev.get("message", ""),
-                 ev.get("severity", "error")) for ev in events]
-        parts.append(_table(("t [s]", "ID", "line", "message", "severity"), rows, cls="events",
-                            row_classes=[f"sev-{ev.get('severity', 'error')}" for ev in events],
-                            numeric=(0, 1, 2)))
-    else:
-        parts.append('<p class="none">No errors or warnings.</p>')
-    if timeline_png is not None:
-        parts.append(_img(timeline_png, "error and warning timeline",
-                          "Timeline: the distance-control state (step line) with errors (red, solid) and "
-                          "warnings (orange, dashed) at their times, labelled with their IDs.", "timeline"))
-    parts.append("</section>")
-    return "".join(parts)
-
-
-def _program_html(text: str, hit_lines: set[int]) -> str:
-    out = []
-    for n, line in enumerate(text.splitlines(), start=1):
-        body = f'<span class="ln">{n}</span>{_e(line)}'
-        out.append(f'<span class="hit" id="line-{n}">{body}</span>' if n in hit_lines
-                   else f'<span id="line-{n}">{body}</span>')
-    return '<pre class="program">' + "\n".join(out) + "</pre>"
+def _events_view(events: list[dict], timeline_png: bytes | None) -> dict:
+    return {"rows": [(f"{ev['t']:.4f}", ev["id"], ev.get("line"), ev.get("message", ""),
+                      ev.get("severity", "error")) for ev in events],
+            "row_classes": [f"sev-{ev.get('severity', 'error')}" for ev in events],
+            "timeline": None if timeline_png is None else _b64(timeline_png)}
 
 
 def _value_text(v: Any) -> str:
@@ -377,32 +241,33 @@ def _value_text(v: Any) -> str:
         return ", ".join(f"{k} = {_value_text(x)}" for k, x in v.items())
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_value_text(x) for x in v) + "]"
-    return _fmt(v)
+    return fmt(v)
 
 
-def _surface_html(cfg: dict) -> str:
+def _surface_view(cfg: dict) -> dict | None:
+    """None without a [surface] table; else its scalar keys and its features as a table."""
     if not cfg:
-        return '<p class="note">No [surface] table: a flat surface at the default height.</p>'
+        return None
     scalars = [(k, _value_text(v)) for k, v in cfg.items() if k != "features"]
-    parts = [_kv_table(scalars)] if scalars else []
     feats = cfg.get("features") or []
+    keys: list[str] = []
+    rows: list[list] = []
     if feats:
-        keys: list[str] = []
         for f in feats:
             for k in (f if isinstance(f, dict) else {}):
                 if k not in keys and k != "type":
                     keys.append(k)
         rows = [[i, f.get("type", "?")] + [_value_text(f[k]) if k in f else "" for k in keys]
                 for i, f in enumerate(feats) if isinstance(f, dict)]
-        parts.append("<h3>Surface features</h3>" + _table(["#", "type"] + keys, rows, cls="features"))
-    else:
-        parts.append('<p class="note">No surface features: the base height only.</p>')
-    return "".join(parts)
+    # an empty list of features (or one with no tables) shows the table's header only, as before
+    return {"scalars": scalars, "feature_headers": ["#", "type"] + keys,
+            "feature_rows": rows if feats else None}
 
 
-def _sensor_html(sensor: Any) -> str:
+def _sensor_view(sensor: Any) -> dict | None:
+    """None without a [sensor] table; else its (key, value) pairs and its faults (one row each)."""
     if sensor is None:
-        return '<p class="note">No [sensor] table.</p>'
+        return None
     pairs = []
     faults = ()
     for f in dataclasses.fields(sensor):
@@ -411,21 +276,15 @@ def _sensor_html(sensor: Any) -> str:
             faults = v
             continue
         pairs.append((f.name, _value_text(v)))
-    parts = [_kv_table(pairs)]
-    if faults:
-        rows = []
-        for flt in faults:
-            d = dataclasses.asdict(flt) if dataclasses.is_dataclass(flt) else {"fault": str(flt)}
-            rows.append((_value_text(d),))
-        parts.append("<h3>Sensor faults</h3>" + _table(("fault",), rows))
-    return "".join(parts)
+    rows = []
+    for flt in faults or ():
+        d = dataclasses.asdict(flt) if dataclasses.is_dataclass(flt) else {"fault": str(flt)}
+        rows.append((_value_text(d),))
+    return {"pairs": pairs, "faults": rows}
 
 
-def _events_cfg_html(events: list) -> str:
-    if not events:
-        return '<p class="note">No timed events.</p>'
-    rows = [(f"{ev.t:g}", ev.kind, _value_text(ev.data), ev.index) for ev in events]
-    return _table(("t [s]", "action", "data", "# in file"), rows, cls="scenario-events", numeric=(0, 3))
+def _events_cfg_rows(events: list) -> list[tuple]:
+    return [(f"{ev.t:g}", ev.kind, _value_text(ev.data), ev.index) for ev in events]
 
 
 _AXIS_FIELDS = ("start", "kv", "v_max", "a_max", "v_rapid", "a_rapid", "bus_delay_cycles", "resolution",
@@ -434,7 +293,7 @@ _AXIS_UNITS = {"start": "mm", "kv": "1/s", "v_max": "mm/s", "a_max": "mm/s²", "
                "a_rapid": "mm/s²", "bus_delay_cycles": "cycles", "resolution": "mm", "feedforward": "–"}
 
 
-def _axes_html(axes: dict) -> str:
+def _axes_view(axes: dict) -> dict:
     headers = (["axis", "distance control", "parameter list"]
                + [f"{f} [{_AXIS_UNITS[f]}]" for f in _AXIS_FIELDS])
     rows = []
@@ -443,43 +302,31 @@ def _axes_html(axes: dict) -> str:
         listed = ax.params_file.name if ax.params_file else "(defaults)"
         rows.append([name, "enabled" if enabled else "off", listed]
                     + [getattr(ax, f, None) for f in _AXIS_FIELDS])
-    return _table(headers, rows, cls="axes", numeric=range(3, 3 + len(_AXIS_FIELDS)))
+    return {"headers": headers, "rows": rows, "numeric": range(3, 3 + len(_AXIS_FIELDS))}
 
 
-def _params_section(scenario: "Scenario") -> str:
+def _parameters_view(scenario: "Scenario") -> dict:
+    """Per axis (and the channel) the list in the kernel format: the changed values and the full list."""
     from ..params.listfile import format_list
 
-    parts = ['<section id="parameters"><h2>Parameter lists</h2>',
-             '<p class="note">Kernel list format (loadable by <code>distctrl params</code>): the values that '
-             "differ from the defaults; the full list below each.</p>"]
+    axes = []
     for name, ax in scenario.axes.items():
-        changed = format_list(ax.params, only_changed=True)
-        src = f" ({ax.params_file})" if ax.params_file else " (no list: defaults)"
-        parts.append(f'<h3 id="params-{_e(name)}">Axis {_e(name)}{_e(src)}</h3>')
-        if changed.strip():
-            parts.append(f'<pre class="params-changed">{_e(changed)}</pre>')
-        else:
-            parts.append('<p class="note">All values are the defaults.</p>')
-        parts.append(f"<details><summary>Full list of axis {_e(name)}</summary>"
-                     f'<pre class="params-full">{_e(format_list(ax.params))}</pre></details>')
-        for w in getattr(ax, "params_warnings", ()) or ():
-            parts.append(f'<p class="note">warning: {_e(w)}</p>')
+        source = f" ({ax.params_file})" if ax.params_file else " (no list: defaults)"
+        axes.append({"name": name, "source": source,
+                     "changed": format_list(ax.params, only_changed=True), "full": format_list(ax.params),
+                     "warnings": list(getattr(ax, "params_warnings", ()) or ())})
+    channel = None
     ch = getattr(scenario, "channel_params", None)
     if ch is not None:
         from ..params.channel import CHANNEL_LIST
 
-        changed = format_list(ch, only_changed=True, fmt=CHANNEL_LIST)
-        src = f" ({scenario.channel_params_file})" if scenario.channel_params_file else ""
-        parts.append(f'<h3 id="params-channel">Channel{_e(src)}</h3>')
-        parts.append(f'<pre class="params-changed">{_e(changed)}</pre>' if changed.strip()
-                     else '<p class="note">All values are the defaults.</p>')
-        parts.append("<details><summary>Full channel list</summary>"
-                     f'<pre class="params-full">{_e(format_list(ch, fmt=CHANNEL_LIST))}</pre></details>')
-    parts.append("</section>")
-    return "".join(parts)
+        channel = {"source": f" ({scenario.channel_params_file})" if scenario.channel_params_file else "",
+                   "changed": format_list(ch, only_changed=True, fmt=CHANNEL_LIST),
+                   "full": format_list(ch, fmt=CHANNEL_LIST)}
+    return {"axes": axes, "channel": channel}
 
 
-def _scenario_section(scenario: "Scenario", hit_lines: set[int]) -> str:
+def _scenario_view(scenario: "Scenario", hit_lines: set[int]) -> dict:
     src = scenario.program_file or (f"{scenario.path}: program_text" if scenario.path else "program_text")
     general = [("name", scenario.name), ("file", scenario.path or "(not from a file)"),
                ("cycle time", f"{scenario.cycle_time * 1000:g} ms"),
@@ -491,28 +338,13 @@ def _scenario_section(scenario: "Scenario", hit_lines: set[int]) -> str:
         general.append(("kinematics", scenario.kinematics))
     if scenario.variables:
         general.append(("V.E. variables", _value_text(scenario.variables)))
-    return ('<section id="scenario"><h2>Scenario</h2>' + _kv_table(general)
-            + f"<h3>NC program <small>({_e(src)})</small></h3>"
-            + _program_html(scenario.program_text, hit_lines)
-            + "<h3>Axes</h3>" + _axes_html(scenario.axes)
-            + '<div class="cols"><div><h3>Surface</h3>' + _surface_html(scenario.surface_config) + "</div>"
-            + "<div><h3>Sensor</h3>" + _sensor_html(scenario.sensor) + "</div></div>"
-            + "<h3>Events</h3>" + _events_cfg_html(scenario.events) + "</section>")
+    return {"general": general, "program_source": src, "program_lines": scenario.program_text.splitlines(),
+            "hit_lines": hit_lines, "axes": _axes_view(scenario.axes),
+            "surface": _surface_view(scenario.surface_config), "sensor": _sensor_view(scenario.sensor),
+            "events": _events_cfg_rows(scenario.events)}
 
 
-def _result_section(result: "RunResult") -> str:
-    if result.interrupted:
-        badge = '<span class="badge warn">interrupted</span>'
-    elif result.completed:
-        badge = '<span class="badge ok">completed</span>'
-    else:
-        badge = '<span class="badge bad">aborted</span>' if result.aborted or result.errors \
-            else f'<span class="badge warn">{_e(result.outcome_text)}</span>'
-    hits = (result.metrics or {}).get("collisions") or 0
-    if hits:
-        badge += f' <span class="badge bad">{hits} collision{"s" if hits != 1 else ""}</span>'
-    if (result.metrics or {}).get("oscillation_frequency_hz") is not None:
-        badge += ' <span class="badge warn">oscillating</span>'
+def _result_view(result: "RunResult") -> dict:
     duration = result.cycles * result.cycle_time
     pairs = [("final state", result.final_state), ("cycles", result.cycles),
              ("duration", f"{duration:.4g} s"), ("cycle time", f"{result.cycle_time * 1000:g} ms"),
@@ -520,28 +352,17 @@ def _result_section(result: "RunResult") -> str:
              ("exit code of distctrl run", result.exit_code)]
     if result.trace_path:
         pairs.append(("trace file", result.trace_path))
-    notes = "".join(f'<p class="note">note: {_e(n)}</p>' for n in (result.notes or []))
-    return (f'<section id="result"><h2>Result</h2><p class="status">{badge}</p>' + _kv_table(pairs) + notes
-            + "</section>")
+    metrics = result.metrics or {}
+    return {"run": result, "pairs": pairs, "collisions": metrics.get("collisions") or 0,
+            "oscillating": metrics.get("oscillation_frequency_hz") is not None}
 
 
-def _plots_section(trace: "Trace | None", title: str, events: list[dict], why_none: str = "") -> str:
-    parts = ['<section id="plots"><h2>Plots</h2>']
+def _plots_view(trace: "Trace | None", title: str, events: list[dict], why_none: str = "") -> dict:
     if trace is None or trace.rows == 0:
-        parts.append(f'<p class="note">{_e(why_none or "No trace rows: nothing to plot.")}</p></section>')
-        return "".join(parts)
-    parts.append(_img(_scope_png(trace, title, events), "scope plot of the run",
-                      "Scope plot: positions, distance-control signals and the distance over time; "
-                      "shaded: the distance-control state; vertical lines: errors (red) and warnings "
-                      "(orange).", "scope"))
+        return {"why": why_none or "No trace rows: nothing to plot."}
+    scope = _b64(_scope_png(trace, title, events))
     zoom = _zoom_png(trace, title, events)
-    if zoom is None:
-        parts.append('<p class="note" id="zoom">No zoom: distance control never tracked, so there is no '
-                     "distance error.</p>")
-    else:
-        parts.append(_img(zoom[0], "zoom around the largest distance error", zoom[1], "zoom"))
-    parts.append("</section>")
-    return "".join(parts)
+    return {"scope": scope, "zoom": None if zoom is None else (_b64(zoom[0]), zoom[1])}
 
 
 def _events_of(result: "RunResult") -> list[dict]:
@@ -584,18 +405,15 @@ def write_report(result: "RunResult", scenario: "Scenario | str | os.PathLike", 
     status = "completed" if result.completed else ("interrupted" if result.interrupted else "aborted")
     subtitle = f"generated {_now(now)} by distctrl · scenario {scenario.name} · {status}"
     hit_lines = {int(e["line"]) for e in events if isinstance(e.get("line"), int)}
-    body = [
-        _scenario_section(scenario, hit_lines),
-        _params_section(scenario),
-        _result_section(result),
-        _metrics_section(result.metrics),
-        _events_section(events, _timeline_png(trace, events, duration)),
-        _plots_section(trace, result.name, events, why),
-    ]
     nav = [("scenario", "Scenario"), ("parameters", "Parameters"), ("result", "Result"),
            ("metrics", "Metrics"), ("events", "Errors & warnings"), ("plots", "Plots")]
+    text = render("run_report.html.j2", title=heading, subtitle=subtitle, nav=nav,
+                  scenario=_scenario_view(scenario, hit_lines), parameters=_parameters_view(scenario),
+                  result=_result_view(result), metrics=_metrics_rows(result.metrics),
+                  events=_events_view(events, _timeline_png(trace, events, duration)),
+                  plots=_plots_view(trace, result.name, events, why))
     page = out / REPORT_FILE
-    page.write_text(_page(heading, subtitle, nav, body), encoding="utf-8")
+    page.write_text(text, encoding="utf-8")
     return page
 
 
@@ -607,15 +425,14 @@ def _trace_metrics(trace: "Trace") -> dict:
             "tracking_cycles": int(finite.size)}
 
 
-def _columns_section(trace: "Trace") -> str:
+def _columns_rows(trace: "Trace") -> list[tuple]:
     rows = []
     for c in trace.columns:
         col = trace[c]
         fin = col[np.isfinite(col)]
         rows.append((c, trace.unit(c) or "–", float(fin.min()) if fin.size else None,
                      float(fin.max()) if fin.size else None))
-    return ('<section id="columns"><h2>Columns</h2>'
-            + _table(("column", "unit", "min", "max"), rows, cls="columns", numeric=(2, 3)) + "</section>")
+    return rows
 
 
 def report_from_trace(trace_csv: str | os.PathLike, out_dir: str | os.PathLike, *,
@@ -642,17 +459,16 @@ def report_from_trace(trace_csv: str | os.PathLike, out_dir: str | os.PathLike, 
             ("time span", f"{float(t[0]):.6g} … {float(t[-1]):.6g} s ({span:.6g} s)"
              if trace.rows else "–")]
     info += [(f"meta: {k}", _value_text(v)) for k, v in trace.meta.items() if k not in ("errors", "warnings")]
-    body = [
-        '<section id="trace"><h2>Trace</h2>' + _kv_table(info) + "</section>",
-        _metrics_section(_trace_metrics(trace), "Recomputed from the trace (true distance − wanted "
-                                               "distance while distance control tracks)."),
-        _events_section(events, _timeline_png(trace, events, float(t[-1]) if trace.rows else 0.0)),
-        _plots_section(trace, name, events),
-        _columns_section(trace),
-    ]
     nav = [("trace", "Trace"), ("metrics", "Metrics"), ("events", "Errors & warnings"), ("plots", "Plots"),
            ("columns", "Columns")]
+    subtitle = f"generated {_now(now)} by distctrl from {src.name}"
+    t_end = float(t[-1]) if trace.rows else 0.0
+    text = render("trace_report.html.j2", title=heading, subtitle=subtitle, nav=nav, info=info,
+                  metrics=_metrics_rows(_trace_metrics(trace)),
+                  metrics_note="Recomputed from the trace (true distance − wanted distance while distance "
+                               "control tracks).",
+                  events=_events_view(events, _timeline_png(trace, events, t_end)),
+                  plots=_plots_view(trace, name, events), columns=_columns_rows(trace))
     page = out / REPORT_FILE
-    page.write_text(_page(heading, f"generated {_now(now)} by distctrl from {src.name}", nav, body),
-                    encoding="utf-8")
+    page.write_text(text, encoding="utf-8")
     return page

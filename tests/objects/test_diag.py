@@ -8,7 +8,7 @@ import pytest
 
 from distctrl.control import Action, AxisDistanceController, Command, CycleInput, CycleOutput, ObjectWrite
 from distctrl.objects.diag import format_diag_3d, format_diag_axis
-from distctrl.errors3d import make_event_3d
+from distctrl.errors.three_d import make_event_3d
 from distctrl.objects.channel3d import Channel3DValues
 from distctrl.params import AxisParameters
 from distctrl.params.channel import ChannelParameters

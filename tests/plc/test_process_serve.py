@@ -136,3 +136,18 @@ def test_served_machine_runs_the_collision_retract():
     assert abs(c["retract"] - 5.0) < 0.15 and c["line"] == 7
     assert [ev.id for _, ev in m.events] == [900053] and m.nc.aborted
     assert m.hli["Z"].state_r.actual_state == 0
+
+
+def test_served_machine_runs_the_laser_plate_with_every_function():
+    # the plate of issue 16 under `distctrl serve` (stepped here): the same figures as `distctrl run`
+    served = ServedMachine(load_scenario(EX / "laser_sheet_short.toml"), port=0, discovery_port=None)
+    m = served.machine
+    assert [f.name for f in m.process_program.functions] == ["touch_off", "corner_lock", "void_lock", "lift"]
+    least = float("inf")
+    for _ in range(20000):
+        served.step()
+        least = min(least, m.true_distance)
+        if not m.nc.running:
+            break
+    assert not m.nc.running and not m.nc.aborted and m.events == []
+    assert least >= 0.3 * 1.0                 # SET_DIST 1 mm: never closer than 30 %

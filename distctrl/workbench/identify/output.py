@@ -325,34 +325,22 @@ def plot_identification(res: Identification, path: str | os.PathLike) -> None:
 
 def write_report(res: Identification, out_dir: str | os.PathLike, scenario: str | None = None) -> Path:
     """``report.html`` (the figure embedded, the values with units, the fit quality, the warnings)
-    and ``identify.png`` in ``out_dir``."""
+    and ``identify.png`` in ``out_dir``. The page: templates/identify_report.html.j2."""
     import base64
-    import html
+
+    from ..pages import render
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     png = out / "identify.png"
     plot_identification(res, png)
-    img = base64.b64encode(png.read_bytes()).decode("ascii")
     j = result_json(res, scenario=scenario)
-    rows = "".join(f"<tr><td>drive.{k}</td><td>{html.escape(str(v))}</td><td>{html.escape(UNITS[k])}</td></tr>"
-                   for k, v in j["drive"].items())
-    rows += "".join(f"<tr><td>sensor.{k}</td><td>{html.escape(str(v))}</td><td>{html.escape(UNITS[k])}</td></tr>"
-                    for k, v in j["sensor"].items())
-    warn = "".join(f"<li>{html.escape(w)}</li>" for w in res.warnings) or "<li>none</li>"
-    page = f"""<!doctype html>
-<html><head><meta charset="utf-8"><title>distctrl identify</title>
-<style>body{{font-family:sans-serif;margin:2em}} td,th{{border:1px solid #ccc;padding:2px 6px}}
-table{{border-collapse:collapse}} pre{{background:#f6f6f6;padding:1em}}</style></head><body>
-<h1>distctrl identify</h1>
-<p>Recordings: {html.escape(', '.join(r['path'] for r in res.recordings))}; cycle {res.cycle_time * 1e3:g} ms.
-Scenario: {html.escape(str(scenario or '-'))}</p>
-<h2>Identified plant</h2><table><tr><th>figure</th><th>value</th><th>unit</th></tr>{rows}</table>
-<h2>Fit quality</h2><pre>{html.escape(format_summary(res))}</pre>
-<h2>Warnings</h2><ul>{warn}</ul>
-<h2>Measured vs fitted</h2><img alt="measured vs fitted" src="data:image/png;base64,{img}" style="max-width:100%">
-</body></html>
-"""
+    rows = ([(f"drive.{k}", v, UNITS[k]) for k, v in j["drive"].items()]
+            + [(f"sensor.{k}", v, UNITS[k]) for k, v in j["sensor"].items()])
+    page = render("identify_report.html.j2", recordings=[r["path"] for r in res.recordings],
+                  cycle_ms=f"{res.cycle_time * 1e3:g}", scenario=str(scenario or "-"), rows=rows,
+                  summary=format_summary(res), warnings=list(res.warnings),
+                  png=base64.b64encode(png.read_bytes()).decode("ascii"))
     page_path = out / "report.html"
     page_path.write_text(page, encoding="utf-8")
     return page_path

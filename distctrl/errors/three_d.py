@@ -4,7 +4,7 @@ The 3D variant raises "in principle the same error messages" as the axis variant
 IDs (§12.7): :data:`AXIS_TO_3D` maps each axis ID to its 3D partner as §12.7 / SPEC §7 pair them.
 :data:`CATALOGUE_3D` lists every 3D ID with severity, the document's text and *when* it is raised
 (from the documents and SPEC §7); docs/errors-3d.md is generated from it
-(``python -m distctrl.errors3d > docs/errors-3d.md``).
+(``python -m distctrl.errors.three_d > docs/errors-3d.md``).
 
 Events are the axis variant's :class:`~distctrl.errors.ErrorEvent` values (the cycle path never
 raises): :func:`make_event_3d` builds one for a 3D ID, :func:`event_to_3d` translates an event the
@@ -32,8 +32,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .control.states import ERROR_CODE_BY_ID, InternalState
-from .errors import CATALOGUE, ErrorEvent, ErrorId
+from ..control.states import ERROR_CODE_BY_ID, InternalState
+from . import CATALOGUE, ErrorEvent, ErrorId
 
 
 @dataclass(frozen=True)
@@ -192,7 +192,7 @@ def render() -> str:
     lines = [
         "# Error IDs (3D, channel-specific distance control)",
         "",
-        "Generated from `distctrl/errors3d.py` by `python -m distctrl.errors3d` — do not edit by hand.",
+        "Generated from `distctrl/errors/three_d.py` by `python -m distctrl.errors.three_d` — do not edit by hand.",
         "",
         "FCT-M3 §12.7: \"In principle, the same error messages occur with channel-specific distance",
         "control and with axis-specific control\", under their own IDs. The axis IDs are in docs/errors.md.",

@@ -9,10 +9,10 @@ import pytest
 
 from distctrl.control.states import InternalState
 from distctrl.errors import CATALOGUE, ErrorEvent, ErrorId, make_event
-from distctrl.errors3d import (AXIS_TO_3D, CATALOGUE_3D, ERROR_CODE_BY_ID_3D, THREE_D_TO_AXIS, event_to_3d,
+from distctrl.errors.three_d import (AXIS_TO_3D, CATALOGUE_3D, ERROR_CODE_BY_ID_3D, THREE_D_TO_AXIS, event_to_3d,
                                make_event_3d, render, severity_and_text, to_3d_id)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 # FCT-M3 §12.7, verbatim: (axis ID or None, 3D ID, text)
 DOCUMENT_127 = [
@@ -122,7 +122,7 @@ def test_event_to_3d_keeps_cycle_line_and_detail():
 
 
 def test_docs_errors_3d_md_is_generated():
-    generated = subprocess.run([sys.executable, "-m", "distctrl.errors3d"], capture_output=True, text=True,
+    generated = subprocess.run([sys.executable, "-m", "distctrl.errors.three_d"], capture_output=True, text=True,
                                cwd=ROOT, check=True).stdout
     assert generated == render()
     assert (ROOT / "docs" / "errors-3d.md").read_text(encoding="utf-8") == generated
