@@ -70,6 +70,8 @@ class MachineHub:
         self.obj_rows = 0
         self._obj_queue: collections.deque = collections.deque(maxlen=self.obj_capacity)
         self.snapshot: dict = {}
+        self._snapshots = 0
+        self._k0 = m.cycle                              # the first cycle recorded is row 0
         self.events: list[dict] = []                    # every event of the machine, as dicts
         self._events_seen = 0
         self.override = 1.0
@@ -87,7 +89,7 @@ class MachineHub:
         k = m.cycle - 1
         nc = m.nc
         line = nc.line if nc is not None else None
-        self._queue.append(self._build_row(k * self.T, -1 if line is None else line))
+        self._queue.append((k, self._build_row(k * self.T, -1 if line is None else line)))
         if k % self.snapshot_every == 0:
             self._take_snapshot()
 
@@ -99,7 +101,9 @@ class MachineHub:
             for spec in SERVED_OBJECTS:
                 pending = ctx.pending(spec.write_name) if spec.writable else None
                 objects[(axis_id, spec.name)] = (read_value(spec, ctx), pending)
-        self._obj_queue.append((t, [float(objects[(i, s.name)][0]) for i, s in self.object_signals.values()]))
+        self._snapshots += 1
+        self._obj_queue.append((self._snapshots - 1, t,
+                                [float(objects[(i, s.name)][0]) for i, s in self.object_signals.values()]))
         units = {}
         for n in m.axis_names:
             u = m.hli[n]
@@ -134,17 +138,20 @@ class MachineHub:
     # ------------------------------------------------------------------ the page thread
     def pump(self) -> None:
         """Move the queued rows into the ring buffers (the page thread, every frame)."""
-        q, data, cap = self._queue, self.data, self.capacity
+        q = self._queue
         n = len(q)
         if n:
-            block = np.array([q.popleft() for _ in range(n)], dtype=np.float64)
-            self.rows = _ring_put(data, cap, self.rows, block)
+            items = [q.popleft() for _ in range(n)]
+            block = np.array([row for _, row in items], dtype=np.float64)
+            # a row's index is its cycle: rows the queue dropped while this thread was held up (more
+            # than a buffer) leave the ring's older rows behind, not shifted
+            self.rows = _ring_put(self.data, self.capacity, items[0][0] - self._k0, block)
         q2 = self._obj_queue
         n2 = len(q2)
         if n2:
             items = [q2.popleft() for _ in range(n2)]
-            block = np.array([[t, *v] for t, v in items], dtype=np.float64)
-            self.obj_rows = _ring_put(self.obj_data, self.obj_capacity, self.obj_rows, block)
+            block = np.array([[t, *v] for _, t, v in items], dtype=np.float64)
+            self.obj_rows = _ring_put(self.obj_data, self.obj_capacity, items[0][0], block)
 
     def rows_since(self, cursor: int, step: int = 1) -> tuple[int, np.ndarray]:
         """``(new cursor, rows)``: the trace rows written since ``cursor`` (every ``step``-th row by its
@@ -328,13 +335,14 @@ def object_table(hub: MachineHub) -> dict[str, list]:
     return cols
 
 
-def _ring_put(data: np.ndarray, cap: int, written: int, block: np.ndarray) -> int:
+def _ring_put(data: np.ndarray, cap: int, first: int, block: np.ndarray) -> int:
+    """Write ``block`` (rows ``first``, ``first + 1``, ...) into the ring; the rows written so far."""
     if len(block) > cap:
-        written += len(block) - cap
+        first += len(block) - cap
         block = block[-cap:]
-    idx = (written + np.arange(len(block))) % cap
+    idx = (first + np.arange(len(block))) % cap
     data[idx] = block
-    return written + len(block)
+    return first + len(block)
 
 
 def _ring_since(data: np.ndarray, cap: int, written: int, cursor: int, step: int) -> tuple[int, np.ndarray]:
