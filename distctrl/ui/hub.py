@@ -26,7 +26,13 @@ import numpy as np
 
 from ..control.states import HliTransition
 from ..errors import DistCtrlError
-from ..objects.browser import value_text
+from ..objects.channel3d import (
+    CHANNEL3D_OBJECTS,
+    Channel3DObjectContext,
+    find_spec_3d,
+    read_value_3d,
+)
+from ..objects.channel3d import write_value as write_value_3d
 from ..objects.registry import (
     SERVED_OBJECTS,
     ObjectAccessError,
@@ -37,7 +43,8 @@ from ..objects.registry import (
     write_value,
 )
 from ..sim.runner import row_builder, trace_columns
-from ..trace.recorder import HLI_STATE_NAMES
+from .ring import program_lines, ring_put, ring_since
+from .tables import CHANNEL, object_table, state_name  # noqa: F401 - the page's modules import them here
 
 #: the fault buttons of the PLC panel: kind -> (default value, unit, what it does)
 FAULTS = {"jump": (30.0, "mm", "adds the value to the reading"),
@@ -61,9 +68,13 @@ class MachineHub:
         self._queue: collections.deque = collections.deque(maxlen=self.capacity)
         self.snapshot_every = max(1, int(snapshot_every))
         self.contexts = served.cnc.contexts             # axis_id -> AxisObjectContext
-        #: the numeric CNC objects as scope signals: "<axis>.obj.<name>" -> (axis_id, spec)
+        #: the numeric CNC objects as scope signals: "<axis>.obj.<name>" -> (axis_id, spec); the channel's
+        #: 3D objects (3D distance control, docs/objects-3d.md) as "ch1.obj.<name>" with axis_id 0
         self.object_signals = {f"{c.axis_name}.obj.{s.name}": (i, s) for i, c in self.contexts.items()
                                for s in SERVED_OBJECTS if s.type in NUMERIC_TYPES}
+        self.channel_objects = CHANNEL3D_OBJECTS if m.ch3d is not None else ()
+        self.object_signals.update({f"ch1.obj.{s.name}": (CHANNEL, s) for s in self.channel_objects
+                                    if s.type in NUMERIC_TYPES})
         self._obj_keys = list(self.object_signals)
         self.obj_capacity = max(2, int(round(buffer_s / (m.T * self.snapshot_every))))
         self.obj_data = np.full((self.obj_capacity, 1 + len(self._obj_keys)), np.nan)
@@ -78,7 +89,7 @@ class MachineHub:
         self.feed_hold = False
         self.exports: dict[str, Path] = {}              # file name -> path, served by the page's download route
         self._export_lock = threading.Lock()
-        self.program_lines = _program_lines(served.scenario)
+        self.program_lines = program_lines(served.scenario)
         served.observers.append(self._after_cycle)
         with self.lock:
             self._take_snapshot()
@@ -101,6 +112,13 @@ class MachineHub:
             for spec in SERVED_OBJECTS:
                 pending = ctx.pending(spec.write_name) if spec.writable else None
                 objects[(axis_id, spec.name)] = (read_value(spec, ctx), pending)
+        if self.channel_objects:
+            values = m.channel3d_values()
+            values.pending = dict(m.ch3d.core.state.pending)     # writes waiting for their adoption
+            ctx3 = Channel3DObjectContext(1, values)
+            for spec in self.channel_objects:
+                pending = ctx3.pending(spec.write_name) if spec.writable else None
+                objects[(CHANNEL, spec.name)] = (read_value_3d(spec, ctx3), pending)
         self._snapshots += 1
         self._obj_queue.append((self._snapshots - 1, t,
                                 [float(objects[(i, s.name)][0]) for i, s in self.object_signals.values()]))
@@ -145,21 +163,21 @@ class MachineHub:
             block = np.array([row for _, row in items], dtype=np.float64)
             # a row's index is its cycle: rows the queue dropped while this thread was held up (more
             # than a buffer) leave the ring's older rows behind, not shifted
-            self.rows = _ring_put(self.data, self.capacity, items[0][0] - self._k0, block)
+            self.rows = ring_put(self.data, self.capacity, items[0][0] - self._k0, block)
         q2 = self._obj_queue
         n2 = len(q2)
         if n2:
             items = [q2.popleft() for _ in range(n2)]
             block = np.array([[t, *v] for _, t, v in items], dtype=np.float64)
-            self.obj_rows = _ring_put(self.obj_data, self.obj_capacity, items[0][0], block)
+            self.obj_rows = ring_put(self.obj_data, self.obj_capacity, items[0][0], block)
 
     def rows_since(self, cursor: int, step: int = 1) -> tuple[int, np.ndarray]:
         """``(new cursor, rows)``: the trace rows written since ``cursor`` (every ``step``-th row by its
         absolute index, so that every page thins the same rows), at most one buffer."""
-        return _ring_since(self.data, self.capacity, self.rows, cursor, step)
+        return ring_since(self.data, self.capacity, self.rows, cursor, step)
 
     def object_rows_since(self, cursor: int) -> tuple[int, np.ndarray]:
-        return _ring_since(self.obj_data, self.obj_capacity, self.obj_rows, cursor, 1)
+        return ring_since(self.obj_data, self.obj_capacity, self.obj_rows, cursor, 1)
 
     def column(self, name: str) -> int:
         return self.columns.index(name)
@@ -237,6 +255,8 @@ class MachineHub:
     def write_object(self, axis_id: int, name: str, value: float) -> tuple[bool, str]:
         """A write to a read/write CNC object, range-checked as over ADS; queued into the axis's
         controller, pending until the next INACTIVE→active or FREEZE→active transition."""
+        if axis_id == CHANNEL:
+            return self._write_channel_object(name, value)
         ctx = self.contexts.get(axis_id)
         try:
             spec = find_spec(name)
@@ -253,6 +273,24 @@ class MachineHub:
         return True, (f"{name} (axis {axis_id} {ctx.axis_name}, 0x{spec.index_group:X}:"
                       f"0x{index_offset(axis_id, spec):X}) = {value:g} {spec.unit}: pending until "
                       "INACTIVE→active or FREEZE→active")
+
+    def _write_channel_object(self, name: str, value: float) -> tuple[bool, str]:
+        """A write to a read/write 3D object of channel 1, adopted by the 3D controller's rule."""
+        if not self.channel_objects:
+            return False, "this channel has no 3D distance control (FCT_3D_DIST_CTRL)"
+        try:
+            spec = find_spec_3d(name)
+        except (KeyError, DistCtrlError, ValueError):
+            return False, f"no 3D CNC object {name!r}"
+        ctx3 = Channel3DObjectContext(1, None)
+        try:
+            command = write_value_3d(spec, ctx3, value)
+        except (ObjectAccessError, ObjectValueError) as exc:
+            return False, str(exc)
+        with self.lock:
+            self.machine.in3d.commands.append(command)
+        return True, (f"{name} (channel 1, 0x{ctx3.index_group:X}:0x{spec.low_offset:X}) = {value:g} {spec.unit}: "
+                      "pending until INACTIVE→active or FREEZE→active")
 
     def set_process(self, name: str, axis: str, on: bool) -> tuple[bool, str]:
         proc = self.machine.process_program
@@ -302,69 +340,3 @@ class MachineHub:
             self.exports[path.name] = path
             self.exports[path.name + ".meta.json"] = Path(str(path) + ".meta.json")
         return path
-
-
-def state_name(code: int) -> str:
-    return HLI_STATE_NAMES.get(int(code), str(code))
-
-
-def object_table(hub: MachineHub) -> dict[str, list]:
-    """The object browser's columns from the hub's last snapshot."""
-    snap = hub.snapshot
-    cols: dict[str, list] = {k: [] for k in ("axis", "group", "offset", "name", "type", "unit", "raw", "value",
-                                             "access", "pending", "axis_id")}
-    for axis_id, ctx in hub.contexts.items():
-        for spec in SERVED_OBJECTS:
-            raw, pending = snap["objects"][(axis_id, spec.name)]
-            cols["axis"].append(f"{axis_id} {ctx.axis_name}")
-            cols["axis_id"].append(axis_id)
-            cols["group"].append(f"0x{spec.index_group:X}")
-            cols["offset"].append(f"0x{index_offset(axis_id, spec):X}")
-            cols["name"].append(spec.name)
-            cols["type"].append(spec.type)
-            cols["unit"].append(spec.unit)
-            cols["raw"].append(raw if isinstance(raw, str) else f"{raw:.10g}" if isinstance(raw, float) else str(raw))
-            cols["value"].append(value_text(spec, raw, ctx.drive_resolution_mm))
-            cols["access"].append(spec.access)
-            if not spec.writable:
-                cols["pending"].append("")
-            elif pending is None:
-                cols["pending"].append("adopted")
-            else:
-                cols["pending"].append(f"pending {pending / spec.write_scale:.10g}")
-    return cols
-
-
-def _ring_put(data: np.ndarray, cap: int, first: int, block: np.ndarray) -> int:
-    """Write ``block`` (rows ``first``, ``first + 1``, ...) into the ring; the rows written so far."""
-    if len(block) > cap:
-        first += len(block) - cap
-        block = block[-cap:]
-    idx = (first + np.arange(len(block))) % cap
-    data[idx] = block
-    return first + len(block)
-
-
-def _ring_since(data: np.ndarray, cap: int, written: int, cursor: int, step: int) -> tuple[int, np.ndarray]:
-    start = max(cursor, written - cap)
-    if step > 1:
-        start += (-start) % step
-    if start >= written:
-        return max(cursor, written), data[:0]
-    idx = np.arange(start, written, step) % cap
-    return written, data[idx]
-
-
-def _program_lines(scenario) -> dict[int, str]:
-    """NC line number -> its text (for the machine view's "NC block")."""
-    text = None
-    if scenario.program_text is not None:
-        text = scenario.program_text
-    elif scenario.program_file is not None:
-        try:
-            text = Path(scenario.program_file).read_text(encoding="utf-8", errors="replace")
-        except OSError:
-            return {}
-    if text is None:
-        return {}
-    return {i + 1: line.rstrip() for i, line in enumerate(text.splitlines())}

@@ -1,4 +1,5 @@
-"""The object browser of the live page: the CNC objects of every axis (FCT-M3 §7.6 / §9.4, docs/objects.md).
+"""The object browser of the live page: the CNC objects of every axis (FCT-M3 §7.6 / §9.4, docs/objects.md)
+and, with 3D distance control, channel 1's 3D objects (index group 0x121301, FCT-M3 §12.6, docs/objects-3d.md).
 
 Name, index group and offset (task GEO, ADS port 551), type, unit, the raw value in the object's unit
 and the value in mm / mm/s / mm/s², live (five times a second). The read/write objects (kp, i_tn, d_tv,
@@ -34,7 +35,10 @@ class ObjectBrowser:
                                height=560, sizing_mode="stretch_width", index_position=None,
                                css_classes=["obj-table"])
         writable = [s.name for s in SERVED_OBJECTS if s.writable]
+        self.writable = {"axis": writable, "channel": [s.name for s in hub.channel_objects if s.writable]}
         axes = [f"{i} {c.axis_name}" for i, c in hub.contexts.items()]
+        if hub.channel_objects:
+            axes.append("0 channel 1")
         dc = [f"{i} {c.axis_name}" for i, c in hub.contexts.items() if c.axis_name in hub.machine.dc_axes]
         self.axis = Select(title="Axis", options=axes, value=(dc or axes)[0], width=90, css_classes=["obj-axis"])
         self.name = Select(title="Read/write object", options=writable, value=writable[0], width=240,
@@ -42,11 +46,18 @@ class ObjectBrowser:
         self.value = NumericInput(title="Value (object unit)", mode="float", width=150, css_classes=["obj-value"])
         self.write = Button(label="Write", button_type="primary", width=90, css_classes=["obj-write"])
         self.write.on_click(self._write)
+        self.axis.on_change("value", lambda a, o, v: self._names(v))
         self.message = Div(text="", width=1200, height=22, css_classes=["obj-message"])
         self.status = Div(text="", width=1200, height=22, css_classes=["obj-status"])
         self.layout = column(row(self.axis, self.name, self.value, self.write), self.message, self.status,
                              self.table, sizing_mode="stretch_width")
         self._frame = 0
+
+    def _names(self, axis: str) -> None:
+        names = self.writable["channel" if axis.startswith("0 ") else "axis"]
+        self.name.options = names
+        if self.name.value not in names:
+            self.name.value = names[0]
 
     def _write(self, _event=None) -> None:
         axis_id = int(self.axis.value.split()[0])

@@ -121,3 +121,24 @@ def test_rows_dropped_by_a_full_queue_keep_their_cycle_index(hub):
     assert hub.rows == 800
     _, rows = hub.rows_since(0)
     assert len(rows) == 500 and rows[0, 0] == pytest.approx(0.3) and rows[-1, 0] == pytest.approx(0.799)
+
+
+def test_the_channel_3d_objects_are_in_the_table_and_writable():
+    from distctrl.sim.scenario import load_scenario
+    from distctrl.ui.hub import CHANNEL, object_table
+
+    served = ServedMachine(load_scenario(SCN / "dist3d_1.toml"), port=0, discovery_port=None)
+    hub = MachineHub(served, buffer_s=0.5)
+    run(hub, 20)
+    table = object_table(hub)
+    rows = [i for i, a in enumerate(table["axis"]) if a == "0 channel 1"]
+    assert len(rows) == 25 and {table["group"][i] for i in rows} == {"0x121301"}
+    kp = next(i for i in rows if table["name"][i] == "DIST_CTRL[0]::kp")
+    assert table["pending"][kp] == "adopted"
+    assert "ch1.obj.DIST_CTRL[0]::kp" in hub.object_signals
+    ok, msg = hub.write_object(CHANNEL, "DIST_CTRL[0]::kp", 0.3)
+    assert ok, msg
+    run(hub, 20)
+    table = object_table(hub)
+    assert table["pending"][kp] == "pending 0.3"
+    assert not hub.write_object(CHANNEL, "DIST_CTRL[0]::kp", 9.0)[0]
