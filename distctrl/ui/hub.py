@@ -242,7 +242,7 @@ class MachineHub:
                 self.machine.apply_event(Event(self.machine.cycle * self.T, "sensor_fault", data))
         except DistCtrlError as exc:
             return False, str(exc)
-        until = "until reset of the page" if duration_s is None else f"for {duration_s:g} s"
+        until = "until cleared" if duration_s is None else f"for {duration_s:g} s"
         return True, f"sensor fault {kind} {value:g} mm {until}"
 
     def clear_faults(self) -> tuple[bool, str]:
