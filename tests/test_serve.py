@@ -211,6 +211,30 @@ def test_3d_objects_are_readable_on_the_cnc_port_without_network():
     assert machine.ch3d.core.state.pending.get("kp") == 0.5 or machine.ch3d.core.tuning.kp == 0.5
 
 
+def test_3d_param_objects_read_the_pending_write_over_ads():
+    """docs/objects-3d.md: DIST_CTRL_PARAM[0]::v_max / a_max read the pending write while one waits
+    (before: the ADS read showed the working value, the pending write was not passed on)."""
+    import struct
+
+    from distctrl.ads.machine import CncObjectDevice
+    from distctrl.sim.machine import Machine
+    from distctrl.sim.runner import load_program
+    from distctrl.sim.scenario import load_scenario
+
+    sc = load_scenario(SCN / "app_30_60.toml")
+    machine = Machine(sc, load_program(sc))
+    for _ in range(1500):
+        machine.step()
+    device = CncObjectDevice(machine)
+    before = struct.unpack("<i", device.read(0x121301, 0x3500, 4))[0]          # v_max, um/s
+    device.write(0x121301, 0x3500, struct.pack("<i", before + 1000))
+    machine.step()
+    pending = machine.ch3d.core.state.pending
+    assert "v_max" in pending                  # adopted only on the next select or FREEZE -> active
+    assert struct.unpack("<i", device.read(0x121301, 0x3500, 4))[0] == before + 1000
+    assert machine.channel3d_values().pending.get("v_max") == pending["v_max"]
+
+
 def test_3d_objects_exist_only_with_fct_3d_dist_ctrl():
     """FCT-M3 §12.6: the channel-specific objects 'are only available if they are configured by'
     configuration.decoder.function FCT_3D_DIST_CTRL (P-CHAN-00500): an axis-only machine refuses them."""

@@ -848,7 +848,8 @@ class Machine:
             inclination_rad=o3.inclination, compensation_mode=int(ch.mode), direction=ch.direction_axis,
             orthogonal_set_distance=o3.orthogonal_set_distance, blend_active=0.0 < o3.blend < 1.0,
             filter_time=ch.filter_time, tool_length=self.tool_length, virtual_tool_length=self.virt_tool_length,
-            hli_state=o3.core.hli_state, events=list(o3.events))
+            hli_state=o3.core.hli_state, events=list(o3.events),
+            pending=dict(ch.core.state.pending))      # writes waiting for their adoption (docs/objects-3d.md)
 
     def publish_all(self) -> None:
         """Fill every control unit's ``state_r`` from the last cycle."""

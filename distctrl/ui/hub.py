@@ -113,8 +113,7 @@ class MachineHub:
                 pending = ctx.pending(spec.write_name) if spec.writable else None
                 objects[(axis_id, spec.name)] = (read_value(spec, ctx), pending)
         if self.channel_objects:
-            values = m.channel3d_values()
-            values.pending = dict(m.ch3d.core.state.pending)     # writes waiting for their adoption
+            values = m.channel3d_values()                         # with the writes waiting for adoption
             ctx3 = Channel3DObjectContext(1, values)
             for spec in self.channel_objects:
                 pending = ctx3.pending(spec.write_name) if spec.writable else None
