@@ -73,7 +73,7 @@ from ...control.states import HliState, HliTransition
 from ...errors import ErrorId, make_event
 from ...sim.config_errors import require_int, require_number
 from .base import ProcessFunction
-from .plc_io import MM_PER_UNIT, read_signal, write_object
+from .plc_io import MM_PER_UNIT, HliCommandSender, read_signal, write_object
 
 __all__ = ["CollisionRetract", "COLLISION_DEFAULTS", "RETRACT_MARGIN"]
 
@@ -93,7 +93,7 @@ _T_FREEZE, _T_ON_CD = int(HliTransition.FREEZE), int(HliTransition.ON_CONST_DIST
 WATCH, FREEZING, RETRACTING, STOPPING = "WATCH", "FREEZING", "RETRACTING", "STOPPING"
 
 
-class CollisionRetract(ProcessFunction):
+class CollisionRetract(HliCommandSender, ProcessFunction):
     """Contact detection and retract on ``axis`` (module docstring). ``retract_speed`` (mm/s) and
     ``retract_accel`` (mm/s²) are the retract's limits (the axis's v_max / a_max in a scenario);
     ``variable`` the V.E. signal in mm (None: ``state_r.actual_distance``)."""
@@ -156,16 +156,6 @@ class CollisionRetract(ProcessFunction):
         self._last_offset = math.nan
 
     # ------------------------------------------------------------------ helpers
-    def _send(self, unit, cycle: int, transition: int, position: float = 0.0) -> None:
-        self._pending = (transition, position)
-        self._flush(unit, cycle)
-
-    def _flush(self, unit, cycle: int) -> None:
-        transition, position = self._pending
-        if unit.plc_command(transition, position):
-            self._pending = None
-            self._sent = cycle
-
     def _touch_off_busy(self, machine) -> bool:
         program = getattr(machine, "process_program", None)
         touch = program.function("touch_off", self.axis) if program is not None else None

@@ -15,7 +15,8 @@ import math
 from ...errors import make_event
 from ...objects.registry import AxisObjectContext, find_spec, read_value, write_value
 
-__all__ = ["read_object", "write_object", "read_signal", "report_error", "following_error", "MM_PER_UNIT"]
+__all__ = ["read_object", "write_object", "read_signal", "report_error", "following_error", "MM_PER_UNIT",
+           "HliCommandSender"]
 
 #: DINT 0.1 µm -> mm
 MM_PER_UNIT = 1e-4
@@ -65,3 +66,23 @@ def report_error(machine, cycle: int, error_id: int, detail: str):
     machine.events.append((cycle * machine.T, event))
     machine.stop_program(None)
     return event
+
+
+class HliCommandSender:
+    """A command for the axis's HLI control unit, kept until the handshake takes it: ``_send`` writes
+    it now if the semaphore is free, ``_flush`` retries a command still waiting (each cycle, before
+    anything else). ``_pending`` is the (transition, position mm) waiting, ``_sent`` the cycle the
+    last one was taken. Shared by the functions that move the axis (touch-off, collision retract)."""
+
+    _pending: tuple[int, float] | None = None
+    _sent: int = -1
+
+    def _send(self, unit, cycle: int, transition: int, position: float = 0.0) -> None:
+        self._pending = (transition, position)
+        self._flush(unit, cycle)
+
+    def _flush(self, unit, cycle: int) -> None:
+        transition, position = self._pending
+        if unit.plc_command(transition, position):
+            self._pending = None
+            self._sent = cycle

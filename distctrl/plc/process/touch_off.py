@@ -94,7 +94,7 @@ from ...control.states import HliState, HliTransition
 from ...errors import ErrorId
 from ...sim.config_errors import require_int, require_number
 from .base import ProcessFunction
-from .plc_io import MM_PER_UNIT, following_error, read_object, read_signal, report_error, write_object
+from .plc_io import MM_PER_UNIT, HliCommandSender, following_error, read_object, read_signal, report_error, write_object
 
 __all__ = ["TouchOff", "TOUCH_DEFAULTS", "BACKOFF_TIMEOUT_S"]
 
@@ -125,7 +125,7 @@ def _state_name(state: int) -> str:
         return str(state)
 
 
-class TouchOff(ProcessFunction):
+class TouchOff(HliCommandSender, ProcessFunction):
     """Touch-off on ``axis`` (module docstring). Lengths mm, speeds mm/s, times s; ``variable`` the
     V.E. signal in mm (None: ``state_r.actual_distance``), ``request`` the V.E. handshake variable."""
 
@@ -196,16 +196,6 @@ class TouchOff(ProcessFunction):
         self.result: dict | None = None
 
     # ------------------------------------------------------------------ helpers
-    def _send(self, unit, cycle: int, transition: int, position: float = 0.0) -> None:
-        self._pending = (transition, position)
-        self._flush(unit, cycle)
-
-    def _flush(self, unit, cycle: int) -> None:
-        transition, position = self._pending
-        if unit.plc_command(transition, position):
-            self._pending = None
-            self._sent = cycle
-
     def _fail(self, machine, cycle: int, error_id: int, detail: str) -> None:
         unit = machine.hli[self.axis]
         if self._v_max_saved is not None:
