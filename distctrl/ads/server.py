@@ -76,6 +76,19 @@ def new_event_loop() -> asyncio.AbstractEventLoop:
     return asyncio.new_event_loop()
 
 
+
+def address_allowed(ip: str, networks) -> bool:
+    """True if the peer address ``ip`` (IPv4, IPv6 with a zone, or IPv4-mapped IPv6) lies in one of
+    ``networks`` (ipaddress networks): the route check of the ADS server and the live page."""
+    try:
+        addr = ipaddress.ip_address(ip.split("%", 1)[0])
+    except ValueError:
+        return False
+    if addr.version == 6 and addr.ipv4_mapped is not None:
+        addr = addr.ipv4_mapped
+    return any(addr.version == net.version and addr in net for net in networks)
+
+
 class AdsServer(AdsServices):
     """ADS server over AMS/TCP.
 
@@ -235,13 +248,7 @@ class AdsServer(AdsServices):
     # ------------------------------------------------------------------------------------------
     def is_allowed(self, ip: str) -> bool:
         """True if ``ip`` lies in one of the ``allowed`` networks."""
-        try:
-            addr = ipaddress.ip_address(ip.split("%", 1)[0])
-        except ValueError:
-            return False
-        if addr.version == 6 and addr.ipv4_mapped is not None:
-            addr = addr.ipv4_mapped
-        return any(addr.version == net.version and addr in net for net in self.allowed)
+        return address_allowed(ip, self.allowed)
 
     def _handle_tcp_command(self, conn: Connection, reserved: int, body: bytes) -> bytes | None:
         """AMS/TCP frames that are not AMS packets (router-client commands)."""

@@ -23,6 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
+from ..ads.server import address_allowed
 from .hub import MachineHub
 
 log = logging.getLogger("distctrl.ui")
@@ -79,13 +80,7 @@ class UiServer:
         return f"http://{host}:{self.port}/"
 
     def is_allowed(self, ip: str) -> bool:
-        try:
-            addr = ipaddress.ip_address(ip.split("%", 1)[0])
-        except ValueError:
-            return False
-        if addr.version == 6 and addr.ipv4_mapped is not None:
-            addr = addr.ipv4_mapped
-        return any(addr.version == net.version and addr in net for net in self.allowed)
+        return address_allowed(ip, self.allowed)
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> None:
