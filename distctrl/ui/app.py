@@ -34,7 +34,7 @@ CSP = ("default-src 'none'; script-src 'self' 'unsafe-inline'; style-src 'self' 
        "form-action 'none'")
 #: Python's thread switch interval while the page is served (default 5 ms): a thread holding the GIL
 #: gives it up after this long when another (the 1 ms cycle) waits for it
-SWITCH_INTERVAL = 0.0001
+SWITCH_INTERVAL = 0.00003
 #: frames per second of every page (the scope's stream, the panels' values)
 FRAME_MS = 50
 
