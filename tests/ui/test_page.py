@@ -12,7 +12,7 @@ from urllib.parse import urlsplit
 
 import pyads
 import pytest
-from playwright.sync_api import expect, sync_playwright
+from playwright.sync_api import expect
 
 from distctrl.ads.machine import ServedMachine
 from distctrl.sim.scenario import scenario_from_dict
@@ -20,9 +20,6 @@ from distctrl.ui import UiServer
 from tests.ads import wait_for
 
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run"]
 # an address of our own: pyads keeps one TCP connection per IP for the whole process (tests/ads has
 # 127.0.0.1, tests/test_serve.py 127.0.0.2, tests/cli 127.0.0.4)
 HOST, NET_ID = "127.0.0.3", "127.0.0.3.1.1"
@@ -49,15 +46,6 @@ def served(tmp_path_factory):
         ui.stop()
         served.stop()
         gc.unfreeze()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    assert Path(CHROMIUM).is_file(), "Debian's chromium is needed (make chromium; apt-get install chromium)"
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        yield b
-        b.close()
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,8 @@ from playwright.sync_api import expect
 from distctrl.ads.machine import ServedMachine
 from distctrl.sim.scenario import load_scenario
 from distctrl.ui import UiServer
-from tests.ui.test_page import ARGS, CHROMIUM, tab
+from tests.ui.conftest import open_page
+from tests.ui.test_page import tab
 
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "process_corner.toml"
 
@@ -28,17 +29,12 @@ def served():
         served.stop()
 
 
-def test_a_process_function_is_switched_off_and_on_from_the_page(served):
-    from playwright.sync_api import sync_playwright
-
+def test_a_process_function_is_switched_off_and_on_from_the_page(served, browser):
     sm, ui = served
     corner = sm.machine.process_program.function("corner_lock", "Z")
     assert corner.enabled
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        page = browser.new_page(viewport={"width": 1300, "height": 900})
-        page.goto(ui.url)
-        page.locator(".scope-plot").first.wait_for(timeout=15000)
+    page = open_page(browser, ui.url)
+    try:
         tab(page, "PLC panel")
         box = page.locator(".plc-process input[type=checkbox]").first
         expect(box).to_be_checked()
@@ -49,7 +45,8 @@ def test_a_process_function_is_switched_off_and_on_from_the_page(served):
         box.check()
         expect(page.locator(".plc-message .bk-clearfix")).to_contain_text("corner_lock on Z enabled")
         assert corner.enabled
-        browser.close()
+    finally:
+        page.close()
 
 
 def test_an_unknown_function_is_refused_by_the_hub(served):

@@ -1,0 +1,30 @@
+"""What the live page's browser tests share: Debian's Chromium driven by Playwright, one browser for
+the whole session. Chromium must be there (``make chromium`` installs it): a missing browser fails,
+never skips."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import sync_playwright
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+
+@pytest.fixture(scope="session")
+def browser():
+    assert Path(CHROMIUM).is_file(), "Debian's chromium is needed (make chromium; apt-get install chromium)"
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        yield b
+        b.close()
+
+
+def open_page(browser, url: str):
+    """A new page on ``url``, once the scope is drawn."""
+    page = browser.new_page(viewport={"width": 1300, "height": 900})
+    page.goto(url)
+    page.locator(".scope-plot").first.wait_for(timeout=15000)
+    return page
