@@ -39,8 +39,24 @@ class ProcessFunction:
     def __init__(self, axis: str, enabled: bool = True):
         self.axis = axis
         self.hold: FreezeHold | None = None
-        #: the function runs (``[[process]]`` key ``enabled``; ADS ``Process.<axis>.<name>.enabled``)
-        self.enabled = require_bool(enabled, f"{self.name}.enabled")
+        #: what the switch says (``[[process]]`` key ``enabled``, ADS ``Process.<axis>.<name>.enabled``,
+        #: :meth:`~distctrl.plc.process.program.ProcessProgram.set_enabled`)
+        self.switched_on = require_bool(enabled, f"{self.name}.enabled")
+
+    @property
+    def finishing(self) -> bool:
+        """Switched off, the function still runs while this is true: a motion of its own under way
+        that must end first (a lift landing, a touch-off ending safely, a retract). None here."""
+        return False
+
+    @property
+    def enabled(self) -> bool:
+        """The function runs: switched on, or switched off while it is :attr:`finishing`."""
+        return self.switched_on or self.finishing
+
+    @enabled.setter
+    def enabled(self, on: bool) -> None:
+        self.switched_on = bool(on)
 
     def bind(self, hold: FreezeHold) -> None:
         self.hold = hold

@@ -128,16 +128,10 @@ class CollisionRetract(HliCommandSender, ProcessFunction):
         return getattr(self, "phase", WATCH) in (FREEZING, RETRACTING, STOPPING)
 
     @property
-    def enabled(self) -> bool:
-        """The function runs: switched on, or switched off while a retract is under way (it is
-        finished: stopped half-way the head would stay on the obstacle, distance control in the
-        retract's select)."""
-        return self.switched_on or self.busy
-
-    @enabled.setter
-    def enabled(self, on: bool) -> None:
-        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``)
-        self.switched_on = bool(on)
+    def finishing(self) -> bool:
+        """Switched off during a retract, the retract is finished (stopped half-way the head would
+        stay on the obstacle, distance control in the retract's select)."""
+        return self.busy
 
     def reset(self) -> None:
         """Back to the initial state: watching, no contact counted, no command waiting (logs stay). A

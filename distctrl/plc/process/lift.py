@@ -65,7 +65,7 @@ and of the CNC part (what the CNC's lift does each GEO cycle; ``lrTau`` the time
 from __future__ import annotations
 
 from ...control.states import HliState
-from ...sim.config_errors import ConfigError, require_number
+from ...sim.config_errors import require_number
 from ...sim.interpolator import brake_velocity, trapezoid_time
 from .base import ProcessFunction
 
@@ -210,10 +210,7 @@ class Lift(ProcessFunction):
                  height: float = LIFT_DEFAULTS["height"], min_distance: float = LIFT_DEFAULTS["min_distance"],
                  settle_time: float = LIFT_DEFAULTS["settle_time"], enabled: bool = True):
         self.motion = None
-        super().__init__(axis)
-        if not isinstance(enabled, bool):
-            raise ConfigError("lift.enabled", enabled, "true or false", "not a boolean:")
-        self.enabled = enabled
+        super().__init__(axis, enabled)
         T = require_number(cycle_time, "lift.cycle_time", lo=0.0, lo_open=True)
         self.height = require_number(height, "lift.height", lo=0.0, hi=1000.0, lo_open=True)
         self.v_max = require_number(v_max, "lift.v_max", lo=0.0, lo_open=True)
@@ -227,18 +224,11 @@ class Lift(ProcessFunction):
         self.requesting = False
 
     @property
-    def enabled(self) -> bool:
-        """The function runs: switched on, or switched off while a lift is still under way (it keeps
-        distance control frozen until the head has landed: re-activated while the head is up,
-        distance control would pull it down and, with a lower velocity limit than the landing, let
-        it dive into the plate when it lands)."""
-        return self.switched_on or (self.motion is not None and self.motion.lift_active)
-
-    @enabled.setter
-    def enabled(self, on: bool) -> None:
-        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``):
-        #: no new lift while off
-        self.switched_on = bool(on)
+    def finishing(self) -> bool:
+        """Switched off during a lift, the function keeps distance control frozen until the head has
+        landed (re-activated while the head is up, distance control would pull it down and, with a
+        lower velocity limit than the landing, let it dive into the plate when it lands)."""
+        return self.motion is not None and self.motion.lift_active
 
     @property
     def cnc_lift(self) -> LiftMotion:

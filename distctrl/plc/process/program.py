@@ -51,10 +51,10 @@ class ProcessProgram:
             raise KeyError(f"no process function {name!r} on axis {axis!r}; configured: "
                            + (", ".join(f"{g.name}@{g.axis}" for g in self.functions) or "none"))
         on = bool(on)
-        # the switch itself: a function may read enabled while it finishes (a lift landing)
-        if on == getattr(f, "switched_on", f.enabled):
+        # the switch itself: a function still finishing reads enabled (a lift landing)
+        if on == f.switched_on:
             return
-        f.enabled = on
+        f.switched_on = on
         f.reset()
         if not on:
             f.hold.withdraw(f.name)

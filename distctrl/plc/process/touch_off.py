@@ -164,16 +164,11 @@ class TouchOff(HliCommandSender, ProcessFunction):
         self.reset()
 
     @property
-    def enabled(self) -> bool:
-        """The function runs: switched on, or switched off while a touch-off is under way (it then
-        ends that touch-off safely in its next cycle: 900052, OFF, the program stops; dropping it
-        would leave distance control lowering the head at SET_DIST = 0)."""
-        return self.switched_on or getattr(self, "phase", IDLE) != IDLE
-
-    @enabled.setter
-    def enabled(self, on: bool) -> None:
-        #: what the switch says (``[[process]]`` key ``enabled``, ``ProcessProgram.set_enabled``)
-        self.switched_on = bool(on)
+    def finishing(self) -> bool:
+        """Switched off during a touch-off, it ends that touch-off safely in its next cycle (900052,
+        OFF, the program stops; dropping it would leave distance control lowering the head at
+        SET_DIST = 0)."""
+        return getattr(self, "phase", IDLE) != IDLE
 
     def reset(self) -> None:
         """Back to the initial state: idle, no command waiting, no attempt counted (the logs stay). A
