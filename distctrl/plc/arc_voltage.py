@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 
 from ..sim.config_errors import require_number
+from .variables import ve_name
 
 __all__ = ["ArcVoltageLinearisation", "ARC_V0_RANGE", "ARC_K_RANGE"]
 
@@ -37,9 +38,6 @@ __all__ = ["ArcVoltageLinearisation", "ARC_V0_RANGE", "ARC_K_RANGE"]
 ARC_V0_RANGE = (0.0, 400.0)
 ARC_K_RANGE = (0.5, 50.0)
 
-
-def _ve(name: str) -> str:
-    return name if name[:4].upper() == "V.E." else f"V.E.{name}"
 
 
 class ArcVoltageLinearisation:
@@ -54,8 +52,8 @@ class ArcVoltageLinearisation:
         name = "ArcVoltageLinearisation"
         self.v0 = require_number(v0, f"{name}.v0", lo=ARC_V0_RANGE[0], hi=ARC_V0_RANGE[1])
         self.k = require_number(k, f"{name}.k", lo=ARC_K_RANGE[0], hi=ARC_K_RANGE[1])
-        self.voltage_variable = _ve(voltage_variable)
-        self.distance_variable = _ve(distance_variable)
+        self.voltage_variable = ve_name(voltage_variable)
+        self.distance_variable = ve_name(distance_variable)
         self._inv_k = 1.0 / self.k
 
     def distance(self, voltage: float) -> float:

@@ -28,12 +28,10 @@ import math
 import numpy as np
 
 from ..sim.config_errors import ConfigError
+from .variables import ve_name
 
 __all__ = ["DistanceLinearisation", "check_table"]
 
-
-def _ve(name: str) -> str:
-    return name if name[:4].upper() == "V.E." else f"V.E.{name}"
 
 
 def check_table(table, key: str = "linearisation") -> tuple[tuple[float, float], ...]:
@@ -60,8 +58,8 @@ class DistanceLinearisation:
 
     def __init__(self, table, raw_variable: str = "V.E.SENSOR_RAW", distance_variable: str = "V.E.SENSOR"):
         self.table = check_table(table, "DistanceLinearisation.table")
-        self.raw_variable = _ve(raw_variable)
-        self.distance_variable = _ve(distance_variable)
+        self.raw_variable = ve_name(raw_variable)
+        self.distance_variable = ve_name(distance_variable)
         self._x = np.array([p[0] for p in self.table])
         self._y = np.array([p[1] for p in self.table])
         # end segments' slopes for the extension beyond the table

@@ -78,6 +78,7 @@ import math
 
 from ...control.states import HliState, HliTransition
 from ...sim.config_errors import require_int, require_number
+from ..variables import ve_name
 from .base import ProcessFunction
 
 __all__ = ["Calibrate", "CALIBRATE_DEFAULTS", "CalibrationRecord"]
@@ -133,7 +134,7 @@ class Calibrate(ProcessFunction):
         self.bottom = require_number(bottom, "calibrate.bottom", lo=0.0, hi=100.0, lo_open=True)
         self.settle = require_number(settle, "calibrate.settle", lo=self.cycle_time, hi=10.0)
         self.runs = require_int(runs, "calibrate.runs", lo=1, hi=10)
-        self.variable = variable if variable[:4].upper() == "V.E." else f"V.E.{variable}"
+        self.variable = ve_name(variable)
         self.settle_cycles = max(1, round(self.settle / self.cycle_time))
         self.select_cycles = max(1, round(SELECT_TIMEOUT / self.cycle_time))
         self.step_mm = self.speed * self.cycle_time

@@ -72,6 +72,7 @@ import math
 from ...control.states import HliState, HliTransition
 from ...errors import ErrorId, make_event
 from ...sim.config_errors import require_int, require_number
+from ..variables import ve_name
 from .base import ProcessFunction
 from .plc_io import MM_PER_UNIT, HliCommandSender, read_signal, write_object
 
@@ -113,8 +114,7 @@ class CollisionRetract(HliCommandSender, ProcessFunction):
         self.confirm_cycles = require_int(confirm_cycles, n + "confirm_cycles", lo=1, hi=1000)
         self.retract = require_number(retract, n + "retract", lo=0.0, hi=1000.0, lo_open=True)
         self.short_circuit = None if short_circuit is None else require_number(short_circuit, n + "short_circuit")
-        self.variable = None if variable is None else (variable if variable[:4].upper() == "V.E."
-                                                       else f"V.E.{variable}")
+        self.variable = None if variable is None else ve_name(variable)
         self.stop_cycles = round(STOP_TIMEOUT_S / self.cycle_time)
         #: every contact: {"cycle", "line", "x", "y", "reading", "retract", "retract_time"} (mm, s)
         self.log: list[dict] = []

@@ -42,6 +42,14 @@ PROCESS_COMMON_KEYS = ("enabled",)
 _VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 
+def _ve_key(value: object, key: str, allowed: str) -> str:
+    """A V.E. variable name given in a [[process]] table, stored without the ``V.E.`` prefix; else
+    :class:`ConfigError` naming ``key``."""
+    if not isinstance(value, str) or not _VAR_RE.match(value):
+        raise ConfigError(key, value, allowed)
+    return value[4:] if value.startswith("V.E.") else value
+
+
 @dataclass(frozen=True)
 class ProcessConfig:
     """One validated ``[[process]]`` table: ``params`` holds every key of the function, defaults filled in."""
@@ -114,9 +122,7 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
         default_var = voltage or (sensor.variable if sensor is not None and sensor.kind == "distance" else None)
         var = cfg.get("variable", default_var)
         if var is not None:
-            if not isinstance(var, str) or not _VAR_RE.match(var):
-                raise ConfigError(k + "variable", var, "a V.E. variable name (e.g. \"ARC_VOLTAGE\" or \"SENSOR\")")
-            var = var[4:] if var.startswith("V.E.") else var
+            var = _ve_key(var, k + "variable", "a V.E. variable name (e.g. \"ARC_VOLTAGE\" or \"SENSOR\")")
         is_voltage = var is not None and var == voltage
         threshold = require_number(cfg.get("threshold", VOID_THRESHOLD_V_S if is_voltage else VOID_THRESHOLD_MM_S),
                                    k + "threshold", lo=0.0, lo_open=True)
@@ -165,10 +171,8 @@ def _calibrate_params(cfg: dict, k: str, axis: str, sensor, cycle_time: float) -
         raise ConfigError(k + "axis", axis, "the axis of a [sensor] with kind = 'distance' (the calibration run "
                           f"records a distance sensor's reading; the scenario has {what})", "no distance sensor on")
     default_var = sensor.output_variable          # the raw reading when a linearisation is in force
-    var = cfg.get("variable", default_var)
-    if not isinstance(var, str) or not _VAR_RE.match(var):
-        raise ConfigError(k + "variable", var, "a V.E. variable name (default: the one the sensor writes)")
-    var = var[4:] if var.startswith("V.E.") else var
+    var = _ve_key(cfg.get("variable", default_var), k + "variable",
+                  "a V.E. variable name (default: the one the sensor writes)")
     d = CALIBRATE_DEFAULTS
     speed = require_number(cfg.get("speed", d["speed"]), k + "speed", lo=0.0, hi=20.0, lo_open=True)
     bottom = require_number(cfg.get("bottom", d["bottom"]), k + "bottom", lo=0.0, hi=sensor.range_max,
@@ -184,22 +188,19 @@ def _signal_variable(cfg: dict, k: str, sensor) -> str | None:
     the probe on encoder 2 (``state_r.actual_distance``)."""
     default = sensor.variable if sensor is not None and sensor.kind in ("distance", "arc_voltage") else None
     var = cfg.get("variable", default)
-    if var is not None:
-        if not isinstance(var, str) or not _VAR_RE.match(var):
-            raise ConfigError(k + "variable", var, "a V.E. variable name holding the distance in mm (e.g. \"SENSOR\")")
-        var = var[4:] if var.startswith("V.E.") else var
-    return var
+    if var is None:
+        return None
+    return _ve_key(var, k + "variable", "a V.E. variable name holding the distance in mm (e.g. \"SENSOR\")")
 
 
 def _touch_off(cfg: dict, k: str, axis_cfg, sensor, cycle_time: float) -> dict:
     d = TOUCH_DEFAULTS
-    request = cfg.get("request", d["request"])
-    if not isinstance(request, str) or not _VAR_RE.match(request):
-        raise ConfigError(k + "request", request, "a V.E. variable name (the NC handshake, e.g. \"TOUCH_OFF\")")
+    request = _ve_key(cfg.get("request", d["request"]), k + "request",
+                      "a V.E. variable name (the NC handshake, e.g. \"TOUCH_OFF\")")
     max_dev = axis_cfg.params.max_deviation
     stroke = require_number(cfg.get("stroke", min(d["stroke"], 0.9 * max_dev)), k + "stroke", lo=0.0,
                             hi=max_dev, lo_open=True, hi_open=True)
-    return {"variable": _signal_variable(cfg, k, sensor), "request": request[4:] if request.startswith("V.E.") else request,
+    return {"variable": _signal_variable(cfg, k, sensor), "request": request,
             "probe_speed": require_number(cfg.get("probe_speed", d["probe_speed"]), k + "probe_speed", lo=0.001,
                                           hi=min(1000.0, axis_cfg.v_max)),
             "detect": require_number(cfg.get("detect", d["detect"]), k + "detect", lo=0.0, hi=100.0),

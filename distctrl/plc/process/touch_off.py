@@ -93,8 +93,17 @@ import math
 from ...control.states import HliState, HliTransition
 from ...errors import ErrorId
 from ...sim.config_errors import require_int, require_number
+from ..variables import ve_name
 from .base import ProcessFunction
-from .plc_io import MM_PER_UNIT, HliCommandSender, following_error, read_object, read_signal, report_error, write_object
+from .plc_io import (
+    MM_PER_UNIT,
+    HliCommandSender,
+    following_error,
+    read_object,
+    read_signal,
+    report_error,
+    write_object,
+)
 
 __all__ = ["TouchOff", "TOUCH_DEFAULTS", "BACKOFF_TIMEOUT_S"]
 
@@ -148,8 +157,8 @@ class TouchOff(HliCommandSender, ProcessFunction):
         self.verify_time = require_number(verify_time, n + "verify_time", lo=0.0, hi=1.0)
         self.verify_band = require_number(verify_band, n + "verify_band", lo=0.0, hi=100.0)
         self.tolerance = require_number(tolerance, n + "tolerance", lo=0.0, hi=10.0, lo_open=True)
-        self.variable = None if variable is None else _ve(variable)
-        self.request = _ve(request)
+        self.variable = None if variable is None else ve_name(variable)
+        self.request = ve_name(request)
         #: the V.E. variables the machine creates (0) at the start: the handshake
         self.declares = (self.request,)
         self.verify_cycles = max(1, round(self.verify_time / self.cycle_time))
@@ -337,6 +346,3 @@ class TouchOff(HliCommandSender, ProcessFunction):
         if self.hold is not None:
             (self.hold.inhibitors.discard if phase == IDLE else self.hold.inhibitors.add)(self.name)
 
-
-def _ve(name: str) -> str:
-    return name if name[:4].upper() == "V.E." else f"V.E.{name}"

@@ -61,6 +61,7 @@ from __future__ import annotations
 import math
 
 from ...sim.config_errors import require_int, require_number
+from ..variables import ve_name
 from .base import ProcessFunction, tracking_or_held
 
 __all__ = ["VoidLock", "VOID_DEFAULTS", "VOID_THRESHOLD_V_S", "VOID_THRESHOLD_MM_S", "VOID_WINDOW_DISTANCE_S"]
@@ -96,8 +97,7 @@ class VoidLock(ProcessFunction):
         if release_band is None:
             release_band = 0.5 * self.threshold * self.window
         self.release_band = require_number(release_band, "void_lock.release_band", lo=0.0, lo_open=True)
-        self.variable = None if variable is None else (variable if variable[:4].upper() == "V.E."
-                                                       else f"V.E.{variable}")
+        self.variable = None if variable is None else ve_name(variable)
         self.n = max(1, round(self.window / self.cycle_time))
         self._rate_scale = 1.0 / (self.n * self.cycle_time)
         self.reset()
