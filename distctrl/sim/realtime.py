@@ -39,6 +39,19 @@ class JitterStats:
                 "resyncs": self.resyncs}
 
 
+def sched_fifo(priority: int) -> str:
+    """Put the calling thread on the real-time policy SCHED_FIFO at ``priority`` (1..99) where the OS
+    allows it; what it runs with: ``"SCHED_FIFO <priority>"`` or ``"normal (... not allowed: why)"``."""
+    import os
+
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError, ValueError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        return f"normal (SCHED_FIFO {priority} not allowed: {why})"
+    return f"SCHED_FIFO {priority}"
+
+
 class RealTimeLoop:
     """Calls ``step()`` every ``cycle_time`` seconds of wall-clock time until ``stop()``."""
 
@@ -98,17 +111,8 @@ class RealTimeLoop:
         CAP_SYS_NICE or an rtprio limit). Another process's load (a browser drawing the live page)
         then no longer delays the cycle's wake-up; the thread sleeps between cycles, and the kernel's
         real-time throttling (sched_rt_runtime_us) bounds what a runaway could take."""
-        if self.rt_priority <= 0:
-            return
-        import os
-
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.rt_priority))
-        except (AttributeError, OSError, ValueError) as exc:
-            why = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
-            self.scheduling = f"normal (SCHED_FIFO {self.rt_priority} not allowed: {why})"
-            return
-        self.scheduling = f"SCHED_FIFO {self.rt_priority}"
+        if self.rt_priority > 0:
+            self.scheduling = sched_fifo(self.rt_priority)
 
     def stop(self, timeout: float = 2.0) -> None:
         self._stop.set()

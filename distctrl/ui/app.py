@@ -24,6 +24,7 @@ import threading
 from pathlib import Path
 
 from ..ads.server import address_allowed
+from ..sim.realtime import sched_fifo
 from .hub import MachineHub
 
 log = logging.getLogger("distctrl.ui")
@@ -163,15 +164,9 @@ class UiServer:
         """With the cycle thread on SCHED_FIFO, this thread too (one priority level below): it holds
         Python's GIL while it serialises a frame, and preempted then by another process (the browser
         drawing the page) it would keep the cycle thread waiting for the GIL (priority inversion)."""
-        prio = getattr(self.served.loop, "rt_priority", 0)
-        if prio <= 1:
-            return
-        import os
-
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio - 1))
-        except (AttributeError, OSError, ValueError):
-            pass
+        prio = self.served.loop.rt_priority
+        if prio > 1:
+            sched_fifo(prio - 1)
 
     def _guard(self, server) -> None:
         """Close connections from outside the allowed networks at once (as an ADS route does)."""

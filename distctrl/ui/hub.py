@@ -146,7 +146,7 @@ class MachineHub:
             "override": m.channel_override, "paused": self.served.paused,
             "x": m.drives["X"].nozzle if "X" in m.drives else 0.0,
             "true_surface": m.true_surface, "true_distance": m.true_distance,
-            "process": [] if proc is None else [(f.name, f.axis, bool(getattr(f, "enabled", True)))
+            "process": [] if proc is None else [(f.name, f.axis, f.enabled)
                                                 for f in proc.functions],
         }
         if new_events:
@@ -293,14 +293,11 @@ class MachineHub:
 
     def set_process(self, name: str, axis: str, on: bool) -> tuple[bool, str]:
         proc = self.machine.process_program
-        setter = getattr(proc, "set_enabled", None)
         if proc is None:
             return False, "this scenario has no [[process]] functions"
-        if setter is None:
-            return False, "this build cannot switch process functions at run time (ProcessProgram.set_enabled)"
         try:
             with self.lock:
-                setter(name, axis, bool(on))
+                proc.set_enabled(name, axis, bool(on))
         except (KeyError, ValueError, DistCtrlError) as exc:
             return False, str(exc.args[0]) if exc.args else str(exc)
         return True, f"process function {name} on {axis} {'enabled' if on else 'disabled'}"

@@ -74,12 +74,8 @@ class PlcPanel:
                                    active=[i for i, (_, _, on) in enumerate(procs) if on],
                                    css_classes=["plc-process"])
         self.procs.on_change("active", lambda a, o, new: self._switch(o, new))
-        switchable = hasattr(m.process_program, "set_enabled")
         proc_note = Div(text="<b>Process functions</b> ([[process]], docs/process.md)"
-                        + ("" if procs else ": none in this scenario")
-                        + ("" if switchable or not procs else
-                           " — <i>this build cannot switch them at run time</i>"))
-        self.procs.disabled = not switchable
+                        + ("" if procs else ": none in this scenario"))
         self.events = Div(text="", css_classes=["plc-events"], width=1200, height=170)
         self.layout = column(*axis_blocks, Div(text="<b>Channel</b>"), row(self.override, self.hold, reset),
                              Div(text="<b>Sensor faults</b> (the scenario's sensor_fault events, now)"),
