@@ -7,7 +7,8 @@ axis position and reading); this module is the engineering side that reads the r
 * :func:`calibration_table`: the true distance is ``axis − surface`` (``surface``: the axis position
   where the nozzle touches the sheet); the samples of each run are binned along the true distance
   with ``distctrl identify``'s characteristic fit
-  (:func:`distctrl.workbench.identify.fit.characteristic_points`, 0.25 mm bins, a straight line
+  (:func:`distctrl.workbench.identify.fit.characteristic_points`; bins of ``bin_width``, 0.1 mm with
+  ``distctrl calibrate``, 0.25 mm by default here as in ``identify``; a straight line
   through each bin's samples); the bins of all runs together give the table (reading → distance),
   the bins of each run alone give that run's table;
 * the **repeatability** is the largest difference between the runs' tables, in µm of distance, over
@@ -96,10 +97,6 @@ def _points(x: np.ndarray, y: np.ndarray, bin_width: float, what: str, dropped: 
     return xs, ys, rr, med
 
 
-def _interp(table_r: np.ndarray, table_d: np.ndarray, r: np.ndarray) -> np.ndarray:
-    return np.interp(r, table_r, table_d)
-
-
 def calibration_table(record, surface: float, bin_width: float = CHAR_BIN) -> CalibrationTable:
     """The linearisation table and the repeatability from a :class:`~distctrl.plc.process.CalibrationRecord`
     (module docstring). ``surface``: the axis position (mm) where the nozzle touches the sheet."""
@@ -124,8 +121,7 @@ def calibration_table(record, surface: float, bin_width: float = CHAR_BIN) -> Ca
         grid = np.array([p[0] for p in table if lo <= p[0] <= hi])
         if grid.size == 0:
             raise CalibrationError("the runs cover no common range of readings: they cannot be compared")
-        vals = np.array([_interp(np.array([p[0] for p in t]), np.array([p[1] for p in t]), grid)
-                         for t in run_tables])
+        vals = np.array([np.interp(grid, [p[0] for p in t], [p[1] for p in t]) for t in run_tables])
         rep = float(np.max(np.ptp(vals, axis=0))) * 1000.0
     noise = float(np.sqrt(np.mean(rr * rr))) / slope * 1000.0 if rr.size else None
     return CalibrationTable(table, run_tables, rep, (float(xs[0]), float(xs[-1])), float(surface), int(a.size),
