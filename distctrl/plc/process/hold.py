@@ -43,7 +43,7 @@ ST equivalent (one instance per axis; ``bReq`` the OR of the lock requests)::
 from __future__ import annotations
 
 from ...control.states import HliState, HliTransition
-from ...objects.registry import AxisObjectContext, find_spec, read_value
+from .plc_io import read_object
 
 __all__ = ["FreezeHold", "IDLE", "FREEZING", "FROZEN", "RELEASING", "RUNNING_TRACKING"]
 
@@ -57,8 +57,8 @@ _T_ON_CD = int(HliTransition.ON_CONST_DIST)
 #: the states a lock may freeze: distance control tracks the surface
 RUNNING_TRACKING = (_ACTIVE, _ACTIVE_CD)
 _MM_PER_NM001 = 1e-8
-_SET_POS = find_spec("DIST_CTRL::set_pos")
-_SET_DIST = find_spec("DIST_CTRL::set_distance")
+_SET_POS = "DIST_CTRL::set_pos"
+_SET_DIST = "DIST_CTRL::set_distance"
 
 
 class FreezeHold:
@@ -70,7 +70,6 @@ class FreezeHold:
         self.axis = axis
         #: (cycle, transition) of every command this hold sent (diagnosis, tests; kept by reset())
         self.log: list[tuple[int, int]] = []
-        self._ctx = None
         #: functions that move the axis themselves for now (touch-off, collision retract): while any
         #: is listed the hold sends nothing, drops the requests and forgets its phase (an interlock;
         #: the functions add and remove themselves, reset() keeps it)
@@ -114,11 +113,7 @@ class FreezeHold:
         return self.phase != IDLE
 
     def _read_set_value(self, machine, const_dist: bool) -> float:
-        unit = machine.hli[self.axis]
-        if self._ctx is None:
-            self._ctx = AxisObjectContext(unit.axis_index, self.axis, machine.controllers[self.axis],
-                                          machine.outputs[self.axis])
-        return read_value(_SET_DIST if const_dist else _SET_POS, self._ctx) * _MM_PER_NM001
+        return read_object(machine, self.axis, _SET_DIST if const_dist else _SET_POS) * _MM_PER_NM001
 
     # ------------------------------------------------------------------ once per cycle
     def step(self, machine, cycle: int) -> None:
