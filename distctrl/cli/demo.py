@@ -98,10 +98,9 @@ def plate_table(console, plate: str = "plasma_plate") -> dict:
     from rich.table import Table
 
     from ..sim.plates import TARGET_MIN_SHARE, compare
-
-    console.print("running the plasma plate (issue 16) with and without the cutting-process functions ...")
     from ..sim.scenario import load_scenario
 
+    console.print("running the plasma plate (issue 16) with and without the cutting-process functions ...")
     sc = load_scenario(EXAMPLES / f"{plate}.toml")
     res = compare(sc)
     w, wo = res["with"], res["without"]
