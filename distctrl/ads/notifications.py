@@ -1,11 +1,15 @@
 """Device notifications of the ADS server (AddDeviceNotification, DeleteDeviceNotification, and the
 DeviceNotification frames it sends): cyclic and on-change, sampled under the server's lock, bounded
-per connection (count, sampling cycle, unsent backlog)."""
+per connection (count, sampling cycle, unsent output).
+
+Each connection with notifications has one thread that sleeps until the next sample is due, samples
+and sends. While a client does not read, that send blocks and no samples are taken meanwhile (they
+are dropped; on-change ones are sent when their value next differs from the last one sent), so the
+unsent output per connection is at most one round of samples beside the kernel's socket buffer."""
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import struct
+import threading
 import time
 from dataclasses import dataclass
 
@@ -30,7 +34,6 @@ _FILETIME_EPOCH = 11644473600
 _NOTIFY_STREAM_HEAD = struct.Struct("<IIQI")   # length, stamps, timestamp, samples
 _NOTIFY_SAMPLE_HEAD = struct.Struct("<II")     # notification handle, size
 _NOTIFY_FRAME_DATA = 60000                     # bytes of samples per notification frame (before splitting)
-_NOTIFY_BACKLOG = 1 << 20                      # unsent bytes to a client above which samples are dropped
 
 
 
@@ -51,7 +54,7 @@ class Notification:
 class NotificationService:
     """The notification part of :class:`~distctrl.ads.server.AdsServer` (a mixin: it uses the server's
     ``devices``, ``lock``, ``lock_timeout``, ``log``, ``max_frame``, ``max_notifications``,
-    ``min_notification_cycle``, ``_tasks`` and ``_read``)."""
+    ``min_notification_cycle`` and ``_read``)."""
 
     # device notifications
     # ------------------------------------------------------------------------------------------
@@ -69,7 +72,7 @@ class NotificationService:
             raise AdsError(E.ADSERR_DEVICE_NOMOREHDLS,
                            f"at most {self.max_notifications} notifications per connection")
         self._read(conn, hdr.target_port, dev, ig, io, length)  # must be readable now
-        now = asyncio.get_running_loop().time()
+        now = time.monotonic()
         n = Notification(
             handle=conn.new_notification_handle(), ams_port=hdr.target_port, index_group=ig,
             index_offset=io, length=length, on_change=mode in _TRANS_ON_CHANGE,
@@ -80,43 +83,37 @@ class NotificationService:
             due=now + 0.05,
         )
         conn.notifications[n.handle] = n
-        if conn.notifier is None or conn.notifier.done():
-            conn.notifier = asyncio.get_running_loop().create_task(self._notify_loop(conn))
-            self._tasks.add(conn.notifier)
+        if conn.notifier is None:
+            conn.notifier = threading.Thread(target=self._notify_loop, args=(conn,), daemon=True,
+                                             name=f"distctrl-ads notifications {conn.peer}")
+            conn.notifier.start()
         conn.wake.set()
         return n.handle
 
-    async def _notify_loop(self, conn: Connection) -> None:
-        """Send the due notification samples of one connection, until it has none."""
-        loop = asyncio.get_running_loop()
+    def _notify_loop(self, conn: Connection) -> None:
+        """The notification thread of one connection: send the due samples until the connection ends."""
+        writer = conn.writer
         try:
-            while conn.notifications:
-                now = loop.time()
-                due = [n for n in conn.notifications.values() if n.due <= now]
+            while writer is not None and not writer.closing:
+                now = time.monotonic()
+                pending = list(conn.notifications.values())    # a copy: the link's thread adds/deletes
+                due = [n for n in pending if n.due <= now]
                 if due:
                     for chunk in self._notification_frames(conn, due, now):
-                        conn.writer.write(chunk)
-                if not conn.notifications:
-                    break
+                        writer.write(chunk)
+                        conn.notification_frames += 1
                 conn.wake.clear()
-                wait = min(n.due for n in conn.notifications.values()) - loop.time()
-                if wait > 0:
-                    with contextlib.suppress(asyncio.TimeoutError):
-                        await asyncio.wait_for(conn.wake.wait(), wait)
-                else:
-                    await asyncio.sleep(0)
-        except asyncio.CancelledError:
-            raise
+                pending = list(conn.notifications.values())
+                if writer.closing:
+                    break
+                conn.wake.wait(min(n.due for n in pending) - time.monotonic() if pending else None)
         except Exception:  # pragma: no cover - defensive
-            self.log.exception("%s: notification loop failed", conn.peer)
+            self.log.exception("%s: notification thread failed", conn.peer)
 
     def _notification_frames(self, conn: Connection, due: list[Notification], now: float) -> list[bytes]:
         """Sample ``due`` (under the lock) and build the DeviceNotification frames to send."""
         for n in due:   # schedule the next sample (no burst after a stall)
             n.due = n.due + n.cycle if n.due + n.cycle > now else now + n.cycle
-        writer = conn.writer
-        if writer is None or writer.transport.get_write_buffer_size() > _NOTIFY_BACKLOG:
-            return []   # the client does not read: drop this round (on-change ones are resent)
         lock = self.lock
         if lock is not None and not lock.acquire(timeout=min(self.lock_timeout, 0.05)):
             return []   # try again at the next cycle

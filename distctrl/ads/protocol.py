@@ -305,7 +305,7 @@ class SymbolInfo:
 class AdsDevice(Protocol):
     """One ADS device behind one AMS port (e.g. 551 CNC objects, 851 PLC).
 
-    The server calls these (with the server's lock held, if one was given) from its I/O thread;
+    The server calls these (with the server's lock held) from its connections' threads, one at a time;
     they must be quick and must not take that lock themselves. Raise
     :class:`~distctrl.ads.errors.AdsError` to answer with an ADS error code.
 

@@ -6,9 +6,12 @@ to an :class:`~distctrl.ads.protocol.AdsDevice`, which only provides raw index-g
 access, its state and a symbol table. Symbol services (handles, value by name/handle, symbol info,
 symbol upload) and the sum commands are implemented here on top of that.
 
-Threading: :meth:`AdsServer.start` runs an asyncio loop in a daemon thread. All device calls
-happen in that thread; if a ``lock`` was given, each request (a whole sum command included) is
-executed while holding it, so it sees the data of one complete simulation cycle.
+Threading: :meth:`AdsServer.start` runs an asyncio loop in a daemon thread that accepts connections
+and serves the attached endpoints (UDP route discovery); each accepted connection is served by a
+thread of its own with a blocking socket (:class:`~distctrl.ads.transport.ClientLink`, which says
+why), and its device notifications by one more thread. Each request (a whole sum command included)
+is executed while holding ``lock`` (the served machine's: it then sees the data of one complete
+simulation cycle; without one a private lock), so devices are called by one thread at a time.
 
 Layers: :mod:`~distctrl.ads.transport` (connections, framing, flow control),
 :mod:`~distctrl.ads.services` (the ADS commands and symbol services, :class:`AdsServices`, this
@@ -28,6 +31,7 @@ import contextlib
 import ipaddress
 import logging
 import os
+import socket
 import struct
 import threading
 from collections.abc import Iterable, Mapping
@@ -48,7 +52,7 @@ from .protocol import (
     parse_net_id,
 )
 from .services import AdsServices
-from .transport import CLOSE, PORT_CLOSED, AdsProtocol, Connection
+from .transport import CLOSE, PORT_CLOSED, ClientLink, Connection
 
 LOGGER_NAME = "distctrl.ads"
 
@@ -75,6 +79,35 @@ def new_event_loop() -> asyncio.AbstractEventLoop:
             return uvloop.new_event_loop()
     return asyncio.new_event_loop()
 
+
+
+def listening_sockets(host: str | None, port: int, backlog: int = 128) -> list[socket.socket]:
+    """Bound, listening, non-blocking TCP sockets for ``host`` (every address it resolves to, as
+    asyncio's ``create_server`` binds them; ``""``/None: all interfaces) on ``port`` (0: one free
+    port, the same on every address). Raises ``OSError`` if an address cannot be bound."""
+    infos = socket.getaddrinfo(host or None, port, socket.AF_UNSPEC, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)
+    socks: list[socket.socket] = []
+    seen = set()
+    try:
+        for family, kind, proto, _name, addr in infos:
+            if (family, addr[:2]) in seen:
+                continue
+            seen.add((family, addr[:2]))
+            sock = socket.socket(family, kind, proto)
+            socks.append(sock)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            if family == socket.AF_INET6:
+                sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_V6ONLY, 1)
+            if socks[1:] and addr[1] == 0:          # port 0: the port the first address got
+                addr = (addr[0], socks[0].getsockname()[1], *addr[2:])
+            sock.bind(addr)
+            sock.listen(backlog)
+            sock.setblocking(False)
+    except OSError:
+        for sock in socks:
+            sock.close()
+        raise
+    return socks
 
 
 def address_allowed(ip: str, networks) -> bool:
@@ -104,8 +137,9 @@ class AdsServer(AdsServices):
     :param max_frame: largest accepted AMS/TCP frame (and largest read length) in bytes.
     :param lock: a ``threading.Lock``/``RLock`` held around every request's device calls (a whole
         sum command included), so a request sees one complete simulation cycle. The server waits
-        at most ``lock_timeout`` seconds for it, then answers 0x708 (device busy); the I/O thread
-        is blocked while it waits, so hold the lock only for a cycle step.
+        at most ``lock_timeout`` seconds for it, then answers 0x708 (device busy); that
+        connection's thread is blocked while it waits, so hold the lock only for a cycle step.
+        Without a lock the server uses a private one (devices are called by one thread at a time).
     :param max_connections: simultaneous connections; more are refused like a foreign address.
     :param max_handles: symbol handles per connection; more are answered with 0x70A.
     :param check_net_id: answer requests to another target NetId with router error 0x7.
@@ -137,7 +171,9 @@ class AdsServer(AdsServices):
         self.allowed = [ipaddress.ip_network(a, strict=False) for a in allowed]
         self.log = log if log is not None else logging.getLogger(LOGGER_NAME)
         self.max_frame = int(max_frame)
-        self.lock = lock
+        #: held around every request's device calls; without a given lock a private one, so devices
+        #: are called by one connection's thread at a time, as they were by the one event loop
+        self.lock = lock if lock is not None else threading.Lock()
         self.max_connections = int(max_connections)
         self.max_handles = int(max_handles)
         self.check_net_id = bool(check_net_id)
@@ -152,9 +188,10 @@ class AdsServer(AdsServices):
 
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
-        self._server: asyncio.AbstractServer | None = None
-        self._writers: set[AdsProtocol] = set()
-        self._tasks: set[asyncio.Task] = set()
+        self._listeners: list[socket.socket] = []
+        self._accepting: list[asyncio.Task] = []
+        self._writers: set[ClientLink] = set()       # open connections
+        self._count_lock = threading.Lock()          # connections, accepted, _writers, dynamic ports
         self._next_dynamic_port = 32768
         #: endpoints run on this server's loop, e.g. the UDP discovery responder
         #: (:class:`~distctrl.ads.discovery.DiscoveryResponder`): ``await a.open(self)`` once the TCP
@@ -165,7 +202,8 @@ class AdsServer(AdsServices):
     # life cycle
     # ------------------------------------------------------------------------------------------
     def start(self) -> None:
-        """Start listening (in a daemon thread); returns once the socket is bound.
+        """Start listening (the accepting and the attached endpoints in a daemon thread, each
+        connection in a thread of its own); returns once the socket is bound.
 
         Raises ``OSError`` if the address cannot be bound (e.g. port 48898 in use)."""
         if self._thread is not None:
@@ -177,6 +215,9 @@ class AdsServer(AdsServices):
         try:
             fut.result(timeout=10.0)
         except BaseException:
+            for sock in self._listeners:
+                sock.close()
+            self._listeners = []
             loop.call_soon_threadsafe(loop.stop)
             thread.join(timeout=5.0)
             loop.close()
@@ -186,7 +227,7 @@ class AdsServer(AdsServices):
                       ", ".join(str(p) for p in sorted(self.devices)))
 
     def stop(self) -> None:
-        """Close the listening socket and all connections, stop the thread. Idempotent."""
+        """Close the listening socket and all connections, stop the threads. Idempotent."""
         loop, thread = self._loop, self._thread
         if loop is None or thread is None:
             return
@@ -198,7 +239,11 @@ class AdsServer(AdsServices):
         thread.join(timeout=10.0)
         if not thread.is_alive():
             loop.close()
-        self._loop = self._thread = self._server = None
+        for link in list(self._writers):
+            link.abort("server stopping")
+        for link in list(self._writers):
+            link.thread.join(timeout=5.0)
+        self._loop = self._thread = None
         self.log.info("ADS server stopped")
 
     @property
@@ -219,8 +264,9 @@ class AdsServer(AdsServices):
 
     async def _open(self) -> None:
         loop = asyncio.get_running_loop()
-        self._server = await loop.create_server(lambda: AdsProtocol(self), self.host, self.port, backlog=128)
-        self.port = self._server.sockets[0].getsockname()[1]
+        self._listeners = listening_sockets(self.host, self.port)
+        self.port = self._listeners[0].getsockname()[1]
+        self._accepting = [loop.create_task(self._accept(sock)) for sock in self._listeners]
         for endpoint in self.attached:
             await endpoint.open(self)
 
@@ -228,20 +274,57 @@ class AdsServer(AdsServices):
         for endpoint in self.attached:
             with contextlib.suppress(Exception):
                 endpoint.close()
-        if self._server is not None:
-            self._server.close()
-        for w in list(self._writers):
-            with contextlib.suppress(Exception):
-                w.abort("server stopping")
-        await asyncio.sleep(0)   # let the aborted connections run connection_lost
-        tasks = [t for t in self._tasks if not t.done()]
-        for t in tasks:
-            t.cancel()
-        if tasks:
-            await asyncio.gather(*tasks, return_exceptions=True)
-        if self._server is not None:
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(self._server.wait_closed(), 2.0)
+        for task in self._accepting:
+            task.cancel()
+        if self._accepting:
+            await asyncio.gather(*self._accepting, return_exceptions=True)
+        self._accepting = []
+        for sock in self._listeners:
+            sock.close()
+        self._listeners = []
+
+    async def _accept(self, listener: socket.socket) -> None:
+        """Accept connections on ``listener`` and hand each to a :class:`ClientLink` thread."""
+        loop = asyncio.get_running_loop()
+        while True:
+            try:
+                sock, peername = await loop.sock_accept(listener)
+            except asyncio.CancelledError:
+                raise
+            except OSError as exc:   # e.g. out of descriptors: keep listening
+                self.log.warning("accept failed: %s", exc)
+                await asyncio.sleep(0.1)
+                continue
+            self._accepted(sock, peername)
+
+    def _accepted(self, sock: socket.socket, peername) -> None:
+        ip = str(peername[0]) if peername else "?"
+        if not self.is_allowed(ip) or self.connections >= self.max_connections:
+            self.refused += 1
+            if self.is_allowed(ip):
+                self.log.warning("refused %s (more than %d connections)", ip, self.max_connections)
+            else:
+                self.log.warning("refused %s", ip)
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))  # RST
+            sock.close()
+            return
+        sock.setblocking(True)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        link = ClientLink(self, sock, f"{ip}:{peername[1]}" if peername else ip)
+        with self._count_lock:
+            self.connections += 1
+            self.accepted += 1
+            self._writers.add(link)
+        self.log.info("connection from %s", link.conn.peer)
+        link.start()
+
+    def _link_closed(self, link: ClientLink) -> None:
+        """Called by a link's thread when its connection has ended."""
+        with self._count_lock:
+            if link in self._writers:
+                self._writers.discard(link)
+                self.connections -= 1
 
     # ------------------------------------------------------------------------------------------
     # connections
@@ -254,8 +337,9 @@ class AdsServer(AdsServices):
         """AMS/TCP frames that are not AMS packets (router-client commands)."""
         if reserved == AMS_TCP_PORT_CONNECT:
             # a router client asks for an AMS port: hand out our NetId and a dynamic port
-            port = self._next_dynamic_port
-            self._next_dynamic_port = 32768 + (self._next_dynamic_port - 32768 + 1) % 32000
+            with self._count_lock:
+                port = self._next_dynamic_port
+                self._next_dynamic_port = 32768 + (self._next_dynamic_port - 32768 + 1) % 32000
             data = _PORT_CONNECT_RES.pack(self._net_id, port)
             return AMS_TCP_HEADER.pack(AMS_TCP_PORT_CONNECT, len(data)) + data
         if reserved == AMS_TCP_PORT_CLOSE:

@@ -1,13 +1,20 @@
-"""AMS/TCP transport of the ADS server: one :class:`AdsProtocol` per client connection on the
-server's event loop, and the per-connection state (:class:`Connection`: symbol handles, device
+"""AMS/TCP transport of the ADS server: one :class:`ClientLink` (a thread with a blocking socket)
+per client connection, and the per-connection state (:class:`Connection`: symbol handles, device
 notifications).
 
-Each connection is a low-level :class:`asyncio.BufferedProtocol` (no stream coroutine per
-connection): the socket is read into a fixed per-connection buffer, every complete frame is answered
-synchronously in ``buffer_updated`` and the answer is written straight to the transport (one send
-call in the usual case). Flow control: while more than 64 KiB of answers wait to be sent to a client
-(it does not read), the server neither parses further frames of that client nor reads from its
-socket, until the backlog has drained to 16 KiB.
+Why a thread per connection and not the event loop: an ADS client such as pyads waits for each answer
+before it sends the next request, so a round trip is one wake-up of the server on the client's
+request. A thread blocked in ``recv_into`` is woken by the kernel directly and answers with one
+``send``; an event loop adds its own poll, callback dispatch and write path on top, which on the 2-vCPU
+VM of bench/bench_ads.py made a no-work server 1.15x slower (docs/serve.md, "Round-trip speed").
+
+Each link reads its socket into a fixed buffer, answers every complete frame in order and sends the
+answer before it reads again (``sendall``, under the link's send lock, which the connection's
+notification thread shares). Flow control follows from that: while a client does not read its
+answers, the send blocks, so the server neither parses further frames of that client nor reads from
+its socket; per connection at most one partial frame plus one read chunk of input and one answer (or
+one round of notification samples) of output are held beside the kernel's socket buffers. Other
+clients are served meanwhile by their own threads.
 
 Robustness: a frame whose length is impossible (shorter than an AMS header, longer than
 ``max_frame``, or disagreeing with the AMS header's data length) closes only that connection;
@@ -16,7 +23,8 @@ close.
 """
 from __future__ import annotations
 
-import asyncio
+import socket
+import threading
 from typing import TYPE_CHECKING
 
 from . import errors as E
@@ -32,10 +40,6 @@ PORT_CLOSED = object()  # sentinel: the client unregistered its AMS port: close 
 
 _unpack_tcp_header = AMS_TCP_HEADER.unpack_from
 _MIN_AMS_FRAME = AMS_TCP_HEADER_SIZE + AMS_HEADER_SIZE
-#: per-connection output backlog (bytes handed to the transport but not yet sent) above which the
-#: server stops reading and answering that client, and below which it resumes
-_WRITE_HIGH = 64 * 1024
-_WRITE_LOW = 16 * 1024
 #: bytes read from a socket at once (into a fixed per-connection buffer)
 _RECV_CHUNK = 64 * 1024
 
@@ -44,19 +48,20 @@ class Connection:
     """Per-connection state: symbol handles and device notifications (both bounded)."""
 
     __slots__ = ("_next_handle", "_next_notification", "frames", "handles", "max_handles",
-                 "notifications", "notifier", "peer", "wake", "writer")
+                 "notification_frames", "notifications", "notifier", "peer", "wake", "writer")
 
-    def __init__(self, peer: str, max_handles: int, writer: AdsProtocol | None = None) -> None:
+    def __init__(self, peer: str, max_handles: int, writer: ClientLink | None = None) -> None:
         self.peer = peer
         self.writer = writer
         self.handles: dict[int, tuple[int, SymbolInfo]] = {}
         self.max_handles = max_handles
         self._next_handle = 1
-        self.frames = 0
+        self.frames = 0                  # frames received
+        self.notification_frames = 0     # DeviceNotification frames sent
         self.notifications: dict[int, Notification] = {}
         self._next_notification = 1
-        self.notifier: asyncio.Task | None = None
-        self.wake = asyncio.Event()
+        self.notifier: threading.Thread | None = None   # sends the samples (started by the first one)
+        self.wake = threading.Event()                     # a notification was added, or the link closes
 
     def new_notification_handle(self) -> int:
         h = self._next_notification
@@ -87,128 +92,71 @@ class Connection:
         del self.handles[handle]
 
 
-class AdsProtocol(asyncio.BufferedProtocol):
-    """One client connection on the event loop: AMS/TCP framing, answers and flow control.
+class ClientLink:
+    """One client connection: its socket, the thread that reads, frames and answers it, and the send
+    lock shared with the connection's notification thread. Also the connection's ``writer``.
 
-    The socket is read into a fixed per-connection buffer (``recv_into``). A plain ``Protocol``
-    gets a fresh ``bytes`` of up to 256 KiB per read, which glibc serves with mmap/mremap/munmap
-    (until some other free has raised its mmap threshold): about 14 µs per request here.
-    Complete frames are answered synchronously and in order from :meth:`buffer_updated`; the
-    usual case (a read holding exactly one request) bypasses the reassembly buffer. When the
-    transport's unsent backlog exceeds ``_WRITE_HIGH`` (the client does not read),
-    :meth:`pause_writing` stops both parsing and reading until :meth:`resume_writing`, so per
-    connection at most one partial frame plus one read chunk of input and ``_WRITE_HIGH`` plus one
-    answer of output are held (notification samples have their own bound, ``_NOTIFY_BACKLOG``).
-    The object also serves as the connection's ``writer`` (``write`` and ``transport``).
+    :attr:`sending` is true while a send waits for the client to read (the flow-control state);
+    :attr:`buf` is the reassembly buffer of frames split over reads.
     """
 
-    __slots__ = ("buf", "closing", "conn", "paused", "reason", "rx", "rxview", "server", "transport")
+    __slots__ = ("buf", "closing", "conn", "reason", "send_lock", "sending", "server", "sock", "thread")
 
-    def __init__(self, server: AdsServer) -> None:
+    def __init__(self, server: AdsServer, sock: socket.socket, peer: str) -> None:
         self.server = server
-        self.transport: asyncio.Transport | None = None
-        self.conn: Connection | None = None
-        self.rx = self.rxview = None           # one read lands here (allocated once accepted)
-        self.buf = bytearray()                 # reassembly of frames split over reads
-        self.paused = False       # output backlog above the high-water mark: not reading/answering
-        self.closing = False      # closed or closing: ignore further input
-        self.reason = "closed by peer"
-
-    # --- asyncio callbacks ---------------------------------------------------------------------
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
-        srv = self.server
-        peername = transport.get_extra_info("peername")
-        ip = str(peername[0]) if peername else "?"
-        if not srv.is_allowed(ip):
-            srv.refused += 1
-            srv.log.warning("refused %s", ip)
-            self.closing = True
-            transport.abort()
-            return
-        if srv.connections >= srv.max_connections:
-            srv.refused += 1
-            srv.log.warning("refused %s (more than %d connections)", ip, srv.max_connections)
-            self.closing = True
-            transport.abort()
-            return
-        transport.set_write_buffer_limits(_WRITE_HIGH, _WRITE_LOW)  # type: ignore[attr-defined]
-        self.rx = bytearray(_RECV_CHUNK)   # never resized: the transport may still hold a view of it
-        self.rxview = memoryview(self.rx)
-        srv._writers.add(self)
-        srv.connections += 1
-        srv.accepted += 1
-        self.conn = Connection(f"{ip}:{peername[1]}" if peername else ip, srv.max_handles, self)
-        srv.log.info("connection from %s", self.conn.peer)
-
-    def get_buffer(self, sizehint: int) -> memoryview:
-        return self.rxview  # type: ignore[return-value]
-
-    def buffer_updated(self, nbytes: int) -> None:
-        if self.closing:
-            return
-        buf = self.buf
-        if not buf and not self.paused and nbytes >= _MIN_AMS_FRAME:
-            # fast path: the read is exactly one AMS frame (a client waiting for each answer)
-            reserved, length = _unpack_tcp_header(self.rx)  # type: ignore[arg-type]
-            if reserved == 0 and length == nbytes - AMS_TCP_HEADER_SIZE and length <= self.server.max_frame:
-                srv, conn = self.server, self.conn
-                srv.frames += 1
-                conn.frames += 1  # type: ignore[union-attr]
-                body = bytes(self.rxview[AMS_TCP_HEADER_SIZE:nbytes])
-                try:
-                    self._deliver(srv._handle_ams(conn, body))  # type: ignore[arg-type]
-                except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
-                    self._internal_error()
-                return
-        buf += self.rxview[:nbytes]
-        self._process()
-
-    def eof_received(self) -> bool | None:
-        if self.buf and not self.closing:
-            self.reason = "peer closed mid-frame"
-        return None   # the transport closes itself (after sending what is pending)
-
-    def pause_writing(self) -> None:
-        self.paused = True
-        if not self.closing:
-            self.transport.pause_reading()  # type: ignore[union-attr]
-
-    def resume_writing(self) -> None:
-        self.paused = False
-        if self.closing:
-            return
-        self._process()   # frames received before the pause
-        if not self.paused and not self.closing:
-            self.transport.resume_reading()  # type: ignore[union-attr]
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        conn, srv = self.conn, self.server
-        if conn is None:          # refused
-            return
-        self.conn = None
-        if exc is not None and not self.closing:
-            self.reason = f"connection error: {exc}"
-        self.closing = True
+        self.sock = sock
         self.buf = bytearray()
-        if conn.notifier is not None:
-            conn.notifier.cancel()
-            srv._tasks.discard(conn.notifier)
-        conn.notifications.clear()
-        conn.writer = None
-        srv.connections -= 1
-        srv._writers.discard(self)
-        srv.log.info("connection %s closed (%s, %d frames)", conn.peer, self.reason, conn.frames)
+        self.closing = False      # closed or closing: ignore further input
+        self.sending = False      # blocked in a send: the client does not read
+        self.reason = "closed by peer"
+        self.send_lock = threading.Lock()
+        self.conn = Connection(peer, server.max_handles, self)
+        self.thread = threading.Thread(target=self._run, name=f"distctrl-ads {peer}", daemon=True)
 
-    # --- framing -------------------------------------------------------------------------------
+    def start(self) -> None:
+        self.thread.start()
+
+    # --- the connection's thread ---------------------------------------------------------------
+    def _run(self) -> None:
+        srv, conn, sock = self.server, self.conn, self.sock
+        rx = bytearray(_RECV_CHUNK)
+        rxview = memoryview(rx)
+        buf = self.buf
+        recv_into = sock.recv_into
+        try:
+            while not self.closing:
+                nbytes = recv_into(rx)
+                if nbytes == 0:
+                    if buf:
+                        self.reason = "peer closed mid-frame"
+                    break
+                if not buf and nbytes >= _MIN_AMS_FRAME:
+                    # fast path: the read is exactly one AMS frame (a client waiting for each answer)
+                    reserved, length = _unpack_tcp_header(rx)
+                    if reserved == 0 and length == nbytes - AMS_TCP_HEADER_SIZE and length <= srv.max_frame:
+                        srv.frames += 1
+                        conn.frames += 1
+                        self._deliver(srv._handle_ams(conn, bytes(rxview[AMS_TCP_HEADER_SIZE:nbytes])))
+                        continue
+                buf += rxview[:nbytes]
+                self._process()
+        except OSError as exc:
+            if not self.closing:
+                self.reason = f"connection error: {exc}"
+        except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
+            srv.log.exception("%s: unexpected error in the connection handler", conn.peer)
+            self.reason = "internal error"
+        finally:
+            self._finish()
+
     def _process(self) -> None:
-        """Answer the complete frames in the buffer (until paused or closed); check each AMS/TCP
-        header as soon as it is complete."""
+        """Answer the complete frames in the buffer (until closed); check each AMS/TCP header as soon
+        as it is complete."""
         buf, srv = self.buf, self.server
         max_frame = srv.max_frame
         pos, size = 0, len(buf)
         try:
-            while size - pos >= AMS_TCP_HEADER_SIZE and not self.paused and not self.closing:
+            while size - pos >= AMS_TCP_HEADER_SIZE and not self.closing:
                 reserved, length = _unpack_tcp_header(buf, pos)
                 if length > max_frame:
                     self._bad_frame(f"frame length {length} exceeds max_frame {max_frame}")
@@ -222,14 +170,12 @@ class AdsProtocol(asyncio.BufferedProtocol):
                 body = bytes(buf[pos + AMS_TCP_HEADER_SIZE:end])
                 pos = end
                 srv.frames += 1
-                self.conn.frames += 1  # type: ignore[union-attr]
+                self.conn.frames += 1
                 if reserved == 0:
-                    out = srv._handle_ams(self.conn, body)  # type: ignore[arg-type]
+                    out = srv._handle_ams(self.conn, body)
                 else:
-                    out = srv._handle_tcp_command(self.conn, reserved, body)  # type: ignore[arg-type]
+                    out = srv._handle_tcp_command(self.conn, reserved, body)
                 self._deliver(out)
-        except Exception:  # pragma: no cover - defensive: a bug here must not kill the server
-            self._internal_error()
         finally:
             if self.closing:
                 buf.clear()
@@ -244,34 +190,64 @@ class AdsProtocol(asyncio.BufferedProtocol):
         elif out is PORT_CLOSED:
             self.close("AMS port closed by the client")
         elif out:
-            self.transport.write(out)  # type: ignore[union-attr, arg-type]
+            self.write(out)
 
     def _bad_frame(self, reason: str) -> None:
-        self.server.log.warning("%s: %s; closing", self.conn.peer, reason)  # type: ignore[union-attr]
+        self.server.log.warning("%s: %s; closing", self.conn.peer, reason)
         self.close(reason)
 
-    def _internal_error(self) -> None:
-        peer = self.conn.peer if self.conn is not None else "?"
-        self.server.log.exception("%s: unexpected error in the connection handler", peer)
-        self.close("internal error")
+    def _finish(self) -> None:
+        """End of the connection (in its thread): stop the notifications, close the socket, count."""
+        srv, conn = self.server, self.conn
+        self.closing = True
+        self.buf.clear()
+        conn.notifications.clear()
+        conn.wake.set()                     # the notification thread ends
+        notifier = conn.notifier
+        with self.send_lock:                # not while the notification thread sends
+            try:
+                self.sock.close()
+            except OSError:  # pragma: no cover
+                pass
+        if notifier is not None and notifier is not threading.current_thread():
+            notifier.join(timeout=2.0)
+        srv._link_closed(self)
+        srv.log.info("connection %s closed (%s, %d frames)", conn.peer, self.reason, conn.frames)
 
-    # --- output / closing ----------------------------------------------------------------------
+    # --- output / closing (any thread) ---------------------------------------------------------
     def write(self, data: bytes) -> None:
-        """Send ``data`` (notification frames) unless the connection is closing."""
-        if not self.closing:
-            self.transport.write(data)  # type: ignore[union-attr]
+        """Send ``data`` (an answer or notification frames) unless the connection is closing; blocks
+        while the client does not read. A failing send closes the connection."""
+        with self.send_lock:
+            if self.closing:
+                return
+            self.sending = True
+            try:
+                self.sock.sendall(data)
+            except OSError as exc:
+                if not self.closing:
+                    self.reason = f"connection error: {exc}"
+                self._shutdown()
+            finally:
+                self.sending = False
 
     def close(self, reason: str) -> None:
-        """Close after sending what is pending (like ``StreamWriter.close``)."""
+        """Close after sending what is pending (answers are sent before the next read)."""
         if not self.closing:
-            self.closing = True
             self.reason = reason
-            self.transport.close()  # type: ignore[union-attr]
+            self._shutdown()
 
     def abort(self, reason: str) -> None:
-        """Close at once, dropping what is pending."""
+        """Close at once, also while a send waits for the client (from any thread)."""
         if not self.closing:
             self.reason = reason
-        self.closing = True
-        self.transport.abort()  # type: ignore[union-attr]
+        self._shutdown()
 
+    def _shutdown(self) -> None:
+        # shutdown, not close: it wakes this link's thread from recv/send, which then closes the
+        # socket itself (closing a descriptor another thread waits on could hit a reused one)
+        self.closing = True
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass

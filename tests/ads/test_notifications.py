@@ -1,6 +1,7 @@
 """Device notifications (AddDeviceNotification / DeleteDeviceNotification) over a raw socket."""
 from __future__ import annotations
 
+import pathlib
 import socket
 import struct
 import time
@@ -11,7 +12,7 @@ from distctrl.ads import AdsServer
 from distctrl.ads import errors as E
 from distctrl.ads import protocol as P
 
-from . import IG_DATA, MemoryDevice, RawClient
+from . import IG_DATA, MemoryDevice, RawClient, wait_for
 
 SERVER_CYCLE, ON_CHANGE, CLIENT_CYCLE = 3, 4, 1
 
@@ -113,36 +114,52 @@ def test_limit_and_port_scope(c):
 
 
 def test_closing_the_connection_ends_its_notifications(server):
-    # (compare task identities, not counts: a notifier of an earlier test's connection may still
-    # be winding down when this test starts, and ending meanwhile is not this test's business)
-    before = set(server._tasks)
+    before = set(server._writers)
     c = RawClient(server.port)
     assert c.add_notification(IG_DATA, 0, 4, SERVER_CYCLE, cycle_100ns=100_000).result == 0
     c.recv_notification()
-    ours = set(server._tasks) - before
-    assert ours                                    # this connection's notifier is running
+    assert wait_for(lambda: len(set(server._writers) - before) == 1, timeout=5.0)
+    (link,) = set(server._writers) - before
+    notifier = link.conn.notifier
+    assert notifier is not None and notifier.is_alive()   # this connection's notification thread
     c.close()
-    end = time.monotonic() + 3
-    while ours & set(server._tasks) and time.monotonic() < end:
-        time.sleep(0.01)
-    assert not ours & set(server._tasks)
+    notifier.join(3.0)
+    link.thread.join(3.0)
+    assert not notifier.is_alive() and not link.thread.is_alive()
+    assert link not in server._writers
 
 
 def test_client_that_does_not_read_notifications(server):
-    """64 KiB cyclic samples to a client that never reads: the server's send backlog stays bounded
-    (samples are dropped) and other clients are served meanwhile."""
+    """64 KiB cyclic samples to a client that never reads: the notification thread blocks in its send
+    (no samples are taken meanwhile: the unsent output stays bounded) and other clients are served
+    meanwhile."""
+    before = set(server._writers)
     lazy = RawClient(server.port)
     try:
         lazy.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        assert wait_for(lambda: len(set(server._writers) - before) == 1, timeout=5.0)
+        (link,) = set(server._writers) - before
         for _ in range(4):   # a STRING(20) read with a 64 KiB buffer: 64 KiB samples, zero-padded
             assert lazy.add_notification(IG_DATA, 20, 65536, SERVER_CYCLE).result == 0
         with RawClient(server.port) as good:
-            t0, biggest = time.monotonic(), 0
-            # at least 0.6 s, and until a backlog was seen (a slow machine builds it up later)
-            while time.monotonic() - t0 < 0.6 or (biggest == 0 and time.monotonic() - t0 < 10.0):
+            # until the kernel's buffers for the lazy client are full and its sends stay blocked (a
+            # slow machine gets there later), the other client is served ...
+            t0 = stable_since = time.monotonic()
+            last = -1
+            while time.monotonic() - t0 < 10.0 and time.monotonic() - stable_since < 0.3:
                 assert good.read(IG_DATA, 8, 8).result == 0
-                biggest = max([biggest] + [w.transport.get_write_buffer_size() for w in list(server._writers)])
-        assert 0 < biggest <= (1 << 20) + 4 * (65536 + 64)
+                if link.conn.notification_frames != last:
+                    last, stable_since = link.conn.notification_frames, time.monotonic()
+            assert link.sending
+            blocked_at, t1 = link.conn.notification_frames, time.monotonic()
+            # ... and 0.5 s more (50 sampling cycles of 4 samples): served, and no sample is taken
+            while time.monotonic() - t1 < 0.5:
+                assert good.read(IG_DATA, 8, 8).result == 0
+            assert link.sending
+            assert link.conn.notification_frames - blocked_at <= 1
+        # what was sent before fits the kernel's socket buffers (their most) plus one round of 4
+        wmem_max = int(pathlib.Path("/proc/sys/net/ipv4/tcp_wmem").read_text().split()[2])
+        assert link.conn.notification_frames * 65536 <= wmem_max + 4096 + 4 * 65600
         _, samples = lazy.recv_notification()      # and it still gets samples once it reads
         assert samples and len(samples[0][2]) == 65536
     finally:

@@ -1,6 +1,6 @@
-"""Transport of the connection protocol: output flow control (a client that sends but does not
-read makes the server stop reading from it, with bounded buffers on both sides, and it gets every
-answer, in order, once it reads) and the frame checks on the one-frame-per-read fast path."""
+"""Transport of the connection threads: output flow control (a client that sends but does not read
+makes the server stop reading from it, with bounded buffers, and it gets every answer, in order, once
+it reads) and the frame checks on the one-frame-per-read fast path."""
 from __future__ import annotations
 
 import logging
@@ -52,7 +52,7 @@ def test_late_reader_bounded_backlog_and_every_answer_in_order(server):
     sock.connect(("127.0.0.1", server.port))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     assert wait_for(lambda: len(set(server._writers) - before) == 1, timeout=5.0)
-    proto = next(iter(set(server._writers) - before))
+    (link,) = set(server._writers) - before
     try:
         requests = b"".join(_upload_request(i) for i in range(1, N_REQUESTS + 1))
         sent: list[BaseException | None] = []
@@ -68,17 +68,26 @@ def test_late_reader_bounded_backlog_and_every_answer_in_order(server):
         sender = threading.Thread(target=send_all, daemon=True)
         sender.start()
 
-        # the server stops reading from this client once its output backlog is above the mark
-        assert wait_for(lambda: proto.paused, timeout=5.0), "the server never paused this connection"
-        worst_out = worst_in = 0
-        t_end = time.monotonic() + 0.3
-        with RawClient(server.port) as good:           # everyone else is served meanwhile
-            while time.monotonic() < t_end:
+        # the server stops reading from this client once its answers are not read: the link's send
+        # blocks (and stays blocked), everyone else is served meanwhile
+        # (once the kernel's socket buffers are full: until then the sends return)
+        worst_in = 0
+        with RawClient(server.port) as good:
+            t0 = stable_since = time.monotonic()
+            last = -1
+            while time.monotonic() - t0 < 10.0 and time.monotonic() - stable_since < 0.3:
                 assert good.read(IG_DATA, 8, 8).result == 0
-                worst_out = max(worst_out, proto.transport.get_write_buffer_size())
-                worst_in = max(worst_in, len(proto.buf))
-        assert proto.paused
-        assert S._WRITE_HIGH <= worst_out <= S._WRITE_HIGH + 416
+                worst_in = max(worst_in, len(link.buf))
+                if link.conn.frames != last:
+                    last, stable_since = link.conn.frames, time.monotonic()
+            assert link.sending, "the server never blocked on this connection"
+            frames, t1 = link.conn.frames, time.monotonic()
+            while time.monotonic() - t1 < 0.3:
+                assert good.read(IG_DATA, 8, 8).result == 0
+                worst_in = max(worst_in, len(link.buf))
+        assert link.sending
+        assert link.conn.frames == frames                # no request parsed while blocked
+        assert frames < N_REQUESTS
         assert worst_in <= S._RECV_CHUNK + MAX_FRAME
 
         # now read: every answer arrives, in order, then the server closes (the client half-closed)
@@ -87,12 +96,12 @@ def test_late_reader_bounded_backlog_and_every_answer_in_order(server):
             reserved, length = P.AMS_TCP_HEADER.unpack(_recv_exact(sock, P.AMS_TCP_HEADER_SIZE))
             r = P.parse_response(_recv_exact(sock, length))
             assert reserved == 0 and r.header.invoke_id == i and r.result == 0 and len(r.data) == 370
-            worst_in = max(worst_in, len(proto.buf))
+            worst_in = max(worst_in, len(link.buf))
         assert worst_in <= S._RECV_CHUNK + MAX_FRAME
         sender.join(5.0)
         assert sent == [None]
         assert sock.recv(1) == b""
-        assert wait_for(lambda: proto not in server._writers, timeout=5.0)
+        assert wait_for(lambda: link not in server._writers, timeout=5.0)
     finally:
         sock.close()
 
@@ -109,3 +118,40 @@ def test_short_frame_in_one_read_closes_like_a_split_one(server, length, caplog)
             assert c.read(IG_DATA, 8, 8).result == 0
     assert f"frame length {length} shorter than an AMS header" in caplog.text
     assert "unexpected error" not in caplog.text
+
+
+def test_stop_ends_every_connection_thread_also_one_blocked_in_a_send():
+    srv = AdsServer({851: MemoryDevice()}, port=0, max_frame=MAX_FRAME)
+    srv.start()
+    sock = socket.create_connection(("127.0.0.1", srv.port))
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    try:
+        assert wait_for(lambda: len(srv._writers) == 1, timeout=5.0)
+        (link,) = srv._writers
+        sock.settimeout(0.5)
+        requests = b"".join(_upload_request(i) for i in range(1, N_REQUESTS + 1))
+        try:
+            sock.sendall(requests)          # the server blocks answering; so does this send
+        except TimeoutError:
+            pass
+        assert wait_for(lambda: link.sending, timeout=5.0)
+        t0 = time.monotonic()
+        srv.stop()
+        assert time.monotonic() - t0 < 5.0
+        assert not link.thread.is_alive() and not srv._writers and srv.connections == 0
+    finally:
+        sock.close()
+        srv.stop()
+
+
+def test_a_host_name_binds_each_of_its_addresses_on_one_port():
+    srv = AdsServer({851: MemoryDevice()}, host="localhost", port=0)
+    srv.start()
+    try:
+        ports = {s.getsockname()[1] for s in srv._listeners}
+        assert ports == {srv.port}
+        with RawClient(srv.port) as c:
+            assert c.read(IG_DATA, 8, 8).result == 0
+    finally:
+        srv.stop()
+    assert not srv._listeners
