@@ -17,6 +17,7 @@ lock, so every request sees one consistent cycle):
 """
 from __future__ import annotations
 
+import functools
 import logging
 import struct
 import threading
@@ -119,6 +120,19 @@ class CncObjectDevice:
         if length != spec.length and not (spec.type == "STRING" and length > spec.length):
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{spec.name} is {spec.length} bytes, {length} requested")
         return read_bytes_3d(spec, ctx) if isinstance(ctx, Channel3DObjectContext) else read_bytes(spec, ctx)
+
+    def fast_reader(self, index_group: int, index_offset: int, length: int):
+        """For the server's read cache (:meth:`~distctrl.ads.server.AdsServer._handle_ams`): a
+        function of no arguments giving what :meth:`read` gives for this request, once :meth:`read`
+        has answered it (the object and its axis context are fixed from then on); None for requests
+        whose answer depends on more than the object (runtime state, the channel's 3D values)."""
+        found = self._found.get((index_group, index_offset))
+        if found is None or index_group == DEVICE_DATA_GROUP:
+            return None
+        spec, ctx = found
+        if length != spec.length and not (spec.type == "STRING" and length > spec.length):
+            return None
+        return functools.partial(read_bytes, spec, ctx)
 
     def write(self, index_group: int, index_offset: int, data: bytes) -> None:
         spec, ctx = self._find(index_group, index_offset)

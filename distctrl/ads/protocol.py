@@ -311,9 +311,12 @@ class AdsDevice(Protocol):
 
     Optional extensions the server uses if present:
     ``read_write(index_group, index_offset, read_length, data) -> bytes`` for ReadWrite requests
-    to non-symbol index groups, ``write_control(ads_state, device_state, data) -> None``, and
+    to non-symbol index groups, ``write_control(ads_state, device_state, data) -> None``,
     ``data_types() -> dict[str, DataType]`` (:mod:`distctrl.ads.datatypes`): the structures among the
-    symbols, which the server publishes by name (0xF011) and in the data-type upload (0xF00E).
+    symbols, which the server publishes by name (0xF011) and in the data-type upload (0xF00E), and
+    ``fast_reader(index_group, index_offset, length) -> Callable[[], bytes] | None``: after ``read``
+    has answered a request, a function giving the same answer for it from then on (the server keeps
+    it and calls it, under the lock, for that request's repetitions; None: ask ``read`` each time).
     """
 
     name: str
