@@ -30,7 +30,6 @@ import asyncio
 import contextlib
 import ipaddress
 import logging
-import os
 import socket
 import struct
 import threading
@@ -73,22 +72,6 @@ _RESPONSE_FLAGS = SF_RESPONSE | SF_ADS_COMMAND
 _READ_REQUEST_SIZE = AMS_HEADER_SIZE + READ_REQ.size
 _RESULT_OK = bytes(4)
 _READ_CACHE_SIZE = 1024
-
-
-def new_event_loop() -> asyncio.AbstractEventLoop:
-    """The server's event loop: uvloop's where it is installed (Linux, macOS), asyncio's otherwise.
-    uvloop runs the same protocol code with less work per wake-up: on the 2-vCPU VM of
-    bench/bench_ads.py a pyads round trip took 90-102 µs (median, two runs) instead of 113-114 µs.
-    ``DISTCTRL_ADS_LOOP=asyncio`` forces asyncio's loop (for comparisons)."""
-    if os.environ.get("DISTCTRL_ADS_LOOP", "").lower() != "asyncio":
-        try:
-            import uvloop
-        except ImportError:
-            pass
-        else:
-            return uvloop.new_event_loop()
-    return asyncio.new_event_loop()
-
 
 
 def listening_sockets(host: str | None, port: int, backlog: int = 128) -> list[socket.socket]:
@@ -221,7 +204,7 @@ class AdsServer(AdsServices):
         Raises ``OSError`` if the address cannot be bound (e.g. port 48898 in use)."""
         if self._thread is not None:
             raise RuntimeError("AdsServer already started")
-        loop = new_event_loop()
+        loop = asyncio.new_event_loop()
         thread = threading.Thread(target=self._run_loop, args=(loop,), name="distctrl-ads", daemon=True)
         thread.start()
         fut = asyncio.run_coroutine_threadsafe(self._open(), loop)
