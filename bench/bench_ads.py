@@ -172,8 +172,9 @@ def _asyncio_server(protocol_factory, host: str, port: int) -> int:
 
 
 def _buffered_protocol(answer):
-    """An asyncio BufferedProtocol class (distctrl's transport structure: one fixed receive buffer,
-    the answer written from ``buffer_updated``) answering each read with ``answer(view of it)``."""
+    """An asyncio BufferedProtocol class (the structure of distctrl's transport before each
+    connection got a thread of its own: one fixed receive buffer, the answer written from
+    ``buffer_updated``) answering each read with ``answer(view of it)``."""
     import asyncio
 
     class Proto(asyncio.BufferedProtocol):
@@ -191,8 +192,8 @@ def _buffered_protocol(answer):
 
 
 def asyncio_protocol_echo() -> socket.socket:
-    """An echo on asyncio's low-level BufferedProtocol (the structure of distctrl's transport, without
-    the streams layer); the connected client socket. A diagnostic: asyncio's floor."""
+    """An echo on asyncio's low-level BufferedProtocol (the structure of distctrl's earlier
+    transport, without the streams layer); the connected client socket. A diagnostic: asyncio's floor."""
     return _connect(_asyncio_server(_buffered_protocol(bytes), "127.0.0.1", 0))
 
 
