@@ -301,8 +301,6 @@ class AdsServer(AdsServices):
                 self.log.warning("refused %s (more than %d connections)", ip, self.max_connections)
             else:
                 self.log.warning("refused %s", ip)
-            with contextlib.suppress(OSError):
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))  # RST
             sock.close()
             return
         sock.setblocking(True)
