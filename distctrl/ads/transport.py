@@ -204,6 +204,13 @@ class ClientLink:
         conn.notifications.clear()
         conn.wake.set()                     # the notification thread ends
         notifier = conn.notifier
+        # every answer has been sent (before the next read); a notification send that waits for a
+        # client which does not read any more is woken by the shutdown (the data already queued is
+        # still delivered before the FIN)
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
         with self.send_lock:                # not while the notification thread sends
             try:
                 self.sock.close()

@@ -129,6 +129,22 @@ def test_closing_the_connection_ends_its_notifications(server):
     assert link not in server._writers
 
 
+def blocked_for(link, count, seconds: float, meanwhile=None, deadline_s: float = 20.0) -> None:
+    """Wait until ``count()`` (what the link has sent) stays the same for ``seconds`` while the link
+    waits in a send; ``meanwhile()`` (which must return true) runs all along."""
+    deadline = time.monotonic() + deadline_s
+    while True:
+        before, t0 = count(), time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            if meanwhile is None:
+                time.sleep(0.01)
+            else:
+                assert meanwhile()
+        if count() <= before + 1 and link.sending:
+            return
+        assert time.monotonic() < deadline, "the link's sends never stayed blocked"
+
+
 def test_client_that_does_not_read_notifications(server):
     """64 KiB cyclic samples to a client that never reads: the notification thread blocks in its send
     (no samples are taken meanwhile: the unsent output stays bounded) and other clients are served
@@ -142,25 +158,40 @@ def test_client_that_does_not_read_notifications(server):
         for _ in range(4):   # a STRING(20) read with a 64 KiB buffer: 64 KiB samples, zero-padded
             assert lazy.add_notification(IG_DATA, 20, 65536, SERVER_CYCLE).result == 0
         with RawClient(server.port) as good:
-            # until the kernel's buffers for the lazy client are full and its sends stay blocked (a
-            # slow machine gets there later), the other client is served ...
-            t0 = stable_since = time.monotonic()
-            last = -1
-            while time.monotonic() - t0 < 10.0 and time.monotonic() - stable_since < 0.3:
-                assert good.read(IG_DATA, 8, 8).result == 0
-                if link.conn.notification_frames != last:
-                    last, stable_since = link.conn.notification_frames, time.monotonic()
-            assert link.sending
-            blocked_at, t1 = link.conn.notification_frames, time.monotonic()
-            # ... and 0.5 s more (50 sampling cycles of 4 samples): served, and no sample is taken
-            while time.monotonic() - t1 < 0.5:
-                assert good.read(IG_DATA, 8, 8).result == 0
-            assert link.sending
-            assert link.conn.notification_frames - blocked_at <= 1
+            # once the kernel's buffers for the lazy client are full its sends stay blocked: then in
+            # 0.5 s (50 sampling cycles of 4 samples) no sample is taken, and the other client is
+            # served all along (on a loaded machine that can take a few windows of looking)
+            blocked_for(link, lambda: link.conn.notification_frames, 0.5,
+                        lambda: good.read(IG_DATA, 8, 8).result == 0)
         # what was sent before fits the kernel's socket buffers (their most) plus one round of 4
         wmem_max = int(pathlib.Path("/proc/sys/net/ipv4/tcp_wmem").read_text().split()[2])
         assert link.conn.notification_frames * 65536 <= wmem_max + 4096 + 4 * 65600
         _, samples = lazy.recv_notification()      # and it still gets samples once it reads
         assert samples and len(samples[0][2]) == 65536
+    finally:
+        lazy.close()
+
+
+def test_a_client_that_half_closes_and_never_reads_is_closed(server):
+    """End of input from a client whose notification samples wait in a send (it does not read): the
+    connection ends (its threads too) instead of waiting for the client forever."""
+    before = set(server._writers)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)     # before connect: a small window
+    sock.settimeout(5.0)
+    sock.connect(("127.0.0.1", server.port))
+    lazy = RawClient.__new__(RawClient)
+    lazy.sock, lazy.invoke, lazy.notes = sock, 0, []
+    try:
+        assert wait_for(lambda: len(set(server._writers) - before) == 1, timeout=5.0)
+        (link,) = set(server._writers) - before
+        for _ in range(4):
+            assert lazy.add_notification(IG_DATA, 20, 65536, SERVER_CYCLE).result == 0
+        blocked_for(link, lambda: link.conn.notification_frames, 0.3)   # its send waits
+        lazy.sock.shutdown(socket.SHUT_WR)
+        link.thread.join(5.0)
+        assert not link.thread.is_alive()
+        assert not link.conn.notifier.is_alive()
+        assert link not in server._writers
     finally:
         lazy.close()

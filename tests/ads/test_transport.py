@@ -70,23 +70,19 @@ def test_late_reader_bounded_backlog_and_every_answer_in_order(server):
 
         # the server stops reading from this client once its answers are not read: the link's send
         # blocks (and stays blocked), everyone else is served meanwhile
-        # (once the kernel's socket buffers are full: until then the sends return)
+        # (once the kernel's socket buffers are full: until then the sends return; on a loaded machine
+        # that can take a few rounds of looking)
         worst_in = 0
         with RawClient(server.port) as good:
-            t0 = stable_since = time.monotonic()
-            last = -1
-            while time.monotonic() - t0 < 10.0 and time.monotonic() - stable_since < 0.3:
-                assert good.read(IG_DATA, 8, 8).result == 0
-                worst_in = max(worst_in, len(link.buf))
-                if link.conn.frames != last:
-                    last, stable_since = link.conn.frames, time.monotonic()
-            assert link.sending, "the server never blocked on this connection"
-            frames, t1 = link.conn.frames, time.monotonic()
-            while time.monotonic() - t1 < 0.3:
-                assert good.read(IG_DATA, 8, 8).result == 0
-                worst_in = max(worst_in, len(link.buf))
-        assert link.sending
-        assert link.conn.frames == frames                # no request parsed while blocked
+            deadline = time.monotonic() + 20.0
+            while True:
+                frames, t1 = link.conn.frames, time.monotonic()
+                while time.monotonic() - t1 < 0.3:
+                    assert good.read(IG_DATA, 8, 8).result == 0
+                    worst_in = max(worst_in, len(link.buf))
+                if link.conn.frames == frames and link.sending:
+                    break                               # no request parsed in 0.3 s while blocked
+                assert time.monotonic() < deadline, "the server never stopped reading this connection"
         assert frames < N_REQUESTS
         assert worst_in <= S._RECV_CHUNK + MAX_FRAME
 
