@@ -99,9 +99,12 @@ class NotificationService:
                 pending = list(conn.notifications.values())    # a copy: the link's thread adds/deletes
                 due = [n for n in pending if n.due <= now]
                 if due:
-                    for chunk in self._notification_frames(conn, due, now):
-                        writer.write(chunk)
-                        conn.notification_frames += 1
+                    # sampled and sent under the send lock: a DeleteDeviceNotification answered meanwhile
+                    # is answered after these samples, and one answered before is not sampled
+                    with writer.send_lock:
+                        for chunk in self._notification_frames(conn, due, now):
+                            writer.send_locked(chunk)
+                            conn.notification_frames += 1
                 conn.wake.clear()
                 pending = list(conn.notifications.values())
                 if writer.closing:
@@ -121,7 +124,7 @@ class NotificationService:
         try:
             for n in due:
                 dev = self.devices.get(n.ams_port)
-                if dev is None:
+                if dev is None or conn.notifications.get(n.handle) is not n:   # deleted meanwhile
                     continue
                 err, data = self._sub(conn, self._read, conn, n.ams_port, dev, n.index_group,
                                       n.index_offset, n.length)

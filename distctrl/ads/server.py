@@ -72,6 +72,8 @@ _RESPONSE_FLAGS = SF_RESPONSE | SF_ADS_COMMAND
 _READ_REQUEST_SIZE = AMS_HEADER_SIZE + READ_REQ.size
 _RESULT_OK = bytes(4)
 _READ_CACHE_SIZE = 1024
+#: seconds a new connection waits at ``max_connections`` for one that is ending before it is refused
+_LIMIT_GRACE = 0.2
 
 
 def listening_sockets(host: str | None, port: int, backlog: int = 128) -> list[socket.socket]:
@@ -86,7 +88,10 @@ def listening_sockets(host: str | None, port: int, backlog: int = 128) -> list[s
             if (family, addr[:2]) in seen:
                 continue
             seen.add((family, addr[:2]))
-            sock = socket.socket(family, kind, proto)
+            try:
+                sock = socket.socket(family, kind, proto)
+            except OSError:       # a family this system lacks (IPv6 turned off): skipped, as asyncio does
+                continue
             socks.append(sock)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             if family == socket.AF_INET6:
@@ -100,6 +105,8 @@ def listening_sockets(host: str | None, port: int, backlog: int = 128) -> list[s
         for sock in socks:
             sock.close()
         raise
+    if not socks:
+        raise OSError(f"no address of {host!r} can be served on this system: {[i[4] for i in infos]}")
     return socks
 
 
@@ -211,9 +218,12 @@ class AdsServer(AdsServices):
         try:
             fut.result(timeout=10.0)
         except BaseException:
-            for sock in self._listeners:
-                sock.close()
-            self._listeners = []
+            try:      # end the accept tasks on their loop (closes the listeners and the endpoints)
+                asyncio.run_coroutine_threadsafe(self._close(), loop).result(timeout=5.0)
+            except Exception:  # pragma: no cover - the start's own error is what matters
+                for sock in self._listeners:
+                    sock.close()
+                self._listeners = []
             loop.call_soon_threadsafe(loop.stop)
             thread.join(timeout=5.0)
             loop.close()
@@ -282,16 +292,30 @@ class AdsServer(AdsServices):
     async def _accept(self, listener: socket.socket) -> None:
         """Accept connections on ``listener`` and hand each to a :class:`ClientLink` thread."""
         loop = asyncio.get_running_loop()
+        last_warning = -1e9
         while True:
             try:
                 sock, peername = await loop.sock_accept(listener)
             except asyncio.CancelledError:
                 raise
-            except OSError as exc:   # e.g. out of descriptors: keep listening
-                self.log.warning("accept failed: %s", exc)
+            except OSError as exc:   # e.g. out of descriptors: keep listening (and say so every 10 s)
+                if loop.time() - last_warning >= 10.0:
+                    last_warning = loop.time()
+                    self.log.warning("accept failed: %s", exc)
                 await asyncio.sleep(0.1)
                 continue
-            self._accepted(sock, peername)
+            ip = str(peername[0]) if peername else "?"
+            if self.connections >= self.max_connections and self.is_allowed(ip):
+                # a client that has just closed a connection and connects again: the thread of its
+                # old connection may not have seen the close yet (the asyncio transport had)
+                deadline = loop.time() + _LIMIT_GRACE
+                while self.connections >= self.max_connections and loop.time() < deadline:
+                    await asyncio.sleep(0.002)
+            try:
+                self._accepted(sock, peername)
+            except Exception:
+                self.log.exception("connection from %s not served", ip)
+                sock.close()
 
     def _accepted(self, sock: socket.socket, peername) -> None:
         ip = str(peername[0]) if peername else "?"
@@ -311,7 +335,11 @@ class AdsServer(AdsServices):
             self.accepted += 1
             self._writers.add(link)
         self.log.info("connection from %s", link.conn.peer)
-        link.start()
+        try:
+            link.start()
+        except BaseException:
+            self._link_closed(link)
+            raise
 
     def _link_closed(self, link: ClientLink) -> None:
         """Called by a link's thread when its connection has ended."""
@@ -364,8 +392,10 @@ class AdsServer(AdsServices):
             entry = self._read_cache.get(body[:28] + body[32:])     # the request but its invoke id
             if entry is not None:
                 head, tail, reader, dev, port, n = entry
-                lock = self.lock
-                if self.devices.get(port) is dev and lock.acquire(True, self.lock_timeout):
+                if self.devices.get(port) is dev:
+                    lock = self.lock
+                    if not lock.acquire(True, self.lock_timeout):
+                        return self._busy_answer(conn, body)
                     try:
                         data = reader()
                     except Exception:     # the full path answers with the error
@@ -408,9 +438,12 @@ class AdsServer(AdsServices):
         if fast_reader is None:
             return
         ig, io, length = READ_REQ.unpack_from(body, AMS_HEADER_SIZE)
-        if ig in SYMBOL_GROUPS:
+        if ig in SYMBOL_GROUPS or not self.lock.acquire(False):   # devices are called under the lock
             return
-        reader = fast_reader(ig, io, length)
+        try:
+            reader = fast_reader(ig, io, length)
+        finally:
+            self.lock.release()
         if reader is None:
             return
         cache = self._read_cache
@@ -419,3 +452,13 @@ class AdsServer(AdsServices):
         split = AMS_TCP_HEADER_SIZE + 28                         # the response's invoke id
         cache[body[:28] + body[32:]] = (out[:split], out[split + 4:split + 4 + READ_RES.size], reader,
                                         device, port, n - READ_RES.size)
+
+    def _busy_answer(self, conn: Connection, body: bytes) -> bytes:
+        """The answer 0x708 (device busy) to the Read request ``body``, as the full path gives it when
+        the lock is not free within ``lock_timeout``."""
+        self.log.warning("%s: lock not free within %.3g s; answered 0x708 (busy)", conn.peer, self.lock_timeout)
+        (target_net_id, target_port, source_net_id, source_port, cmd, flags, _length, _err,
+         invoke_id) = _unpack_ams_header(body)
+        data = READ_RES.pack(E.ADSERR_DEVICE_BUSY, 0)
+        return _pack_response_head(0, AMS_HEADER_SIZE + len(data), source_net_id, source_port, target_net_id,
+                                   target_port, cmd, flags | _RESPONSE_FLAGS, len(data), 0, invoke_id) + data

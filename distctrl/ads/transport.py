@@ -100,7 +100,8 @@ class ClientLink:
     :attr:`buf` is the reassembly buffer of frames split over reads.
     """
 
-    __slots__ = ("buf", "closing", "conn", "reason", "send_lock", "sending", "server", "sock", "thread")
+    __slots__ = ("_closed", "_fd_lock", "buf", "closing", "conn", "reason", "send_lock", "sending", "server",
+                 "sock", "thread")
 
     def __init__(self, server: AdsServer, sock: socket.socket, peer: str) -> None:
         self.server = server
@@ -110,6 +111,8 @@ class ClientLink:
         self.sending = False      # blocked in a send: the client does not read
         self.reason = "closed by peer"
         self.send_lock = threading.Lock()
+        self._fd_lock = threading.Lock()    # the socket's shutdown (any thread) against its close
+        self._closed = False
         self.conn = Connection(peer, server.max_handles, self)
         self.thread = threading.Thread(target=self._run, name=f"distctrl-ads {peer}", daemon=True)
 
@@ -207,18 +210,16 @@ class ClientLink:
         # every answer has been sent (before the next read); a notification send that waits for a
         # client which does not read any more is woken by the shutdown (the data already queued is
         # still delivered before the FIN)
-        try:
-            self.sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-        with self.send_lock:                # not while the notification thread sends
+        self._shutdown()
+        with self.send_lock, self._fd_lock:   # not while the notification thread sends
+            self._closed = True
             try:
                 self.sock.close()
             except OSError:  # pragma: no cover
                 pass
+        srv._link_closed(self)              # counted as closed before the wait for the notifier
         if notifier is not None and notifier is not threading.current_thread():
             notifier.join(timeout=2.0)
-        srv._link_closed(self)
         srv.log.info("connection %s closed (%s, %d frames)", conn.peer, self.reason, conn.frames)
 
     # --- output / closing (any thread) ---------------------------------------------------------
@@ -226,17 +227,21 @@ class ClientLink:
         """Send ``data`` (an answer or notification frames) unless the connection is closing; blocks
         while the client does not read. A failing send closes the connection."""
         with self.send_lock:
-            if self.closing:
-                return
-            self.sending = True
-            try:
-                self.sock.sendall(data)
-            except OSError as exc:
-                if not self.closing:
-                    self.reason = f"connection error: {exc}"
-                self._shutdown()
-            finally:
-                self.sending = False
+            self.send_locked(data)
+
+    def send_locked(self, data: bytes) -> None:
+        """:meth:`write` for a caller that holds :attr:`send_lock`."""
+        if self.closing:
+            return
+        self.sending = True
+        try:
+            self.sock.sendall(data)
+        except OSError as exc:
+            if not self.closing:
+                self.reason = f"connection error: {exc}"
+            self._shutdown()
+        finally:
+            self.sending = False
 
     def close(self, reason: str) -> None:
         """Close after sending what is pending (answers are sent before the next read)."""
@@ -252,9 +257,13 @@ class ClientLink:
 
     def _shutdown(self) -> None:
         # shutdown, not close: it wakes this link's thread from recv/send, which then closes the
-        # socket itself (closing a descriptor another thread waits on could hit a reused one)
+        # socket itself (closing a descriptor another thread waits on could hit a reused one); the
+        # descriptor lock keeps a shutdown from another thread off a descriptor closed meanwhile
         self.closing = True
-        try:
-            self.sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
+        with self._fd_lock:
+            if self._closed:
+                return
+            try:
+                self.sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass

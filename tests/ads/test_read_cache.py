@@ -52,7 +52,11 @@ def step(served, cycles: int) -> None:
             served.step()
 
 
-def test_every_object_answers_from_the_cache_as_the_full_path_does(served):
+def no_full_path(*a, **k):
+    raise AssertionError("the full path was taken")
+
+
+def test_every_object_answers_from_the_cache_as_the_full_path_does(served, monkeypatch):
     srv = served.server
     with RawClient(srv.port) as c:
         for cycles in (0, 5):
@@ -61,7 +65,9 @@ def test_every_object_answers_from_the_cache_as_the_full_path_does(served):
                 args = (spec.index_group, AXIS | spec.low_offset, spec.length)
                 srv._read_cache.clear()
                 full = raw_read(c, *args, invoke=7)
-                cached = raw_read(c, *args, invoke=0x12345678)
+                with monkeypatch.context() as m:       # the second read: from the cache
+                    m.setattr(served.cnc, "read", no_full_path)
+                    cached = raw_read(c, *args, invoke=0x12345678)
                 assert struct.unpack_from("<I", cached, 28)[0] == 0x12345678, spec.name
                 assert without_invoke(cached) == without_invoke(full), spec.name
     assert srv._read_cache, "no Read request was kept"
@@ -71,10 +77,6 @@ def test_the_cache_answers_without_the_device_and_with_the_live_value(served, mo
     srv = served.server
     v_max = BY_NAME["DIST_CTRL_PARAM[0]::v_max"]     # reads the pending value while a write waits
     args = (v_max.index_group, AXIS | v_max.low_offset, 4)          # SGN32, µm/s
-
-    def no_full_path(*a, **k):
-        raise AssertionError("the full path was taken")
-
     with RawClient(srv.port) as c:
         first = P.parse_response(raw_read(c, *args, invoke=1))
         assert first.result == 0
@@ -94,12 +96,14 @@ def test_the_cache_answers_without_the_device_and_with_the_live_value(served, mo
         assert after.result == 0 and struct.unpack("<i", after.data)[0] == new
 
 
-def test_each_source_has_its_own_answer_head(served):
+def test_each_source_has_its_own_answer_head(served, monkeypatch):
     srv = served.server
     kp = BY_NAME["DIST_CTRL::kp"]
     args = (kp.index_group, AXIS | kp.low_offset, 8)
+    srv._read_cache.clear()
     with RawClient(srv.port) as c:
         a1, b1 = raw_read(c, *args, invoke=1, source_port=30001), raw_read(c, *args, invoke=2, source_port=30002)
+        monkeypatch.setattr(served.cnc, "read", no_full_path)
         a2, b2 = raw_read(c, *args, invoke=3, source_port=30001), raw_read(c, *args, invoke=4, source_port=30002)
     for body, port, invoke in ((a2, 30001, 3), (b2, 30002, 4)):
         hdr = P.AmsHeader.unpack(body)

@@ -130,7 +130,7 @@ def test_stop_ends_every_connection_thread_also_one_blocked_in_a_send():
             sock.sendall(requests)          # the server blocks answering; so does this send
         except TimeoutError:
             pass
-        assert wait_for(lambda: link.sending, timeout=5.0)
+        assert wait_for(lambda: link.sending, timeout=20.0)
         t0 = time.monotonic()
         srv.stop()
         assert time.monotonic() - t0 < 5.0
@@ -138,16 +138,3 @@ def test_stop_ends_every_connection_thread_also_one_blocked_in_a_send():
     finally:
         sock.close()
         srv.stop()
-
-
-def test_a_host_name_binds_each_of_its_addresses_on_one_port():
-    srv = AdsServer({851: MemoryDevice()}, host="localhost", port=0)
-    srv.start()
-    try:
-        ports = {s.getsockname()[1] for s in srv._listeners}
-        assert ports == {srv.port}
-        with RawClient(srv.port) as c:
-            assert c.read(IG_DATA, 8, 8).result == 0
-    finally:
-        srv.stop()
-    assert not srv._listeners
