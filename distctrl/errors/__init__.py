@@ -77,7 +77,7 @@ CATALOGUE: dict[int, tuple[str, str]] = {
     900030: ("warning", "Collision: the tool went into the surface (the simulator's true distance reached "
                         "-sensor.collision_depth)"),
     900032: ("warning", "Oscillation: the distance error oscillated (two whole periods or more above the "
-                        "settle band) in a whole second of tracking"),
+                        "settle band, repeating itself period after period) in a whole second of tracking"),
     900031: ("warning", "The distance sensor writes a V.E. variable, but the axis reads the second encoder "
                         "(SENSOR_SOURCE is not VARIABLE): nobody reads the sensor"),
     900050: ("error", "Touch-off: no surface within the stroke"),

@@ -11,6 +11,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from ..control import HliState
 from ..errors import ErrorId, ExitCode
 from ..nc.parser import parse_file, parse_program
@@ -30,6 +32,12 @@ OUTCOMES = {
     "time_limit": (ExitCode.TIME_LIMIT, "stopped at the time limit before the program ended"),
     "interrupted": (ExitCode.INTERRUPTED, "interrupted (Ctrl-C)"),
 }
+#: an oscillation repeats itself: over the last ``PERIODIC_SECONDS`` of tracking, the error's
+#: autocorrelation about one period later is at least ``PERIODIC_MIN`` (the examples' limit cycles
+#: and resonances: 0.87-0.98; noise through a calm loop in the plasma examples: below 0.5; docs/run.md)
+PERIODIC_MIN = 0.5
+PERIODIC_SECONDS = 3
+PERIODIC_PERIODS = 4
 SETTLE_BAND_MM = 0.01           # settle_time: |distance error| within this band ...
 SETTLE_HOLD_S = 0.1             # ... for this long
 #: default plot signals of a 3D run (one panel per unit)
@@ -402,7 +410,7 @@ class _Metrics:
     whole periods)."""
 
     __slots__ = ("T", "n", "sq", "max", "band", "hold", "k_start", "inside", "k_entry", "recent",
-                 "paused", "since_window", "episode", "episodes", "surface")
+                 "paused", "since_window", "episode", "episodes", "surface", "history")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
         from collections import deque
@@ -417,6 +425,7 @@ class _Metrics:
         self.k_entry = None           # the cycle of the last entry into the band
         self.recent = deque(maxlen=max(2, int(round(1.0 / T))))     # the last second of tracking
         self.surface = deque(maxlen=self.recent.maxlen)               # the surface under the tool then
+        self.history = deque(maxlen=PERIODIC_SECONDS * self.recent.maxlen)  # the last seconds, for periodicity
         self.paused = False
         self.since_window = 0         # tracking samples since the last whole-second window was judged
         self.episode: dict | None = None      # the oscillation going on (whole seconds of tracking)
@@ -435,6 +444,7 @@ class _Metrics:
             if a > self.max:
                 self.max = a
             self.recent.append(err)
+            self.history.append(err)
             self.surface.append(surface)
             self.since_window += 1
             if self.since_window == self.recent.maxlen:
@@ -495,6 +505,8 @@ class _Metrics:
         surface_amplitude, surface_crossings = _swing(self.surface)
         if amplitude <= surface_amplitude and crossings <= 2 * surface_crossings:
             return None, amplitude              # the loop follows a wavy surface: a tracking error
+        if _periodicity(self.history, len(self.recent) * 2.0 / crossings) < PERIODIC_MIN:
+            return None, amplitude              # a random wander (noise through the loop), not periodic
         return crossings / (2.0 * len(self.recent) * self.T), amplitude
 
     def result(self) -> dict:
@@ -505,6 +517,29 @@ class _Metrics:
                 "settle_band_mm": self.band, "settle_hold_s": SETTLE_HOLD_S,
                 "oscillation_frequency_hz": freq, "oscillation_amplitude_mm": amp,
                 "oscillations": len(self.episodes) + (self.episode is not None)}
+
+
+def _periodicity(values, period: float) -> float:
+    """How well ``values`` (the last seconds of the error) repeat themselves with a period of about
+    ``period`` samples, from 0 to 1: half the difference of their normalised autocorrelation (mean
+    removed; each lag's mean of products over the mean square) at the best lag ``L`` from half to one
+    and a half times ``period`` (the period from one second's crossings is coarse, and noise adds
+    crossings), at most half the values, and at ``L / 2``; 0 while the values hold fewer than
+    ``PERIODIC_PERIODS`` periods. A periodic error, also in noise, is
+    about 1 (in phase after a period, in antiphase after half of one); a random wander and a slow
+    drift or decay are about 0 (alike or unalike at both lags)."""
+    e = np.asarray(values, dtype=float)
+    n = len(e)
+    e = e - e.mean()
+    power = float(np.dot(e, e)) / n
+    if power <= 0.0 or n < PERIODIC_PERIODS * period:
+        return 0.0                      # too few periods yet to tell (judged again a second later)
+    lo, hi = max(2, int(0.5 * period)), min(n // 2, int(1.5 * period) + 1)
+    spectrum = np.fft.rfft(e, 2 * n)
+    sums = np.fft.irfft(spectrum * np.conj(spectrum), 2 * n)[:hi + 1]      # sum of e[t] e[t + lag]
+    r = sums / (n - np.arange(hi + 1)) / power
+    best = lo + int(np.argmax(r[lo:hi + 1]))
+    return float(0.5 * (r[best] - r[best // 2]))
 
 
 def _swing(values) -> tuple[float, int]:
