@@ -280,7 +280,6 @@ class Machine:
         if ch is None:
             raise NcAbort(20209, "Unknown Nc-command: #DIST CTRL needs FCT_3D_DIST_CTRL (P-CHAN-00500)")
         if command.is_select:
-            mode = command.mode if command.mode is not None else ch.mode
             if ch.core.state.hli_state == HliState.INACTIVE:
                 var = command.sensor_var or ch.core.state.sensor_var or self.sensor_variable
                 value = self.variables.get(self._var_name(var)) if var else None

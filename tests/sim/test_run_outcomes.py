@@ -32,7 +32,7 @@ NOISY = {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0, 
 
 def _end_of_program(r) -> float:
     """Time of the last cycle on which the NC still showed a line before the end (s)."""
-    t, line = r.trace["t"], r.trace["line"]
+    t = r.trace["t"]
     moving = (abs(r.trace["X.prog"][1:] - r.trace["X.prog"][:-1]) > 0)
     return float(t[1:][moving][-1]) if moving.any() else 0.0
 
