@@ -32,9 +32,10 @@ OUTCOMES = {
     "time_limit": (ExitCode.TIME_LIMIT, "stopped at the time limit before the program ended"),
     "interrupted": (ExitCode.INTERRUPTED, "interrupted (Ctrl-C)"),
 }
-#: an oscillation repeats itself: over the last ``PERIODIC_SECONDS`` of tracking, the error's
-#: autocorrelation about one period later is at least ``PERIODIC_MIN`` (the examples' limit cycles
-#: and resonances: 0.87-0.98; noise through a calm loop in the plasma examples: below 0.5; docs/run.md)
+#: an oscillation repeats itself: over the last ``PERIODIC_SECONDS`` of tracking (at least
+#: ``PERIODIC_PERIODS`` periods), its periodicity (:func:`_periodicity`) is at least ``PERIODIC_MIN``
+#: (the examples' limit cycles and resonances: 0.69-0.91; noise through a calm loop in the plasma and
+#: process examples: -0.03-0.33; docs/run.md)
 PERIODIC_MIN = 0.5
 PERIODIC_SECONDS = 3
 PERIODIC_PERIODS = 4
@@ -409,7 +410,7 @@ class _Metrics:
     the crossings of its mean (null when the amplitude is inside the band or it does not make two
     whole periods)."""
 
-    __slots__ = ("T", "n", "sq", "max", "band", "hold", "k_start", "inside", "k_entry", "recent",
+    __slots__ = ("T", "n", "sq", "max", "band", "hold", "k_start", "inside", "k_entry", "second",
                  "paused", "since_window", "episode", "episodes", "surface", "history")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
@@ -423,9 +424,11 @@ class _Metrics:
         self.k_start = None           # the first tracking cycle
         self.inside = 0               # cycles inside the band since the last entry
         self.k_entry = None           # the cycle of the last entry into the band
-        self.recent = deque(maxlen=max(2, int(round(1.0 / T))))     # the last second of tracking
-        self.surface = deque(maxlen=self.recent.maxlen)               # the surface under the tool then
-        self.history = deque(maxlen=PERIODIC_SECONDS * self.recent.maxlen)  # the last seconds, for periodicity
+        self.second = max(2, int(round(1.0 / T)))                     # cycles in a second
+        # the errors of the last PERIODIC_SECONDS of tracking (the last second is judged; the whole
+        # for periodicity), and the surface under the tool in the last second
+        self.history = deque(maxlen=PERIODIC_SECONDS * self.second)
+        self.surface = deque(maxlen=self.second)
         self.paused = False
         self.since_window = 0         # tracking samples since the last whole-second window was judged
         self.episode: dict | None = None      # the oscillation going on (whole seconds of tracking)
@@ -443,11 +446,10 @@ class _Metrics:
             a = abs(err)
             if a > self.max:
                 self.max = a
-            self.recent.append(err)
             self.history.append(err)
             self.surface.append(surface)
             self.since_window += 1
-            if self.since_window == self.recent.maxlen:
+            if self.since_window == self.second:
                 self._judge_window(k, line)
             if a <= self.band:
                 if self.inside == 0:
@@ -469,7 +471,7 @@ class _Metrics:
         ep = self.episode
         if freq is not None:
             if ep is None:
-                self.episode = {"k0": k - len(self.recent) + 1, "k1": k, "line": line, "freq": freq, "amp": amp}
+                self.episode = {"k0": k - min(len(self.history), self.second) + 1, "k1": k, "line": line, "freq": freq, "amp": amp}
             else:
                 ep["k1"] = k
                 if amp > ep["amp"]:
@@ -495,19 +497,21 @@ class _Metrics:
         """(frequency or None, amplitude) of the distance error over the last second of tracking.
 
         An oscillation: the amplitude is above the band, the error makes two whole periods around its
-        mean, and it is not the surface's own waviness followed with a lag: the error swings more than
-        the surface under the tool does, or at more than twice the surface's frequency."""
-        if len(self.recent) < 2:
+        mean, it is not the surface's own waviness followed with a lag (the error swings more than
+        the surface under the tool does, or at more than twice the surface's frequency), and it
+        repeats itself (:func:`_periodicity` over the last seconds at least ``PERIODIC_MIN``)."""
+        recent = list(self.history)[-self.second:]        # the last second of tracking
+        if len(recent) < 2:
             return None, None
-        amplitude, crossings = _swing(self.recent)
+        amplitude, crossings = _swing(recent)
         if amplitude <= self.band or crossings < 4:
             return None, amplitude
         surface_amplitude, surface_crossings = _swing(self.surface)
         if amplitude <= surface_amplitude and crossings <= 2 * surface_crossings:
             return None, amplitude              # the loop follows a wavy surface: a tracking error
-        if _periodicity(self.history, len(self.recent) * 2.0 / crossings) < PERIODIC_MIN:
+        if _periodicity(self.history, len(recent) * 2.0 / crossings) < PERIODIC_MIN:
             return None, amplitude              # a random wander (noise through the loop), not periodic
-        return crossings / (2.0 * len(self.recent) * self.T), amplitude
+        return crossings / (2.0 * len(recent) * self.T), amplitude
 
     def result(self) -> dict:
         freq, amp = self.oscillation()
