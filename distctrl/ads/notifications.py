@@ -118,7 +118,7 @@ class NotificationService:
         for n in due:   # schedule the next sample (no burst after a stall)
             n.due = n.due + n.cycle if n.due + n.cycle > now else now + n.cycle
         lock = self.lock
-        if lock is not None and not lock.acquire(timeout=min(self.lock_timeout, 0.05)):
+        if not lock.acquire(timeout=min(self.lock_timeout, 0.05)):
             return []   # try again at the next cycle
         samples: dict[tuple[bytes, int, bytes, int], list[tuple[int, bytes]]] = {}
         try:
@@ -136,8 +136,7 @@ class NotificationService:
                 n.last = data
                 samples.setdefault(n.route, []).append((n.handle, data))
         finally:
-            if lock is not None:
-                lock.release()
+            lock.release()
         stamp = int((time.time() + _FILETIME_EPOCH) * 10_000_000)
         frames = []
         for route, items in samples.items():

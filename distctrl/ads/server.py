@@ -393,15 +393,14 @@ class AdsServer(AdsServices):
             if entry is not None:
                 head, tail, reader, dev, port, n = entry
                 if self.devices.get(port) is dev:
-                    lock = self.lock
-                    if not lock.acquire(True, self.lock_timeout):
-                        return self._busy_answer(conn, body)
+                    if not self._lock_acquired(conn):
+                        return self._busy_answer(body)
                     try:
                         data = reader()
                     except Exception:     # the full path answers with the error
                         data = None
                     finally:
-                        lock.release()
+                        self.lock.release()
                     if data is not None and len(data) == n:
                         return head + body[28:32] + tail + data
         hdr = _unpack_ams_header(body)
@@ -453,10 +452,10 @@ class AdsServer(AdsServices):
         cache[body[:28] + body[32:]] = (out[:split], out[split + 4:split + 4 + READ_RES.size], reader,
                                         device, port, n - READ_RES.size)
 
-    def _busy_answer(self, conn: Connection, body: bytes) -> bytes:
+    @staticmethod
+    def _busy_answer(body: bytes) -> bytes:
         """The answer 0x708 (device busy) to the Read request ``body``, as the full path gives it when
         the lock is not free within ``lock_timeout``."""
-        self.log.warning("%s: lock not free within %.3g s; answered 0x708 (busy)", conn.peer, self.lock_timeout)
         (target_net_id, target_port, source_net_id, source_port, cmd, flags, _length, _err,
          invoke_id) = _unpack_ams_header(body)
         data = READ_RES.pack(E.ADSERR_DEVICE_BUSY, 0)

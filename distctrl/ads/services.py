@@ -98,21 +98,24 @@ class AdsServices(NotificationService):
     """ADS command semantics of :class:`~distctrl.ads.server.AdsServer` (its base class: it uses the
     server's ``devices``, ``lock``, ``lock_timeout``, ``log``, ``max_frame``)."""
 
+    def _lock_acquired(self, conn: Connection) -> bool:
+        """Take the lock, waiting at most ``lock_timeout``; False (logged: the request is answered
+        0x708, device busy) when it is not free by then."""
+        if self.lock.acquire(True, self.lock_timeout):
+            return True
+        self.log.warning("%s: lock not free within %.3g s; answered 0x708 (busy)", conn.peer, self.lock_timeout)
+        return False
+
     def _execute(self, conn: Connection, hdr: tuple, dev: AdsDevice, body: bytes) -> bytes:
         """Run one ADS command (``hdr``: the unpacked AMS header fields, ``body``: AMS header and
         data); always returns the response payload (errors included)."""
         try:
-            lock = self.lock
-            if lock is None:
-                return self._command(conn, hdr, dev, body)
-            if not lock.acquire(True, self.lock_timeout):
-                self.log.warning("%s: lock not free within %.3g s; answered 0x708 (busy)",
-                                 conn.peer, self.lock_timeout)
+            if not self._lock_acquired(conn):
                 raise AdsError(E.ADSERR_DEVICE_BUSY, "simulation lock not available")
             try:
                 return self._command(conn, hdr, dev, body)
             finally:
-                lock.release()
+                self.lock.release()
         except AdsError as e:
             code = e.code
         except Exception:
