@@ -76,6 +76,8 @@ def test_unknown_key_names_file_line_and_key(tmp_path):
     ("kenngr.distc.v_weight_down 2000", "P-AXIS-00533", "0 <= value < 2000"),
     ("lr_hw[1].mode_act_pos 3", "P-AXIS-00424", "one of 0, 1, 2"),
     ("kenngr.distc.filter_type KALMAN", "P-AXIS-00782", "MOVING_AVERAGE"),
+    # FCT-M3 §9.2 P-AXIS-00419: 0 <= max_pos < MAX(SGN32); nothing in the documents contradicts it
+    ("kenngr.distc.max_pos -1", "P-AXIS-00419", "0 <= value < 2147483647"),
 ])
 def test_out_of_range_values_name_id_value_and_range(line, pid, allowed):
     with pytest.raises(ParameterError) as exc:
@@ -143,8 +145,8 @@ def test_docs_parameters_md_is_generated_from_the_table():
 # window, the software limits) named no line when the file did not set the first parameter of
 # the check. It now names the last involved line of the file.
 @pytest.mark.parametrize("text, line, what", [
-    ("kenngr.distc.max_pos -40000\nkenngr.distc.toleranz 10000\n", 2, "sensor window"),
-    ("kenngr.distc.tolerance 10000\n# a comment\nkenngr.distc.max_pos -40000\n", 3, "sensor window"),
+    ("kenngr.distc.max_pos 0\nkenngr.distc.toleranz 30000\n", 2, "sensor window"),
+    ("kenngr.distc.tolerance 30000\n# a comment\nkenngr.distc.max_pos 0\n", 3, "sensor window"),
     ("kenngr.distc.min_pos 40000\nkenngr.distc.max_pos 30000\n", 2, "sensor window"),
     ("getriebe[0].swe_neg 0\n\ngetriebe[0].swe_pos -100\n", 3, "software limits"),
 ])
@@ -157,10 +159,20 @@ def test_cross_parameter_errors_name_the_last_involved_line(text, line, what):
 
 def test_channel_sensor_window_error_names_its_line():
     from distctrl.params.channel import CHANNEL_LIST
-    text = "dist_ctrl[0].kp 0.3\ndist_ctrl[0].max_pos -60000\n"
+    text = "dist_ctrl[0].kp 0.3\ndist_ctrl[0].min_pos 60000\n"
     with pytest.raises(ParameterError) as info:
         parse_list_text(text, "c.lis", fmt=CHANNEL_LIST)
     assert info.value.line == 2 and "sensor window" in str(info.value)
+
+
+def test_max_pos_follows_the_documented_range_0_and_up():
+    """FCT-M3 §9.2 P-AXIS-00419 '0 <= max_pos < MAX(SGN32)' (unlike min_pos, not contradicted)."""
+    assert parse_list_text("kenngr.distc.max_pos 0\nkenngr.distc.min_pos -1000\n").params.max_pos == 0.0
+    with pytest.raises(ParameterError, match="P-AXIS-00419"):
+        AxisParameters(max_pos=-0.001)
+    from distctrl.params.table import BY_KEY
+    spec = BY_KEY["kenngr.distc.max_pos"]
+    assert (spec.lo, spec.lo_open) == (0, False)
 
 
 def test_the_remaining_defaults_are_the_documented_ones():
