@@ -115,6 +115,34 @@ def test_aliases_of_the_documents_examples():
     assert p.kp == 0.4 and p.check_sw_limit_switch
 
 
+# TF5200 Abstandskontrolle §8.2 prints six keys of its parameter descriptions in other spellings
+# than the overview (and FCT-M3 §9): they are accepted as aliases, like the overview's
+# kenngnr.distsc. prefix.
+@pytest.mark.parametrize("line, field, value", [
+    ("kenngn.distc.mode_dist_use_both_encoder 1", "use_both_encoders", True),       # P-AXIS-00500
+    ("kenngn.distc.use_adaptive_acceleration 1", "use_adaptive_acceleration", True),  # P-AXIS-00501
+    ("kenngn.distc.smoothing_factor 0.3", "smoothing_factor", 0.3),                 # P-AXIS-00784
+    ("kenng.disc.a_weight_down 300", "a_weight_down", 0.3),                         # P-AXIS-00534, 0.1 %
+    ("kenng.disc.filter_type KALMAN_MA", "filter_type", FilterType.KALMAN_MA),      # P-AXIS-00782
+    ("kenng.disc.kalman_sigma 1000", "kalman_sigma", 1000.0),                        # P-AXIS-00783
+])
+def test_tf5200_description_spellings_are_aliases(line, field, value):
+    pl = parse_list_text(line + "\n", "tf.lis")
+    assert getattr(pl.params, field) == pytest.approx(value) if isinstance(value, float) else \
+        getattr(pl.params, field) == value
+    assert pl.lines == {"kenngr.distc." + line.split()[0].split(".", 2)[2]: 1}
+    # the same range check as under the canonical key, naming the alias as written
+    with pytest.raises(ParameterError, match=line.split()[0].replace(".", r"\.")):
+        parse_list_text(line.split()[0] + " -5\n", "tf.lis")
+
+
+def test_tf5200_spellings_are_only_aliases_of_their_own_keys():
+    """Only the six printed keys: the prefixes are not general aliases (a typo stays an error)."""
+    for line in ("kenngn.distc.kp 0.5", "kenng.disc.v_max 100"):
+        with pytest.raises(ParameterError, match="unknown parameter key"):
+            parse_list_text(line + "\n", "tf.lis")
+
+
 def test_cross_parameter_check_names_the_parameters():
     with pytest.raises(ParameterError, match="P-AXIS-00419/00420/00421"):
         parse_list_text("kenngr.distc.max_pos 1000\nkenngr.distc.min_pos 0\nkenngr.distc.tolerance 600\n", "w.lis")
