@@ -393,3 +393,7 @@ def test_in_the_stationary_state_the_offset_is_the_distance_between_surface_and_
     s = ax.state_r
     assert s.actual_position == round(surface * 1e4)
     assert s.actual_offset == s.actual_position - 400000
+    # the offset 'by which the axis was moved' (HLI DistanceControl's first sentence, FCT-M3 §2):
+    # command position - programmed position, with the same sign
+    assert s.actual_offset == round((ax.out.command_position - ax.p) * 1e4)
+    assert s.actual_offset == -(400000 - s.actual_position)       # the printed formula, negated
