@@ -110,3 +110,53 @@ def test_a_not_implemented_item_with_a_reason_needs_no_test(tmp_path):
     assert tr.check(_table(tmp_path, body), ROOT) == []
     page = tr.render(_table(tmp_path, body))
     assert "not-implemented: no licences in a simulator" in page and "| **all** | **1** | **0** | **1** | **0** |" in page
+
+
+# ----------------------------------------------------------------------------- weak rows (audit 2026-11-27)
+# A row whose cited tests cannot back its claim: the audit's WEAK kinds that a machine can see.
+
+B27_BEFORE = ["tests/params/test_listfile.py::test_every_documented_key_is_in_the_table",
+              "tests/params/test_listfile.py::test_out_of_range_values_name_id_value_and_range",
+              "tests/params/test_listfile.py::test_defaults_are_the_documented_ones",
+              "tests/params/test_listfile.py::test_the_remaining_defaults_are_the_documented_ones"]
+B27_ITEM = ("P-AXIS-00764 kenngr.distc.i_tn: integral action time [s] (0..50, 0 = no I part); ID, key, type, "
+            "unit, range and default as documented")
+
+
+def test_the_claimed_attributes_are_read_from_the_item():
+    assert tr.claimed_attributes(B27_ITEM) == ["id", "key", "type", "unit", "range", "default"]
+    assert tr.claimed_attributes("DIST_CTRL::kp: offset, type, length, unit and access as documented") == \
+        ["offset", "type", "length", "unit", "access"]
+    assert tr.claimed_attributes("the filter type as in P-CHAN-00825") == []      # no claim list
+
+
+def test_a_claim_no_cited_test_mentions_is_a_problem(tmp_path):
+    """AX-B27 as the audit found it: its tests assert ID, key, range and default but not type and unit."""
+    problems = tr.check(_table(tmp_path, _item(kind="parameter", item=B27_ITEM, tests=B27_BEFORE)), ROOT)
+    assert problems == ["t.toml X-1: claims type, unit as documented but no cited test mentions them"]
+    fixed = B27_BEFORE + ["tests/params/test_listfile.py::test_key_type_unit_range_and_default_are_the_documented_ones"]
+    assert tr.check(_table(tmp_path, _item(kind="parameter", item=B27_ITEM, tests=fixed)), ROOT) == []
+
+
+def test_a_parameter_row_whose_tests_never_name_the_parameter_is_a_problem(tmp_path):
+    body = _item(kind="parameter", item="P-AXIS-00784 smoothing_factor: the weight of the newest value",
+                 tests=["tests/params/test_listfile.py::test_cross_parameter_check_names_the_parameters"])
+    problems = tr.check(_table(tmp_path, body), ROOT)
+    assert len(problems) == 1 and "names P-AXIS-00784 but no cited test mentions" in problems[0]
+    assert "kenngr.distc.smoothing_factor" in problems[0]
+    good = _item(kind="parameter", item="P-AXIS-00784 smoothing_factor: the weight of the newest value",
+                 tests=["tests/params/test_listfile.py::test_defaults_are_the_documented_ones"])
+    assert tr.check(_table(tmp_path, good), ROOT) == []
+    # a keyword row that names the parameter only for its range is about the keyword, not checked so
+    keyword = _item(kind="keyword", item="SMOOTH_FACT per P-AXIS-00784",
+                    tests=["tests/params/test_listfile.py::test_cross_parameter_check_names_the_parameters"])
+    assert tr.check(_table(tmp_path, keyword), ROOT) == []
+
+
+def test_a_test_mentions_what_its_module_level_tables_hold():
+    """A parametrized test reads its table from the module: the table counts as the test's text."""
+    text = tr.test_source("tests/params/test_listfile.py::test_key_type_unit_range_and_default_are_the_documented_ones")
+    assert "def test_key_type_unit_range_and_default_are_the_documented_ones" in text
+    assert '"P-AXIS-00764": ("kenngr.distc.i_tn", "REAL64", "s"' in text          # DOCUMENTED
+    assert "RESOLVED_RANGES" in text and "@pytest.mark.parametrize" in text
+    assert tr.test_source("tests/params/test_listfile.py::no_such_test") == ""

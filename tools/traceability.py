@@ -5,7 +5,8 @@ axis variant, the PLC interface, the channel variant); ``docs/traceability.md`` 
 them. ``python tools/traceability.py`` prints the page (``make docs`` writes it),
 ``python tools/traceability.py --check`` validates the tables and exits 1 listing every problem.
 tests/test_traceability.py runs the check and keeps the page current, so an item without a test, a
-test that does not exist or code that does not exist fails the suite.
+test that does not exist, code that does not exist, or a weak row (a claimed attribute no cited test
+mentions, a parameter its tests never name; see "weak rows" below) fails the suite.
 
 Each table has ``[meta] title`` and ``[[item]]`` entries::
 
@@ -24,6 +25,7 @@ Each table has ``[meta] title`` and ``[[item]]`` entries::
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -121,6 +123,122 @@ def _check_reference(ref: str, root: Path, what: str) -> str:
     return ""
 
 
+# ----------------------------------------------------------------------------- weak rows
+#
+# A row's cited tests must be able to back its claim. Two mechanical checks catch the weak rows an
+# audit found (a claim "ID, key, type, unit, range and default as documented" whose tests assert
+# neither type nor unit; a parameter row whose tests never name the parameter):
+#
+# * claim list: an item that says "<a>, <b> ... and <z> as documented" claims each attribute; for
+#   each one, at least one cited test must mention it (CLAIM_WORDS);
+# * subject: a parameter item naming a parameter ID (P-AXIS-nnnnn, P-CHAN-nnnnn) must cite at least one test
+#   that mentions the ID, the parameter's list key or its last key component (any case: the NC
+#   keyword KP names P-AXIS-00759's kp).
+#
+# "Mention" is textual: the test function's source with its decorators, plus the source of the
+# module-level names the function uses (the tables a parametrized test reads). It cannot tell an
+# assertion from a comment, nor see that a value is compared with the field it is computed from;
+# the review of a row's wording stays a human's job.
+
+#: attribute of a claim list -> what a test that checks it must contain (a regular expression)
+CLAIM_WORDS = {
+    "id": r"\bids?\b|param_id|\bpid\b|P-(?:AXIS|CHAN)-\d{5}",
+    "key": r"\bkeys?\b|kenngr\.|dist_ctrl\[",
+    "type": r"\btype(?:_name)?\b|\bads_type\b|\bdata type",
+    "unit": r"\bunits?\b",
+    "range": r"range|\ballowed\b",
+    "default": r"default",
+    "offset": r"offset",
+    "length": r"\blength\b|\bsize\b",
+    "access": r"access|writable|read_only",
+}
+_CLAIM_LIST = re.compile(r"((?:\b(?:%s)\b(?:,\s*|\s+and\s+))+\b(?:%s)\b)\s+as documented"
+                         % ("|".join(CLAIM_WORDS), "|".join(CLAIM_WORDS)), re.IGNORECASE)
+_PARAM_ID = re.compile(r"\bP-(?:AXIS|CHAN)-\d{5}\b")
+_SOURCES: dict[tuple[Path, str], str] = {}
+
+
+def claimed_attributes(item: str) -> list[str]:
+    """The attributes an item claims "as documented" (lower case, in the order written)."""
+    out: list[str] = []
+    for m in _CLAIM_LIST.finditer(item):
+        out += [w.lower() for w in re.findall(r"\b(?:%s)\b" % "|".join(CLAIM_WORDS), m.group(1), re.IGNORECASE)]
+    return out
+
+
+def test_source(ref: str, root: Path = ROOT) -> str:
+    """The text a cited test mentions things in: the function (or class) with its decorators and the
+    module-level assignments it refers to by name. '' when it cannot be found."""
+    path_text, _, name = str(ref).partition("::")
+    name = name.split("[", 1)[0].replace("::", ".")
+    key = (root / path_text, name)
+    if key in _SOURCES:
+        return _SOURCES[key]
+    path = root / path_text
+    text = ""
+    if path.is_file() and path.suffix == ".py" and name:
+        src = path.read_text(encoding="utf-8")
+        tree = ast.parse(src)
+        lines = src.splitlines()
+        top = {n.name: n for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))}
+        assigns: dict[str, ast.stmt] = {}
+        for n in tree.body:
+            targets = n.targets if isinstance(n, ast.Assign) else [n.target] if isinstance(n, ast.AnnAssign) else []
+            for t in targets:
+                if isinstance(t, ast.Name):
+                    assigns[t.id] = n
+        first, _, rest = name.partition(".")
+        node = top.get(first)
+        if node is not None and rest and isinstance(node, ast.ClassDef):
+            node = next((n for n in node.body if getattr(n, "name", None) == rest), node)
+        if node is not None:
+            def segment(n) -> str:
+                start = min([d.lineno for d in getattr(n, "decorator_list", [])] + [n.lineno])
+                return "\n".join(lines[start - 1:n.end_lineno])
+            parts = [segment(node)]
+            used = {x.id for x in ast.walk(node) if isinstance(x, ast.Name)}
+            parts += [segment(assigns[u]) for u in sorted(used) if u in assigns]
+            text = "\n".join(parts)
+    _SOURCES[key] = text
+    return text
+
+
+def weak_claims(it: Item, root: Path = ROOT) -> list[str]:
+    """The problems of an implemented item whose cited tests cannot back its claim (see above)."""
+    if it.status != "implemented" or not it.tests:
+        return []
+    sources = [test_source(str(ref), root) for ref in it.tests]
+    problems = []
+    missing = [w for w in dict.fromkeys(claimed_attributes(str(it.item)))
+               if not any(re.search(CLAIM_WORDS[w], s, re.IGNORECASE) for s in sources)]
+    if missing:
+        problems.append(f"claims {', '.join(missing)} as documented but no cited test mentions "
+                        f"{'it' if len(missing) == 1 else 'them'}")
+    for pid in dict.fromkeys(_PARAM_ID.findall(str(it.item)) if it.kind == "parameter" else []):
+        names = list(dict.fromkeys([pid] + _parameter_names(pid)))
+        if not any(re.search(r"(?<!\w)" + re.escape(n) + r"(?!\w)", s, re.IGNORECASE)
+                   for s in sources for n in names):
+            problems.append(f"names {pid} but no cited test mentions {' or '.join(names)}")
+    return problems
+
+
+def _parameter_names(pid: str) -> list[str]:
+    """The list key of a parameter ID and its last component (from the project's tables), if known."""
+    try:
+        sys.path.insert(0, str(ROOT))
+        from distctrl.params.channel import BY_ID as CHANNEL_BY_ID
+        from distctrl.params.table import BY_ID as AXIS_BY_ID
+    except Exception:                  # noqa: BLE001 - the check then relies on the ID alone
+        return []
+    finally:
+        if sys.path and sys.path[0] == str(ROOT):
+            sys.path.pop(0)
+    spec = AXIS_BY_ID.get(pid) or CHANNEL_BY_ID.get(pid)
+    if spec is None:
+        return []
+    return [spec.key, spec.key.rsplit(".", 1)[-1], spec.field]
+
+
 def check(tables: list[Table], root: Path = ROOT) -> list[str]:
     """Every problem of the tables, one line each, naming the file and the item."""
     problems: list[str] = []
@@ -165,6 +283,8 @@ def check(tables: list[Table], root: Path = ROOT) -> list[str]:
                 problem = _check_reference(str(ref), root, "code")
                 if problem:
                     problems.append(f"{where}: {problem}")
+            if not any(where in p and "test" in p for p in problems):
+                problems += [f"{where}: {p}" for p in weak_claims(it, root)]
     return problems
 
 
@@ -189,7 +309,12 @@ def render(tables: list[Table]) -> str:
         "section that states it, the code that implements it and the tests that check it.",
         "`tests/test_traceability.py` fails when an implemented item has no test, or when a listed test",
         "or code file does not exist; items the project does not implement, or that a simulator cannot",
-        "check, are listed with the reason.",
+        "check, are listed with the reason. It also fails on two kinds of weak rows: an item that claims",
+        "attributes \"as documented\" (\"ID, key, type, unit, range and default\", \"offset, type, length,",
+        "unit and access\") of which one is mentioned by none of its cited tests, and a parameter item",
+        "whose cited tests never name the parameter (its ID, list key or field). Those checks are textual:",
+        "whether a test compares a value with an independent one, and whether an item's wording",
+        "overstates what its tests show, stays a reviewer's question.",
         "",
         "## Summary",
         "",

@@ -666,8 +666,15 @@ class AxisDistanceController:
                 # REF_POS (HLI position) is the position of the workpiece surface now: the reading is
                 # shifted so that the measured surface a + s equals it; NC REF (no value) references
                 # 'sensor zero', s = 0, i.e. REF_POS = a (SPEC §2, FCT-M3 ch. 10)
+                # A PLC REF with CyclicCommand.D_Position valid takes D_Position as REF_POS (FCT-M3
+                # §8.2, TF5200 §9.2: 'HLI_DIST_CTRL_REF: Reference position of the workpiece surface
+                # (REF_POS)'), in the cycle the REF is taken; else command_w.position
+                ref_pos = cmd.ref_position
+                if cmd.source == CommandSource.PLC and inp.cyclic_set_pos is not None \
+                        and _finite(inp.cyclic_set_pos):
+                    ref_pos = inp.cyclic_set_pos
                 act = self.state.last_a
-                s_ref = 0.0 if cmd.ref_position is None else float(cmd.ref_position) - act
+                s_ref = 0.0 if ref_pos is None else float(ref_pos) - act
                 st.ref_shift += s_ref - s_now
                 st.referenced = True
                 st.has_last_s = False

@@ -21,8 +21,9 @@ Decisions where §12.8 is unclear (also in docs/parameters-channel.md):
   distance control is selected with ``a_max = 0`` (SPEC §6). ``to_axis_parameters`` keeps 0 — the
   axis meaning "0 = axis acceleration" must not be applied to the 3D variant.
 * P-CHAN-00804 unit µm/s (the overview's "0.1 µm/cycle" is wrong, SPEC §12).
-* P-CHAN-00806/00807 ``max_pos``/``min_pos``: documented ``0 <= value`` contradicts the default
-  −50000 and the §12.8.3 example −1500000: full SGN32 range, as for the axis table.
+* P-CHAN-00807 ``min_pos``: documented ``0 <= min_pos`` contradicts its default −50000 and the
+  §12.8.3 example −1500000: full SGN32 range, as for the axis table. P-CHAN-00806 ``max_pos``
+  keeps its documented ``0 <= max_pos`` (default 50000 and the example 1500000 agree with it).
 * P-CHAN-00815 ``low_pass_filter_enable`` (only in §12.8.2, the legacy switch that the axis
   variant replaced by filter type LOWPASS): 1 selects LOWPASS while ``filter_type`` is DEFAULT;
   any other ``filter_type`` wins (:attr:`ChannelParameters.effective_filter_type`).
@@ -77,9 +78,8 @@ CHANNEL_PARAMETERS: tuple[ParamSpec, ...] = (
        note="unit µm/s (the overview's '0.1 µm/cycle' is wrong, SPEC §12)"),
     _p("P-CHAN-00805", _D + "ref_offset", "ref_offset", "SGN32", "0.1 µm", "mm", UM, 0, SGN32_MIN, SGN32_MAX,
        hi_open=True, description="Reference point offset of the sensor measuring system"),
-    _p("P-CHAN-00806", _D + "max_pos", "max_pos", "SGN32", "0.1 µm", "mm", UM, 50000, SGN32_MIN, SGN32_MAX,
-       hi_open=True, description="Upper limit of the sensor reading (70330/310019)",
-       note="documented range '0 <= max_pos' widened to SGN32 like min_pos"),
+    _p("P-CHAN-00806", _D + "max_pos", "max_pos", "SGN32", "0.1 µm", "mm", UM, 50000, 0, SGN32_MAX,
+       hi_open=True, description="Upper limit of the sensor reading (70330/310019)"),
     _p("P-CHAN-00807", _D + "min_pos", "min_pos", "SGN32", "0.1 µm", "mm", UM, -50000, SGN32_MIN, SGN32_MAX,
        hi_open=True, description="Lower limit of the sensor reading (70576)",
        note="documented range '0 <= min_pos' contradicts its own default -50000 and the §12.8.3 "

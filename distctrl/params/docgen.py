@@ -24,8 +24,9 @@ def render() -> str:
         "*list unit*; distctrl converts them once, at loading, to the internal unit (mm, s). Unknown keys,",
         "values of the wrong type and values outside the range are load errors that name the file, the",
         "line, the key, the ID, the value and the range. Aliases are the legacy/German keys used in the",
-        "documents' examples. P-AXIS-00018 and the last three rows are axis data from the ISG axis list",
-        "that the controller needs; they are not part of the distance-control documents.",
+        "documents' examples and the other spellings the documents print (see the end of this page).",
+        "P-AXIS-00018 and the last three rows are axis data from the ISG axis list that the controller",
+        "needs; they are not part of the distance-control documents.",
         "",
         "**Rotary axes.** Every distance-control parameter is documented for the axis types T and R (FCT-M3",
         "§9.2, column \"Dimension\"). With `kenngr.achs_typ ACHSTYP_ROTATOR` (P-AXIS-00018) the list units are",
@@ -47,6 +48,12 @@ def render() -> str:
         lines.append(f"| {s.id} | `{s.key}` | {s.type} | {s.unit} | {s.unit_rotary or s.unit} | {s.range_text()} | "
                      f"{_default_text(s)} | `{s.field}` [{s.internal_unit}] | {desc} |")
     lines += ["", "Typo prefix `kenngnr.distsc.` (TF5200 Abstandskontrolle's overview) is accepted as `kenngr.distc.`.",
+              "",
+              "The six keys `kenngn.distc.mode_dist_use_both_encoder`, `kenngn.distc.use_adaptive_acceleration`,",
+              "`kenngn.distc.smoothing_factor`, `kenng.disc.a_weight_down`, `kenng.disc.filter_type` and",
+              "`kenng.disc.kalman_sigma` are the spellings TF5200 Abstandskontrolle §8.2 prints in its parameter",
+              "descriptions (P-AXIS-00500, 00501, 00784, 00534, 00782, 00783); they are accepted as aliases of",
+              "those six keys only (the prefixes `kenngn.distc.` and `kenng.disc.` are not aliases of other keys).",
               ""]
     return "\n".join(lines)
 

@@ -31,7 +31,7 @@ class ParamSpec:
     lo_open: bool = False        # True: lo itself not allowed
     hi_open: bool = False        # True: hi itself not allowed
     choices: tuple = ()          # for STRING / enumerated integers
-    aliases: tuple = ()          # legacy / German keys of the documents' examples
+    aliases: tuple = ()          # legacy / German keys of the documents' examples, other printed spellings
     description: str = ""
     note: str = ""               # where the project resolved a contradiction of the documents
     unit_rotary: str = ""        # list unit on a rotary axis (P-AXIS-00018 ACHSTYP_ROTATOR), if it differs
@@ -98,8 +98,7 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
     _p("P-AXIS-00418", "kenngr.distc.ref_offset", "ref_offset", "SGN32", "0.1 µm", "mm", UM, 0,
        SGN32_MIN, SGN32_MAX, hi_open=True, description="Reference point offset of the sensor measuring system"),
     _p("P-AXIS-00419", "kenngr.distc.max_pos", "max_pos", "SGN32", "0.1 µm", "mm", UM, 50000,
-       SGN32_MIN, SGN32_MAX, hi_open=True, description="Upper limit of the sensor reading (70330)",
-       note="documented range '0 <= max_pos' widened to SGN32 like min_pos"),
+       0, SGN32_MAX, hi_open=True, description="Upper limit of the sensor reading (70330)"),
     _p("P-AXIS-00420", "kenngr.distc.min_pos", "min_pos", "SGN32", "0.1 µm", "mm", UM, -50000,
        SGN32_MIN, SGN32_MAX, hi_open=True, description="Lower limit of the sensor reading (70576)",
        note="documented range '0 <= min_pos' contradicts its own default -50000: SGN32 range"),
@@ -110,9 +109,11 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
        1, 0, aliases=("kenngr.distc.check_switch_limit_switch",),
        description="Include the offset in the software limit switch monitoring"),
     _p("P-AXIS-00500", "kenngr.distc.mode_dist_use_both_encoder", "use_both_encoders", "BOOLEAN", "-", "bool",
-       1, 0, description="CONST_DIST: couple distance sensor and motor encoder"),
+       1, 0, aliases=("kenngn.distc.mode_dist_use_both_encoder",),
+       description="CONST_DIST: couple distance sensor and motor encoder"),
     _p("P-AXIS-00501", "kenngr.distc.use_adaptive_acceleration", "use_adaptive_acceleration", "BOOLEAN", "-",
-       "bool", 1, 0, description="Adaptive weighting of the acceleration by the distance error"),
+       "bool", 1, 0, aliases=("kenngn.distc.use_adaptive_acceleration",),
+       description="Adaptive weighting of the acceleration by the distance error"),
     _p("P-AXIS-00502", "kenngr.distc.a_min", "a_min", "UNS32", "mm/s²", "mm/s²", 1, 500, 1, UNS32_MAX,
        hi_open=True, description="Minimum acceleration (adaptive weighting)",
        note="FCT-M3 §9.2 prints 'mm/s²' for the axis type R too; on a rotary axis it is read as °/s², the unit "
@@ -130,7 +131,8 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
     _p("P-AXIS-00533", "kenngr.distc.v_weight_down", "v_weight_down", "UNS32", "0.1 %", "fraction", 1e-3, 0,
        0, 2000, hi_open=True, description="Velocity weighting of the lowering movement (0 = off)"),
     _p("P-AXIS-00534", "kenngr.distc.a_weight_down", "a_weight_down", "UNS32", "0.1 %", "fraction", 1e-3, 0,
-       0, 2000, hi_open=True, description="Acceleration weighting of the lowering movement (0 = off)"),
+       0, 2000, hi_open=True, aliases=("kenng.disc.a_weight_down",),
+       description="Acceleration weighting of the lowering movement (0 = off)"),
     _p("P-AXIS-00422", "lr_hw[1].encoder_resolution_num", "encoder_resolution_num", "UNS32", "increments",
        "increments", 1, 1, 0, UNS32_MAX, lo_open=True, hi_open=True,
        description="Sensor resolution numerator: num increments per denom x 0.1 µm (rotary axis: x 0.0001°)"),
@@ -151,11 +153,12 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
     _p("P-AXIS-00765", "kenngr.distc.d_tv", "d_tv", "REAL64", "s", "s", 1, 0.0, 0.0, 2.0,
        description="Derivative action time (0 = no D component)"),
     _p("P-AXIS-00782", "kenngr.distc.filter_type", "filter_type", "STRING", "-", "-", 1, "DEFAULT",
-       choices=FILTER_TYPE_NAMES, description="Filter for the sensor values"),
+       choices=FILTER_TYPE_NAMES, aliases=("kenng.disc.filter_type",), description="Filter for the sensor values"),
     _p("P-AXIS-00783", "kenngr.distc.kalman_sigma", "kalman_sigma", "REAL64", "-", "-", 1, 4.0, 1.0, 10000.0,
-       aliases=("kenngr.distc.sigma",), description="Kalman filter: uncertainty of the measured values"),
+       aliases=("kenngr.distc.sigma", "kenng.disc.kalman_sigma"), description="Kalman filter: uncertainty of the measured values"),
     _p("P-AXIS-00784", "kenngr.distc.smoothing_factor", "smoothing_factor", "REAL64", "-", "-", 1, 0.7, 0.0, 1.0,
-       lo_open=True, description="Exponential mean: weight of the newest value"),
+       lo_open=True, aliases=("kenngn.distc.smoothing_factor",),
+       description="Exponential mean: weight of the newest value"),
     # --- axis type (ISG axis list): translatory (T, mm) or rotary (R, °) distance-controlled axis ---
     _p("P-AXIS-00018", "kenngr.achs_typ", "axis_type", "STRING", "-", "-", 1, AXIS_TYPE_TRANSLATOR,
        choices=AXIS_TYPE_NAMES,

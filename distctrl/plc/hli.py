@@ -14,6 +14,9 @@ writing them; here every write of a cyclic value (:meth:`plc_cyclic`, or the ADS
 its ``valid_*`` flag, and only valid values are handed to the controller, which re-reads them every
 cycle while the PLC owns a running select (the value belonging to the running mode is used).
 :meth:`plc_cyclic_stop` (or writing FALSE to the flag symbol) ends the cyclic specification.
+A valid ``D_Position`` is also the REF_POS of a REF the PLC commands (FCT-M3 §8.2: "HLI_DIST_CTRL_REF:
+Reference position of the workpiece surface (REF_POS)"), taken in the cycle the REF is consumed
+(the controller does it: the value reaches it as ``CycleInput.cyclic_set_pos``; docs/plc.md).
 """
 from __future__ import annotations
 

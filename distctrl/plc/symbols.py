@@ -8,6 +8,8 @@ dereference) and ``pAC[axis_idx]^^.addr^.McControlLr_Data...``; distctrl drops t
     pAC[<i>].addr.McControlLr_Data.MCControl_DistanceControl.CyclicCommand.D_Position
 
 Raw values are little-endian. Symbols whose ``set`` is None are read-only (``state_r``).
+``command_semaphor_rw`` (HLI DistanceControl's spelling) is a second symbol of the same element as
+``command_semaphore_rw`` (FCT-M3 §8.2, TF5200 §9.2).
 """
 from __future__ import annotations
 
@@ -51,6 +53,10 @@ class SymbolSpec:
     @property
     def access(self) -> str:
         return "read/write" if self.set is not None else "read"
+
+
+#: HLI DistanceControl's spelling of ``command_semaphore_rw`` (served as a second name of it)
+SEMAPHORE_ALIAS = "command_semaphor_rw"
 
 
 def axis_unit_path(axis_index: int) -> str:
@@ -123,6 +129,13 @@ def hli_symbols(axis_index: int, unit: DistanceControlUnit) -> dict[str, SymbolS
         bool_setter("command_semaphore_rw", f"{base}.command_semaphore_rw"),
         "PLC sets TRUE to hand command_w over; the CNC clears it in the cycle it takes the command "
         "(HLI DistanceControl spells it command_semaphor_rw)")
+    # HLI DistanceControl prints the element as .command_semaphor_rw (FCT-M3 §8.2 and TF5200 §9.2:
+    # .command_semaphore_rw): the same element under the second name, so that a PLC or HMI written
+    # against either document finds it (upload, by name, by handle)
+    add(f"{base}.{SEMAPHORE_ALIAS}", 1, ADST_BIT, "BOOL",
+        lambda: b"\x01" if unit.command_semaphore_rw else b"\x00",
+        bool_setter("command_semaphore_rw", f"{base}.{SEMAPHORE_ALIAS}"),
+        "alias of command_semaphore_rw, the same element: HLI DistanceControl's spelling")
 
     # -- state_r (read-only)
     def state_bytes() -> bytes:

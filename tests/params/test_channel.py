@@ -67,7 +67,7 @@ CHECKED_RANGES = {
     "P-CHAN-00803": (0, False, MAX_SGN32, True),       # documented 0 < a_max, default 0: 0 loads, 315001 at run time
     "P-CHAN-00804": (0, False, MAX_SGN32, True),
     "P-CHAN-00805": (MIN_SGN32, False, MAX_SGN32, True),
-    "P-CHAN-00806": (MIN_SGN32, False, MAX_SGN32, True),   # documented 0 <= max_pos, widened like min_pos
+    "P-CHAN-00806": (0, False, MAX_SGN32, True),           # as documented (nothing contradicts 0 <= max_pos)
     "P-CHAN-00807": (MIN_SGN32, False, MAX_SGN32, True),   # documented 0 <= min_pos contradicts default -50000
     "P-CHAN-00808": (0, False, MAX_SGN32, True),
     "P-CHAN-00812": (1, False, MAX_UNS32, False),
@@ -106,7 +106,7 @@ def test_numeric_ranges(pid):
     lo, lo_open, hi, hi_open = CHECKED_RANGES[pid]
     spec = BY_ID[pid]
     assert (spec.lo, spec.lo_open, spec.hi, spec.hi_open) == (lo, lo_open, hi, hi_open)
-    if pid in ("P-CHAN-00803", "P-CHAN-00806", "P-CHAN-00807"):   # deviates from DOCUMENTED[pid][3]
+    if pid in ("P-CHAN-00803", "P-CHAN-00807"):   # deviates from DOCUMENTED[pid][3]
         assert spec.note and "documented" in spec.note
 
 
@@ -228,6 +228,7 @@ def test_axis_keys_are_unknown_in_a_channel_list_and_vice_versa(tmp_path):
     ("dist_ctrl[0].a_max -1", "P-CHAN-00803", "0 <= value < 2147483647"),
     ("dist_ctrl[0].max_deviation 2147483647", "P-CHAN-00801", "0 <= value < 2147483647"),
     ("dist_ctrl[0].tolerance -1", "P-CHAN-00808", "0 <= value < 2147483647"),
+    ("dist_ctrl[0].max_pos -10", "P-CHAN-00806", "0 <= value < 2147483647"),
     ("dist_ctrl[0].mode_dist_use_both_encoder 2", "P-CHAN-00810", "0 or 1"),
     ("dist_ctrl[0].low_pass_filter_enable 2", "P-CHAN-00815", "0 or 1"),
     ("dist_ctrl[0].filter_type KALMAN", "P-CHAN-00825", "MOVING_AVERAGE"),

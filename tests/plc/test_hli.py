@@ -295,6 +295,40 @@ def test_ref_position_is_the_reference_position_of_the_workpiece_surface():
     assert ax.state_r.actual_position == 385000 and ax.state_r.actual_distance == 25000
 
 
+def test_cyclic_d_position_is_the_ref_pos_when_ref_is_commanded_through_the_hli():
+    """FCT-M3 §8.2 / TF5200 §9.2, CyclicCommand.D_Position: 'HLI_DIST_CTRL_REF: Reference position of
+    the workpiece surface (REF_POS)'. With the cyclic position valid, the REF the PLC commands takes
+    D_Position as REF_POS (not command_w.position); without it, command_w.position (test above)."""
+    ax = Axis(p=41.0, surface=40.0)
+    ax.sensor_zero = 0.3                              # not referenced: the measured surface is 40.3 mm
+    ax.cycle(n=3)
+    assert ax.state_r.actual_position == 403000
+    ax.unit.plc_cyclic(position_mm=39.25)             # the PLC specifies the surface cyclically ...
+    ax.plc("REF", 12.0)                               # ... and commands REF (command_w.position 12 mm)
+    ax.cycle()
+    assert ax.state_r.actual_position == 392500 and ax.state_r.actual_distance == 17500
+    assert ax.state_r.actual_state == 0 and ax.events == []
+    # the reference holds: the cyclic value is REF_POS only of the REF it was valid with
+    ax.unit.plc_cyclic(position_mm=30.0)
+    ax.cycle(n=5)
+    assert ax.state_r.actual_position == 392500
+    # the PLC stops the cyclic specification: the next REF takes command_w.position again
+    ax.unit.plc_cyclic_stop()
+    ax.plc("REF", 40.0)
+    ax.cycle()
+    assert ax.state_r.actual_position == 400000
+
+
+def test_an_nc_ref_ignores_the_cyclic_position():
+    """NC REF has no value and references 'sensor zero' (SPEC §2); the PLC's cyclic values do not
+    apply to commands of the NC."""
+    ax = Axis(p=41.0, surface=40.0)
+    ax.sensor_zero = 0.3
+    ax.unit.plc_cyclic(position_mm=39.25)
+    ax.cycle(Command(Action.REF), n=2)
+    assert ax.state_r.actual_position == 410000 and ax.state_r.actual_distance == 0   # s = 0: surface = a
+
+
 def test_reset_acts_whoever_owns():
     ax = Axis(p=40.0, surface=40.0)
     ax.plc("ON", 40.0)
@@ -359,3 +393,7 @@ def test_in_the_stationary_state_the_offset_is_the_distance_between_surface_and_
     s = ax.state_r
     assert s.actual_position == round(surface * 1e4)
     assert s.actual_offset == s.actual_position - 400000
+    # the offset 'by which the axis was moved' (HLI DistanceControl's first sentence, FCT-M3 §2):
+    # command position - programmed position, with the same sign
+    assert s.actual_offset == round((ax.out.command_position - ax.p) * 1e4)
+    assert s.actual_offset == -(400000 - s.actual_position)       # the printed formula, negated

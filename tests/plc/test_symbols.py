@@ -20,6 +20,7 @@ EXPECTED = {
     f"{BASE}.command_w.position": (4, "DINT", True),
     f"{BASE}.enable_w": (1, "BOOL", True),
     f"{BASE}.command_semaphore_rw": (1, "BOOL", True),
+    f"{BASE}.command_semaphor_rw": (1, "BOOL", True),        # HLI DistanceControl's spelling, same element
     f"{BASE}.state_r": (20, "HLI_DISTANCE_CONTROL_STATE", False),
     f"{BASE}.state_r.actual_state": (4, "UDINT", False),
     f"{BASE}.state_r.actual_position": (4, "DINT", False),
@@ -126,3 +127,76 @@ def test_channel_status_symbols():
     members = [s for n, s in syms.items() if n != "gpCh[1].bahn_state"]
     assert all(s.set is None and s.type_name == "DINT" and s.size == 4 for s in members)
     assert syms["gpCh[1].bahn_state"].set is None
+
+
+# ---------------------------------------------------------------- the HLI description's spelling (M4)
+# HLI DistanceControl names the element ".command_semaphor_rw", FCT-M3 §8.2 and TF5200 §9.2
+# ".command_semaphore_rw": both names are served, for the same element, so a PLC or HMI written
+# against either document works.
+ALIAS = f"{BASE}.command_semaphor_rw"
+
+
+def test_the_hli_spelling_command_semaphor_rw_is_the_same_element():
+    unit = DistanceControlUnit()
+    syms = hli_symbols(1, unit)
+    alias, canonical = syms[ALIAS], syms[f"{BASE}.command_semaphore_rw"]
+    assert (alias.size, alias.type_name, alias.ads_type, alias.writable) == (1, "BOOL", 33, True)
+    assert "command_semaphore_rw" in alias.comment and "HLI DistanceControl" in alias.comment
+    unit.write_command(1, 400000)
+    unit.enable_w = True
+    alias.set(b"\x01")                                             # the PLC hands over by the HLI name
+    assert unit.command_semaphore_rw is True and canonical.get() == b"\x01"
+    with pytest.raises(SemaphoreBusyError):
+        syms[f"{BASE}.command_w.position"].set(struct.pack("<i", 1))
+    assert unit.consume() is not None
+    assert alias.get() == b"\x00" == canonical.get()              # cleared by the CNC: both names
+
+
+def _plc_device(unit):
+    from types import SimpleNamespace
+
+    from distctrl.ads.machine import PlcDevice
+    machine = SimpleNamespace(axis_names=["Z"], hli={"Z": unit}, channel_status=ChannelDistanceStatus(),
+                              process_program=None, variables={})
+    return PlcDevice(machine)
+
+
+def test_the_hli_spelling_works_with_pyads_by_name_by_handle_and_in_the_upload():
+    pyads = pytest.importorskip("pyads")
+    from distctrl.ads import AdsServer
+    from tests.ads import port_free
+    host, net_id = "127.0.0.9", "127.0.0.9.1.1"     # an address of this test's own (see tests/test_serve.py)
+    if not port_free(host, 48898):
+        pytest.skip("TCP 48898 is in use on this machine (pyads always connects to 48898)")
+    unit = DistanceControlUnit(1)
+    srv = AdsServer({851: _plc_device(unit)}, host=host, port=48898, net_id=net_id)
+    srv.start()
+    try:
+        plc = pyads.Connection(net_id, 851, host)
+        plc.open()
+        try:
+            upload = {s.name: s for s in plc.get_all_symbols()}
+            assert {ALIAS, f"{BASE}.command_semaphore_rw"} <= set(upload)
+            assert upload[ALIAS].plc_type == pyads.PLCTYPE_BOOL
+            # a PLC written against HLI DistanceControl: command_w, enable_w, then command_semaphor_rw
+            plc.write_by_name(f"{BASE}.command_w.transition", 1, pyads.PLCTYPE_UDINT)
+            plc.write_by_name(f"{BASE}.command_w.position", 400000, pyads.PLCTYPE_DINT)
+            plc.write_by_name(f"{BASE}.enable_w", True, pyads.PLCTYPE_BOOL)
+            plc.write_by_name(ALIAS, True, pyads.PLCTYPE_BOOL)
+            assert unit.command_semaphore_rw is True
+            assert plc.read_by_name(f"{BASE}.command_semaphore_rw", pyads.PLCTYPE_BOOL) is True
+            with pytest.raises(pyads.ADSError):                      # locked while the semaphore is TRUE
+                plc.write_by_name(f"{BASE}.command_w.position", 1, pyads.PLCTYPE_DINT)
+            assert unit.consume() == Command(Action.ON, set_pos=40.0, source=CommandSource.PLC)
+            handle = plc.get_handle(ALIAS)
+            try:
+                assert plc.read_by_name("", pyads.PLCTYPE_BOOL, handle=handle) is False   # the CNC cleared it
+                plc.write_by_name("", True, pyads.PLCTYPE_BOOL, handle=handle)
+                assert unit.command_semaphore_rw is True
+            finally:
+                plc.release_handle(handle)
+            assert plc.read_by_name(ALIAS.upper(), pyads.PLCTYPE_BOOL) is True     # case-insensitive, as TwinCAT
+        finally:
+            plc.close()
+    finally:
+        srv.stop()
