@@ -35,6 +35,7 @@ from ..errors.three_d import make_event_3d, severity_and_text
 from ..kinematics.frames import Frame
 from ..kinematics.kin98 import InclinationViolation, Kinematic98Params
 from ..nc.interpreter import NcAbort, NcInterpreter
+from ..nc.parser import parse_file, parse_program
 from ..nc.program import KinematicsWord, Program, kin_param_var
 from ..objects.units import mm_to_dint_01um, round_saturate
 from ..plc.chain import chain
@@ -173,6 +174,13 @@ class Machine:
                 self._sensor_out = f"V.E.{sc.output_variable}"   # an arc voltage: its voltage variable
                 self.variables.setdefault(self._sensor_out, 0.0)
         self.nc = NcInterpreter(program, self, file=scenario.program_file) if program is not None else None
+        #: the programs of the scenario's ``start`` events (CNC start, docs/scenarios.md), parsed now so
+        #: that a syntax error names its file and line before the run: event index -> (program, file)
+        self._start_programs = self._parse_starts(scenario, program)
+        self._start_pending: tuple | None = None      # a start waiting for the channel to be free
+        starts = [i for i, ev in enumerate(scenario.events) if ev.kind == "start"]
+        self._last_start = starts[-1] if starts else -1
+        self._path_override = 1.0                     # the channel override the scenario set last
         #: the axis whose sensor writes a V.E. variable (axis variant): a select that keeps reading the
         #: second encoder is warned about once (900031)
         self._variable_sensor_axis = sc.axis if sc is not None and sc.kind != "encoder" and not sc.orthogonal \
@@ -518,7 +526,7 @@ class Machine:
             if data.get("axis"):
                 self.inputs[data["axis"]].override = float(data["value"])
             else:
-                self.channel_override = float(data["value"])
+                self.channel_override = self._path_override = float(data["value"])
         elif kind == "feed_hold":
             if data.get("axis"):
                 self.inputs[data["axis"]].feed_hold = bool(data.get("value", True))
@@ -526,6 +534,8 @@ class Machine:
                 self.channel_override = 0.0 if data.get("value", True) else 1.0
         elif kind == "reset":
             self.reset()
+        elif kind == "start":
+            self._start_pending = self._start_programs[ev.index]
         elif kind == "axis_error":
             self.inputs[data["axis"]].commands.append(Command(Action.AXIS_ERROR))
             self.stop_program(None)
@@ -549,6 +559,45 @@ class Machine:
         if self.ch3d is not None:
             self.in3d.commands.append(Command3D(Action.RESET))
         self.stop_program(None)
+
+    @staticmethod
+    def _parse_starts(scenario, program) -> dict:
+        starts = {}
+        for ev in scenario.events:
+            if ev.kind != "start":
+                continue
+            data = ev.data
+            if "program" in data:
+                starts[ev.index] = (parse_file(data["program"]), data["program"])
+            elif "program_text" in data:
+                where = f"{scenario.path or '<scenario>'}:events[{ev.index}].start.program_text"
+                starts[ev.index] = (parse_program(data["program_text"], file=where), where)
+            else:
+                if program is None:
+                    program = parse_file(scenario.program_file) if scenario.program_file is not None else \
+                        parse_program(scenario.program_text, file=f"{scenario.path or '<scenario>'}:program_text")
+                starts[ev.index] = (program, scenario.program_file)
+        return starts
+
+    def _start(self) -> None:
+        """A ``start`` event (docs/scenarios.md): CNC start of the next program, once the channel is
+        free — the last program has ended or was stopped (reset, error) and the path stands. A block
+        a reset left standing ends where it stands; the channel override is the scenario's again."""
+        nc = self.nc
+        if nc is not None and nc.running:
+            return
+        interp = self.interp
+        if not interp.done:
+            if interp.path_velocity != 0.0:
+                return
+            interp.cancel()
+        program, file = self._start_pending
+        self._start_pending = None
+        self.nc = NcInterpreter(program, self, file=file)
+        self._program_end_sent = False
+        self._nc_error_reported = False
+        self._hd4_reported = False
+        self.channel_override = self._path_override
 
     def _warn_unread_sensor(self, axis: str, t: float, line) -> None:
         if self._unread_sensor_warned:
@@ -599,6 +648,8 @@ class Machine:
                                  if not self.hli[cmd[0]].plc_command(cmd[1], cmd[2])]
         if self.plc_program is not None:
             self.plc_program(self, k)
+        if self._start_pending is not None:
+            self._start()
         nc = self.nc
         if nc is None:
             return None
@@ -659,7 +710,7 @@ class Machine:
         """The NC line of cycle ``k``; runs the cycle start (events, PLC, NC) only when something is due."""
         nc = self.nc
         if (t + 0.5 * self.T >= self._next_event_t or self._plc_pending or self.plc_program is not None
-                or (nc is not None and self.interp.block == "idle")):
+                or (nc is not None and self.interp.block == "idle") or self._start_pending is not None):
             return self._cycle_start(k, t)
         return nc.line if nc is not None else None      # the common cycle: a block runs, nothing due
 
@@ -864,6 +915,8 @@ class Machine:
         braking into FREEZE or ERROR) is."""
         if not self.interp.done and self.interp.path_velocity != 0.0:
             return False
+        if self._start_pending is not None or self._event_index <= self._last_start:
+            return False                                 # a program is still to be started
         if any(lm.velocity != 0.0 for lm in self.lift_motions):
             return False
         tracking = set()
