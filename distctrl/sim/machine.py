@@ -31,7 +31,7 @@ from ..control import (Action, AxisDistanceController, Command, CycleInput, Cycl
 from ..control.commands3d import Command3D, CompensationMode
 from ..control.controller3d import ChannelDistanceController, Cycle3DInput, Cycle3DOutput
 from ..errors import ErrorEvent, ErrorId, ParameterError
-from ..errors.three_d import make_event_3d, severity_and_text
+from ..errors.three_d import event_to_3d, make_event_3d, severity_and_text
 from ..kinematics.frames import Frame
 from ..kinematics.kin98 import InclinationViolation, Kinematic98Params
 from ..nc.interpreter import NcAbort, NcInterpreter
@@ -229,6 +229,8 @@ class Machine:
         self._shift3d_any = False
         self._last_comp = (0.0, 0.0, 0.0)
         self._hd4_reported = False
+        #: a #DIST CTRL WAIT block is waiting for the 3D distance control (f_wait_for_finished)
+        self.wait_3d = False
         self._var_names: dict[str, str] = {}
         self.notes: list[str] = []
         # trace values of the kinematic path
@@ -303,7 +305,9 @@ class Machine:
 
     def dist_ctrl_3d_done(self, action: Action) -> bool:
         """WAIT of ``#DIST CTRL``: as the axis command (select reached its target once, OFF INACTIVE)."""
-        return _wait_done(self.out3d.core, action)
+        done = _wait_done(self.out3d.core, action)
+        self.wait_3d = not done                      # the diagnosis block's f_wait_for_finished
+        return done
 
     def _var_name(self, var: str) -> str:
         name = self._var_names.get(var)
@@ -629,6 +633,7 @@ class Machine:
         """Stop reading blocks; the running motion decelerates and holds."""
         if self.nc is not None and self.nc.running:
             self.nc.abort(error)
+        self.wait_3d = False
         self.interp.feed_override = 0.0
         self.channel_override = 0.0
 
@@ -892,14 +897,33 @@ class Machine:
 
         o3 = self.out3d
         ch = self.ch3d
+        st = ch.core.state
+        f = ch.core.tuning.filter
+        state = o3.core.hli_state
+        frozen = state == _FREEZE_CODE
+        # the MODE in effect: the running select's (or the one a reset's kept offset lies along);
+        # OFF while nothing is selected. The MODE the next select uses is the programmed one.
+        in_effect = state != _INACTIVE3D or o3.static
+        axis_index = self.axis_names.index(ch.direction_axis) if ch.direction_axis in self.axis_names else 0
+        sensor_var = st.sensor_var or self.sensor_variable
         return Channel3DValues.from_cycle_output(
             o3.core, offset=o3.delta, m_actual_offset=o3.core.offset, cmd_offset=o3.core.offset,
+            cmd_offset_frozen=o3.core.offset if frozen else 0.0, freeze=frozen,
+            wait_for_finished=self.wait_3d and self.nc is not None and self.nc.running,
+            control_mode=int(st.mode), programmed_set_pos=st.programmed_set_pos,
+            programmed_set_dist=st.programmed_set_dist,
             compensation_x=o3.compensation[0], compensation_y=o3.compensation[1], compensation_z=o3.compensation[2],
-            inclination_rad=o3.inclination, compensation_mode=int(ch.mode), direction=ch.direction_axis,
+            inclination_rad=o3.inclination,
+            compensation_mode=int(ch.mode) if in_effect else int(CompensationMode.OFF),
+            new_compensation_mode=int(ch.mode), direction=ch.direction_axis,
+            active_axis_index=axis_index, new_axis_index=axis_index,
             orthogonal_set_distance=o3.orthogonal_set_distance, blend_active=0.0 < o3.blend < 1.0,
-            filter_time=ch.filter_time, tool_length=self.tool_length, virtual_tool_length=self.virt_tool_length,
-            hli_state=o3.core.hli_state, events=list(o3.events),
-            pending=dict(ch.core.state.pending))      # writes waiting for their adoption (docs/objects-3d.md)
+            filter_time=ch.filter_time, fg_f0=f.fg_f0, order=f.order,
+            tool_length=self.tool_length, virtual_tool_length=self.virt_tool_length,
+            sensor_source=st.sensor_source.name, sensor_var=self._var_name(sensor_var) if sensor_var else None,
+            ref_shift=st.ref_shift, error=event_to_3d(st.error) if st.error is not None else None,
+            hli_state=state, events=list(o3.events),
+            pending=dict(st.pending))                 # writes waiting for their adoption (docs/objects-3d.md)
 
     def publish_all(self) -> None:
         """Fill every control unit's ``state_r`` from the last cycle."""
@@ -946,6 +970,7 @@ class Machine:
 
 
 _TURNING_OFF_CODE = int(HliState.TURNING_OFF)
+_FREEZE_CODE = int(HliState.FREEZE)
 #: states distance control stays in after the program until something commands it
 _STEADY_CODES = frozenset(int(s) for s in (HliState.ACTIVE, HliState.ACTIVE_CONST_DIST, HliState.FREEZE,
                                            HliState.DRYRUN_CONST_DIST, HliState.DRYRUN_SETPOS))
