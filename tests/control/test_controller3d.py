@@ -389,3 +389,16 @@ def test_mode_cannot_change_while_a_reset_keeps_the_offset_51064():
     lp.cycle(Command3D(Action.OFF), n=1000)
     out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.ECS, line=13))
     assert out.events == [] and lp.ctrl.mode == M.ECS                 # after OFF it may change
+
+
+@pytest.mark.parametrize("action", [Action.RESET, Action.PROGRAM_END])
+@pytest.mark.parametrize("const_dist", [True, False])
+def test_reset_and_program_end_forget_set_pos_and_set_dist(action, const_dist):
+    """PROG #DIST CTRL SET_POS / SET_DIST: "In the event of reset or program end, the set position is
+    reset, i.e. a new set position must be specified before distance control is reactivated" (310026)."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    value = {"set_dist": 1.5} if const_dist else {"set_pos": 40.0}
+    lp.cycle(Command3D(Action.ON, const_dist=const_dist, mode=M.MCS, **value), n=300)
+    lp.cycle(Command3D(action), n=5)
+    out = lp.cycle(Command3D(Action.ON, const_dist=const_dist, line=8))
+    assert [(e.id, e.line) for e in out.events] == [(310026, 8)]
