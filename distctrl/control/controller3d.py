@@ -317,4 +317,6 @@ class ChannelDistanceController:
         self.core._to_inactive()
         st.pending_dryrun = None
         st.programmed_set_pos = st.programmed_set_dist = None
+        if st.offset == 0.0 and st.velocity == 0.0:
+            self.static = False                        # nothing to keep
 

@@ -402,3 +402,15 @@ def test_reset_and_program_end_forget_set_pos_and_set_dist(action, const_dist):
     lp.cycle(Command3D(action), n=5)
     out = lp.cycle(Command3D(Action.ON, const_dist=const_dist, line=8))
     assert [(e.id, e.line) for e in out.events] == [(310026, 8)]
+
+
+def test_a_reset_with_nothing_to_keep_leaves_no_kept_offset_behind():
+    """A reset while selected with the offset 0 and at rest keeps nothing: not static, and the next
+    program may choose another MODE."""
+    lp = Loop(params(), z=41.5, surface=40.0)                       # distance = SET_DIST: offset stays 0
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS), n=100)
+    assert lp.out.core.offset == 0.0 and lp.out.core.offset_velocity == 0.0
+    out = lp.cycle(Command3D(Action.RESET))
+    assert out.core.hli_state == 0 and not out.static
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.ECS, line=4))
+    assert out.events == [] and lp.ctrl.mode == M.ECS
