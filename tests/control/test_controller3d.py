@@ -414,3 +414,23 @@ def test_a_reset_with_nothing_to_keep_leaves_no_kept_offset_behind():
     assert out.core.hli_state == 0 and not out.static
     out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.ECS, line=4))
     assert out.events == [] and lp.ctrl.mode == M.ECS
+
+
+@pytest.mark.parametrize("action", [Action.PROGRAM_END, Action.RESET], ids=["program_end", "reset"])
+def test_a_filter_time_blend_at_program_end_or_reset_is_folded_into_the_kept_offset(action):
+    """A FILTER_TIME blend-in that runs at program end / reset ends there: the compensation applied
+    at that moment is kept (no jump), and from then on the reported offset is the applied one."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS, filter_time=400))
+    before = lp.cycle(n=100)
+    assert 0.0 < before.blend < 0.5 and before.delta != before.core.offset
+    applied = before.delta
+    out = lp.cycle(Command3D(action))
+    assert abs(out.delta - applied) <= 100.0 * 0.001 + 1e-12 and out.blend == 1.0
+    deltas = [applied, out.delta]
+    for _ in range(300):
+        out = lp.cycle()
+        deltas.append(out.delta)
+        assert _reported_is_applied(out) and out.blend == 1.0
+    _within_limits(deltas, 100.0, 20000.0)
+    assert deltas[-1] == deltas[-2]                                   # held
