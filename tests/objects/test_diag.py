@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import pytest
 
@@ -253,7 +254,7 @@ def test_diagnosis_shows_the_n_the_filter_uses_under_default():
 
 
 # ----------------------------------------------------------------------------- 3D on a running machine
-ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[2]
 SCN = ROOT / "examples" / "scenarios"
 
 #: PROG #DIST CTRL example 1's machine (ACS on Z, the sheet 1.2 mm below Z10), through every state
