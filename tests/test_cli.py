@@ -101,6 +101,26 @@ def test_diag_prints_the_3d_block_for_a_3d_channel():
     assert "DiagData 3D distance control" in res.output and "FCT_3D_DIST_CTRL" in res.output
 
 
+@pytest.mark.parametrize("seconds, state", [(20, "ACTIVE_CONST_DIST (4)"), (24, "FREEZE (2)")])
+def test_diag_3d_block_of_the_running_application_example(seconds, state):
+    """Audit W3: `distctrl diag examples/scenarios/app_30_60.toml --seconds 20 / 24` showed mode SET_POS,
+    sollw 0 and no sensor variable in CONST_DIST, and f_freeze 0 in FREEZE."""
+    import json
+    res = CliRunner().invoke(main, ["diag", str(ROOT / "examples" / "scenarios" / "app_30_60.toml"),
+                                    "--seconds", str(seconds), "--json"])
+    assert res.exit_code == 0, res.output
+    block = json.loads(res.output)["blocks"][0]
+    assert block["title"] == "DiagData 3D distance control: Kanal 1"
+    sec = {k: v["value"] for s in block["sections"].values() for k, v in s.items()}
+    assert sec["hli_state"] == state and sec["mode"] == "CONST_DIST (1)"
+    assert sec["sollw"] == sec["set_distance"] == sec["orthogonal_set_distance"] > 0   # SET_DIST·cos θ·Lv/L
+    assert sec["sollw_prog"] == 80.0 and sec["sensor_var"] == "V.E.SENSOR"
+    assert sec["active_mode"] == sec["new_mode"] == "MCS (2)"
+    frozen = state.startswith("FREEZE")
+    assert sec["f_freeze"] == int(frozen)
+    assert sec["cmd_offset_frozen"] == (sec["cmd_offset"] if frozen else 0.0) and sec["cmd_offset"] < -0.5
+
+
 def test_params_checks_the_low_pass_cut_off_against_the_cycle_time(tmp_path):
     f = tmp_path / "lp.lis"
     f.write_text("kenngr.distc.filter_type LOWPASS\nkenngr.distc.low_pass_filter_fg_f0 600\n")

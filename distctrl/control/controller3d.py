@@ -16,6 +16,16 @@ Additional rules of the 3D variant: a_max must be > 0 (315001 at select); MODE m
 active (51064); ECS needs kinematic 98 active; FILTER_TIME = N > 0 blends activation (weight sin²(π/2·k/N))
 and deactivation by OFF (cos²(π/2·k/N) times the core's run-out; not OFF NO_MOVE); reset and program end keep the current offset as a static offset and sensor
 changes no longer act (FCT-M3 §12.4.4). Errors of the core are reported with their 3D IDs.
+
+Reset and program end (FCT-M3 §12.4.4, docs/run-3d.md): the offset is *retained* in the core itself,
+so what the control reports (the core's offset, ``DIST_CTRL[0]::m_actual_offset``) is always what it
+superimposes. Program end while selected: the core stays in its state and holds (override 0: it
+brakes within v_max/a_max and stands); a new select with its set value resumes tracking from there.
+Program end while TURNING_OFF (already deselected) lets the run-out finish. Reset: the core is
+deselected (INACTIVE, set values forgotten) *without* absorbing its offset: the offset brakes within
+the limits and stays; a new select takes it over as its start value (bumpless), OFF runs it out to
+zero, OFF NO_MOVE hands it to the channel. A FILTER_TIME blend that runs at reset or program end
+ends there with its weight folded into the retained offset.
 """
 from __future__ import annotations
 
@@ -72,7 +82,7 @@ class Cycle3DOutput:
     inclination: float = 0.0                # θ, rad
     orthogonal_set_distance: float = 0.0    # SET_DIST · cos θ · extension, mm
     blend: float = 1.0                      # FILTER_TIME weight 0..1
-    static: bool = False                    # reset / program end: the offset is kept, sensor ignored
+    static: bool = False                    # reset / program end: the offset is retained, sensor ignored
     events: list = field(default_factory=list)
 
 
@@ -95,11 +105,10 @@ class ChannelDistanceController:
         self.blending_out = False           # FILTER_TIME blend of a deactivation (OFF) running
         self.blend_from = 1.0               # the weight the deactivation blend starts from
         self._last_weight = 1.0
-        self.static = False                 # reset / program end: offset kept, no sensor changes
-        self.static_delta = 0.0
+        self.static = False                 # reset / program end: offset retained, no sensor changes
+        self._reselect = False              # a select was passed to the core while static (resume if it took)
         self._kin98_active = False
         self._trafo_tool_length: float | None = None   # tool length while a kinematic transformation is on
-        self._last_delta = 0.0                # the compensation superimposed in the last cycle, mm
         self._core_in = CycleInput()
         self._core_in.commands = []
         # the 3D variant's default sensor source is the V.E. variable (SPEC §2)
@@ -139,6 +148,12 @@ class ChannelDistanceController:
         result = self.core.update(core_in, out.core)
         for ev in out.core.events:
             events.append(event_to_3d(ev))
+        if self._reselect:
+            # a select after program end / reset: tracking resumes from the retained offset once the
+            # core has accepted it (a refused one, e.g. 310026 without a set value, keeps it retained)
+            self._reselect = False
+            if not any(ev.severity == "error" for ev in out.core.events):
+                self.static = False
         state = out.core.hli_state
         # the compensation direction of the MODE
         mode = self.mode
@@ -155,7 +170,9 @@ class ChannelDistanceController:
         # compensation is weighted by sin²(π/2·k/N) after a select and by cos²(π/2·k/N) after OFF (the
         # core runs its offset out within the limits meanwhile; the product falls to 0 in N cycles)
         w = 1.0
-        if self.blending_out:
+        if self.static:
+            pass                                         # retained: no blend runs (folded in at retention)
+        elif self.blending_out:
             self.blend_k += 1
             k_n = self.blend_k / self.filter_time
             w = self.blend_from * math.cos(0.5 * math.pi * k_n) ** 2 if k_n < 1.0 else 0.0
@@ -169,9 +186,6 @@ class ChannelDistanceController:
             self.blending_in = self.blending_out = False
         self._last_weight = w
         delta *= w
-        if self.static:
-            delta = self.static_delta
-        self._last_delta = delta
         out.mode = int(mode)
         out.direction = tuple(e)
         out.delta = delta
@@ -201,15 +215,23 @@ class ChannelDistanceController:
             events.append(make_event_3d(310028, cycle, cmd.line,
                                         f"SENSOR_VAR {self.core.state.sensor_var} -> {cmd.sensor_var}"))
             return
-        if cmd.action in (Action.RESET, Action.PROGRAM_END):
-            # FCT-M3 §12.4.4: the offset stays as a static offset, sensor changes no longer act
-            if running and not self.static:
-                self.static = True
-                self.static_delta = self._current_delta()
+        st = self.core.state
+        if cmd.action == Action.PROGRAM_END:
+            # FCT-M3 §12.4.4: a selected control keeps its offset as a static offset and sensor changes
+            # no longer act (the core holds, warning 310021); a deselected one (TURNING_OFF) runs out
+            if st.hli_state not in (HliState.INACTIVE, HliState.TURNING_OFF) and not self.static:
+                self._retain()
             core_cmds.append(Command(cmd.action, line=cmd.line))
             return
+        if cmd.action == Action.RESET:
+            if st.hli_state != HliState.INACTIVE or st.offset != 0.0 or st.velocity != 0.0:
+                self._reset_keeping_offset(core_cmds)
+            else:
+                core_cmds.append(Command(cmd.action, line=cmd.line))   # nothing to keep: the core's reset
+            return
+        retained = self.static and not running        # a reset's offset, still applied while INACTIVE
         if cmd.mode is not None and cmd.mode != self.mode:
-            if running:
+            if running or retained:
                 events.append(make_event_3d(51064, cycle, cmd.line, f"{self.mode.name} -> {cmd.mode.name}"))
                 return
             self.mode = cmd.mode
@@ -230,8 +252,9 @@ class ChannelDistanceController:
                 events.append(make_event_3d(310015, cycle, cmd.line,
                                             "MODE=ECS needs kinematic 98 active (#KIN ID[98], #TRAFO ON)"))
                 return
-            if not running:
-                self.static = False
+            if self.static:
+                self._reselect = True                     # resume from the retained offset (no blend-in)
+            elif not running:
                 self.blend_k = 0
                 self.blending_in = self.filter_time > 0
             if self.mode == CompensationMode.OFF:
@@ -239,6 +262,10 @@ class ChannelDistanceController:
                 events.append(make_event_3d(900023, cycle, cmd.line))
             self._check_tool_length(cmd, events, cycle)
         if cmd.action == Action.OFF:
+            if retained and (st.offset != 0.0 or st.velocity != 0.0):
+                # the reset's retained offset: OFF runs it out to zero within the limits, OFF NO_MOVE
+                # hands it to the channel, as for a selected control (FCT-M3 §12.4.4)
+                st.hli_state = HliState.TURNING_OFF
             self.static = False
             if self.filter_time > 0 and running and not cmd.no_move and not self.blending_out:
                 self.blend_from = self._last_weight
@@ -263,6 +290,33 @@ class ChannelDistanceController:
             events.append(make_event_3d(900024, cycle, cmd.line,
                                         f"SET_DIST {set_dist:g} mm, tool length {length:g} mm"))
 
-    def _current_delta(self) -> float:
-        return self._last_delta
+    def _retain(self) -> None:
+        """Reset / program end: keep the offset applied now as a static offset. A running FILTER_TIME
+        blend ends here: its weight is folded into the core's offset (and velocity), so the applied
+        compensation does not jump and the core's offset is what is applied from now on."""
+        w = self._last_weight
+        if w != 1.0:
+            st = self.core.state
+            st.offset *= w
+            st.velocity *= w
+        self.blending_in = self.blending_out = False
+        self._last_weight = 1.0
+        self.static = True
+
+    def _reset_keeping_offset(self, core_cmds: list) -> None:
+        """FCT-M3 §12.4.4 reset: "the program stops within the dynamic limits. The previous offset due
+        to distance control is retained, i.e. no further sensor changes are carried out." The core is
+        deselected as by its own RESET (INACTIVE, set values forgotten, SPEC §8) but its offset is not
+        absorbed: INACTIVE holds, so a moving offset brakes within the limits and then stays. Done on
+        the core's public state before its cycle, so the commands queued after the reset act after it;
+        selects, deselects and set values queued before it in the same cycle are cancelled by it."""
+        core_cmds[:] = [c for c in core_cmds if not (isinstance(c, Command) and (
+            c.action != Action.NONE or c.set_pos is not None or c.set_dist is not None))]
+        self._retain()
+        st = self.core.state
+        self.core._to_inactive()
+        st.pending_dryrun = None
+        st.programmed_set_pos = st.programmed_set_dist = None
+        if st.offset == 0.0 and st.velocity == 0.0:
+            self.static = False                        # nothing to keep
 

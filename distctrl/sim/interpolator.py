@@ -214,6 +214,16 @@ class Interpolator:
             self._dwell_left = n
             self.block = "dwell"
 
+    def cancel(self) -> None:
+        """End the running block where the path stands (a CNC reset followed by a new start): the
+        programmed positions stay, the next block starts from them. Only at rest."""
+        if self.path_velocity != 0.0 and self.block in ("linear", "rapid"):
+            raise RuntimeError("cancel while the path still moves")
+        self.block = "idle"
+        self._moving = ()
+        self._dwell_left = 0
+        self.path_velocity = 0.0
+
     # -- per cycle ----------------------------------------------------------------------------------
     def step(self) -> dict[str, float]:
         """Advance one cycle; return the programmed positions (a new dict, mm)."""

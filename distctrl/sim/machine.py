@@ -31,10 +31,11 @@ from ..control import (Action, AxisDistanceController, Command, CycleInput, Cycl
 from ..control.commands3d import Command3D, CompensationMode
 from ..control.controller3d import ChannelDistanceController, Cycle3DInput, Cycle3DOutput
 from ..errors import ErrorEvent, ErrorId, ParameterError
-from ..errors.three_d import make_event_3d, severity_and_text
+from ..errors.three_d import event_to_3d, make_event_3d, severity_and_text
 from ..kinematics.frames import Frame
 from ..kinematics.kin98 import InclinationViolation, Kinematic98Params
 from ..nc.interpreter import NcAbort, NcInterpreter
+from ..nc.parser import parse_file, parse_program
 from ..nc.program import KinematicsWord, Program, kin_param_var
 from ..objects.units import mm_to_dint_01um, round_saturate
 from ..plc.chain import chain
@@ -173,6 +174,13 @@ class Machine:
                 self._sensor_out = f"V.E.{sc.output_variable}"   # an arc voltage: its voltage variable
                 self.variables.setdefault(self._sensor_out, 0.0)
         self.nc = NcInterpreter(program, self, file=scenario.program_file) if program is not None else None
+        #: the programs of the scenario's ``start`` events (CNC start, docs/scenarios.md), parsed now so
+        #: that a syntax error names its file and line before the run: event index -> (program, file)
+        self._start_programs = self._parse_starts(scenario, program)
+        self._start_pending: tuple | None = None      # a start waiting for the channel to be free
+        starts = [i for i, ev in enumerate(scenario.events) if ev.kind == "start"]
+        self._last_start = starts[-1] if starts else -1
+        self._path_override = 1.0                     # the channel override the scenario set last
         #: the axis whose sensor writes a V.E. variable (axis variant): a select that keeps reading the
         #: second encoder is warned about once (900031)
         self._variable_sensor_axis = sc.axis if sc is not None and sc.kind != "encoder" and not sc.orthogonal \
@@ -221,6 +229,8 @@ class Machine:
         self._shift3d_any = False
         self._last_comp = (0.0, 0.0, 0.0)
         self._hd4_reported = False
+        #: a #DIST CTRL WAIT block is waiting for the 3D distance control (f_wait_for_finished)
+        self.wait_3d = False
         self._var_names: dict[str, str] = {}
         self.notes: list[str] = []
         # trace values of the kinematic path
@@ -295,7 +305,9 @@ class Machine:
 
     def dist_ctrl_3d_done(self, action: Action) -> bool:
         """WAIT of ``#DIST CTRL``: as the axis command (select reached its target once, OFF INACTIVE)."""
-        return _wait_done(self.out3d.core, action)
+        done = _wait_done(self.out3d.core, action)
+        self.wait_3d = not done                      # the diagnosis block's f_wait_for_finished
+        return done
 
     def _var_name(self, var: str) -> str:
         name = self._var_names.get(var)
@@ -518,7 +530,7 @@ class Machine:
             if data.get("axis"):
                 self.inputs[data["axis"]].override = float(data["value"])
             else:
-                self.channel_override = float(data["value"])
+                self.channel_override = self._path_override = float(data["value"])
         elif kind == "feed_hold":
             if data.get("axis"):
                 self.inputs[data["axis"]].feed_hold = bool(data.get("value", True))
@@ -526,6 +538,8 @@ class Machine:
                 self.channel_override = 0.0 if data.get("value", True) else 1.0
         elif kind == "reset":
             self.reset()
+        elif kind == "start":
+            self._start_pending = self._start_programs[ev.index]
         elif kind == "axis_error":
             self.inputs[data["axis"]].commands.append(Command(Action.AXIS_ERROR))
             self.stop_program(None)
@@ -549,6 +563,45 @@ class Machine:
         if self.ch3d is not None:
             self.in3d.commands.append(Command3D(Action.RESET))
         self.stop_program(None)
+
+    @staticmethod
+    def _parse_starts(scenario, program) -> dict:
+        starts = {}
+        for ev in scenario.events:
+            if ev.kind != "start":
+                continue
+            data = ev.data
+            if "program" in data:
+                starts[ev.index] = (parse_file(data["program"]), data["program"])
+            elif "program_text" in data:
+                where = f"{scenario.path or '<scenario>'}:events[{ev.index}].start.program_text"
+                starts[ev.index] = (parse_program(data["program_text"], file=where), where)
+            else:
+                if program is None:
+                    program = parse_file(scenario.program_file) if scenario.program_file is not None else \
+                        parse_program(scenario.program_text, file=f"{scenario.path or '<scenario>'}:program_text")
+                starts[ev.index] = (program, scenario.program_file)
+        return starts
+
+    def _start(self) -> None:
+        """A ``start`` event (docs/scenarios.md): CNC start of the next program, once the channel is
+        free — the last program has ended or was stopped (reset, error) and the path stands. A block
+        a reset left standing ends where it stands; the channel override is the scenario's again."""
+        nc = self.nc
+        if nc is not None and nc.running:
+            return
+        interp = self.interp
+        if not interp.done:
+            if interp.path_velocity != 0.0:
+                return
+            interp.cancel()
+        program, file = self._start_pending
+        self._start_pending = None
+        self.nc = NcInterpreter(program, self, file=file)
+        self._program_end_sent = False
+        self._nc_error_reported = False
+        self._hd4_reported = False
+        self.channel_override = self._path_override
 
     def _warn_unread_sensor(self, axis: str, t: float, line) -> None:
         if self._unread_sensor_warned:
@@ -580,6 +633,7 @@ class Machine:
         """Stop reading blocks; the running motion decelerates and holds."""
         if self.nc is not None and self.nc.running:
             self.nc.abort(error)
+        self.wait_3d = False
         self.interp.feed_override = 0.0
         self.channel_override = 0.0
 
@@ -599,6 +653,8 @@ class Machine:
                                  if not self.hli[cmd[0]].plc_command(cmd[1], cmd[2])]
         if self.plc_program is not None:
             self.plc_program(self, k)
+        if self._start_pending is not None:
+            self._start()
         nc = self.nc
         if nc is None:
             return None
@@ -659,7 +715,7 @@ class Machine:
         """The NC line of cycle ``k``; runs the cycle start (events, PLC, NC) only when something is due."""
         nc = self.nc
         if (t + 0.5 * self.T >= self._next_event_t or self._plc_pending or self.plc_program is not None
-                or (nc is not None and self.interp.block == "idle")):
+                or (nc is not None and self.interp.block == "idle") or self._start_pending is not None):
             return self._cycle_start(k, t)
         return nc.line if nc is not None else None      # the common cycle: a block runs, nothing due
 
@@ -841,14 +897,33 @@ class Machine:
 
         o3 = self.out3d
         ch = self.ch3d
+        st = ch.core.state
+        f = ch.core.tuning.filter
+        state = o3.core.hli_state
+        frozen = state == _FREEZE_CODE
+        # the MODE in effect: the running select's (or the one a reset's kept offset lies along);
+        # OFF while nothing is selected. The MODE the next select uses is the programmed one.
+        in_effect = state != _INACTIVE3D or o3.static
+        axis_index = self.axis_names.index(ch.direction_axis) if ch.direction_axis in self.axis_names else 0
+        sensor_var = st.sensor_var or self.sensor_variable
         return Channel3DValues.from_cycle_output(
             o3.core, offset=o3.delta, m_actual_offset=o3.core.offset, cmd_offset=o3.core.offset,
+            cmd_offset_frozen=o3.core.offset if frozen else 0.0, freeze=frozen,
+            wait_for_finished=self.wait_3d and self.nc is not None and self.nc.running,
+            control_mode=int(st.mode), programmed_set_pos=st.programmed_set_pos,
+            programmed_set_dist=st.programmed_set_dist,
             compensation_x=o3.compensation[0], compensation_y=o3.compensation[1], compensation_z=o3.compensation[2],
-            inclination_rad=o3.inclination, compensation_mode=int(ch.mode), direction=ch.direction_axis,
+            inclination_rad=o3.inclination,
+            compensation_mode=int(ch.mode) if in_effect else int(CompensationMode.OFF),
+            new_compensation_mode=int(ch.mode), direction=ch.direction_axis,
+            active_axis_index=axis_index, new_axis_index=axis_index,
             orthogonal_set_distance=o3.orthogonal_set_distance, blend_active=0.0 < o3.blend < 1.0,
-            filter_time=ch.filter_time, tool_length=self.tool_length, virtual_tool_length=self.virt_tool_length,
-            hli_state=o3.core.hli_state, events=list(o3.events),
-            pending=dict(ch.core.state.pending))      # writes waiting for their adoption (docs/objects-3d.md)
+            filter_time=ch.filter_time, fg_f0=f.fg_f0, order=f.order,
+            tool_length=self.tool_length, virtual_tool_length=self.virt_tool_length,
+            sensor_source=st.sensor_source.name, sensor_var=self._var_name(sensor_var) if sensor_var else None,
+            ref_shift=st.ref_shift, error=event_to_3d(st.error) if st.error is not None else None,
+            hli_state=state, events=list(o3.events),
+            pending=dict(st.pending))                 # writes waiting for their adoption (docs/objects-3d.md)
 
     def publish_all(self) -> None:
         """Fill every control unit's ``state_r`` from the last cycle."""
@@ -864,6 +939,8 @@ class Machine:
         braking into FREEZE or ERROR) is."""
         if not self.interp.done and self.interp.path_velocity != 0.0:
             return False
+        if self._start_pending is not None or self._event_index <= self._last_start:
+            return False                                 # a program is still to be started
         if any(lm.velocity != 0.0 for lm in self.lift_motions):
             return False
         tracking = set()
@@ -893,6 +970,7 @@ class Machine:
 
 
 _TURNING_OFF_CODE = int(HliState.TURNING_OFF)
+_FREEZE_CODE = int(HliState.FREEZE)
 #: states distance control stays in after the program until something commands it
 _STEADY_CODES = frozenset(int(s) for s in (HliState.ACTIVE, HliState.ACTIVE_CONST_DIST, HliState.FREEZE,
                                            HliState.DRYRUN_CONST_DIST, HliState.DRYRUN_SETPOS))

@@ -271,6 +271,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     try:
         for k in range(max_cycles):
             step()
+            nc = machine.nc                              # a scenario's start event begins another program
             line = nc.line if nc is not None else None
             if decimate == 1 or k % decimate == 0:
                 append(build_row(k * T, -1 if line is None else line))

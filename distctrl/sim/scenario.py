@@ -111,6 +111,7 @@ EVENT_KINDS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "sensor_fault": (("kind", "value", "duration", "duration_cycles", "rate"), ("kind",)),
     "variable": (("name", "value"), ("name", "value")),
     "plc_cyclic": (("axis", "position", "distance"), ("axis",)),
+    "start": (("program", "program_text"), ()),
 }
 _FAULT_KEYS = ("kind", "start_time", "start_cycle", "duration", "duration_cycles", "value", "rate")
 
@@ -714,7 +715,7 @@ def _channel_config(cfg: object, axes: dict[str, AxisConfig], base_dir: Path
 
 
 def _event(n: int, cfg: object, axes: dict[str, AxisConfig], sensor: SensorConfig | None,
-           duration: float | None) -> Event:
+           duration: float | None, base_dir: Path = Path(".")) -> Event:
     key = f"events[{n}]"
     actions = tuple(EVENT_KINDS)
     require_mapping(cfg, key, ("t",) + actions, required=("t",))
@@ -756,6 +757,20 @@ def _event(n: int, cfg: object, axes: dict[str, AxisConfig], sensor: SensorConfi
                 "value": _bool(body.get("value", True), f"{akey}.value")}
     elif kind == "reset":
         data = {}
+    elif kind == "start":
+        # CNC start of a program (docs/scenarios.md): the scenario's own one, or another file / text
+        if "program" in body and "program_text" in body:
+            raise ConfigError(f"{akey}.program_text", "...", "at most one of 'program' (a file) or "
+                              "'program_text'", "both 'program' and")
+        if "program" in body:
+            data = {"program": str(_file(body["program"], f"{akey}.program", base_dir, "NC program file"))}
+        elif "program_text" in body:
+            text = body["program_text"]
+            if not isinstance(text, str):
+                raise ConfigError(f"{akey}.program_text", text, "the NC program as a string", "not a string:")
+            data = {"program_text": text}
+        else:
+            data = {}
     elif kind in ("axis_error", "axis_release"):
         data = {"axis": _axis_ref(body["axis"], f"{akey}.axis", axes)}
     elif kind == "sensor_fault":
@@ -854,7 +869,7 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
     events_cfg = data.get("events", [])
     if not isinstance(events_cfg, list):
         raise ConfigError("events", events_cfg, "a list of event tables ([[events]])", "not a list:")
-    events = [_event(n, e, axes, sensor, duration) for n, e in enumerate(events_cfg)]
+    events = [_event(n, e, axes, sensor, duration, base_dir) for n, e in enumerate(events_cfg)]
     events.sort(key=lambda e: e.t)  # stable
 
     extv, extv_file = None, None

@@ -243,3 +243,194 @@ def test_dryrun_freeze_check_pos_and_ref_through_the_channel():
     assert out.core.hli_state == 2 and out.delta == pytest.approx(0.5, abs=1e-6)
     out = lp.cycle(Command3D(Action.CHECK_POS))
     assert out.events == []                              # the reading is inside the sensor window
+
+
+def _reported_is_applied(out) -> bool:
+    """What the 3D control reports (the core's offset, DIST_CTRL[0]::m_actual_offset) is what it
+    superimposes: δ = o / e_z along e (MCS / ACS: e = machine Z, e_z = 1), no FILTER_TIME blend."""
+    return out.delta == out.core.offset and out.compensation[2] == out.delta
+
+
+def test_program_end_during_the_run_out_of_off_lets_it_finish():
+    """FCT-M3 §12.4.4: OFF (default) resets the offset to zero "on the fly". A program end that comes
+    while the deselected control still runs its offset out must not freeze it (audit W1): the run-out
+    completes to zero, the state reaches INACTIVE, and the offset reported is the one applied."""
+    lp = Loop(params(v_max=10.0, a_max=100.0), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    assert lp.cycle(n=2000).delta == pytest.approx(0.5, abs=1e-6)
+    lp.cycle(Command3D(Action.OFF), n=20)
+    out = lp.cycle(Command3D(Action.PROGRAM_END, line=99))
+    assert out.core.hli_state == 3 and out.events == []          # deselected: no 310021
+    assert not out.static and _reported_is_applied(out)
+    for _ in range(2000):
+        out = lp.cycle()
+        assert _reported_is_applied(out)
+    assert out.core.hli_state == 0 and out.delta == 0.0 and out.compensation == (0.0, 0.0, 0.0)
+
+
+def _within_limits(deltas, v_max, a_max, T=0.001, slack=1e-9):
+    """Every step of the superimposed compensation keeps v_max (P-CHAN-00802) and a_max (P-CHAN-00803)."""
+    v = [(b - a) / T for a, b in zip(deltas, deltas[1:])]
+    assert max(abs(x) for x in v) <= v_max * (1 + 1e-9) + slack
+    assert max(abs(b - a) for a, b in zip(v, v[1:])) <= a_max * T * (1 + 1e-9) + slack
+
+
+def test_reselect_after_program_end_tracks_again():
+    """Audit W2 (PROG #DIST CTRL SET_DIST: "In the event of reset or program end, the distance is reset,
+    i.e. a new distance must be specified before distance control is reactivated"): after program end
+    a select with a new SET_DIST is accepted and the control tracks the surface again (it was frozen
+    until an OFF). A select without one is refused (310026)."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    lp.cycle(n=500)
+    out = lp.cycle(Command3D(Action.PROGRAM_END, line=50))
+    assert [e.id for e in out.events] == [310021] and out.static
+    lp.cycle(n=10)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, line=60))                  # SET_DIST forgotten
+    assert [(e.id, e.line) for e in out.events] == [(310026, 60)] and out.static
+
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    lp.cycle(n=500)
+    lp.cycle(Command3D(Action.PROGRAM_END))
+    lp.surface = 40.3                        # ignored while the program has ended ...
+    out = lp.cycle(n=100)
+    assert out.delta == pytest.approx(0.5, abs=1e-6)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    assert out.events == []
+    deltas = [out.delta] + [lp.cycle().delta for _ in range(1500)]
+    out = lp.out
+    assert not out.static and out.core.hli_state == 4
+    assert deltas[-1] == pytest.approx(0.8, abs=1e-6)                 # ... and followed after the select
+    _within_limits(deltas, 100.0, 20000.0)
+    assert _reported_is_applied(out)
+
+
+def test_reselect_after_reset_takes_the_retained_offset_over_bumplessly():
+    """Audit W2 (FCT-M3 §12.4.4 reset: "The previous offset due to distance control is retained";
+    P-CHAN-00802/00803): the next select starts from the retained compensation instead of dropping it
+    in one cycle; the compensation then moves within v_max and a_max. Reported = applied throughout."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    lp.cycle(n=500)
+    out = lp.cycle(Command3D(Action.RESET))
+    assert out.core.hli_state == 0 and out.static and out.events == []
+    assert out.delta == pytest.approx(0.5, abs=1e-6) and _reported_is_applied(out)
+    lp.surface = 40.3                                                 # ignored after the reset
+    deltas = [out.delta] + [lp.cycle().delta for _ in range(50)]
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, mode=M.MCS, line=70))   # no SET_DIST: forgotten
+    assert [(e.id, e.line) for e in out.events] == [(310026, 70)]
+    lp.cycle(Command3D(Action.OFF), n=2000)                           # OFF runs the retained offset out
+    assert lp.out.core.hli_state == 0 and lp.out.delta == 0.0 and not lp.out.static
+
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    lp.cycle(n=500)
+    lp.cycle(Command3D(Action.RESET))
+    lp.surface = 40.3
+    deltas = [lp.cycle().delta for _ in range(50)]
+    assert deltas[-1] == pytest.approx(0.5, abs=1e-6)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    deltas.append(out.delta)
+    assert out.delta == pytest.approx(0.5, abs=1e-6)                  # taken over: no drop to 0
+    for _ in range(1500):
+        out = lp.cycle()
+        deltas.append(out.delta)
+        assert _reported_is_applied(out)
+    assert out.core.hli_state == 4 and deltas[-1] == pytest.approx(0.8, abs=1e-6)
+    _within_limits(deltas, 100.0, 20000.0)
+
+
+@pytest.mark.parametrize("no_move", [False, True])
+def test_off_after_reset_runs_the_retained_offset_out_or_hands_it_to_the_channel(no_move):
+    """After a reset the retained offset is the control's: OFF resets it to zero within the limits,
+    OFF NO_MOVE hands it to the channel (absorbed_offset), as for a selected control (FCT-M3 §12.4.4)."""
+    lp = Loop(params(v_max=10.0, a_max=100.0), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    lp.cycle(n=2000)
+    lp.cycle(Command3D(Action.RESET), n=10)
+    out = lp.cycle(Command3D(Action.OFF, no_move=no_move))
+    if no_move:
+        assert out.core.absorbed_offset == pytest.approx(0.5, abs=1e-6) and out.delta == 0.0
+        assert out.core.hli_state == 0 and not out.static
+        return
+    deltas = [out.delta] + [lp.cycle().delta for _ in range(1000)]
+    assert lp.out.core.hli_state == 0 and deltas[-1] == 0.0 and deltas[0] > 0.49
+    _within_limits(deltas, 10.0, 100.0)
+
+
+def test_reset_while_the_offset_moves_stops_it_within_the_limits():
+    """FCT-M3 §12.4.4: "When the controller is reset, the program stops within the dynamic limits. The
+    previous offset ... is retained": a moving offset brakes with a_max and stands; state INACTIVE."""
+    lp = Loop(params(v_max=10.0, a_max=100.0), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=3.0, mode=M.MCS))   # wants +2 mm
+    deltas = [lp.cycle().delta for _ in range(150)]
+    assert 9.9 < (deltas[-1] - deltas[-2]) / 0.001 <= 10.0 + 1e-9      # moving at v_max
+    out = lp.cycle(Command3D(Action.RESET))
+    assert out.core.hli_state == 0
+    deltas.append(out.delta)
+    for _ in range(300):
+        out = lp.cycle()
+        deltas.append(out.delta)
+        assert _reported_is_applied(out)
+    _within_limits(deltas, 10.0, 100.0)
+    assert deltas[-1] == deltas[-2] and out.core.offset_velocity == 0.0 and out.core.hli_state == 0
+
+
+def test_mode_cannot_change_while_a_reset_keeps_the_offset_51064():
+    """The kept offset is orthogonal and superimposed along the MODE's direction: another MODE would
+    move it sideways at once. While a reset keeps it, a MODE change is 51064 as while active."""
+    lp = Loop(params(), z=41.0, surface=40.0, theta_deg=30.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS))
+    lp.cycle(n=600)
+    lp.cycle(Command3D(Action.RESET), n=5)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.ECS, line=12))
+    assert [(e.id, e.line) for e in out.events] == [(51064, 12)] and lp.ctrl.mode == M.MCS
+    lp.cycle(Command3D(Action.OFF), n=1000)
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.ECS, line=13))
+    assert out.events == [] and lp.ctrl.mode == M.ECS                 # after OFF it may change
+
+
+@pytest.mark.parametrize("action", [Action.RESET, Action.PROGRAM_END])
+@pytest.mark.parametrize("const_dist", [True, False])
+def test_reset_and_program_end_forget_set_pos_and_set_dist(action, const_dist):
+    """PROG #DIST CTRL SET_POS / SET_DIST: "In the event of reset or program end, the set position is
+    reset, i.e. a new set position must be specified before distance control is reactivated" (310026)."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    value = {"set_dist": 1.5} if const_dist else {"set_pos": 40.0}
+    lp.cycle(Command3D(Action.ON, const_dist=const_dist, mode=M.MCS, **value), n=300)
+    lp.cycle(Command3D(action), n=5)
+    out = lp.cycle(Command3D(Action.ON, const_dist=const_dist, line=8))
+    assert [(e.id, e.line) for e in out.events] == [(310026, 8)]
+
+
+def test_a_reset_with_nothing_to_keep_leaves_no_kept_offset_behind():
+    """A reset while selected with the offset 0 and at rest keeps nothing: not static, and the next
+    program may choose another MODE."""
+    lp = Loop(params(), z=41.5, surface=40.0)                       # distance = SET_DIST: offset stays 0
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS), n=100)
+    assert lp.out.core.offset == 0.0 and lp.out.core.offset_velocity == 0.0
+    out = lp.cycle(Command3D(Action.RESET))
+    assert out.core.hli_state == 0 and not out.static
+    out = lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.ECS, line=4))
+    assert out.events == [] and lp.ctrl.mode == M.ECS
+
+
+@pytest.mark.parametrize("action", [Action.PROGRAM_END, Action.RESET], ids=["program_end", "reset"])
+def test_a_filter_time_blend_at_program_end_or_reset_is_folded_into_the_kept_offset(action):
+    """A FILTER_TIME blend-in that runs at program end / reset ends there: the compensation applied
+    at that moment is kept (no jump), and from then on the reported offset is the applied one."""
+    lp = Loop(params(), z=41.0, surface=40.0)
+    lp.cycle(Command3D(Action.ON, const_dist=True, set_dist=1.5, mode=M.MCS, filter_time=400))
+    before = lp.cycle(n=100)
+    assert 0.0 < before.blend < 0.5 and before.delta != before.core.offset
+    applied = before.delta
+    out = lp.cycle(Command3D(action))
+    assert abs(out.delta - applied) <= 100.0 * 0.001 + 1e-12 and out.blend == 1.0
+    deltas = [applied, out.delta]
+    for _ in range(300):
+        out = lp.cycle()
+        deltas.append(out.delta)
+        assert _reported_is_applied(out) and out.blend == 1.0
+    _within_limits(deltas, 100.0, 20000.0)
+    assert deltas[-1] == deltas[-2]                                   # held

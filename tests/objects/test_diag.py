@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import pytest
 
@@ -250,3 +251,127 @@ def test_diagnosis_shows_the_n_the_filter_uses_under_default():
     loop.cycle()
     dc = fields(sections(format_diag_axis(loop.ctrl, loop.out, "Z"))["Distance Control"])
     assert dc["n_cycles"] == ("4", "-") and dc["filter_type"] == ("DEFAULT", "-")
+
+
+# ----------------------------------------------------------------------------- 3D on a running machine
+ROOT = Path(__file__).resolve().parents[2]
+SCN = ROOT / "examples" / "scenarios"
+
+#: PROG #DIST CTRL example 1's machine (ACS on Z, the sheet 1.2 mm below Z10), through every state
+STATES_PROGRAM = """G0 Z10
+#DIST CTRL [SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]
+#DIST CTRL [MODE=ACS DIRECTION=Z]
+#TIME 0.2
+#DIST CTRL DRYRUN [CONST_DIST SET_DIST=1.5]
+#TIME 0.2
+#DIST CTRL WAIT OFF
+#DIST CTRL WAIT ON [SURFACE SET_POS=8.6]
+#TIME 0.3
+#DIST CTRL FREEZE
+#TIME 0.3
+#DIST CTRL WAIT OFF
+#DIST CTRL WAIT ON [CONST_DIST SET_DIST=1.5]
+#TIME 0.3
+#DIST CTRL OFF
+#TIME 0.5
+#DIST CTRL WAIT ON [CONST_DIST SET_DIST=1.5]
+#TIME 2
+M30
+"""
+
+
+def _states_machine(events=()):
+    from distctrl.sim.machine import Machine
+    from distctrl.sim.runner import load_program
+    from distctrl.sim.scenario import scenario_from_dict
+    data = {"name": "diag3d", "program_text": STATES_PROGRAM, "duration": 10.0,
+            "external_variables": "../external_variables_12_8_4.lis",
+            "channel": {"params": "../channel_3d_12_8_3.lis", "kinematics": "none"},
+            "axes": {"X": {}, "Y": {}, "Z": {"start": 10.0, "kv": 50.0, "feedforward": 1.0}},
+            "surface": {"base": 8.8},
+            "sensor": {"kind": "distance", "mode": "orthogonal_clamping_point", "variable": "SENSOR",
+                       "range_max": 150.0},
+            "events": list(events)}
+    sc = scenario_from_dict(data, base_dir=SCN)
+    return sc, Machine(sc, load_program(sc))
+
+
+def _diag_at(machine, sc, line: int, extra_cycles: int) -> dict:
+    """The 3D diagnosis block (as --json gives it) ``extra_cycles`` after NC line ``line`` began."""
+    from distctrl.objects.diag import diag_3d
+    for _ in range(20000):
+        if machine.nc.line == line:
+            break
+        machine.step()
+    else:
+        raise AssertionError(f"line {line} never reached")
+    for _ in range(extra_cycles):
+        machine.step()
+    d = diag_3d(machine.channel3d_values(), sc.channel_params, channel=1,
+                events=[ev for _, ev in machine.events]).to_dict()
+    flat = {}
+    for sec in d["sections"].values():
+        flat.update({k: v["value"] for k, v in sec.items()})
+    flat["logged_events"] = d["logged_events"]
+    return flat
+
+
+def test_3d_diag_on_a_running_machine_in_every_state():
+    """Audit W3 (FCT-M3 §12.10 Fig. 56, docs/diag.md): on a running machine the 3D block shows the
+    select's mode and set values, the sensor variable, the FREEZE flag and frozen offset, the MODE
+    programmed for the next select and the MODE in effect, in every state."""
+    sc, m = _states_machine()
+    d = _diag_at(m, sc, 4, 100)                                  # INACTIVE, MODE=ACS programmed
+    assert (d["hli_state"], d["zstd"]) == ("INACTIVE (0)", "IDLE (0)")
+    assert d["active_mode"] == "OFF (0)" and d["new_mode"] == "ACS (4)"
+    assert d["active_ax_idx"] == 2 and d["new_ax_idx"] == 2          # DIRECTION=Z: channel axis 2 (X, Y, Z)
+    assert d["sensor_var"] == "V.E.SENSOR" and d["sollw_prog"] is None and d["f_freeze"] == 0
+
+    d = _diag_at(m, sc, 6, 100)                                  # DRYRUN CONST_DIST
+    assert (d["hli_state"], d["zstd"]) == ("DRYRUN_CONST_DIST (6)", "DRYRUN (15)")
+    assert d["mode"] == "CONST_DIST (1)" and d["sollw"] == 1.5 and d["sollw_prog"] == 1.5
+    assert d["active_mode"] == "ACS (4)" and d["act_offset"] == 0.0
+
+    d = _diag_at(m, sc, 8, 5)                                    # WAIT ON: the block waits
+    assert d["f_wait_for_finished"] == 1 and d["hli_state"] == "ACTIVE (1)"
+
+    d = _diag_at(m, sc, 9, 250)                                  # ACTIVE, SET_POS (surface)
+    assert d["f_wait_for_finished"] == 0
+    assert (d["hli_state"], d["zstd"]) == ("ACTIVE (1)", "ACTIVE (2)")
+    assert d["mode"] == "SET_POS (0)" and d["sollw"] == 8.6 and d["sollw_prog"] == 8.6
+    assert d["cmd_offset"] == pytest.approx(0.2, abs=2e-3) and d["act_offset"] == d["cmd_offset"]
+    assert d["f_freeze"] == 0 and d["cmd_offset_frozen"] == 0.0
+    assert d["sensor_var"] == "V.E.SENSOR" and d["sensor_source"] == "VARIABLE"
+
+    d = _diag_at(m, sc, 11, 250)                                 # FREEZE
+    assert (d["hli_state"], d["zstd"]) == ("FREEZE (2)", "FREEZE (3)")
+    assert d["f_freeze"] == 1 and d["cmd_offset_frozen"] == d["cmd_offset"] != 0.0
+    assert d["cmd_offset_frozen"] == pytest.approx(0.2, abs=2e-3)
+
+    d = _diag_at(m, sc, 14, 250)                                 # ACTIVE_CONST_DIST
+    assert (d["hli_state"], d["zstd"]) == ("ACTIVE_CONST_DIST (4)", "ACTIVE (2)")
+    assert d["mode"] == "CONST_DIST (1)" and d["sollw"] == 1.5 and d["sollw_prog"] == 1.5
+    assert d["set_distance"] == 1.5 and d["f_freeze"] == 0 and d["cmd_offset_frozen"] == 0.0
+    assert d["cmd_offset"] == pytest.approx(0.3, abs=0.02)
+
+    d = _diag_at(m, sc, 16, 5)                                   # TURNING_OFF
+    assert (d["hli_state"], d["zstd"]) == ("TURNING_OFF (3)", "OFF (4)")
+    assert d["mode"] == "CONST_DIST (1)" and d["active_mode"] == "ACS (4)" and d["cmd_offset"] > 0.1
+
+    d = _diag_at(m, sc, 16, 400)                                 # run out: INACTIVE again
+    assert (d["hli_state"], d["zstd"]) == ("INACTIVE (0)", "IDLE (0)") and d["cmd_offset"] == 0.0
+    assert d["active_mode"] == "OFF (0)" and d["new_mode"] == "ACS (4)"
+
+
+def test_3d_diag_on_a_running_machine_in_error():
+    """A sensor jump (310018) while ACTIVE_CONST_DIST: ERROR, the error and its line in the block."""
+    sc, m = _states_machine(events=[{"t": 3.6, "sensor_fault": {"kind": "jump", "value": 20.0}}])
+    _diag_at(m, sc, 18, 0)                                       # the #TIME 2 after the select (line 17)
+    assert m.cycle * sc.cycle_time < 3.6 and m.out3d.core.hli_state == 4
+    while m.cycle * sc.cycle_time < 3.7:
+        m.step()
+    d = _diag_at(m, sc, 18, 0)
+    assert d["hli_state"] == "ERROR (5)" and d["zstd"] == "ERROR_SENSOR_JUMP (6)"
+    assert d["last_error"] == 310018 and d["last_error_line"] == 18
+    assert d["mode"] == "CONST_DIST (1)" and d["sollw"] == 1.5
+    assert any("ID 310018" in ev for ev in d["logged_events"])

@@ -357,6 +357,24 @@ def test_program_end_while_active_warns_310021_and_holds_the_offset():
     assert tr["dc3d.state"][-1] == 4                                           # still active (static)
 
 
+def test_off_then_program_end_during_the_run_out_runs_it_out_to_zero():
+    """Audit W1 (FCT-M3 §12.4.4, PROG #DIST CTRL example 1 "Deactivate distance control with no wait"):
+    OFF without WAIT, then M30 while the offset still runs out. The run-out completes to zero and
+    the state reaches INACTIVE; the offset reported (dc3d.offset, DIST_CTRL[0]::m_actual_offset) is the
+    one applied (dc3d.comp_z, on the Z axis with MODE=ACS) in every cycle."""
+    prog = ("N010 G0 Z10\nN020 #DIST CTRL [SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.SENSOR]\n"
+            "N030 #DIST CTRL WAIT ON [CONST_DIST SET_DIST=1 MODE=ACS DIRECTION=Z]\nN040 #TIME 0.5\n"
+            "N900 #DIST CTRL OFF\nN910 G0 Z20\nN999 M30\n")
+    r = run(with_program(SCN / "dist3d_1.toml", lambda _: prog))
+    assert r.completed and r.errors == [] and r.warnings == [] and r.final_state == "INACTIVE"
+    tr = r.trace
+    end = int(np.argmax(tr["line"] == 7))                     # M30 (line 7) reached
+    assert tr["dc3d.state"][end] == 3 and tr["dc3d.comp_z"][end] != 0.0   # still running out at M30
+    assert np.array_equal(tr["dc3d.offset"], tr["dc3d.comp_z"])          # reported = applied, always
+    assert tr["dc3d.state"][-1] == 0 and tr["dc3d.comp_z"][-1] == 0.0
+    assert tr["Z.cmd"][-1] == tr["Z.prog"][-1] == 20.0
+
+
 def test_axis_variant_machine_is_unchanged_without_3d():
     sc = load_scenario(SCN / "dist_1.toml")
     m = Machine(sc, load_program(sc))
