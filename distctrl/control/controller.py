@@ -737,6 +737,15 @@ class AxisDistanceController:
         self._to_inactive()
         return absorbed
 
+    def deselect_holding_offset(self) -> None:
+        """Deselect as a RESET does (INACTIVE, set values and a pending DRYRUN forgotten, SPEC §8) but
+        keep the offset: INACTIVE holds it, braking a moving offset within the limits. The channel's
+        3D reset (FCT-M3 §12.4.4: "the previous offset ... is retained") uses it between cycles."""
+        self._to_inactive()
+        st = self.state
+        st.pending_dryrun = None
+        st.programmed_set_pos = st.programmed_set_dist = None
+
     def _to_inactive(self) -> None:
         st = self.state
         st.hli_state = _INACTIVE

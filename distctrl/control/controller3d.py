@@ -313,10 +313,8 @@ class ChannelDistanceController:
         core_cmds[:] = [c for c in core_cmds if not (isinstance(c, Command) and (
             c.action != Action.NONE or c.set_pos is not None or c.set_dist is not None))]
         self._retain()
+        self.core.deselect_holding_offset()
         st = self.core.state
-        self.core._to_inactive()
-        st.pending_dryrun = None
-        st.programmed_set_pos = st.programmed_set_dist = None
         if st.offset == 0.0 and st.velocity == 0.0:
             self.static = False                        # nothing to keep
 
