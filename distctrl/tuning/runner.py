@@ -576,13 +576,19 @@ def plot_sweep(result: SweepResult, path=None, metric: str = "rms_error"):
         finite = np.isfinite(y)
         order = np.argsort(np.where(finite, y, np.inf))[::-1]
         from matplotlib import colormaps
-        cmap = colormaps["viridis_r"]
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.colors import Normalize
+        # viridis: the smallest metric (the best set) is dark purple, the largest yellow; the best sets
+        # are drawn last, on top (the order above is worst first)
+        cmap = colormaps["viridis"]
         ylo, yhi = (np.min(y[finite]), np.max(y[finite])) if finite.any() else (0, 1)
         for i in order:
             c = cmap((y[i] - ylo) / (yhi - ylo) if finite[i] and yhi > ylo else 0.0) if finite[i] else "lightgray"
             ax.plot(range(len(cols) + 1), mat[:, i], color=c, lw=0.6, alpha=0.6)
         ax.set_xticks(range(len(cols) + 1), cols + [metric])
         ax.set_ylabel("normalised value")
+        fig.colorbar(ScalarMappable(Normalize(ylo, yhi if yhi > ylo else ylo + 1), cmap), ax=ax,
+                     label=f"{metric} (dark = smaller = better)")
         ax.set_title(f"parallel coordinates, colour = {metric} ({len(result)} sets; dark = better)")
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
