@@ -192,7 +192,9 @@ class SweepResult:
             used = set(filter_fields(FilterType[ft])) if isinstance(ft, str) and ft in FilterType.__members__ else None
             # a filter parameter the row's filter does not use is "-", not a value that does nothing
             rows.append(["-" if c in PARAM_COLUMNS and c not in ("kp", "i_tn", "d_tv", "filter_type")
-                         and used is not None and c not in used else _fmt(self.data[c][i]) for c in cols])
+                         and used is not None and c not in used else
+                         (_fmt_param(self.data[c][i]) if c in PARAM_COLUMNS else _fmt(self.data[c][i]))
+                         for c in cols])
         units = self.units()
         heads = [f"{c} [{units[c]}]" if c in units else c for c in cols]
         return render_table(heads, rows, title=title, plain=plain)
@@ -210,6 +212,14 @@ def _csv(x):
     if isinstance(x, float):
         return "" if math.isnan(x) else repr(x)
     return x
+
+
+def _fmt_param(x) -> str:
+    """A parameter value as used, in the shortest form that reads back as the same float (0.9, 1234.5)."""
+    x = _plain(x)
+    if isinstance(x, float) and math.isfinite(x):
+        return repr(x)
+    return _fmt(x)
 
 
 def _fmt(x) -> str:

@@ -13,7 +13,9 @@ Grid syntax (``distctrl sweep --grid``)::
     kp=0.1:1.0:10,d_tv=0,0.01,0.02,filter_type=MOVING_AVERAGE,n_cycles=4,8,16
 
 ``name=a:b:n`` is ``n`` values from ``a`` to ``b`` (both included, linear), ``name=a:b:n:log``
-the same on a log scale; ``name=v1,v2,...`` a list. A comma followed by ``name=`` starts the next
+the same on a log scale (range values are rounded to the parameter's resolution,
+:data:`REAL_RESOLUTION`: ``kp=0.1:1.5:8`` gives 0.9, not 0.8999999999999999); ``name=v1,v2,...`` a
+list (kept as typed). A comma followed by ``name=`` starts the next
 parameter. Names are the field names or the NC words (``kp``, ``i_tn``, ``d_tv``, ``filter_type``,
 ``n_cycles``, ``smoothing_factor``/``smooth_fact``, ``kalman_sigma``, ``order``, ``fg_f0``).
 """
@@ -228,12 +230,23 @@ def _expand(field: str, items: list[str], where: str) -> list:
         if field in _INT_FIELDS:
             vals = list(dict.fromkeys(int(round(x)) for x in raw))
         else:
-            vals = [float(x) for x in raw]
+            vals = _round_range(field, [float(x) for x in raw])
     else:
         vals = [x.strip() for x in items]
         if any(not x for x in vals):
             raise SpaceError(f"{where}: empty value in {','.join(items)!r}")
     return list(dict.fromkeys(_check_value(field, v, where) for v in vals))
+
+
+def _round_range(field: str, vals: list[float]) -> list[float]:
+    """The values of a range rounded to the parameter's resolution (:func:`round_value`), so that a
+    sweep uses and prints 0.9, not the 0.8999999999999999 of ``linspace``. A range finer than the
+    resolution would lose values by that: it is rounded to 10 significant digits instead (which
+    removes the binary artefacts and keeps every value)."""
+    rounded = [round_value(field, v) for v in vals]
+    if len(set(rounded)) == len(set(vals)):
+        return rounded
+    return [float(f"{v:.10g}") for v in vals]
 
 
 _ENTRY_RE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=(.*)$")

@@ -49,3 +49,18 @@ def test_parallel_coordinates_have_a_colour_bar_naming_the_metric():
     fig = plot_sweep(_parallel_result())
     labels = [a.get_ylabel() for a in fig.axes[1:]]
     assert any("rms_error" in s for s in labels), labels
+
+
+def test_sweep_table_and_csv_print_the_values_used_shortest(tmp_path):
+    """Parameter columns print repr-shortest (the value used, all its digits, no 0.8999999999999999)."""
+    from distctrl.tuning.space import parse_grid
+
+    kp = parse_grid("kp=0.1:1.5:8")["kp"]
+    res = SweepResult({"kp": kp, "kalman_sigma": [1234.5] * 4 + [1000.0] * 4, "cost": np.linspace(1, 2, 8),
+                       "rms_error": np.linspace(1, 2, 8)})
+    text = res.render(8, plain=True)
+    for v in ("0.9", "1.1", "1234.5"):
+        assert v in text.split(), (v, text)
+    assert "0.8999999999999999" not in text
+    csv_text = res.write(tmp_path / "s.csv").read_text()
+    assert "0.9," in csv_text and "0.8999999999999999" not in csv_text
