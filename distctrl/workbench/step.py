@@ -896,6 +896,19 @@ def suggested_kp(results: Sequence[StepResult]) -> StepResult | None:
     return max(good, key=lambda r: r.setting.kp) if good else None
 
 
+#: from this KP on the D part has no room and no effect (docs/control-law.md, "The D part":
+#: kp + g < 1 with g_max = 0.3·(1 − kp); :func:`distctrl.control.law.derivative_gain` is 0 there)
+D_NO_EFFECT_KP = 1.0
+_NO_D = "D_TV has no effect at KP >= 1 (KP already takes the whole error in one cycle)"
+
+
+def _remedy(s: StepSetting) -> str:
+    """What to change for too much overshoot / oscillation: KP, and the D part only where it acts."""
+    if s.kp >= D_NO_EFFECT_KP:
+        return "lower KP" + (f" ({_NO_D})" if s.d_tv > 0 else "")
+    return "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+
+
 def hints(results: Sequence[StepResult]) -> list[str]:
     """Short factual hints along the documents' method (FCT-M3 ch. 3), one per setting plus a summary.
 
@@ -903,7 +916,8 @@ def hints(results: Sequence[StepResult]) -> list[str]:
     one with a recognisable overshoot (2 ... 40 %) that decays within 2 periods is what the method
     looks for; a larger overshoot, more swings or no settling: lower KP or add D. Step 2 (I): only
     for a permanent control deviation. Step 4 (D): the overshoot with and without D_TV at the same
-    KP / I_TN is compared. A response the slope limiter decided (:attr:`StepMetrics.limiter_bound`)
+    KP / I_TN is compared (below KP 1 only: from KP 1 on the D part has no effect, and no hint offers
+    D_TV there). A response the slope limiter decided (:attr:`StepMetrics.limiter_bound`)
     says so and is never called good nor suggested: it shows the limiter, not KP.
     """
     out: list[str] = []
@@ -935,7 +949,7 @@ def hints(results: Sequence[StepResult]) -> list[str]:
                                   f"response")
             continue
         if kind == "oscillating":
-            remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+            remedy = _remedy(s)
             state = (f"not settled within ±{m.band:.4g} mm by the end of the run" if not m.settled
                      else f"settled after {_ms(m.settling_time_s)} ms")
             text = (f"overshoot {m.overshoot_pct:.0f} %, {m.oscillation} zero crossings after the first "
@@ -952,7 +966,7 @@ def hints(results: Sequence[StepResult]) -> list[str]:
             text = (f"{_overshoot_text(m)}; not settled within ±{m.band:.4g} mm by the end of the run "
                     f"without oscillating: a slow approach (a longer run shows more)")
         elif kind == "large":
-            remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+            remedy = _remedy(s)
             text = f"{_overshoot_text(m)} — a large overshoot (above {LARGE_PCT:.0f} %): {remedy}"
         elif kind == "damped":
             text = (f"{_overshoot_text(m)} — well damped"
@@ -971,7 +985,13 @@ def hints(results: Sequence[StepResult]) -> list[str]:
             continue
         m0 = without[0].metrics
         for r in group:
-            if r.setting.d_tv == 0 or m0.overshoot_pct < RECOGNISABLE_PCT:
+            if r.setting.d_tv == 0:
+                continue
+            if kp >= D_NO_EFFECT_KP:
+                out.append(f"KP={kp:g} I_TN={tn:g}: D_TV={r.setting.d_tv:g}: {_NO_D}; the response is that "
+                           f"of D_TV=0")
+                continue
+            if m0.overshoot_pct < RECOGNISABLE_PCT:
                 continue
             m1 = r.metrics
             if m0.limiter_bound and m1.limiter_bound:

@@ -374,3 +374,26 @@ def test_the_command_registers_as_step_on_a_group():
     group.add_command(step_cmd)                        # as distctrl.cli registers it (LAZY_COMMANDS)
     res = CliRunner().invoke(group, ["step", "--help"])
     assert res.exit_code == 0 and "--kp" in res.output and "--plot" in res.output
+
+
+def test_hints_never_offer_d_tv_at_kp_1_or_above():
+    """new-user audit M6: the D part has no room at KP >= 1 (docs/control-law.md, 'no D for kp >= 1'),
+    so a hint there names KP alone and says that D_TV does nothing, never 'lower D_TV' or 'add D'."""
+    osc = {"overshoot_pct": 60.0, "overshoot_mm": 0.6, "oscillation": 90, "settling_time_s": None}
+    res = [_fake(StepSetting(1.0), **osc), _fake(StepSetting(1.0, 0.0, 0.01), **osc),
+           _fake(StepSetting(1.5, 0.0, 0.01), overshoot_pct=50.0, overshoot_mm=0.5, oscillation=3)]
+    h = hints(res)
+    per_setting = h[:3]
+    for text in per_setting:
+        assert "D_TV" not in text.split(": ", 1)[1].replace("D_TV has no effect", ""), text
+        assert "add D" not in text, text
+        assert "lower KP" in text, text
+    assert "D_TV has no effect at KP >= 1" in per_setting[1]
+    comparison = [t for t in h if t.startswith("KP=1 I_TN=0: D_TV=0.01")]
+    assert comparison and "no effect at KP >= 1" in comparison[0] and "lower D_TV" not in comparison[0]
+
+
+def test_hints_below_kp_1_still_offer_the_d_part():
+    osc = {"overshoot_pct": 60.0, "overshoot_mm": 0.6, "oscillation": 90, "settling_time_s": None}
+    h = hints([_fake(StepSetting(0.9), **osc), _fake(StepSetting(0.9, 0.0, 0.01), **osc)])
+    assert "lower KP or add D" in h[0] and "lower KP or D_TV" in h[1]
