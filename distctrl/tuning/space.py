@@ -35,7 +35,8 @@ from ..params.table import BY_FIELD
 
 __all__ = ["SpaceError", "Dim", "DEFAULT_SPACE", "ALIASES", "NC_WORDS", "canonical", "parse_grid",
            "grid_points", "random_sample", "to_params", "build_sets", "point_label", "filter_fields",
-           "REAL_RESOLUTION", "resolution", "round_value", "round_point"]
+           "REAL_RESOLUTION", "resolution", "round_value", "round_point", "D_NO_EFFECT_KP", "D_TV_NOTE",
+           "d_tv_applies", "drop_inert_d_tv"]
 
 
 class SpaceError(DistCtrlError, ValueError):
@@ -132,6 +133,37 @@ DEFAULT_SPACE: tuple[Dim, ...] = (
     Dim("i_tn", "log", 0.005, 2.0, zero_share=0.5),
     Dim("d_tv", "log", 0.0002, 0.05, zero_share=0.3),
 )
+
+
+# ----------------------------------------------------------------------------- the D part at kp >= 1
+
+#: from this kp on the D part has no room and no effect: the law saturates its per-cycle gain at
+#: 0.3·(1 − kp) (:func:`distctrl.control.law.derivative_gain`, docs/control-law.md "The D part"), so
+#: every d_tv gives the same run. The tools neither vary d_tv there nor report a value for it.
+D_NO_EFFECT_KP = 1.0
+D_TV_NOTE = ("d_tv: not applicable at kp >= 1 (the D part has no effect there, docs/control-law.md); "
+             "such sets are run once, with D_TV 0")
+
+
+def d_tv_applies(kp) -> bool:
+    """Whether D_TV changes anything at this kp (kp < :data:`D_NO_EFFECT_KP`)."""
+    return float(kp) < D_NO_EFFECT_KP
+
+
+def drop_inert_d_tv(points: list[dict]) -> tuple[list[dict], int]:
+    """``points`` with d_tv set to 0 where kp >= 1 and the duplicates this makes removed (the first kept,
+    order kept); returns ``(points, number removed)``. Points without both kp and d_tv are kept as they are."""
+    out, seen, merged = [], set(), 0
+    for p in points:
+        if "kp" in p and "d_tv" in p and not d_tv_applies(p["kp"]):
+            p = dict(p, d_tv=0.0)
+        key = tuple((k, v.name if isinstance(v, FilterType) else v) for k, v in p.items())
+        if key in seen:
+            merged += 1
+            continue
+        seen.add(key)
+        out.append(p)
+    return out, merged
 
 
 # ----------------------------------------------------------------------------- resolution
@@ -288,8 +320,8 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
                   cycle_time: float | None = None) -> list[dict]:
     """``n`` random points of ``space``; each point sets only the filter parameters its filter type uses.
 
-    With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin). Values are
-    rounded to :func:`resolution` (what the tuner prints is what it evaluated).
+    With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin); at kp >= 1
+    d_tv is 0 (:data:`D_NO_EFFECT_KP`). Values are rounded to :func:`resolution` (what the tuner prints is what it evaluated).
     """
     if n < 0:
         raise SpaceError(f"random sample size {n}: must be >= 0")
@@ -309,6 +341,8 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
             if f == "low_pass_filter_fg_f0" and cycle_time:
                 v = min(v, 0.45 / cycle_time)
             p[f] = v
+        if "kp" in p and "d_tv" in p and not d_tv_applies(round_value("kp", p["kp"])):
+            p["d_tv"] = 0.0                   # no D part at kp >= 1: not a dimension to search there
         points.append(round_point(p))
     return points
 
