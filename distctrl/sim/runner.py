@@ -303,6 +303,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                     # auto_set_value holds it to sample (the set value in force is a placeholder)
                     if state == 4 or state == 1:
                         metrics.excluded_process += 1
+                        metrics.process_names.update(moved_by_process or ("auto_set_value",))
                     if metrics.inside:
                         metrics.gap()
                 elif (state == 4 or state == 1) and no_sheet is not None and machine.true_distance > no_sheet:
@@ -493,13 +494,16 @@ def _metric_notes(metrics, no_sheet, sampled) -> list[str]:
     """What the distance error leaves out or takes as its reference, said in the run's notes."""
     out = []
     if metrics.excluded_off_sheet:
-        out.append(f"distance error: {metrics.excluded_off_sheet} tracking cycles off the sheet (the surface "
-                   f"under the tool farther than the sensor's reach, {no_sheet:g} mm: a hole, past the edge) "
-                   f"are not counted: nothing to track there")
+        n = metrics.excluded_off_sheet
+        out.append(f"distance error: {n} active cycle{'s' * (n != 1)} off the sheet (the surface under the tool "
+                   f"farther than the sensor's reach, {no_sheet:g} mm: a hole, a kerf, past the edge) "
+                   f"{'are' if n != 1 else 'is'} not counted: nothing to track there")
     if metrics.excluded_process:
-        out.append(f"distance error: {metrics.excluded_process} active cycles in which a process function had "
-                   f"the axis (the touch-off's probe and back-off, the collision retract, auto_set_value's "
-                   f"sampling before its set value) are not counted")
+        n = metrics.excluded_process
+        names = ", ".join(sorted(metrics.process_names))
+        out.append(f"distance error: {n} active cycle{'s' * (n != 1)} in which a process function had the axis "
+                   f"({names}: it moved the axis itself, or held it until it had sampled the set value) "
+                   f"{'are' if n != 1 else 'is'} not counted")
     if sampled is not None and sampled.taken:
         word = "SET_DIST" if sampled.const_dist else "SET_POS"
         out.append(f"distance error: while the {word} that auto_set_value sampled ({sampled.value:.4g} mm in the "
@@ -521,7 +525,7 @@ class _Metrics:
 
     __slots__ = ("T", "n", "sq", "max", "band", "hold", "k_start", "inside", "k_entry", "second",
                  "paused", "since_window", "episode", "episodes", "surface", "history", "excluded_off_sheet",
-                 "excluded_process")
+                 "excluded_process", "process_names")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
         from collections import deque
@@ -545,6 +549,7 @@ class _Metrics:
         self.episodes: list[dict] = []
         self.excluded_off_sheet = 0   # active cycles off the sheet (beyond the sensor's reach): not tracking
         self.excluded_process = 0     # active cycles in which a process function moved the axis
+        self.process_names: set[str] = set()      # ... and which functions those were
 
     def add(self, k: int, line, err: float, surface: float = 0.0) -> None:
         if self.k_start is None:
