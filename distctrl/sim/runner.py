@@ -268,6 +268,14 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     proc = getattr(machine, "process_program", None)
     hold = proc.holds.get(dc_axis) if proc is not None and dc_axis is not None else None
     moved_by_process = hold.inhibitors if hold is not None else frozenset()
+    # tracking means over the sheet: where the surface under the tool is beyond the sensor's reach (a
+    # hole, past the sheet's edge) there is nothing to track; and a set value auto_set_value sampled in
+    # the sensor's terms means the true height the head had while it sampled (docs/run.md, Metrics)
+    no_sheet = _no_sheet_distance(scenario.sensor) if out3d is None else None
+    sampled = _SampledSetValue(proc.function("auto_set_value", dc_axis)) \
+        if proc is not None and dc_axis is not None and out3d is None else None
+    if sampled is not None and sampled.fn is None:
+        sampled = None
     try:
         for k in range(max_cycles):
             step()
@@ -289,15 +297,29 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
                     metrics.gap()
             elif dc_out is not None:
                 state = dc_out.hli_state
-                if moved_by_process:
+                if sampled is not None:
+                    sampled.step(machine.true_distance, dc_out, dc_inp)
+                if moved_by_process or (sampled is not None and sampled.holds(state)):
+                    # a process function has the axis: it moves it (touch-off, collision retract), or
+                    # auto_set_value holds it to sample (the set value in force is a placeholder)
+                    if state == 4 or state == 1:
+                        metrics.excluded_process += 1
+                        metrics.process_names.update(moved_by_process or ("auto_set_value",))
                     if metrics.inside:
                         metrics.gap()
+                elif (state == 4 or state == 1) and no_sheet is not None and machine.true_distance > no_sheet:
+                    metrics.excluded_off_sheet += 1
+                    metrics.gap()
                 elif state == 4:
-                    add_metric(k, line, machine.true_distance - dc_out.set_distance,
-                               machine.true_surface)
+                    wanted = dc_out.set_distance
+                    if sampled is not None:
+                        wanted += sampled.correction(True, dc_out.set_distance)
+                    add_metric(k, line, machine.true_distance - wanted, machine.true_surface)
                 elif state == 1:
-                    add_metric(k, line, machine.true_distance - (dc_inp.programmed_position - dc_out.set_pos),
-                               machine.true_surface)
+                    wanted = dc_inp.programmed_position - dc_out.set_pos
+                    if sampled is not None:
+                        wanted += sampled.correction(False, dc_out.set_pos)
+                    add_metric(k, line, machine.true_distance - wanted, machine.true_surface)
                 elif metrics.inside:
                     metrics.gap()
             if has_truth:
@@ -353,6 +375,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         final_state = HliState(outputs[dc_axis].hli_state).name if dc_axis is not None else "n/a"
     notes = list(machine.notes)
     run_metrics = {**metrics.result(), **contact.result()}
+    notes.extend(_metric_notes(metrics, no_sheet, sampled))
     return RunResult(scenario.name or Path(str(scenario.path or "scenario")).stem, program_done and not errors,
                      aborted, errors, warnings, final_state,
                      machine.cycle, T, run_metrics, kept, str(trace) if trace else None, interrupted, notes,
@@ -400,6 +423,96 @@ def _outcome(interrupted: bool, aborted: bool, program_done: bool) -> str:
     return "completed" if program_done else "time_limit"
 
 
+def _no_sheet_distance(sensor) -> float | None:
+    """The true distance beyond which the sensor sees no sheet (mm): its ``field_range`` (distance, arc
+    voltage) or the end of its range; None without a sensor."""
+    if sensor is None:
+        return None
+    fr = getattr(sensor, "field_range", None)
+    return float(fr) if fr is not None else float(sensor.range_max)
+
+
+class _SampledSetValue:
+    """What a set value sampled by ``auto_set_value`` means: the true height the head had while the
+    function sampled it. The function averages the *measured* distance (or surface) and makes the mean
+    SET_DIST (SET_POS); with a miscalibrated sensor that number is in the sensor's terms. While it samples
+    this keeps the mean of ``true distance - nominal wanted distance(sampled value)``; afterwards, while the
+    set value in force is the sampled one, :meth:`correction` adds it to the nominal wanted distance, so
+    the error is taken against the height the head was meant to hold (docs/run.md, Metrics)."""
+
+    __slots__ = ("fn", "n_log", "sum_d", "sum_p", "n", "value", "const_dist", "delta", "true_mean", "taken")
+
+    def __init__(self, fn):
+        self.fn = fn
+        self.n_log = len(fn.log) if fn is not None else 0
+        self.sum_d = self.sum_p = 0.0
+        self.n = 0
+        self.value = None              # the sampled set value (mm, the sensor's terms)
+        self.const_dist = True
+        self.delta = 0.0               # true - nominal, mean over the sampling
+        self.true_mean = None          # the true distance while sampling (mm)
+        self.taken = 0                 # cycles the correction applied in
+
+    def step(self, true_distance: float, out, inp) -> None:
+        fn = self.fn
+        done_now = len(fn.log) != self.n_log
+        if fn.phase == "SAMPLING" or done_now:
+            self.sum_d += true_distance
+            self.sum_p += inp.programmed_position
+            self.n += 1
+        elif fn.phase == "WAITING":
+            self.sum_d = self.sum_p = 0.0
+            self.n = 0
+        if done_now:
+            self.n_log = len(fn.log)
+            v = fn.log[-1][1]
+            self.value, self.const_dist = v, fn.const_dist
+            n = max(self.n, 1)
+            self.true_mean = self.sum_d / n
+            nominal = v if fn.const_dist else self.sum_p / n - v
+            self.delta = self.true_mean - nominal
+            self.sum_d = self.sum_p = 0.0
+            self.n = 0
+
+    def holds(self, state: int) -> bool:
+        """Whether the function has the axis this cycle: it waits or samples, or the cut starts now (the
+        PLC sees the select one cycle later: the set value in force this cycle is the placeholder too)."""
+        fn = self.fn
+        if fn.phase != "DONE":
+            return True
+        return (state == 4 or state == 1) and fn.enabled and getattr(fn, "_last_state", None) == 0
+
+    def correction(self, const_dist: bool, set_value: float) -> float:
+        """mm to add to the nominal wanted distance (0 unless the sampled value is in force)."""
+        v = self.value
+        if v is None or const_dist != self.const_dist or abs(set_value - v) > 1e-4:    # HLI: 0.1 µm
+            return 0.0
+        self.taken += 1
+        return self.delta
+
+
+def _metric_notes(metrics, no_sheet, sampled) -> list[str]:
+    """What the distance error leaves out or takes as its reference, said in the run's notes."""
+    out = []
+    if metrics.excluded_off_sheet:
+        n = metrics.excluded_off_sheet
+        out.append(f"distance error: {n} active cycle{'s' * (n != 1)} off the sheet (the surface under the tool "
+                   f"farther than the sensor's reach, {no_sheet:g} mm: a hole, a kerf, past the edge) "
+                   f"{'are' if n != 1 else 'is'} not counted: nothing to track there")
+    if metrics.excluded_process:
+        n = metrics.excluded_process
+        names = ", ".join(sorted(metrics.process_names))
+        out.append(f"distance error: {n} active cycle{'s' * (n != 1)} in which a process function had the axis "
+                   f"({names}: it moved the axis itself, or held it until it had sampled the set value) "
+                   f"{'are' if n != 1 else 'is'} not counted")
+    if sampled is not None and sampled.taken:
+        word = "SET_DIST" if sampled.const_dist else "SET_POS"
+        out.append(f"distance error: while the {word} that auto_set_value sampled ({sampled.value:.4g} mm in the "
+                   f"sensor's terms) was in force, the error is taken against the true distance the head had "
+                   f"while it sampled ({sampled.true_mean:.4g} mm), the height meant")
+    return out
+
+
 class _Metrics:
     """Distance error while distance control tracks (ACTIVE / ACTIVE_CONST_DIST): RMS, max, the
     settle time and the oscillation of the last second.
@@ -412,7 +525,8 @@ class _Metrics:
     whole periods)."""
 
     __slots__ = ("T", "n", "sq", "max", "band", "hold", "k_start", "inside", "k_entry", "second",
-                 "paused", "since_window", "episode", "episodes", "surface", "history")
+                 "paused", "since_window", "episode", "episodes", "surface", "history", "excluded_off_sheet",
+                 "excluded_process", "process_names")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
         from collections import deque
@@ -434,6 +548,9 @@ class _Metrics:
         self.since_window = 0         # tracking samples since the last whole-second window was judged
         self.episode: dict | None = None      # the oscillation going on (whole seconds of tracking)
         self.episodes: list[dict] = []
+        self.excluded_off_sheet = 0   # active cycles off the sheet (beyond the sensor's reach): not tracking
+        self.excluded_process = 0     # active cycles in which a process function moved the axis
+        self.process_names: set[str] = set()      # ... and which functions those were
 
     def add(self, k: int, line, err: float, surface: float = 0.0) -> None:
         if self.k_start is None:
@@ -521,7 +638,9 @@ class _Metrics:
                 "settle_time": self.settle_time(), "tracking_cycles": self.n,
                 "settle_band_mm": self.band, "settle_hold_s": SETTLE_HOLD_S,
                 "oscillation_frequency_hz": freq, "oscillation_amplitude_mm": amp,
-                "oscillations": len(self.episodes) + (self.episode is not None)}
+                "oscillations": len(self.episodes) + (self.episode is not None),
+                "excluded_off_sheet_cycles": self.excluded_off_sheet,
+                "excluded_process_cycles": self.excluded_process}
 
 
 def _periodicity(values, period: float) -> float:

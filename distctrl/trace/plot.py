@@ -124,6 +124,41 @@ def _ylabel(trace: "Trace", name: str, signals: list[str]) -> str:
     return f"{name} [{', '.join(units)}]" if units else name
 
 
+#: signals that mean something else while distance control is INACTIVE (the filter runs on the axis's
+#: surface position there, on the distance once active): not drawn in INACTIVE rows
+_ACTIVE_ONLY = (".dc.filtered", ".dc.feedback")
+
+
+def _active_only(trace: "Trace", name: str) -> np.ndarray:
+    """The column, NaN in the rows where its axis's distance control is INACTIVE (``_ACTIVE_ONLY``
+    signals only; new-user audit R14: the 30 mm surface position of cycle 0 squashed the panel)."""
+    y = trace[name]
+    if name.endswith(_ACTIVE_ONLY):
+        state_col = name.split(".dc.", 1)[0] + ".dc.state"
+        if state_col in trace:
+            y = np.where(np.asarray(trace[state_col]) == 0, np.nan, np.asarray(y, dtype=np.float64))
+    return y
+
+
+def _stack_labels(fig, ax, labels: list) -> None:
+    """Lift a state name that would overlap an earlier one (two changes a few cycles apart) by one line
+    until it is free (new-user audit R14: INACTIVE / ACTIVE_CONST_DIST were printed on top of each other)."""
+    if len(labels) < 2:
+        return
+    renderer = fig.canvas.get_renderer()
+    placed = []
+    ax_h = max(ax.get_window_extent(renderer).height, 1.0)
+    for text in labels:
+        box = text.get_window_extent(renderer)
+        step = 1.15 * box.height / ax_h
+        for level in range(8):
+            text.set_y(1.01 + level * step)
+            box = text.get_window_extent(renderer)
+            if not any(box.overlaps(b) for b in placed):
+                break
+        placed.append(box)
+
+
 def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: list[str] | None = None,
                title: str | None = None) -> "Figure":
     """Draw the trace as stacked subplots sharing the time axis and return the Figure.
@@ -157,7 +192,7 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
     axes = fig.subplots(len(groups), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (name, sigs) in zip(axes, groups):
         for s in sigs:
-            xs, ys = envelope(x, trace[s], MAX_POINTS)
+            xs, ys = envelope(x, _active_only(trace, s), MAX_POINTS)
             ax.plot(xs, ys, label=s, linewidth=1.0,
                     linestyle="--" if s.endswith((".prog", ".dc.target_deviation")) else "-")
         ax.set_ylabel(_ylabel(trace, name, sigs))
@@ -170,6 +205,7 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
         state = trace[state_cols[0]]
         segs = state_segments(state)
         seen: dict[int, str] = {}
+        labels: list = []
         if len(segs) <= MAX_STATE_SEGMENTS:
             label_them = len(segs) <= MAX_STATE_LABELS
             for a, b, st in segs:
@@ -184,9 +220,9 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
                     for ax in axes:
                         ax.axvline(x0, color="0.35", linewidth=0.6, linestyle=":")
                 if label_them:
-                    axes[0].text(x0, 1.01, HLI_STATE_NAMES.get(st, str(st)),
-                                 transform=axes[0].get_xaxis_transform(), fontsize="x-small", rotation=30,
-                                 ha="left", va="bottom")
+                    labels.append(axes[0].text(x0, 1.01, HLI_STATE_NAMES.get(st, str(st)),
+                                               transform=axes[0].get_xaxis_transform(), fontsize="x-small",
+                                               ha="left", va="bottom"))
         else:  # a chattering state: shade by value, no per-change marks
             step = max(1, trace.rows // MAX_POINTS)
             xs, ss = x[::step], state[::step]
@@ -196,6 +232,7 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
                     ax.fill_between(xs, 0, 1, where=ss == st, step="post", color=color, alpha=0.12,
                                     linewidth=0, transform=ax.get_xaxis_transform())
                 seen.setdefault(st, color)
+        _stack_labels(fig, axes[0], labels)
         if seen:
             handles = [Patch(color=c, alpha=0.3, label=f"{state_cols[0]} {HLI_STATE_NAMES.get(s, s)}")
                        for s, c in sorted(seen.items())]

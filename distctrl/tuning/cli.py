@@ -76,7 +76,7 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
     from ..batch.closed_loop import prepare
     from .metrics import METRIC_NAMES
     from .runner import DEFAULT_CHUNK, Evaluator, plot_sweep
-    from .space import build_sets, grid_points, parse_grid, random_sample
+    from .space import build_sets, drop_inert_d_tv, grid_points, parse_grid, random_sample
 
     if (grid is None) == (n_random is None):
         raise click.UsageError("give exactly one of --grid and --random N")
@@ -85,7 +85,7 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
     opts = _mode(local, scheduler)
     weights = _weights(sat_weight, chatter_weight)
     try:
-        expected = n_random if n_random is not None else len(grid_points(parse_grid(grid)))
+        expected = n_random if n_random is not None else len(drop_inert_d_tv(grid_points(parse_grid(grid)))[0])
         if opts["mode"] == "cluster" and not scheduler and expected <= (chunk or DEFAULT_CHUNK):
             # one chunk cannot be spread over workers: the embedded cluster would only add its start-up
             opts["mode"] = "local"
@@ -96,6 +96,10 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
                        progress=False if as_json else None, cost_weights=weights, **opts) as ev:
             points = grid_points(parse_grid(grid)) if grid is not None else \
                 random_sample(n_random, seed, cycle_time=inputs.cycle_time)
+            points, merged = drop_inert_d_tv(points)
+            if merged:
+                _say(f"{merged} grid combinations differ only in d_tv at kp >= 1, where the D part has no "
+                     f"effect (docs/control-law.md): run once each, with d_tv 0")
             sets, points, rejected = build_sets(inputs.params, points, inputs.cycle_time)
             if rejected:
                 _say(f"warning: {len(rejected)} of {len(rejected) + len(sets)} combinations rejected; "
@@ -116,7 +120,8 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
                    "cycles": info["cycles"], "seconds": info["seconds"], "compile_seconds": compile_s,
                    "set_cycles_per_s": rate, "mode": info["mode"], "workers": info["workers"],
                    "rejected": len(rejected), "table": str(path), "plot": plot_path,
-                   "best": res.best_rows(top, key=metric), "units": res.units()})
+                   "best": res.best_rows(top, key=metric), "units": res.units(),
+                   "notes": res.notes(top, key=metric)})
         return
     click.echo(res.render(top, key=metric, plain=True,
                           title=f"best {min(top, len(res))} of {len(res)} sets by {metric}"), nl=False)

@@ -34,7 +34,7 @@ import numpy as np
 from ..control.kinds import FilterType
 from ..errors import DistCtrlError
 from .metrics import METRIC_NAMES, compute_metrics, cost, limits_from_packed, wanted_distance
-from .space import NC_WORDS
+from .space import NC_WORDS, d_tv_applies
 
 __all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "TuningRunError", "PARAM_COLUMNS",
            "plot_sweep"]
@@ -172,8 +172,20 @@ class SweepResult:
                         and c not in used:
                     continue
                 row[c] = _plain(v[i])
+            if "d_tv" in row and "kp" in row and not d_tv_applies(row["kp"]):
+                row["d_tv"] = None                 # no D part at kp >= 1: not a value that matters
             out.append(row)
         return out
+
+    def notes(self, n: int | None = None, key: str = "cost") -> list[str]:
+        """Notes on the best ``n`` rows (all with None): :data:`~distctrl.tuning.space.D_TV_NOTE` when one of
+        them has kp >= 1 and d_tv is a column."""
+        from .space import D_TV_NOTE
+
+        if "kp" not in self.data or "d_tv" not in self.data or not len(self):
+            return []
+        rows = self.order(key)[:n] if n is not None else range(len(self))
+        return [D_TV_NOTE] if any(not d_tv_applies(self.data["kp"][int(i)]) for i in rows) else []
 
     def render(self, n: int = 10, key: str = "cost", plain: bool = False, title: str | None = None) -> str:
         """The best ``n`` rows as a text table."""
@@ -191,11 +203,17 @@ class SweepResult:
             ft = _plain(self.data["filter_type"][i]) if "filter_type" in self.data else None
             used = set(filter_fields(FilterType[ft])) if isinstance(ft, str) and ft in FilterType.__members__ else None
             # a filter parameter the row's filter does not use is "-", not a value that does nothing
-            rows.append(["-" if c in PARAM_COLUMNS and c not in ("kp", "i_tn", "d_tv", "filter_type")
-                         and used is not None and c not in used else _fmt(self.data[c][i]) for c in cols])
+            inert = {"d_tv"} if "kp" in self.data and not d_tv_applies(self.data["kp"][i]) else set()
+            rows.append(["-" if (c in PARAM_COLUMNS and c not in ("kp", "i_tn", "d_tv", "filter_type")
+                                 and used is not None and c not in used) or c in inert else
+                         (_fmt_param(self.data[c][i]) if c in PARAM_COLUMNS else _fmt(self.data[c][i]))
+                         for c in cols])
         units = self.units()
         heads = [f"{c} [{units[c]}]" if c in units else c for c in cols]
-        return render_table(heads, rows, title=title, plain=plain)
+        text = render_table(heads, rows, title=title, plain=plain)
+        if "d_tv" in cols:
+            text += "".join(f"note: {s}\n" for s in self.notes(n, key))
+        return text
 
 
 def _plain(x):
@@ -210,6 +228,14 @@ def _csv(x):
     if isinstance(x, float):
         return "" if math.isnan(x) else repr(x)
     return x
+
+
+def _fmt_param(x) -> str:
+    """A parameter value as used, in the shortest form that reads back as the same float (0.9, 1234.5)."""
+    x = _plain(x)
+    if isinstance(x, float) and math.isfinite(x):
+        return repr(x)
+    return _fmt(x)
 
 
 def _fmt(x) -> str:
@@ -576,13 +602,19 @@ def plot_sweep(result: SweepResult, path=None, metric: str = "rms_error"):
         finite = np.isfinite(y)
         order = np.argsort(np.where(finite, y, np.inf))[::-1]
         from matplotlib import colormaps
-        cmap = colormaps["viridis_r"]
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.colors import Normalize
+        # viridis: the smallest metric (the best set) is dark purple, the largest yellow; the best sets
+        # are drawn last, on top (the order above is worst first)
+        cmap = colormaps["viridis"]
         ylo, yhi = (np.min(y[finite]), np.max(y[finite])) if finite.any() else (0, 1)
         for i in order:
             c = cmap((y[i] - ylo) / (yhi - ylo) if finite[i] and yhi > ylo else 0.0) if finite[i] else "lightgray"
             ax.plot(range(len(cols) + 1), mat[:, i], color=c, lw=0.6, alpha=0.6)
         ax.set_xticks(range(len(cols) + 1), cols + [metric])
         ax.set_ylabel("normalised value")
+        fig.colorbar(ScalarMappable(Normalize(ylo, yhi if yhi > ylo else ylo + 1), cmap), ax=ax,
+                     label=f"{metric} (dark = smaller = better)")
         ax.set_title(f"parallel coordinates, colour = {metric} ({len(result)} sets; dark = better)")
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)

@@ -13,7 +13,9 @@ Grid syntax (``distctrl sweep --grid``)::
     kp=0.1:1.0:10,d_tv=0,0.01,0.02,filter_type=MOVING_AVERAGE,n_cycles=4,8,16
 
 ``name=a:b:n`` is ``n`` values from ``a`` to ``b`` (both included, linear), ``name=a:b:n:log``
-the same on a log scale; ``name=v1,v2,...`` a list. A comma followed by ``name=`` starts the next
+the same on a log scale (range values are rounded to the parameter's resolution,
+:data:`REAL_RESOLUTION`: ``kp=0.1:1.5:8`` gives 0.9, not 0.8999999999999999); ``name=v1,v2,...`` a
+list (kept as typed). A comma followed by ``name=`` starts the next
 parameter. Names are the field names or the NC words (``kp``, ``i_tn``, ``d_tv``, ``filter_type``,
 ``n_cycles``, ``smoothing_factor``/``smooth_fact``, ``kalman_sigma``, ``order``, ``fg_f0``).
 """
@@ -33,7 +35,8 @@ from ..params.table import BY_FIELD
 
 __all__ = ["SpaceError", "Dim", "DEFAULT_SPACE", "ALIASES", "NC_WORDS", "canonical", "parse_grid",
            "grid_points", "random_sample", "to_params", "build_sets", "point_label", "filter_fields",
-           "REAL_RESOLUTION", "resolution", "round_value", "round_point"]
+           "REAL_RESOLUTION", "resolution", "round_value", "round_point", "D_NO_EFFECT_KP", "D_TV_NOTE",
+           "d_tv_applies", "drop_inert_d_tv"]
 
 
 class SpaceError(DistCtrlError, ValueError):
@@ -132,6 +135,37 @@ DEFAULT_SPACE: tuple[Dim, ...] = (
 )
 
 
+# ----------------------------------------------------------------------------- the D part at kp >= 1
+
+#: from this kp on the D part has no room and no effect: the law saturates its per-cycle gain at
+#: 0.3·(1 − kp) (:func:`distctrl.control.law.derivative_gain`, docs/control-law.md "The D part"), so
+#: every d_tv gives the same run. The tools neither vary d_tv there nor report a value for it.
+D_NO_EFFECT_KP = 1.0
+D_TV_NOTE = ("d_tv: not applicable at kp >= 1 (the D part has no effect there, docs/control-law.md); "
+             "such sets are run once, with D_TV 0")
+
+
+def d_tv_applies(kp) -> bool:
+    """Whether D_TV changes anything at this kp (kp < :data:`D_NO_EFFECT_KP`)."""
+    return float(kp) < D_NO_EFFECT_KP
+
+
+def drop_inert_d_tv(points: list[dict]) -> tuple[list[dict], int]:
+    """``points`` with d_tv set to 0 where kp >= 1 and the duplicates this makes removed (the first kept,
+    order kept); returns ``(points, number removed)``. Points without both kp and d_tv are kept as they are."""
+    out, seen, merged = [], set(), 0
+    for p in points:
+        if "kp" in p and "d_tv" in p and not d_tv_applies(p["kp"]):
+            p = dict(p, d_tv=0.0)
+        key = tuple((k, v.name if isinstance(v, FilterType) else v) for k, v in p.items())
+        if key in seen:
+            merged += 1
+            continue
+        seen.add(key)
+        out.append(p)
+    return out, merged
+
+
 # ----------------------------------------------------------------------------- resolution
 
 #: the steps the tuner gives its REAL64 parameters (internal units), so that what it prints is what an
@@ -228,12 +262,23 @@ def _expand(field: str, items: list[str], where: str) -> list:
         if field in _INT_FIELDS:
             vals = list(dict.fromkeys(int(round(x)) for x in raw))
         else:
-            vals = [float(x) for x in raw]
+            vals = _round_range(field, [float(x) for x in raw])
     else:
         vals = [x.strip() for x in items]
         if any(not x for x in vals):
             raise SpaceError(f"{where}: empty value in {','.join(items)!r}")
     return list(dict.fromkeys(_check_value(field, v, where) for v in vals))
+
+
+def _round_range(field: str, vals: list[float]) -> list[float]:
+    """The values of a range rounded to the parameter's resolution (:func:`round_value`), so that a
+    sweep uses and prints 0.9, not the 0.8999999999999999 of ``linspace``. A range finer than the
+    resolution would lose values by that: it is rounded to 10 significant digits instead (which
+    removes the binary artefacts and keeps every value)."""
+    rounded = [round_value(field, v) for v in vals]
+    if len(set(rounded)) == len(set(vals)):
+        return rounded
+    return [float(f"{v:.10g}") for v in vals]
 
 
 _ENTRY_RE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=(.*)$")
@@ -275,8 +320,8 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
                   cycle_time: float | None = None) -> list[dict]:
     """``n`` random points of ``space``; each point sets only the filter parameters its filter type uses.
 
-    With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin). Values are
-    rounded to :func:`resolution` (what the tuner prints is what it evaluated).
+    With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin); at kp >= 1
+    d_tv is 0 (:data:`D_NO_EFFECT_KP`). Values are rounded to :func:`resolution` (what the tuner prints is what it evaluated).
     """
     if n < 0:
         raise SpaceError(f"random sample size {n}: must be >= 0")
@@ -296,6 +341,8 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
             if f == "low_pass_filter_fg_f0" and cycle_time:
                 v = min(v, 0.45 / cycle_time)
             p[f] = v
+        if "kp" in p and "d_tv" in p and not d_tv_applies(round_value("kp", p["kp"])):
+            p["d_tv"] = 0.0                   # no D part at kp >= 1: not a dimension to search there
         points.append(round_point(p))
     return points
 

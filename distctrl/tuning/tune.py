@@ -35,8 +35,8 @@ from ..params.axis import AxisParameters
 from ..sim.surface import Surface
 from .metrics import METRIC_NAMES, METRIC_UNITS, wanted_distance
 from .runner import Evaluator, SweepResult
-from .space import (DEFAULT_SPACE, NC_WORDS, Dim, SpaceError, build_sets, filter_fields, random_sample, resolution,
-                    round_point, round_value, to_params)
+from .space import (D_TV_NOTE, DEFAULT_SPACE, NC_WORDS, Dim, SpaceError, build_sets, d_tv_applies, drop_inert_d_tv,
+                    filter_fields, random_sample, resolution, round_point, round_value, to_params)
 
 __all__ = ["TuneResult", "tune", "nc_block", "param_list", "perturbed_scenarios", "ScaledSurface",
            "plot_before_after", "PERTURBATIONS"]
@@ -132,8 +132,8 @@ def _neighbours(point: dict, dims: list[Dim], scale: float) -> list[dict]:
     out = []
     for d in dims:
         v = point.get(d.field)
-        if v is None:
-            continue
+        if v is None or (d.field == "d_tv" and not d_tv_applies(point.get("kp", 0.0))):
+            continue                   # no D part at kp >= 1: d_tv is no dimension to spend budget on
         cands = []
         if d.kind == "float":
             step = scale * 0.15 * (d.hi - d.lo)
@@ -157,6 +157,8 @@ def _neighbours(point: dict, dims: list[Dim], scale: float) -> list[dict]:
             if c != v:
                 q = dict(point)
                 q[d.field] = c
+                if "d_tv" in q and not d_tv_applies(q.get("kp", 0.0)):
+                    q["d_tv"] = 0.0
                 out.append(q)
     return out
 
@@ -216,7 +218,14 @@ class TuneResult:
         for k, v in _point_of(p).items():
             out[k] = v.name if isinstance(v, FilterType) else (int(v) if isinstance(v, (int, np.integer))
                                                                 and not isinstance(v, bool) else float(v))
+        if not d_tv_applies(p.kp):
+            out["d_tv"] = None                 # no D part at kp >= 1 (the list and the NC block carry 0)
         return out
+
+    @property
+    def notes(self) -> list[str]:
+        """:data:`~distctrl.tuning.space.D_TV_NOTE` when the scenario's or the tuned kp is >= 1."""
+        return [D_TV_NOTE] if not (d_tv_applies(self.best.kp) and d_tv_applies(self.base.kp)) else []
 
     def to_dict(self) -> dict:
         """One JSON-able object (``distctrl tune --json``)."""
@@ -231,7 +240,8 @@ class TuneResult:
                           "unrounded_values": self.tuned_values(self.unrounded) if self.unrounded is not None else None,
                           "unrounded_metrics": metrics(self.unrounded_metrics)},
                 "robustness": [{k: _plain(v) for k, v in r.items()} for r in self.robustness],
-                "margin": _plain(self.margin), "param_list": self.param_list, "nc_block": self.nc_block}
+                "margin": _plain(self.margin), "param_list": self.param_list, "nc_block": self.nc_block,
+                "notes": self.notes}
 
     def report(self, plain: bool = True) -> str:
         from ..workbench.tables import render_table
@@ -260,6 +270,7 @@ class TuneResult:
                                      "margin", "state"], rrows, title="robustness", plain=plain))
             out.append(f"margin: {self.margin:.0%} of the improvement is kept in the worst perturbation "
                        "(degradation: cost perturbed / cost nominal of the tuned set)")
+        out.extend(f"note: {n}" for n in self.notes)
         out.append("# axis parameter list (changed values)\n" + self.param_list)
         out.append("; NC block\n" + self.nc_block)
         return "\n".join(out) + "\n"
@@ -397,7 +408,7 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
         # 3. round to what the list and the NC take, and run the rounded set again: its metrics are reported
         best = unrounded
         try:
-            best = to_params(unrounded, round_point(_point_of(unrounded)), T)
+            best = to_params(unrounded, drop_inert_d_tv([round_point(_point_of(unrounded))])[0][0], T)
         except SpaceError:            # pragma: no cover - rounding left the valid range: keep the values
             pass
         vr = ev.evaluate([best], [_point_of(best)], description="verify rounded")

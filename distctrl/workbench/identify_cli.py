@@ -54,8 +54,9 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     \b
     What to record (TwinCAT Scope, sample time = the NC task's cycle, distance control OFF,
     above a flat sheet), each 5-20 s (docs/identify.md):
-      1. steps of the set position of 0.2-0.5 mm, 0.5 s apart, and one step of several mm
-         (the velocity limit), at a safe height;
+      1. steps of the set position of 0.2-0.5 mm, 0.5 s apart (NC G0 moves or raw steps),
+         and one of several mm at a safe height; v_max / a_max show only where the drive
+         saturates, else they are reported as lower bounds (what the command reached);
       2. a chirp of the set position 1-150 Hz, 0.02-0.05 mm amplitude, 20 s;
       3. a slow ramp (0.2-0.5 mm/s) over the sensor's range, then 1 s at standstill.
     Signals: the set position sent to the drive, the actual position of the motor encoder,

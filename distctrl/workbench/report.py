@@ -43,11 +43,13 @@ REPORT_FILE = "index.html"
 METRIC_UNITS = {
     "distance_error_rms": "mm", "distance_error_max": "mm", "settle_time": "s", "tracking_cycles": "cycles",
     "settle_band_mm": "mm", "settle_hold_s": "s", "oscillation_frequency_hz": "Hz",
+    "excluded_off_sheet_cycles": "cycles", "excluded_process_cycles": "cycles",
     "oscillation_amplitude_mm": "mm", "min_distance_mm": "mm", "time_below_zero_s": "s", "collisions": "",
 }
 METRIC_TEXT = {
-    "distance_error_rms": "RMS of the distance error while distance control tracks",
-    "distance_error_max": "largest |distance error| while distance control tracks",
+    "distance_error_rms": "RMS of the distance error while distance control tracks over the sheet (not counted: "
+                          "the excluded_* cycles; the run's notes say what and against what)",
+    "distance_error_max": "largest |distance error| while distance control tracks over the sheet",
     "settle_time": "from the first tracking cycle to the last entry into the settle band (null: never settled)",
     "oscillation_frequency_hz": "oscillation of the distance error in the last second of tracking (null: none)",
     "oscillation_amplitude_mm": "half the peak-to-peak distance error in the last second of tracking",
@@ -57,6 +59,10 @@ METRIC_TEXT = {
     "tracking_cycles": "cycles with distance control ACTIVE or ACTIVE_CONST_DIST",
     "settle_band_mm": "settle band (± this error)",
     "settle_hold_s": "time the error must stay in the band",
+    "excluded_off_sheet_cycles": "active cycles off the sheet (a hole, past the edge: the surface beyond the "
+                                 "sensor's reach), not in the distance error",
+    "excluded_process_cycles": "active cycles in which a process function had the axis (touch-off, collision "
+                               "retract, auto_set_value sampling), not in the distance error",
 }
 _PNG_DPI = 100
 #: the zoom shows this fraction of the run around the largest error (clamped below)
@@ -225,8 +231,18 @@ def _metric_unit(key: str) -> str:
     return "–"
 
 
-def _metrics_rows(metrics: dict) -> list[tuple]:
-    return [(k, v, _metric_unit(k), METRIC_TEXT.get(k, "")) for k, v in metrics.items()]
+#: the meanings of the metrics a trace report recomputes: every tracking cycle of the trace counts (the
+#: trace does not say which cycles a process function had or where the sheet was out of the sensor's reach)
+TRACE_METRIC_TEXT = {
+    **METRIC_TEXT,
+    "distance_error_rms": "RMS of the distance error over every tracking cycle of the trace (distctrl run's "
+                          "own figure leaves out the cycles off the sheet and those a process function had)",
+    "distance_error_max": "largest |distance error| over every tracking cycle of the trace",
+}
+
+
+def _metrics_rows(metrics: dict, texts: dict = METRIC_TEXT) -> list[tuple]:
+    return [(k, v, _metric_unit(k), texts.get(k, "")) for k, v in metrics.items()]
 
 
 def _events_view(events: list[dict], timeline_png: bytes | None) -> dict:
@@ -464,7 +480,7 @@ def report_from_trace(trace_csv: str | os.PathLike, out_dir: str | os.PathLike, 
     subtitle = f"generated {_now(now)} by distctrl from {src.name}"
     t_end = float(t[-1]) if trace.rows else 0.0
     text = render("trace_report.html.j2", title=heading, subtitle=subtitle, nav=nav, info=info,
-                  metrics=_metrics_rows(_trace_metrics(trace)),
+                  metrics=_metrics_rows(_trace_metrics(trace), TRACE_METRIC_TEXT),
                   metrics_note="Recomputed from the trace (true distance − wanted distance while distance "
                                "control tracks).",
                   events=_events_view(events, _timeline_png(trace, events, t_end)),

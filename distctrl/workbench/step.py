@@ -896,6 +896,19 @@ def suggested_kp(results: Sequence[StepResult]) -> StepResult | None:
     return max(good, key=lambda r: r.setting.kp) if good else None
 
 
+#: from this KP on the D part has no room and no effect (docs/control-law.md, "The D part":
+#: kp + g < 1 with g_max = 0.3·(1 − kp); :func:`distctrl.control.law.derivative_gain` is 0 there)
+D_NO_EFFECT_KP = 1.0
+_NO_D = "D_TV has no effect at KP >= 1 (KP already takes the whole error in one cycle)"
+
+
+def _remedy(s: StepSetting) -> str:
+    """What to change for too much overshoot / oscillation: KP, and the D part only where it acts."""
+    if s.kp >= D_NO_EFFECT_KP:
+        return "lower KP" + (f"; {_NO_D}" if s.d_tv > 0 else "")
+    return "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+
+
 def hints(results: Sequence[StepResult]) -> list[str]:
     """Short factual hints along the documents' method (FCT-M3 ch. 3), one per setting plus a summary.
 
@@ -903,7 +916,8 @@ def hints(results: Sequence[StepResult]) -> list[str]:
     one with a recognisable overshoot (2 ... 40 %) that decays within 2 periods is what the method
     looks for; a larger overshoot, more swings or no settling: lower KP or add D. Step 2 (I): only
     for a permanent control deviation. Step 4 (D): the overshoot with and without D_TV at the same
-    KP / I_TN is compared. A response the slope limiter decided (:attr:`StepMetrics.limiter_bound`)
+    KP / I_TN is compared (below KP 1 only: from KP 1 on the D part has no effect, and no hint offers
+    D_TV there). A response the slope limiter decided (:attr:`StepMetrics.limiter_bound`)
     says so and is never called good nor suggested: it shows the limiter, not KP.
     """
     out: list[str] = []
@@ -935,7 +949,7 @@ def hints(results: Sequence[StepResult]) -> list[str]:
                                   f"response")
             continue
         if kind == "oscillating":
-            remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+            remedy = _remedy(s)
             state = (f"not settled within ±{m.band:.4g} mm by the end of the run" if not m.settled
                      else f"settled after {_ms(m.settling_time_s)} ms")
             text = (f"overshoot {m.overshoot_pct:.0f} %, {m.oscillation} zero crossings after the first "
@@ -952,7 +966,7 @@ def hints(results: Sequence[StepResult]) -> list[str]:
             text = (f"{_overshoot_text(m)}; not settled within ±{m.band:.4g} mm by the end of the run "
                     f"without oscillating: a slow approach (a longer run shows more)")
         elif kind == "large":
-            remedy = "lower KP or D_TV" if s.d_tv > 0 else "lower KP or add D (method step 4)"
+            remedy = _remedy(s)
             text = f"{_overshoot_text(m)} — a large overshoot (above {LARGE_PCT:.0f} %): {remedy}"
         elif kind == "damped":
             text = (f"{_overshoot_text(m)} — well damped"
@@ -971,7 +985,13 @@ def hints(results: Sequence[StepResult]) -> list[str]:
             continue
         m0 = without[0].metrics
         for r in group:
-            if r.setting.d_tv == 0 or m0.overshoot_pct < RECOGNISABLE_PCT:
+            if r.setting.d_tv == 0:
+                continue
+            if kp >= D_NO_EFFECT_KP:
+                out.append(f"KP={kp:g} I_TN={tn:g}: D_TV={r.setting.d_tv:g}: {_NO_D}; the response is that "
+                           f"of D_TV=0")
+                continue
+            if m0.overshoot_pct < RECOGNISABLE_PCT:
                 continue
             m1 = r.metrics
             if m0.limiter_bound and m1.limiter_bound:
@@ -1032,6 +1052,12 @@ def results_json(results: Sequence[StepResult]) -> dict:
 
 
 
+#: the step plot's time axis: this many times the slowest settling time of the responses that settle ...
+SETTLE_VIEW = 4.0
+#: ... but at least this long (s)
+MIN_VIEW_S = 0.02
+
+
 def check_plot_path(path: str | os.PathLike) -> Path:
     return check_plot_suffix(path, StepError)
 
@@ -1053,13 +1079,10 @@ def plot_steps(results: Sequence[StepResult], path: str | os.PathLike | None = N
         raise StepError("plot_steps: no results; allowed: the list run_steps returns")
     if path is not None:
         path = check_plot_path(path)
-    fig = Figure(figsize=(10.0, 5.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots(1, 1)
     info0 = results[0].trace.meta.get("step", {})
     step_mm = float(info0.get("step_mm", results[0].metrics.step_mm))
     ramp = float(info0.get("ramp_mm_s", 0.0))
-    t_end = 0.0
+    curves, t_end = [], 0.0
     for n, r in enumerate(results):
         info = r.trace.meta.get("step", {})
         t_step = float(info.get("t_step", 0.0))
@@ -1071,21 +1094,55 @@ def plot_steps(results: Sequence[StepResult], path: str | os.PathLike | None = N
         baseline = float(np.mean(y[max(0, pre - 10):pre])) if pre else float(y[0])
         x = t - t_step
         keep = x >= -min(0.05, t_step)
-        xs, ys = envelope(x[keep], y[keep] - baseline, MAX_POINTS)
-        ax.plot(xs, ys, color=f"C{n % 10}", linewidth=1.2, label=r.setting.label)
+        settles = r.metrics.settled
+        label = r.setting.label + ("" if settles else " (does not settle)")
+        curves.append((n, x[keep], y[keep] - baseline, label, settles, r.metrics.settling_time_s))
         t_end = max(t_end, float(x[-1]))
-    xr = np.array([0.0, t_end])
-    ref = step_mm + ramp * xr
-    band = BAND * abs(step_mm)
-    ax.plot([-0.05, 0.0, 0.0], [0.0, 0.0, step_mm], color="0.25", linestyle="--", linewidth=0.9)
-    ax.plot(xr, ref, color="0.25", linestyle="--", linewidth=0.9, label=f"step {step_mm:g} mm"
-            + (f" + ramp {ramp:g} mm/s" if ramp else ""))
-    ax.plot(xr, ref + band, color="0.55", linestyle="--", linewidth=0.7, label=f"±{BAND * 100:.0f} % band")
-    ax.plot(xr, ref - band, color="0.55", linestyle="--", linewidth=0.7, label="_nolegend_")
+    # the time axis from the responses that settle (audit R1: a limit cycle drawn over the whole run hid
+    # responses that settle in milliseconds): SETTLE_VIEW x the slowest settling time; a response that
+    # does not settle says so in the legend, and a second panel shows the whole run
+    settling = [c[5] for c in curves if c[4] and c[5] is not None]
+    zoom = bool(settling) and len(settling) < len(curves)
+    t_view = min(t_end, max(SETTLE_VIEW * max(settling), MIN_VIEW_S)) if settling else t_end
+    if zoom and t_view < 0.5 * t_end:
+        fig = Figure(figsize=(10.0, 7.6), layout="constrained")
+        FigureCanvasAgg(fig)
+        ax, whole = fig.subplots(2, 1, height_ratios=(3, 1.3))
+    else:
+        fig = Figure(figsize=(10.0, 5.6), layout="constrained")
+        FigureCanvasAgg(fig)
+        ax, whole = fig.subplots(1, 1), None
+        t_view = t_end if not settling else t_view
+    for panel, t_hi in ((ax, t_view), (whole, t_end)):
+        if panel is None:
+            continue
+        for n, x, y, label, settles, _ in curves:
+            sel = x <= t_hi + 1e-12
+            xs, ys = envelope(x[sel], y[sel], MAX_POINTS)
+            panel.plot(xs, ys, color=f"C{n % 10}", linewidth=1.2 if settles else 0.8,
+                       linestyle="-" if settles else ":", label=label if panel is ax else "_nolegend_")
+        xr = np.array([0.0, t_hi])
+        ref = step_mm + ramp * xr
+        band = BAND * abs(step_mm)
+        main = panel is ax
+        panel.plot([-0.05, 0.0, 0.0], [0.0, 0.0, step_mm], color="0.25", linestyle="--", linewidth=0.9,
+                   label="_nolegend_")
+        panel.plot(xr, ref, color="0.25", linestyle="--", linewidth=0.9,
+                   label=(f"step {step_mm:g} mm" + (f" + ramp {ramp:g} mm/s" if ramp else "")) if main
+                   else "_nolegend_")
+        panel.plot(xr, ref + band, color="0.55", linestyle="--", linewidth=0.7,
+                   label=f"±{BAND * 100:.0f} % band" if main else "_nolegend_")
+        panel.plot(xr, ref - band, color="0.55", linestyle="--", linewidth=0.7, label="_nolegend_")
+        panel.set_xlim(-min(0.05, 0.25 * t_hi), t_hi)
+        panel.grid(True, alpha=0.4)
+        panel.set_ylabel("offset response [mm]")
     ax.set_xlabel("t − t_step [s]")
-    ax.set_ylabel("offset response [mm]")
-    ax.grid(True, alpha=0.4)
     ax.legend(loc="best", fontsize="small")
+    if whole is not None:
+        ax.set_title(f"the first {t_view * 1e3:.0f} ms ({SETTLE_VIEW:g} x the slowest settling time)",
+                     fontsize="medium")
+        whole.set_title("the whole run: dotted = does not settle", fontsize="medium")
+        whole.set_xlabel("t − t_step [s]")
     mode = info0.get("mode")
     fig.suptitle(title if title is not None else
                  f"Distance-control step response ({mode + ', ' if mode else ''}step {step_mm:g} mm)")

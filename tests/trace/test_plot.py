@@ -130,3 +130,41 @@ def test_chattering_state_is_shaded_by_value(tmp_path):
     assert len(fig.axes[0].texts) == 0
     assert len(fig.axes[0].collections) == 2                 # one shading per non-INACTIVE state
     assert [t.get_text() for t in fig.legends[0].get_texts()] == ["Z.dc.state ACTIVE", "Z.dc.state FREEZE"]
+
+
+def _sheet_like_trace(n: int = 5000) -> Trace:
+    """The demo's sheet: INACTIVE for 2 cycles (the filter runs on the surface position, 30 mm), then
+    ACTIVE_CONST_DIST (the distance, 1 mm) and at the end TURNING_OFF for 2 cycles, INACTIVE."""
+    t = np.arange(n) * 0.001
+    state = np.full(n, 4.0)
+    state[:2] = 0.0
+    state[-4:-2] = 3.0
+    state[-2:] = 0.0
+    filtered = np.where(state == 0, 30.0, 1.0 + 0.01 * np.sin(20 * t))
+    off = np.where(state > 0, 0.2 * np.sin(3 * t), 0.0)
+    data = np.column_stack([t, t // 0.5, np.full(n, 31.0), 31.0 + off, 31.0 + off, state, off, filtered,
+                            filtered - 1.0, 100 * t, np.full(n, 30.0), 1.0 + off])
+    return Trace(COLS, data, units=UNITS, meta={"program": "sheet.nc"})
+
+
+def test_filtered_is_not_drawn_while_inactive():
+    """new-user audit R14: while INACTIVE the filter runs on the surface position (30 mm), once active on
+    the distance (1 mm); drawing the INACTIVE cycles squashed the panel's scale to 30 mm."""
+    fig = _sheet_like_trace().plot()
+    (line,) = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_label() == "Z.dc.filtered"]
+    y = np.asarray(line.get_ydata(), dtype=float)
+    assert np.nanmax(y) < 2.0 and np.isnan(y[:2]).all()
+
+
+def test_state_names_do_not_overlap():
+    """INACTIVE / ACTIVE_CONST_DIST 2 ms apart at the start, TURNING_OFF / INACTIVE at the end of 5 s: the
+    names above the top panel must not be printed on top of each other."""
+    fig = _sheet_like_trace().plot()
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    texts = [t for t in fig.axes[0].texts if t.get_text() in HLI_STATE_NAMES.values()]
+    assert len(texts) >= 3
+    boxes = [t.get_window_extent(r) for t in texts]
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            assert not boxes[i].overlaps(boxes[j]), (texts[i].get_text(), texts[j].get_text())

@@ -22,7 +22,7 @@ def test_parse_grid_ranges_and_lists():
 def test_parse_grid_aliases_and_log():
     g = parse_grid("order=1,2, fg_f0=10:100:3:log,smooth_fact=0.5")
     assert g["low_pass_filter_order"] == [1, 2]
-    assert g["low_pass_filter_fg_f0"] == pytest.approx([10.0, 31.6227766, 100.0])
+    assert g["low_pass_filter_fg_f0"] == [10.0, 31.6, 100.0]          # rounded to 0.1 Hz (R15)
     assert g["smoothing_factor"] == [0.5]
 
 
@@ -61,3 +61,22 @@ def test_invalid_combination_rejected_with_message():
     sets, kept, rejected = build_sets(base, [{"kp": 0.5}, {"filter_type": FilterType.LOWPASS,
                                                             "low_pass_filter_fg_f0": 900.0}], 0.001)
     assert len(sets) == 1 and len(rejected) == 1 and "P-AXIS-00508" in rejected[0][1]
+
+
+def test_grid_ranges_are_rounded_to_the_parameters_resolution():
+    """new-user audit R15: ``kp=0.1:1.5:8`` gave 0.8999999999999999 and 1.0999999999999999."""
+    g = parse_grid("kp=0.1:1.5:8,d_tv=0:0.01:7,fg_f0=10:100:3:log")
+    assert g["kp"] == [0.1, 0.3, 0.5, 0.7, 0.9, 1.1, 1.3, 1.5]
+    assert g["d_tv"] == [0.0, 0.0017, 0.0033, 0.005, 0.0067, 0.0083, 0.01]       # 0.1 ms steps
+    assert g["low_pass_filter_fg_f0"] == [10.0, 31.6, 100.0]                     # 0.1 Hz steps
+
+
+def test_a_grid_range_finer_than_the_resolution_keeps_its_values_without_artefacts():
+    g = parse_grid("kp=0.1:0.1003:4")           # steps of 0.0001 < the 0.001 resolution of kp
+    assert len(g["kp"]) == 4
+    assert g["kp"] == [0.1, 0.1001, 0.1002, 0.1003]
+    assert all(len(repr(v)) <= 12 for v in g["kp"]), g["kp"]
+
+
+def test_grid_lists_keep_the_values_typed():
+    assert parse_grid("d_tv=0.00015,0.0035")["d_tv"] == [0.00015, 0.0035]

@@ -374,3 +374,46 @@ def test_the_command_registers_as_step_on_a_group():
     group.add_command(step_cmd)                        # as distctrl.cli registers it (LAZY_COMMANDS)
     res = CliRunner().invoke(group, ["step", "--help"])
     assert res.exit_code == 0 and "--kp" in res.output and "--plot" in res.output
+
+
+def test_hints_never_offer_d_tv_at_kp_1_or_above():
+    """new-user audit M6: the D part has no room at KP >= 1 (docs/control-law.md, 'no D for kp >= 1'),
+    so a hint there names KP alone and says that D_TV does nothing, never 'lower D_TV' or 'add D'."""
+    osc = {"overshoot_pct": 60.0, "overshoot_mm": 0.6, "oscillation": 90, "settling_time_s": None}
+    res = [_fake(StepSetting(1.0), **osc), _fake(StepSetting(1.0, 0.0, 0.01), **osc),
+           _fake(StepSetting(1.5, 0.0, 0.01), overshoot_pct=50.0, overshoot_mm=0.5, oscillation=3)]
+    h = hints(res)
+    per_setting = h[:3]
+    for text in per_setting:
+        assert "D_TV" not in text.split(": ", 1)[1].replace("D_TV has no effect", ""), text
+        assert "add D" not in text, text
+        assert "lower KP" in text, text
+    assert "D_TV has no effect at KP >= 1" in per_setting[1]
+    comparison = [t for t in h if t.startswith("KP=1 I_TN=0: D_TV=0.01")]
+    assert comparison and "no effect at KP >= 1" in comparison[0] and "lower D_TV" not in comparison[0]
+
+
+def test_hints_below_kp_1_still_offer_the_d_part():
+    osc = {"overshoot_pct": 60.0, "overshoot_mm": 0.6, "oscillation": 90, "settling_time_s": None}
+    h = hints([_fake(StepSetting(0.9), **osc), _fake(StepSetting(0.9, 0.0, 0.01), **osc)])
+    assert "lower KP or add D" in h[0] and "lower KP or D_TV" in h[1]
+
+
+def test_plot_time_axis_follows_the_settling_responses_and_marks_the_others(tmp_path):
+    """new-user audit R1: the README's example (KP 0.2, 0.5, 1.0) drew KP 1's limit cycle over the whole
+    run and the responses that settle in 6-16 ms were invisible. The main panel's time axis now ends a
+    few settling times after the slowest settling response; a response that does not settle says so in
+    the legend, and a second panel shows the whole run."""
+    res = run_steps(parse_settings("0.2,0.5,1.0"), progress=False, t_step=0.05, duration=1.0)
+    settled = [r for r in res if r.metrics.settled]
+    assert len(settled) == 2 and not res[2].metrics.settled
+    fig = plot_steps(res)
+    main, whole = fig.axes
+    slowest = max(r.metrics.settling_time_s for r in settled)
+    lo, hi = main.get_xlim()
+    assert slowest < hi <= 0.1 and hi < 0.2 * (1.0 - 0.05), (slowest, hi)
+    labels = [ln.get_label() for ln in main.get_lines() if ln.get_label().startswith("KP=")]
+    assert "KP=1 I_TN=0 D_TV=0 (does not settle)" in labels
+    assert "KP=0.2 I_TN=0 D_TV=0" in labels and "KP=0.5 I_TN=0 D_TV=0" in labels
+    assert whole.get_xlim()[1] >= 0.9                      # the whole run after the step
+    plot_steps(res, tmp_path / "s.png")

@@ -18,7 +18,7 @@ MIN_SECONDS = 1.0
 MIN_SAMPLES = 200
 #: what to record, quoted in the messages (docs/identify.md)
 RECORD_STEPS = ("steps of the set position of 0.2-0.5 mm (0.5 s apart, sensor not saturated, "
-                "distance control off)")
+                "distance control off; NC G0 moves or raw set-position steps)")
 RECORD_LARGE_STEP = ("a step large enough that the axis reaches its velocity limit (several mm, "
                      "at a safe height above the sheet)")
 RECORD_CHIRP = ("a chirp of the set position 1-150 Hz, 0.02-0.05 mm amplitude, 20 s, above the sheet")

@@ -25,7 +25,6 @@ CHAR_BIN = 0.25
 NPERSEG = 2048
 from .common import (
     RECORD_CHIRP,
-    RECORD_LARGE_STEP,
     RECORD_RAMP,
     RECORD_STANDSTILL,
     RECORD_STEPS,
@@ -112,6 +111,13 @@ def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> t
     return alpha, float(np.sum(np.minimum(q, 16.0))), med
 
 
+def _recording_scale(recs, theta: float, T: float) -> float:
+    """The largest median |residual| of the one-step equation over the recordings that move (inf: none)."""
+    meds = [_robust_alpha(*_drive_rows([r], theta, T)[:2])[2] for r in recs]
+    meds = [m for m in meds if math.isfinite(m)]
+    return max(meds) if meds else math.inf
+
+
 def _limits(recs, T: float, alpha: float, theta: float, scale: float):
     """v_max and a_max (None if never reached) from the samples where the P loop demands more than
     the motor does, and the number of such samples."""
@@ -126,6 +132,39 @@ def _limits(recs, T: float, alpha: float, theta: float, scale: float):
     v_max = float(np.median(np.abs(v[sat_v]))) if int(sat_v.sum()) >= 3 else None
     a_max = float(np.percentile(np.abs(dv[sat_a]), 90)) / T if int(sat_a.sum()) >= 3 else None
     return v_max, a_max, int(sat_v.sum()), int(sat_a.sum())
+
+
+#: a command transient moves the drive's following error by at least this much (mm) ...
+TRANSIENT_MIN_MM = 0.02
+#: ... and by this many times the one-step equation's noise scale
+TRANSIENT_NOISE = 200.0
+
+
+def _command_transients(recs, alpha: float, scale: float) -> int:
+    """Samples at which the command's own shape excites the drive's dynamics: a change of the command's
+    velocity within one time constant of the drive (W = 1/(kv T) cycles) that moves the following error
+    by ``|S[k+W] - 2 S[k] + S[k-W]| / (W (1 - exp(-kv T)))`` mm, more than max(TRANSIENT_NOISE x the noise
+    scale, TRANSIENT_MIN_MM); or a raw jump of the set position (per cycle) above max(200 x scale, 1 µm).
+
+    An NC-interpolated step is such a transient: at a_max 5000 mm/s² its command changes velocity by
+    tens of mm/s within the drive's 22 ms, although no single cycle's second difference (5 µm) stands
+    out; a slow ramp's kink (0.2-0.5 mm/s: 5-11 µm of following error at kv 45) is not."""
+    if 0.0 < alpha < 1.0:
+        W = int(min(max(round(1.0 / -math.log1p(-alpha)), 1), 200))
+    else:
+        W, alpha = 1, 1.0
+    thr = max(TRANSIENT_NOISE * scale, TRANSIENT_MIN_MM)
+    n = 0
+    for r in recs:
+        S = r.S
+        raw = np.abs(np.diff(S, 2)) > max(200.0 * scale, 1e-3)
+        hit = np.zeros(S.size, dtype=bool)
+        hit[1:-1] |= raw
+        if S.size > 2 * W:
+            shaped = np.abs(S[2 * W:] - 2.0 * S[W:-W] + S[:-2 * W]) / (W * alpha) > thr
+            hit[W:-W] |= shaped
+        n += int(hit.sum())
+    return n
 
 
 def _limited_cost(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max) -> float:
@@ -151,7 +190,10 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         return out
     # pass 1: least median of the residual over the moving samples, on a grid of dead times
     coarse = np.arange(0.0, MAX_DELAY + 1e-12, T)
-    med = np.array([_robust_alpha(*_drive_rows(recs, th, T)[:2])[2] for th in coarse])
+    # the noise scale is the largest of the recordings' own: a noise-free recording (a slow ramp of a
+    # simulated axis explains itself to 1e-14 mm at any dead time) must not make the other recordings'
+    # residuals all outliers, which would flatten the cost over the dead time (audit M2: steps + ramp)
+    med = np.array([_recording_scale(recs, th, T) for th in coarse])
     if not np.isfinite(med).any():
         _warn(res.warnings, f"kv and dead time: the axis hardly moves in these recordings; record {RECORD_STEPS}")
         return out
@@ -188,25 +230,75 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
             if 0.0 <= th <= MAX_DELAY]
     sharp = bool(near) and min(near) > 1.05 * best
     # and command transients well above the encoder's noise (a ramp's kink is not enough)
-    jumps = sum(int(np.sum(np.abs(np.diff(r.S, 2)) > max(200.0 * scale, 1e-3))) for r in recs)
+    jumps = _command_transients(recs, alpha, scale)
     res.extra["drive_command_transients"] = jumps
     sharp = sharp and jumps >= 3
     res.extra["drive_dead_time_cost_ratio"] = (min(near) / best) if near and best > 0 else None
     if not (0.0 < alpha < 1.0) or not sharp:
         _warn(res.warnings, "kv and dead time: not identifiable from these recordings (the command has no "
-                            f"fast transients); record {RECORD_STEPS}")
+                            "transients that separate them: a slow ramp trades kv against the dead time); "
+                            f"record {RECORD_STEPS}")
         return out
     out["kv"], out["dead_time"] = -math.log1p(-alpha) / T, theta
     out["v_max"], out["a_max"] = v_max, a_max
-    if v_max is None:
-        _warn(res.warnings, "v_max: the velocity limit was not reached in these recordings; record "
-                            f"{RECORD_LARGE_STEP}")
-    if a_max is None:
-        _warn(res.warnings, "a_max: the acceleration limit was not reached in these recordings; record "
-                            f"{RECORD_LARGE_STEP} (or steps of 1-2 mm)")
+    if v_max is None or a_max is None:
+        _limit_bounds(recs, T, res, v_max is None, a_max is None)
     res.extra["drive_samples_velocity_limited"] = n_v
     res.extra["drive_samples_acceleration_limited"] = n_a
     return out
+
+
+#: a command whose largest acceleration is at most this many times the motor's is one the drive
+#: followed in shape (an NC-interpolated move), not a raw jump of the set position
+SHAPED_COMMAND_RATIO = 10.0
+
+
+def _peak(values: np.ndarray) -> float:
+    """The largest |value|, robust to single outliers (the 99.9th percentile)."""
+    return float(np.percentile(np.abs(values), 99.9)) if values.size else 0.0
+
+
+def _limit_bounds(recs, T: float, res: Identification, want_v: bool, want_a: bool) -> None:
+    """v_max / a_max were not reached: say what the recordings show instead, lower bounds.
+
+    The drive never saturated, so its limits lie above everything it was asked for. When the command is
+    shaped (an NC-interpolated move: its acceleration at most SHAPED_COMMAND_RATIO x the motor's), the NC
+    limited it: the command's largest velocity and acceleration are the bounds, and they are what the
+    NC's own limits made of the moves (a larger step would be limited by them too). For raw set-position
+    steps the bounds are what the motor itself reached. ``res.extra``: ``v_max_lower_bound``,
+    ``a_max_lower_bound`` (mm/s, mm/s²) and ``limits_lower_bound_from`` ("command" or "motor")."""
+    vc = max(_peak(np.diff(r.S) / T) for r in recs)
+    ac = max(_peak(np.diff(r.S, 2) / (T * T)) for r in recs)
+    vm, am = 0.0, 0.0
+    for r in recs:
+        v = np.diff(r.X) / T
+        if v.size > 5:
+            v = np.convolve(v, np.ones(5) / 5.0, mode="valid")      # encoder noise off the acceleration
+        vm = max(vm, _peak(v))
+        am = max(am, _peak(np.diff(v) / T))
+    shaped = am > 0.0 and ac <= SHAPED_COMMAND_RATIO * am
+    v_lo, a_lo = (max(vc, vm), max(ac, am)) if shaped else (vm, am)
+    res.extra["limits_lower_bound_from"] = "command" if shaped else "motor"
+    what = []
+    if want_v:
+        res.extra["v_max_lower_bound"] = v_lo
+        what.append(f"v = {v_lo:.4g} mm/s")
+    if want_a:
+        res.extra["a_max_lower_bound"] = a_lo
+        what.append(f"a = {a_lo:.4g} mm/s^2")
+    names = " and ".join(n for n, w in (("v_max", want_v), ("a_max", want_a)) if w)
+    if shaped:
+        text = (f"{names}: not identified: the command never exceeded {', '.join(what)} (the NC's interpolation "
+                f"limits it) and the drive followed it without saturating, so the drive's limits are at least "
+                f"these; they cannot be seen while the NC limits every command below them (nor do they matter "
+                f"then). fitted.toml takes these values as the axis's limits (lower bounds) unless the template "
+                f"configures its own")
+    else:
+        text = (f"{names}: not identified: the motor reached {', '.join(what)} without saturating, so the "
+                f"drive's limits are at least these; a set-position step whose motion saturates the drive "
+                f"would show them. fitted.toml takes these values as lower bounds unless the template "
+                f"configures its own")
+    _warn(res.warnings, text)
 
 
 def simulate_drive(S: np.ndarray, x0: float, T: float, kv: float, dead_time: float, v_max: float | None,

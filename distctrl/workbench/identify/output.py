@@ -26,6 +26,13 @@ def _fmt(v, scale=1.0, spec=".4g", unit=""):
     return "-" if v is None else f"{v * scale:{spec}} {unit}".rstrip()
 
 
+def _bound(res: Identification, key: str, unit: str) -> str:
+    b = res.extra.get(f"{key}_lower_bound")
+    if res.drive.get(key) is not None or b is None:
+        return ""
+    return f"  (at least {b:.4g} {unit}: what the {res.extra.get('limits_lower_bound_from')} reached)"
+
+
 def format_summary(res: Identification) -> str:
     d, s = res.drive, res.sensor
     ch = s["characteristic"]
@@ -33,8 +40,8 @@ def format_summary(res: Identification) -> str:
              "drive:",
              f"  kv            {_fmt(d['kv'], unit='1/s')}",
              f"  dead time     {_fmt(d['dead_time'], 1e3, '.3g', 'ms')}",
-             f"  v_max         {_fmt(d['v_max'], unit='mm/s')}",
-             f"  a_max         {_fmt(d['a_max'], unit='mm/s^2')}",
+             f"  v_max         {_fmt(d['v_max'], unit='mm/s')}{_bound(res, 'v_max', 'mm/s')}",
+             f"  a_max         {_fmt(d['a_max'], unit='mm/s^2')}{_bound(res, 'a_max', 'mm/s^2')}",
              f"  resonance     {_fmt(d['resonance_hz'], unit='Hz')}",
              f"  damping       {_fmt(d['damping'], spec='.3g')}",
              "sensor:" + f" ({res.extra.get('sensor_reads', '')})",
@@ -160,6 +167,32 @@ def fitted_axis(res: Identification) -> tuple[dict, list[str]]:
     return keys, notes
 
 
+def _limit_keys(res: Identification, ax: dict, notes: list[str]) -> dict:
+    """v_max / a_max the recordings did not identify (audit R7: never the defaults silently): the
+    template's configured value if it has one, else the lower bound the recordings show (what the command,
+    or the motor, reached without the drive saturating). Writes them into ``ax``; returns their comments."""
+    comments = {}
+    source = res.extra.get("limits_lower_bound_from")
+    for key, unit in (("v_max", "mm/s"), ("a_max", "mm/s^2")):
+        if res.drive.get(key) is not None:
+            comments[key] = f"{unit}, identified"
+            continue
+        bound = res.extra.get(f"{key}_lower_bound")
+        if key in ax:
+            comments[key] = (f"{unit}, the template's configured value (not identified"
+                             + (f"; the recordings show at least {bound:.4g})" if bound is not None else ")"))
+        elif bound is not None:
+            ax[key] = float(f"{bound:.6g}")
+            comments[key] = (f"{unit}, lower bound: the {source} reached this without the drive saturating; "
+                             f"the drive's own limit was not seen")
+            notes.append(f"{key} = {bound:.4g} {unit} written as a lower bound (what the {source} reached; the "
+                         f"drive's own limit was not identified)")
+        else:
+            notes.append(f"{key}: neither identified nor bounded: the simulator's default applies "
+                         f"(docs/scenarios.md)")
+    return comments
+
+
 def fitted_sensor(res: Identification, range_max: float = 10.0) -> dict:
     """The scenario's sensor keys of the fitted sensor."""
     T = res.cycle_time
@@ -241,6 +274,7 @@ def write_scenario(res: Identification, out_dir: str | os.PathLike, template: st
                      f"{res.cycle_time:g} s: cycle_time set to the recordings'")
         doc["cycle_time"] = float(f"{res.cycle_time:.9g}")
     doc["axes"][axis].update(axis_keys)
+    limit_comments = _limit_keys(res, doc["axes"][axis], notes)
     skeys = fitted_sensor(res, float(sensor.get("range_max", 10.0)))
     if sensor.get("kind") == "encoder" and "characteristic" in skeys:
         skeys.pop("characteristic")
@@ -251,7 +285,8 @@ def write_scenario(res: Identification, out_dir: str | os.PathLike, template: st
                 f"axes.{axis}.bus_delay_cycles": f"dead time {res.drive['dead_time'] * 1e3:.3g} ms"
                 if res.drive["dead_time"] is not None else None,
                 "sensor.delay_cycles": f"delay {res.sensor['delay'] * 1e3:.3g} ms" if res.sensor["delay"] is not None
-                else None}
+                else None,
+                **{f"axes.{axis}.{k}": c for k, c in limit_comments.items()}}
     path = out / name
     head = (f"# written by distctrl identify from {', '.join(Path(r['path']).name for r in res.recordings)}\n"
             "# keys not identified keep the template's values (or the defaults, docs/scenarios.md)\n")
