@@ -152,3 +152,94 @@ def test_the_command_list_shows_whole_short_helps():
     r = CliRunner().invoke(main, ["--help"])
     diag_line = next(line for line in r.output.splitlines() if line.strip().startswith("diag"))
     assert "Fig. 56" in diag_line
+
+
+# ----------------------------------------------------------------------------- numeric options have ranges
+
+def _numeric_options():
+    import click
+
+    ctx = click.Context(main)
+    for name in main.list_commands(ctx):
+        cmd = main.get_command(ctx, name)
+        for p in cmd.params:
+            if isinstance(p.type, click.types._NumberParamTypeBase):
+                yield name, p
+
+
+def test_every_numeric_option_of_every_command_has_a_range():
+    """B2 (new-user audit): --port 70000 listened on 4464, --duration -5 was accepted. Every numeric
+    option of every command is a range (a future option without one fails here), and a float option
+    also refuses NaN and infinities (a bare click.FloatRange lets 'nan' through)."""
+    import click
+
+    options = list(_numeric_options())
+    assert len(options) > 30            # the walk sees the lazy commands too
+    no_range, lets_through = [], []
+    for name, p in options:
+        t = p.type
+        if not isinstance(t, click.types._NumberRangeBase) or (t.min is None and t.max is None):
+            no_range.append(f"{name} --{p.name}")
+            continue
+        if isinstance(t, click.types.FloatParamType):
+            for text in ("nan", "inf", "-inf"):
+                try:
+                    t.convert(text, p, None)
+                except click.BadParameter:
+                    continue
+                lets_through.append(f"{name} --{p.name} {text}")
+    assert no_range == [], f"numeric options without a range: {no_range}"
+    assert lets_through == [], f"float options taking a non-finite value: {lets_through}"
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--port", "70000"], "70000"),
+    (["--port", "-1"], "-1"),
+    (["--duration", "-5"], "-5"),
+    (["--duration", "nan"], "nan"),
+])
+def test_serve_refuses_an_out_of_range_port_or_duration_with_exit_1(args, words):
+    r = CliRunner().invoke(main, ["serve", str(ROOT / "examples" / "scenarios" / "serve_z.toml"), "--no-discovery",
+                                  *args])
+    assert r.exit_code == 1, r.output
+    assert words in r.stderr and "listening" not in r.output
+
+
+# ----------------------------------------------------------------------------- --json on an error (R12)
+
+def test_json_error_object_on_stdout_for_invalid_input(tmp_path):
+    """R12: on invalid input `--json` left stdout empty. Now the error object is on stdout (one
+    shape for every command) and the one-line message stays on stderr."""
+    import json
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text("durration = 3\n")
+    r = CliRunner().invoke(main, ["run", str(bad), "--json"])
+    assert r.exit_code == 1
+    doc = json.loads(r.stdout)
+    assert doc == {"command": "run", "outcome": "error", "exit_code": 1, "error": doc["error"]}
+    assert "durration" in doc["error"]
+    assert r.stderr.strip().splitlines() == [f"error: {doc['error']}"]
+
+
+@pytest.mark.parametrize("args", [
+    ["serve", "examples/scenarios/serve_z.toml", "--port", "70000", "--json"],     # a usage error (click)
+    ["params", "nosuchfile.lis", "--json"],
+    ["filters", "NOSUCHFILTER", "--json"],
+    ["identify", "nosuch.csv", "--command", "a", "--actual", "b", "--sensor", "c", "--json"],
+    ["plot", "nosuch.csv", "--json"],
+    ["step", "--kp", "abc", "--json"],
+    ["margins", "nosuch.toml", "--json"],
+    ["calibrate", "nosuch.toml", "--json"],
+    ["objects", "--axis", "Q", "--json"],
+    ["diag", "nosuch.toml", "--json"],
+])
+def test_every_command_answers_an_error_in_json_with_the_same_shape(args):
+    import json
+
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 1, r.output
+    doc = json.loads(r.stdout)
+    assert set(doc) == {"command", "outcome", "exit_code", "error"}
+    assert doc["command"] == args[0] and doc["outcome"] == "error" and doc["exit_code"] == 1 and doc["error"]
+    assert "error" in r.stderr.lower() and "Traceback" not in r.output

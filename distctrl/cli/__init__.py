@@ -7,7 +7,8 @@ import sys
 import click
 
 from ..errors import DistCtrlError
-from .common import DistctrlGroup
+from ..sim.scenario import CYCLE_TIME_MAX, CYCLE_TIME_MIN
+from .common import PORT, DistctrlGroup, Finite
 
 #: the commands that live beside what they serve, imported when used
 LAZY_COMMANDS = {
@@ -49,7 +50,7 @@ def _list_kind(path: str) -> str:
 @main.command()
 @click.argument("list_file", type=click.Path(dir_okay=False))
 @click.option("--all", "show_all", is_flag=True, help="Show every parameter, not only the ones that differ from the defaults.")
-@click.option("--cycle-time", default=0.001, show_default=True, type=float,
+@click.option("--cycle-time", default=0.001, show_default=True, type=Finite(CYCLE_TIME_MIN, CYCLE_TIME_MAX),
               help="GEO cycle time (s) the list is checked against (the low-pass cut-off must lie below 1/(2T)).")
 @click.option("--kind", type=click.Choice(["auto", "axis", "channel"]), default="auto", show_default=True,
               help="An axis list (P-AXIS-, FCT-M3 §9) or a channel list of 3D distance control (P-CHAN-, "
@@ -237,7 +238,7 @@ def _print_summary(result, trace_path, plot_path) -> None:
                    "(SCENARIO, if given, names the axes; Ctrl-C stops).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="--watch: address of the served machine.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="--watch: its AMS NetId.")
-@click.option("--interval", default=0.5, show_default=True, type=click.FloatRange(min=0.02),
+@click.option("--interval", default=0.5, show_default=True, type=Finite(min=0.02, max=3600.0),
               help="--watch: seconds between refreshes.")
 @click.option("--count", default=0, show_default=True, type=click.IntRange(min=0),
               help="--watch: stop after this many refreshes (0: until Ctrl-C).")
@@ -350,12 +351,13 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
 @main.command()
 @click.argument("scenario", type=click.Path(dir_okay=False))
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (ADS and the --ui page).")
-@click.option("--port", default=48898, show_default=True, help="AMS/TCP port.")
+@click.option("--port", default=48898, show_default=True, type=PORT, help="AMS/TCP port (0: a free port).")
 @click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
               help="Client address or network allowed to connect (like an ADS route; also to the --ui page); "
                    "repeat for more.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
-@click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--duration", type=Finite(0.0, min_open=True), default=None,
+              help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
 @click.option("--no-discovery", is_flag=True,
               help="Do not answer route discovery and add-route on UDP 48899 (answered by default, "
                    "to the --allow networks).")
@@ -385,7 +387,7 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
 
 @main.command(short_help="The diagnosis block of distance control (layout of FCT-M3 Fig. 56).")
 @click.argument("scenario", type=click.Path(dir_okay=False))
-@click.option("--seconds", default=1.0, show_default=True, type=click.FloatRange(min=0.0),
+@click.option("--seconds", default=1.0, show_default=True, type=Finite(min=0.0, max=3600.0),
               help="Run the scenario this long first [s].")
 @click.option("--axis", "axis_filter", help="Only this axis (name).")
 @click.option("--json", "as_json", is_flag=True,

@@ -6,6 +6,7 @@ import sys
 
 import click
 
+from ..cli.common import PORT, Finite
 from ..errors import DistCtrlError
 
 
@@ -90,11 +91,12 @@ RT_OPTION = click.option(
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address the page and ADS listen on.")
 @click.option("--ui-port", default=8050, show_default=True, type=click.IntRange(0, 65535),
               help="HTTP port of the live page (0: a free port).")
-@click.option("--port", default=48898, show_default=True, help="AMS/TCP port.")
+@click.option("--port", default=48898, show_default=True, type=PORT, help="AMS/TCP port (0: a free port).")
 @click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
               help="Client address or network allowed to connect to the page and over ADS; repeat for more.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
-@click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--duration", type=Finite(0.0, min_open=True), default=None,
+              help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
 @click.option("--no-discovery", is_flag=True, help="Do not answer route discovery on UDP 48899.")
 @click.option("--export-dir", default=".", show_default=True, type=click.Path(file_okay=False),
               help="Folder the scope's Export CSV writes its trace files to.")
