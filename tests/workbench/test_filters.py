@@ -13,7 +13,7 @@ from distctrl.control.filters import FilterConfig
 from distctrl.control.kinds import FilterType
 from distctrl.errors import DistCtrlError
 from distctrl.trace import Trace
-from distctrl.workbench.filters import (FilterResult, FilterSpecError, RecordingError,
+from distctrl.workbench.filters import (DEFAULT_SPECS, FilterResult, FilterSpecError, RecordingError,
                                         RecordingWarning, WorkbenchError, WorkbenchWarning, compare,
                                         default_configs, find_edges, format_table, load_recording,
                                         obstacle_signal, parse_filter_spec, plot_overlay, signal_noise_rms,
@@ -484,7 +484,10 @@ def test_plot_overlay_without_edges_and_bad_suffix(tmp_path):
 # ----------------------------------------------------------------------------------------------- CLI
 
 def invoke(*args):
-    return CliRunner().invoke(filters, list(args))
+    """``distctrl filters ARGS`` through the command group (its exit-code table: a usage error is 1)."""
+    from distctrl.cli import main
+
+    return CliRunner().invoke(main, ["filters", *args])
 
 
 def test_cli_default_run_prints_a_table_with_all_configs():
@@ -542,3 +545,15 @@ def test_cli_bad_unit_of_a_recording_exits_1(tmp_path):
     obstacle_csv(tmp_path / "rec.csv")
     res = invoke("--recording", str(tmp_path / "rec.csv"), "--value-unit", "inch")
     assert res.exit_code == 1 and "value unit 'inch'" in res.output
+
+
+def test_cli_help_lists_the_default_set_the_command_runs():
+    """M3 (new-user audit): the help listed MOVING_AVERAGE n=10,20,40 ... while the command ran
+    DEFAULT_SPECS (9 configurations). The help is made from DEFAULT_SPECS."""
+    res = invoke("--help")
+    assert res.exit_code == 0
+    text = " ".join(res.output.split())
+    for spec in DEFAULT_SPECS:
+        assert spec in text, spec
+    assert f"{len(default_configs(0.001))} configurations" in text
+    assert "n=10,20,40" not in text
