@@ -243,3 +243,66 @@ def test_every_command_answers_an_error_in_json_with_the_same_shape(args):
     assert set(doc) == {"command", "outcome", "exit_code", "error"}
     assert doc["command"] == args[0] and doc["outcome"] == "error" and doc["exit_code"] == 1 and doc["error"]
     assert "error" in r.stderr.lower() and "Traceback" not in r.output
+
+
+# ----------------------------------------------------------------------------- unwritable outputs (R4)
+
+needs_dev_full = pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+SHEET = str(ROOT / "examples" / "scenarios" / "dist_1.toml")
+
+
+@needs_dev_full
+@pytest.mark.parametrize("args, path, reason", [
+    (["run", SHEET, "--trace", "/dev/full/x.csv"], "/dev/full/x.csv", "Not a directory"),
+    (["run", SHEET, "--plot", "/dev/full/x.png"], "/dev/full/x.png", "Not a directory"),
+    (["run", SHEET, "--report", "/dev/full/rep"], "/dev/full/rep", "Not a directory"),
+    (["calibrate", str(ROOT / "examples" / "scenarios" / "calibrate_capacitive.toml"), "--out", "/dev/full/t.toml"],
+     "/dev/full/t.toml", "Not a directory"),
+    (["filters", "MOVING_AVERAGE:n_cycles=4", "--plot", "/dev/full/f.png"], "/dev/full/f.png", "Not a directory"),
+    (["filters", "MOVING_AVERAGE:n_cycles=4", "--csv", "/dev/full"], "/dev/full", "No space left on device"),
+    (["step", "--kp", "0.5", "--plot", "/dev/full/s.png"], "/dev/full/s.png", "Not a directory"),
+])
+def test_an_unwritable_output_is_one_line_naming_the_path_and_the_real_reason(args, path, reason):
+    """R4: "/dev/full/x.csv" said "File exists" (mkdir's words for /dev/full), --csv /dev/full said
+    errno 28 without the path. Every command now says the path and the real reason."""
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 1, r.output
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+    assert path in lines[0] and reason in lines[0] and "File exists" not in lines[0] and "Errno" not in lines[0]
+
+
+def test_plot_to_an_unwritable_output_names_the_path_and_the_reason(tmp_path):
+    r = CliRunner().invoke(main, ["run", SHEET, "--trace", str(tmp_path / "t.csv")])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["plot", str(tmp_path / "t.csv"), "-o", str(tmp_path / "t.csv" / "p.png")])
+    assert r.exit_code == 1
+    assert r.stderr.strip() == f"error: cannot write the plot {tmp_path / 't.csv' / 'p.png'}: Not a directory " \
+                               f"({tmp_path / 't.csv'} is not a folder)"
+
+
+def _busy_port():
+    import socket
+
+    s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    s.bind(("127.0.0.1", 0))
+    s.listen(1)
+    return s, s.getsockname()[1]
+
+
+def test_serve_on_a_busy_port_names_the_address():
+    s, port = _busy_port()
+    try:
+        r = CliRunner().invoke(main, ["serve", str(ROOT / "examples" / "scenarios" / "serve_z.toml"),
+                                      "--no-discovery", "--port", str(port), "--duration", "1"])
+    finally:
+        s.close()
+    assert r.exit_code == 1, r.output
+    assert f"127.0.0.1:{port}" in r.stderr and "Address already in use" in r.stderr and "Errno" not in r.stderr
+
+
+def test_serve_on_an_address_this_machine_lacks_names_it():
+    r = CliRunner().invoke(main, ["serve", str(ROOT / "examples" / "scenarios" / "serve_z.toml"),
+                                  "--no-discovery", "--host", "10.9.9.9", "--port", "0", "--duration", "1"])
+    assert r.exit_code == 1, r.output
+    assert "10.9.9.9:0" in r.stderr and "Errno" not in r.stderr

@@ -41,9 +41,12 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
                      "(--ui-port chooses another port)")
         try:
             served.start()
-        except BaseException:
+        except BaseException as exc:
             if page is not None:
                 page.stop()
+            if isinstance(exc, OSError):          # the ADS port cannot be bound: name the address
+                fail(f"cannot serve ADS on {host}:{port}: {exc.strerror or exc} (--port chooses another port, "
+                     "--host another address of this machine)")
             raise
     except (DistCtrlError, OSError, ValueError) as exc:
         fail(str(exc))

@@ -48,7 +48,7 @@ def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, b
     the head touched the sheet, the records give no monotonic table); 3 it did not end in time;
     4 the runs differ by more than the tolerance (no table written).
     """
-    from ..cli.common import check_writable, emit_json, fail
+    from ..cli.common import check_writable, emit_json, fail, output_error_text
     from ..sim.scenario import load_scenario
     from .calibrate import (
         REPEATABILITY_TOLERANCE_UM,
@@ -106,7 +106,7 @@ def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, b
             with open(out, "w", encoding="utf-8") as fh:
                 fh.write(table_toml(res, header))
         except OSError as exc:
-            fail(f"cannot write the table {out}: {exc.strerror or exc}")
+            fail(output_error_text(exc, out, "table"))
         written = out
     payload = dict(info)
     payload.update({

@@ -70,7 +70,7 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     Exit code 1 with a message for missing files or columns, too short recordings, too poor
     excitation or a non-uniform time base.
     """
-    from ..cli.common import emit_json, fail
+    from ..cli.common import emit_json, fail, output_error_text
     from .identify import IdentifyError, format_summary, identify, load_signals, result_json, write_report, \
         write_scenario
 
@@ -95,7 +95,7 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     except DistCtrlError as exc:
         fail(str(exc))
     except OSError as exc:
-        fail(f"cannot write {getattr(exc, 'filename', None) or out_dir}: {exc.strerror or exc}")
+        fail(output_error_text(exc, getattr(exc, "filename", None) or out_dir, "output"))
     if as_json:
         emit_json(result_json(res, scenario=scenario, report=report))
         return
