@@ -425,12 +425,15 @@ def diag(scenario: str, seconds: float, axis_filter: str | None, as_json: bool) 
 
 
 @main.command()
-def demo() -> None:
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object with the tables' figures (per run: outcome, metrics, events, files; "
+                   "the plate with and without its functions) instead of the tables.")
+def demo(as_json: bool) -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, and the plasma plate with and
-    without the cutting-process functions, with summary tables."""
+    without the cutting-process functions, with summary tables. Traces, plots and reports: out/demo/."""
     from .demo import main as run_demo
 
-    run_demo()
+    run_demo(as_json=as_json)
 
 
 if __name__ == "__main__":
