@@ -14,7 +14,6 @@ import difflib
 import io
 import json
 import os
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
@@ -220,19 +219,14 @@ def plot_trace_file(trace_csv: str | os.PathLike, out: str | os.PathLike | None 
 
     Default ``out``: the trace's path with the suffix ``.png``. Raises :class:`PlotError`.
     """
-    from ..trace import Trace
+    from ..trace import load_trace
     from ..trace.plot import plot_trace
 
     src = Path(trace_csv)
     if not src.is_file():
         raise PlotError(f"{src}: no such trace file" if not src.exists() else f"{src}: not a file")
     try:
-        if src.suffix.lower() == ".parquet":
-            from .parquet import from_parquet
-
-            trace = from_parquet(src)
-        else:
-            trace = Trace.from_csv(src)
+        trace = load_trace(src)               # CSV with its sidecar, or Parquet
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         raise PlotError(f"{src}: cannot read the trace: {exc}") from None
     sigs = resolve_signals(trace, signals, str(src)) if signals is not None else None

@@ -557,3 +557,22 @@ def test_cli_help_lists_the_default_set_the_command_runs():
         assert spec in text, spec
     assert f"{len(default_configs(0.001))} configurations" in text
     assert "n=10,20,40" not in text
+
+
+def test_cli_reads_a_parquet_trace_as_its_csv_twin(tmp_path):
+    """R5: `filters --recording x.parquet` said "x.parquet:15: 2 cells, the header has 1 columns"."""
+    pytest.importorskip("pyarrow")
+    import json
+
+    from distctrl.trace import Trace
+    from distctrl.workbench.parquet import to_parquet
+
+    t, x, _ = obstacle_signal(0.001, noise_std=0.02, seed=3)
+    tr = Trace(["t", "Z.dc.sensor"], np.column_stack([t, x]), units={"t": "s", "Z.dc.sensor": "mm"})
+    tr.to_csv(tmp_path / "r.csv")
+    to_parquet(tr, tmp_path / "r.parquet")
+    a = invoke("MOVING_AVERAGE:n_cycles=10", "--recording", str(tmp_path / "r.csv"), "--edge", "auto", "--json")
+    b = invoke("MOVING_AVERAGE:n_cycles=10", "--recording", str(tmp_path / "r.parquet"), "--edge", "auto", "--json")
+    assert a.exit_code == 0 and b.exit_code == 0, b.output
+    ja, jb = json.loads(a.stdout), json.loads(b.stdout)
+    assert ja["results"] == jb["results"] and ja["edges_s"] == jb["edges_s"] and ja["edges_s"]
