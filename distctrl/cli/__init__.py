@@ -115,8 +115,16 @@ def params(list_file: str, show_all: bool, cycle_time: float, kind: str, as_json
               help="Record every N-th cycle only (metrics and events still see every cycle).")
 @click.option("--max-rows", type=click.IntRange(min=1), default=None,
               help="Keep only the last N rows, like a scope's ring buffer (the trace file is written at the end).")
+@click.option("--no-process", is_flag=True,
+              help="Run without the scenario's [[process]] functions (touch-off, corner lock, void lock, lift, ...), "
+                   "as the demo's 'without' column; a program that asks for the touch-off (variable IHS) runs with "
+                   "IHS = 0.")
+@click.option("--process", "process_only", default=None, metavar="NAMES",
+              help="Run only these of the scenario's [[process]] functions, comma-separated "
+                   "(e.g. corner_lock,void_lock); the others are off.")
 def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None, report_dir: str | None,
-        record: str, stop_on_collision: bool, decimate: int, max_rows: int | None) -> None:
+        record: str, stop_on_collision: bool, decimate: int, max_rows: int | None, no_process: bool,
+        process_only: str | None) -> None:
     """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
 
     Exit codes (docs/run.md): 0 the program ran to its end, 1 invalid input (the message names the
@@ -133,15 +141,22 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
         if path:
             check_writable(path, what, directory=is_dir)
     try:
-        sc = load_scenario(scenario)
+        sc = _select_processes(load_scenario(scenario), scenario, no_process, process_only)
+        watch = _cut_watch(sc)
         # a plot or a report needs the trace in memory: thinned to PLOT_ROWS rows, never the whole run
         wants_trace = plot_path is not None or report_dir is not None
         result = run_scenario(sc, trace=trace_path, keep_trace=wants_trace, progress=not as_json, record=records,
                               stop_on_collision=stop_on_collision, decimate=decimate, max_rows=max_rows,
                               keep_at_most=PLOT_ROWS if wants_trace and max_rows is None else None,
-                              on_start=(lambda size: _say_trace_size(size, trace_path)) if trace_path else None)
+                              on_start=(lambda size: _say_trace_size(size, trace_path)) if trace_path else None,
+                              plc_program=watch)
     except DistCtrlError as exc:
         fail(str(exc))
+    cut = watch.figures(sc.cycle_time) if watch is not None and watch.applies else None
+    if cut is not None and not cut["set_distance_mm"] > 0.0:
+        cut["time_below_half_s"] = None          # no set distance held (SET_POS): nothing to be half of
+    processes = [p.function for p in sc.processes]
+    selected = no_process or process_only is not None
     if plot_path:
         result.plot(plot_path)
     if report_dir:
@@ -151,10 +166,42 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
         if not as_json:
             click.echo(f"  report: {page}")
     if as_json:
-        emit_json(result.to_dict())
+        emit_json({**result.to_dict(), "processes": processes, "cut": cut})
     else:
-        _print_summary(result, trace_path, plot_path)
+        _print_summary(result, trace_path, plot_path, cut, processes, selected)
     sys.exit(result.exit_code)
+
+
+def _select_processes(sc, path: str, no_process: bool, process_only: str | None):
+    """The scenario with the [[process]] functions ``run`` was asked for (--no-process, --process)."""
+    from ..sim.config_errors import ConfigError
+    from ..sim.plates import select_functions
+
+    if no_process and process_only is not None:
+        raise ConfigError("--process", process_only, "one of --no-process and --process NAMES",
+                          "--no-process switches every function off")
+    if no_process:
+        return select_functions(sc, functions=False)
+    if process_only is None:
+        return sc
+    names = tuple(n.strip() for n in process_only.split(",") if n.strip())
+    have = [p.function for p in sc.processes]
+    unknown = [n for n in names if n not in have]
+    if unknown or not names:
+        allowed = ", ".join(have) if have else "none (the scenario has no [[process]] tables)"
+        raise ConfigError("--process", ", ".join(unknown) if unknown else process_only,
+                          f"the [[process]] functions of {path}: {allowed}", "not a [[process]] function of the scenario:")
+    return select_functions(sc, only=names)
+
+
+def _cut_watch(sc):
+    """The figures of the demo's plate table for a run whose distance sensor is on an axis (None
+    for a scenario without one)."""
+    from ..sim.plates import CutWatch
+
+    if sc.sensor is None or not sc.sensor.axis:
+        return None
+    return CutWatch(sc.sensor.axis)
 
 
 #: rows of the trace kept for --plot / --report (thinned evenly beyond: bounded memory for any run)
@@ -191,7 +238,7 @@ MAX_COLLISIONS_SHOWN = 5
 COLLISION_ID = 900030
 
 
-def _print_summary(result, trace_path, plot_path) -> None:
+def _print_summary(result, trace_path, plot_path, cut=None, processes=(), selected=False) -> None:
     m = result.metrics
     status = result.outcome_text
     click.echo(f"{result.name}: {status} after {result.cycles} cycles ({result.cycles * result.cycle_time:.3f} s), "
@@ -206,6 +253,14 @@ def _print_summary(result, trace_path, plot_path) -> None:
     if m.get("min_distance_mm") is not None:
         click.echo(f"  true tool distance: min {m['min_distance_mm']:.3f} mm, {m['time_below_zero_s']:.3f} s "
                    f"at or below 0 mm, {m['collisions']} collision(s)")
+    if cut is not None and cut["path_time_s"] is not None:
+        cut_min = "-" if cut["min_cut_distance_mm"] is None else f"{cut['min_cut_distance_mm']:.3f} mm"
+        below = "" if cut["time_below_half_s"] is None else \
+            f"{cut['time_below_half_s']:.3f} s below ½ SET_DIST ({0.5 * cut['set_distance_mm']:g} mm); "
+        click.echo(f"  while cutting (G1): min true distance {cut_min}; {below}path time {cut['path_time_s']:.3f} s")
+    if processes or selected:
+        click.echo("  process functions: " + (", ".join(processes) if processes else
+                                              "none (--no-process)" if selected else "none"))
     for e in result.errors:
         click.echo(f"  error {e['id']} at t = {e['t']:.3f} s, line {e['line']}: {e['message']}")
     shown_collisions = 0
