@@ -292,13 +292,16 @@ def _print_summary(result, trace_path, plot_path, cut=None, processes=(), select
               help="Read the objects over ADS from a running `distctrl serve` and refresh the table "
                    "(SCENARIO, if given, names the axes; Ctrl-C stops).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="--watch: address of the served machine.")
+@click.option("--port", "ads_port", default=48898, show_default=True, type=click.IntRange(1, 65535),
+              help="--watch: the AMS/TCP port it is served on (`serve --port`); pyads's router connects to "
+                   "HOST:PORT.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="--watch: its AMS NetId.")
 @click.option("--interval", default=0.5, show_default=True, type=Finite(min=0.02, max=3600.0),
               help="--watch: seconds between refreshes.")
 @click.option("--count", default=0, show_default=True, type=click.IntRange(min=0),
               help="--watch: stop after this many refreshes (0: until Ctrl-C).")
 def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json: bool, watch: bool, host: str,
-            net_id: str, interval: float, count: int) -> None:
+            ads_port: int, net_id: str, interval: float, count: int) -> None:
     """List the CNC objects of distance control like the object browser (FCT-M3 §7.6): per axis the
     raw value in the object's unit, the value in mm / mm/s / mm/s² and the state names.
 
@@ -310,7 +313,7 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json:
     from .common import emit_json, fail
 
     if watch:
-        _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count)
+        _watch_objects(scenario, axis_filter, as_json, host, ads_port, net_id, interval, count)
         return
     from ..control import AxisDistanceController, CycleOutput
     from ..objects.registry import AxisObjectContext
@@ -345,7 +348,15 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json:
         click.echo(format_rows(rows), nl=False)
 
 
-def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count) -> None:
+def _ads_address(host: str, port: int) -> str:
+    """The address pyads's router connects to: HOST for the standard port 48898, else HOST:PORT (the
+    router of pyads, Beckhoff's ADS library on Linux, splits a port off the address; [v6]:PORT)."""
+    if port == 48898:
+        return host
+    return f"[{host}]:{port}" if ":" in host and not host.startswith("[") else f"{host}:{port}"
+
+
+def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval, count) -> None:
     """``objects --watch``: the table of a served machine, refreshed every ``interval`` seconds."""
     import time
 
@@ -368,7 +379,7 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
             fail(str(exc))
         names = {i + 1: n for i, n in enumerate(sc.axes)}        # the scenario keeps X Y Z A B C order
         resolution = next((a.resolution for a in sc.axes.values() if a.resolution), 1e-4)
-    conn = pyads.Connection(net_id, 551, host)
+    conn = pyads.Connection(net_id, 551, _ads_address(host, port))
     try:
         conn.open()
         if not names:                        # ask the server: axis ids answer until 0x703 (no such axis)
@@ -388,17 +399,17 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
             rows = remote_rows(conn, names, resolution)
             shown += 1
             if as_json:
-                click.echo(json_text({"host": host, "net_id": net_id, "refresh": shown,
+                click.echo(json_text({"host": host, "port": port, "net_id": net_id, "refresh": shown,
                                       "objects": json_rows(rows)}).replace("\n", " "))
             else:
                 if sys.stdout.isatty():
                     click.echo("\x1b[2J\x1b[H", nl=False)         # clear the terminal, like watch(1)
-                click.echo(f"{net_id} at {host}, refresh {shown} (every {interval:g} s; Ctrl-C stops)")
+                click.echo(f"{net_id} at {host}:{port}, refresh {shown} (every {interval:g} s; Ctrl-C stops)")
                 click.echo(format_rows(rows), nl=False)
             if count == 0 or shown < count:
                 time.sleep(interval)
     except pyads.ADSError as exc:
-        fail(f"ADS {host} ({net_id}): {exc}")
+        fail(f"ADS {host}:{port} ({net_id}): {exc}")
     finally:
         conn.close()
 
