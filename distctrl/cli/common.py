@@ -89,7 +89,7 @@ class Finite(click.FloatRange):
     """A float option's type: ``click.FloatRange`` that also refuses NaN and infinities (a bare
     FloatRange lets ``nan`` through, every comparison with it being false)."""
 
-    name = "finite float range"
+    name = "float range"
 
     def convert(self, value, param, ctx):
         rv = super().convert(value, param, ctx)
