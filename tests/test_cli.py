@@ -172,3 +172,199 @@ def test_the_command_list_shows_whole_short_helps():
     r = CliRunner().invoke(main, ["--help"])
     diag_line = next(line for line in r.output.splitlines() if line.strip().startswith("diag"))
     assert "Fig. 56" in diag_line
+
+
+# ----------------------------------------------------------------------------- numeric options have ranges
+
+def _numeric_options():
+    import click
+
+    ctx = click.Context(main)
+    for name in main.list_commands(ctx):
+        cmd = main.get_command(ctx, name)
+        for p in cmd.params:
+            if isinstance(p.type, click.types._NumberParamTypeBase):
+                yield name, p
+
+
+def test_every_numeric_option_of_every_command_has_a_range():
+    """B2 (new-user audit): --port 70000 listened on 4464, --duration -5 was accepted. Every numeric
+    option of every command is a range (a future option without one fails here), and a float option
+    also refuses NaN and infinities (a bare click.FloatRange lets 'nan' through)."""
+    import click
+
+    options = list(_numeric_options())
+    assert len(options) > 30            # the walk sees the lazy commands too
+    no_range, lets_through = [], []
+    for name, p in options:
+        t = p.type
+        if not isinstance(t, click.types._NumberRangeBase) or (t.min is None and t.max is None):
+            no_range.append(f"{name} --{p.name}")
+            continue
+        if isinstance(t, click.types.FloatParamType):
+            for text in ("nan", "inf", "-inf"):
+                try:
+                    t.convert(text, p, None)
+                except click.BadParameter:
+                    continue
+                lets_through.append(f"{name} --{p.name} {text}")
+    assert no_range == [], f"numeric options without a range: {no_range}"
+    assert lets_through == [], f"float options taking a non-finite value: {lets_through}"
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--port", "70000"], "70000"),
+    (["--port", "-1"], "-1"),
+    (["--duration", "-5"], "-5"),
+    (["--duration", "nan"], "nan"),
+])
+def test_serve_refuses_an_out_of_range_port_or_duration_with_exit_1(args, words):
+    r = CliRunner().invoke(main, ["serve", str(ROOT / "examples" / "scenarios" / "serve_z.toml"), "--no-discovery",
+                                  *args])
+    assert r.exit_code == 1, r.output
+    assert words in r.stderr and "listening" not in r.output
+
+
+# ----------------------------------------------------------------------------- --json on an error (R12)
+
+def test_json_error_object_on_stdout_for_invalid_input(tmp_path):
+    """R12: on invalid input `--json` left stdout empty. Now the error object is on stdout (one
+    shape for every command) and the one-line message stays on stderr."""
+    import json
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text("durration = 3\n")
+    r = CliRunner().invoke(main, ["run", str(bad), "--json"])
+    assert r.exit_code == 1
+    doc = json.loads(r.stdout)
+    assert doc == {"command": "run", "outcome": "error", "exit_code": 1, "error": doc["error"]}
+    assert "durration" in doc["error"]
+    assert r.stderr.strip().splitlines() == [f"error: {doc['error']}"]
+
+
+@pytest.mark.parametrize("args", [
+    ["serve", "examples/scenarios/serve_z.toml", "--port", "70000", "--json"],     # a usage error (click)
+    ["params", "nosuchfile.lis", "--json"],
+    ["filters", "NOSUCHFILTER", "--json"],
+    ["identify", "nosuch.csv", "--command", "a", "--actual", "b", "--sensor", "c", "--json"],
+    ["plot", "nosuch.csv", "--json"],
+    ["step", "--kp", "abc", "--json"],
+    ["margins", "nosuch.toml", "--json"],
+    ["calibrate", "nosuch.toml", "--json"],
+    ["objects", "--axis", "Q", "--json"],
+    ["diag", "nosuch.toml", "--json"],
+])
+def test_every_command_answers_an_error_in_json_with_the_same_shape(args):
+    import json
+
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 1, r.output
+    doc = json.loads(r.stdout)
+    assert set(doc) == {"command", "outcome", "exit_code", "error"}
+    assert doc["command"] == args[0] and doc["outcome"] == "error" and doc["exit_code"] == 1 and doc["error"]
+    assert "error" in r.stderr.lower() and "Traceback" not in r.output
+
+
+# ----------------------------------------------------------------------------- unwritable outputs (R4)
+
+needs_dev_full = pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+SHEET = str(ROOT / "examples" / "scenarios" / "dist_1.toml")
+
+
+@needs_dev_full
+@pytest.mark.parametrize("args, path, reason", [
+    (["run", SHEET, "--trace", "/dev/full/x.csv"], "/dev/full/x.csv", "Not a directory"),
+    (["run", SHEET, "--plot", "/dev/full/x.png"], "/dev/full/x.png", "Not a directory"),
+    (["run", SHEET, "--report", "/dev/full/rep"], "/dev/full/rep", "Not a directory"),
+    (["calibrate", str(ROOT / "examples" / "scenarios" / "calibrate_capacitive.toml"), "--out", "/dev/full/t.toml"],
+     "/dev/full/t.toml", "Not a directory"),
+    (["filters", "MOVING_AVERAGE:n_cycles=4", "--plot", "/dev/full/f.png"], "/dev/full/f.png", "Not a directory"),
+    (["filters", "MOVING_AVERAGE:n_cycles=4", "--csv", "/dev/full"], "/dev/full", "No space left on device"),
+    (["step", "--kp", "0.5", "--plot", "/dev/full/s.png"], "/dev/full/s.png", "Not a directory"),
+])
+def test_an_unwritable_output_is_one_line_naming_the_path_and_the_real_reason(args, path, reason):
+    """R4: "/dev/full/x.csv" said "File exists" (mkdir's words for /dev/full), --csv /dev/full said
+    errno 28 without the path. Every command now says the path and the real reason."""
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 1, r.output
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+    assert path in lines[0] and reason in lines[0] and "File exists" not in lines[0] and "Errno" not in lines[0]
+
+
+def test_plot_to_an_unwritable_output_names_the_path_and_the_reason(tmp_path):
+    r = CliRunner().invoke(main, ["run", SHEET, "--trace", str(tmp_path / "t.csv")])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["plot", str(tmp_path / "t.csv"), "-o", str(tmp_path / "t.csv" / "p.png")])
+    assert r.exit_code == 1
+    assert r.stderr.strip() == f"error: cannot write the plot {tmp_path / 't.csv' / 'p.png'}: Not a directory " \
+                               f"({tmp_path / 't.csv'} is not a folder)"
+
+
+def _busy_port():
+    import socket
+
+    s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    s.bind(("127.0.0.1", 0))
+    s.listen(1)
+    return s, s.getsockname()[1]
+
+
+def test_serve_on_a_busy_port_names_the_address():
+    s, port = _busy_port()
+    try:
+        r = CliRunner().invoke(main, ["serve", str(ROOT / "examples" / "scenarios" / "serve_z.toml"),
+                                      "--no-discovery", "--port", str(port), "--duration", "1"])
+    finally:
+        s.close()
+    assert r.exit_code == 1, r.output
+    assert f"127.0.0.1:{port}" in r.stderr and "Address already in use" in r.stderr and "Errno" not in r.stderr
+
+
+def test_serve_on_an_address_this_machine_lacks_names_it():
+    r = CliRunner().invoke(main, ["serve", str(ROOT / "examples" / "scenarios" / "serve_z.toml"),
+                                  "--no-discovery", "--host", "10.9.9.9", "--port", "0", "--duration", "1"])
+    assert r.exit_code == 1, r.output
+    assert "10.9.9.9:0" in r.stderr and "Errno" not in r.stderr
+
+
+# ----------------------------------------------------------------------------- every command has --json (M4)
+
+def test_every_command_has_json():
+    """M4: the README says every command has --json; plot and demo had none."""
+    import click
+
+    ctx = click.Context(main)
+    missing = [name for name in main.list_commands(ctx)
+               if not any("--json" in getattr(p, "opts", ()) for p in main.get_command(ctx, name).params)]
+    assert missing == []
+
+
+def test_plot_json_says_what_it_wrote(tmp_path):
+    import json
+
+    r = CliRunner().invoke(main, ["run", SHEET, "--trace", str(tmp_path / "t.csv")])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["plot", str(tmp_path / "t.csv"), "--json", "--signals", "Z.act", "--from", "0.5"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert doc["output"] == str(tmp_path / "t.png") and doc["format"] == "png"
+    assert doc["bytes"] == (tmp_path / "t.png").stat().st_size > 1000
+    assert doc["signals"] == ["Z.act"] and doc["from_s"] == 0.5 and doc["to_s"] is None
+
+
+def test_demo_json_gives_the_tables_figures(tmp_path, capsys):
+    import json
+
+    from distctrl.cli.demo import main as demo
+
+    results = demo(tmp_path, plate="plasma_plate_short", as_json=True)
+    doc = json.loads(capsys.readouterr().out)             # nothing but the one object on stdout
+    assert doc["command"] == "demo" and [r["label"] for r in doc["runs"]][0].startswith("CONST_DIST")
+    for run, r in zip(doc["runs"], results):
+        assert run["metrics"]["min_distance_mm"] == r.metrics["min_distance_mm"]
+        assert run["outcome"] == r.outcome and Path(run["trace"]).is_file()
+    plate = doc["plate"]
+    assert plate["without"]["collisions"] > 0 and plate["with"]["collisions"] == 0
+    for key in ("min_distance_mm", "min_cut_distance_mm", "time_below_half_s", "path_time_s", "set_distance_mm"):
+        assert isinstance(plate["with"][key], float), key

@@ -257,3 +257,60 @@ def test_pyads_reads_the_string_object_with_its_own_string_type(cnc):
     """pyads reads every string type with a 1024-byte buffer: the STRING(30) object filter_type
     answers it with its 30 bytes (before: 0x705, issue 14)."""
     assert cnc.read(IG, (1 << 16) | 0x310D, pyads.PLCTYPE_STRING) == "DEFAULT"
+
+
+def _serve_process(*args: str):
+    import os
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    return subprocess.Popen([sys.executable, "-m", "distctrl", "serve", str(SCN / "serve_z.toml"), "--port", "0",
+                             "--no-discovery", "--rt-priority", "0", *args], cwd=root, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_serving(proc) -> list[str]:
+    """The stderr lines up to the server's 'serving ... on' log line (the machine is up)."""
+    lines = []
+    for line in proc.stderr:
+        lines.append(line)
+        if " serving " in line or "Traceback" in line:
+            break
+    return lines
+
+
+@pytest.mark.parametrize("as_json", [True, False])
+def test_sigterm_ends_serve_like_ctrl_c_with_its_report(as_json):
+    """R3 (new-user audit): SIGTERM (systemctl stop, docker stop) killed serve without its report,
+    its JSON and the "ADS server stopped" line. It now ends the session as Ctrl-C does, exit 0."""
+    import json
+    import signal
+
+    proc = _serve_process(*(["--json"] if as_json else []))
+    try:
+        head = _wait_serving(proc)
+        assert head and " serving " in head[-1], "".join(head)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert "ADS server stopped" in err and "Traceback" not in err
+    if as_json:
+        doc = json.loads(out)
+        assert doc["stopped_by"] == "SIGTERM" and doc["cycle_lateness"]["cycles"] >= 0
+    else:
+        assert "cycle jitter:" in out and "stopped by SIGTERM" in out
+
+
+def test_serve_ends_at_its_duration_saying_so():
+    import json
+
+    proc = _serve_process("--json", "--duration", "0.5")
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert json.loads(out)["stopped_by"] == "duration"

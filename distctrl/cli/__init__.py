@@ -7,7 +7,8 @@ import sys
 import click
 
 from ..errors import DistCtrlError
-from .common import DistctrlGroup
+from ..sim.scenario import CYCLE_TIME_MAX, CYCLE_TIME_MIN
+from .common import PORT, DistctrlGroup, Finite
 
 #: the commands that live beside what they serve, imported when used
 LAZY_COMMANDS = {
@@ -49,7 +50,7 @@ def _list_kind(path: str) -> str:
 @main.command()
 @click.argument("list_file", type=click.Path(dir_okay=False))
 @click.option("--all", "show_all", is_flag=True, help="Show every parameter, not only the ones that differ from the defaults.")
-@click.option("--cycle-time", default=0.001, show_default=True, type=float,
+@click.option("--cycle-time", default=0.001, show_default=True, type=Finite(CYCLE_TIME_MIN, CYCLE_TIME_MAX),
               help="GEO cycle time (s) the list is checked against (the low-pass cut-off must lie below 1/(2T)).")
 @click.option("--kind", type=click.Choice(["auto", "axis", "channel"]), default="auto", show_default=True,
               help="An axis list (P-AXIS-, FCT-M3 §9) or a channel list of 3D distance control (P-CHAN-, "
@@ -114,8 +115,16 @@ def params(list_file: str, show_all: bool, cycle_time: float, kind: str, as_json
               help="Record every N-th cycle only (metrics and events still see every cycle).")
 @click.option("--max-rows", type=click.IntRange(min=1), default=None,
               help="Keep only the last N rows, like a scope's ring buffer (the trace file is written at the end).")
+@click.option("--no-process", is_flag=True,
+              help="Run without the scenario's [[process]] functions (touch-off, corner lock, void lock, lift, ...), "
+                   "as the demo's 'without' column; a program that asks for the touch-off (variable IHS) runs with "
+                   "IHS = 0.")
+@click.option("--process", "process_only", default=None, metavar="NAMES",
+              help="Run only these of the scenario's [[process]] functions, comma-separated "
+                   "(e.g. corner_lock,void_lock); the others are off.")
 def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | None, report_dir: str | None,
-        record: str, stop_on_collision: bool, decimate: int, max_rows: int | None) -> None:
+        record: str, stop_on_collision: bool, decimate: int, max_rows: int | None, no_process: bool,
+        process_only: str | None) -> None:
     """Run SCENARIO.toml: the NC program on the virtual machine with distance control.
 
     Exit codes (docs/run.md): 0 the program ran to its end, 1 invalid input (the message names the
@@ -132,15 +141,22 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
         if path:
             check_writable(path, what, directory=is_dir)
     try:
-        sc = load_scenario(scenario)
+        sc = _select_processes(load_scenario(scenario), scenario, no_process, process_only)
+        watch = _cut_watch(sc)
         # a plot or a report needs the trace in memory: thinned to PLOT_ROWS rows, never the whole run
         wants_trace = plot_path is not None or report_dir is not None
         result = run_scenario(sc, trace=trace_path, keep_trace=wants_trace, progress=not as_json, record=records,
                               stop_on_collision=stop_on_collision, decimate=decimate, max_rows=max_rows,
                               keep_at_most=PLOT_ROWS if wants_trace and max_rows is None else None,
-                              on_start=(lambda size: _say_trace_size(size, trace_path)) if trace_path else None)
+                              on_start=(lambda size: _say_trace_size(size, trace_path)) if trace_path else None,
+                              plc_program=watch)
     except DistCtrlError as exc:
         fail(str(exc))
+    cut = watch.figures(sc.cycle_time) if watch is not None and watch.applies else None
+    if cut is not None and not cut["set_distance_mm"] > 0.0:
+        cut["time_below_half_s"] = None          # no set distance held (SET_POS): nothing to be half of
+    processes = [p.function for p in sc.processes]
+    selected = no_process or process_only is not None
     if plot_path:
         result.plot(plot_path)
     if report_dir:
@@ -150,10 +166,42 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
         if not as_json:
             click.echo(f"  report: {page}")
     if as_json:
-        emit_json(result.to_dict())
+        emit_json({**result.to_dict(), "processes": processes, "cut": cut})
     else:
-        _print_summary(result, trace_path, plot_path)
+        _print_summary(result, trace_path, plot_path, cut, processes, selected)
     sys.exit(result.exit_code)
+
+
+def _select_processes(sc, path: str, no_process: bool, process_only: str | None):
+    """The scenario with the [[process]] functions ``run`` was asked for (--no-process, --process)."""
+    from ..sim.config_errors import ConfigError
+    from ..sim.plates import select_functions
+
+    if no_process and process_only is not None:
+        raise ConfigError("--process", process_only, "one of --no-process and --process NAMES",
+                          "--no-process switches every function off")
+    if no_process:
+        return select_functions(sc, functions=False)
+    if process_only is None:
+        return sc
+    names = tuple(n.strip() for n in process_only.split(",") if n.strip())
+    have = [p.function for p in sc.processes]
+    unknown = [n for n in names if n not in have]
+    if unknown or not names:
+        allowed = ", ".join(have) if have else "none (the scenario has no [[process]] tables)"
+        raise ConfigError("--process", ", ".join(unknown) if unknown else process_only,
+                          f"the [[process]] functions of {path}: {allowed}", "not a [[process]] function of the scenario:")
+    return select_functions(sc, only=names)
+
+
+def _cut_watch(sc):
+    """The figures of the demo's plate table for a run whose distance sensor is on an axis (None
+    for a scenario without one)."""
+    from ..sim.plates import CutWatch
+
+    if sc.sensor is None or not sc.sensor.axis:
+        return None
+    return CutWatch(sc.sensor.axis)
 
 
 #: rows of the trace kept for --plot / --report (thinned evenly beyond: bounded memory for any run)
@@ -190,7 +238,7 @@ MAX_COLLISIONS_SHOWN = 5
 COLLISION_ID = 900030
 
 
-def _print_summary(result, trace_path, plot_path) -> None:
+def _print_summary(result, trace_path, plot_path, cut=None, processes=(), selected=False) -> None:
     m = result.metrics
     status = result.outcome_text
     click.echo(f"{result.name}: {status} after {result.cycles} cycles ({result.cycles * result.cycle_time:.3f} s), "
@@ -205,6 +253,14 @@ def _print_summary(result, trace_path, plot_path) -> None:
     if m.get("min_distance_mm") is not None:
         click.echo(f"  true tool distance: min {m['min_distance_mm']:.3f} mm, {m['time_below_zero_s']:.3f} s "
                    f"at or below 0 mm, {m['collisions']} collision(s)")
+    if cut is not None and cut["path_time_s"] is not None:
+        cut_min = "-" if cut["min_cut_distance_mm"] is None else f"{cut['min_cut_distance_mm']:.3f} mm"
+        below = "" if cut["time_below_half_s"] is None else \
+            f"{cut['time_below_half_s']:.3f} s below ½ SET_DIST ({0.5 * cut['set_distance_mm']:g} mm); "
+        click.echo(f"  while cutting (G1): min true distance {cut_min}; {below}path time {cut['path_time_s']:.3f} s")
+    if processes or selected:
+        click.echo("  process functions: " + (", ".join(processes) if processes else
+                                              "none (--no-process)" if selected else "none"))
     for e in result.errors:
         click.echo(f"  error {e['id']} at t = {e['t']:.3f} s, line {e['line']}: {e['message']}")
     shown_collisions = 0
@@ -236,13 +292,16 @@ def _print_summary(result, trace_path, plot_path) -> None:
               help="Read the objects over ADS from a running `distctrl serve` and refresh the table "
                    "(SCENARIO, if given, names the axes; Ctrl-C stops).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="--watch: address of the served machine.")
+@click.option("--port", "ads_port", default=48898, show_default=True, type=click.IntRange(1, 65535),
+              help="--watch: the AMS/TCP port it is served on (`serve --port`); pyads's router connects to "
+                   "HOST:PORT.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="--watch: its AMS NetId.")
-@click.option("--interval", default=0.5, show_default=True, type=click.FloatRange(min=0.02),
+@click.option("--interval", default=0.5, show_default=True, type=Finite(min=0.02, max=3600.0),
               help="--watch: seconds between refreshes.")
 @click.option("--count", default=0, show_default=True, type=click.IntRange(min=0),
               help="--watch: stop after this many refreshes (0: until Ctrl-C).")
 def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json: bool, watch: bool, host: str,
-            net_id: str, interval: float, count: int) -> None:
+            ads_port: int, net_id: str, interval: float, count: int) -> None:
     """List the CNC objects of distance control like the object browser (FCT-M3 §7.6): per axis the
     raw value in the object's unit, the value in mm / mm/s / mm/s² and the state names.
 
@@ -254,7 +313,7 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json:
     from .common import emit_json, fail
 
     if watch:
-        _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count)
+        _watch_objects(scenario, axis_filter, as_json, host, ads_port, net_id, interval, count)
         return
     from ..control import AxisDistanceController, CycleOutput
     from ..objects.registry import AxisObjectContext
@@ -289,7 +348,15 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json:
         click.echo(format_rows(rows), nl=False)
 
 
-def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count) -> None:
+def _ads_address(host: str, port: int) -> str:
+    """The address pyads's router connects to: HOST for the standard port 48898, else HOST:PORT (the
+    router of pyads, Beckhoff's ADS library on Linux, splits a port off the address; [v6]:PORT)."""
+    if port == 48898:
+        return host
+    return f"[{host}]:{port}" if ":" in host and not host.startswith("[") else f"{host}:{port}"
+
+
+def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval, count) -> None:
     """``objects --watch``: the table of a served machine, refreshed every ``interval`` seconds."""
     import time
 
@@ -312,7 +379,7 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
             fail(str(exc))
         names = {i + 1: n for i, n in enumerate(sc.axes)}        # the scenario keeps X Y Z A B C order
         resolution = next((a.resolution for a in sc.axes.values() if a.resolution), 1e-4)
-    conn = pyads.Connection(net_id, 551, host)
+    conn = pyads.Connection(net_id, 551, _ads_address(host, port))
     try:
         conn.open()
         if not names:                        # ask the server: axis ids answer until 0x703 (no such axis)
@@ -332,17 +399,17 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
             rows = remote_rows(conn, names, resolution)
             shown += 1
             if as_json:
-                click.echo(json_text({"host": host, "net_id": net_id, "refresh": shown,
+                click.echo(json_text({"host": host, "port": port, "net_id": net_id, "refresh": shown,
                                       "objects": json_rows(rows)}).replace("\n", " "))
             else:
                 if sys.stdout.isatty():
                     click.echo("\x1b[2J\x1b[H", nl=False)         # clear the terminal, like watch(1)
-                click.echo(f"{net_id} at {host}, refresh {shown} (every {interval:g} s; Ctrl-C stops)")
+                click.echo(f"{net_id} at {host}:{port}, refresh {shown} (every {interval:g} s; Ctrl-C stops)")
                 click.echo(format_rows(rows), nl=False)
             if count == 0 or shown < count:
                 time.sleep(interval)
     except pyads.ADSError as exc:
-        fail(f"ADS {host} ({net_id}): {exc}")
+        fail(f"ADS {host}:{port} ({net_id}): {exc}")
     finally:
         conn.close()
 
@@ -350,12 +417,13 @@ def _watch_objects(scenario, axis_filter, as_json, host, net_id, interval, count
 @main.command()
 @click.argument("scenario", type=click.Path(dir_okay=False))
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (ADS and the --ui page).")
-@click.option("--port", default=48898, show_default=True, help="AMS/TCP port.")
+@click.option("--port", default=48898, show_default=True, type=PORT, help="AMS/TCP port (0: a free port).")
 @click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
               help="Client address or network allowed to connect (like an ADS route; also to the --ui page); "
                    "repeat for more.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
-@click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--duration", type=Finite(0.0, min_open=True), default=None,
+              help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
 @click.option("--no-discovery", is_flag=True,
               help="Do not answer route discovery and add-route on UDP 48899 (answered by default, "
                    "to the --allow networks).")
@@ -385,7 +453,7 @@ def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id:
 
 @main.command(short_help="The diagnosis block of distance control (layout of FCT-M3 Fig. 56).")
 @click.argument("scenario", type=click.Path(dir_okay=False))
-@click.option("--seconds", default=1.0, show_default=True, type=click.FloatRange(min=0.0),
+@click.option("--seconds", default=1.0, show_default=True, type=Finite(min=0.0, max=3600.0),
               help="Run the scenario this long first [s].")
 @click.option("--axis", "axis_filter", help="Only this axis (name).")
 @click.option("--json", "as_json", is_flag=True,
@@ -423,12 +491,15 @@ def diag(scenario: str, seconds: float, axis_filter: str | None, as_json: bool) 
 
 
 @main.command()
-def demo() -> None:
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object with the tables' figures (per run: outcome, metrics, events, files; "
+                   "the plate with and without its functions) instead of the tables.")
+def demo(as_json: bool) -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, and the plasma plate with and
-    without the cutting-process functions, with summary tables."""
+    without the cutting-process functions, with summary tables. Traces, plots and reports: out/demo/."""
     from .demo import main as run_demo
 
-    run_demo()
+    run_demo(as_json=as_json)
 
 
 if __name__ == "__main__":

@@ -3,9 +3,15 @@
 * :class:`~distctrl.errors.ExitCode`: 0 ok, 1 invalid input (also click's usage errors, which click
   itself would end with 2), 2 a control error aborted the program, 3 the time limit, 4 a check the
   command makes failed (calibrate's repeatability), 130 Ctrl-C.
-* :func:`fail`: one ``error: ...`` line on stderr and the exit code; never a traceback.
+* :func:`fail`: one ``error: ...`` line on stderr and the exit code; never a traceback. With
+  ``--json`` the same error also goes to stdout as one JSON object (:func:`error_object`, the same
+  shape for every command), so a script that always parses stdout gets an answer.
 * :func:`emit_json`: one JSON object on stdout; NaN and infinities become ``null`` (a metric that
   cannot be computed is null, never a number that is wrong).
+* :class:`Finite` and :class:`IntRange`: the types of every numeric option (a range, and no NaN or
+  infinity); tests/test_cli.py walks every command and refuses a numeric option without one.
+* :func:`output_error_text`: one line for an OSError on an output path, naming the path and the real
+  reason ("Not a directory", "No space left on device").
 * :class:`DistctrlGroup`: the top-level group; subcommands are imported when used (the numba, dask
   and matplotlib parts load only for the commands that need them). An ``OSError`` that reaches it (a
   full disk, a read-only place) ends with one ``error:`` line naming the path and exit code 1.
@@ -24,9 +30,35 @@ import click
 from ..errors import ExitCode
 
 
+#: the state of the command line in this process: the command whose ``--json`` was given (set by
+#: :class:`DistctrlGroup` from the arguments, so that an error before the command's own code runs,
+#: a usage error included, also answers in JSON) and whether a JSON object was printed already
+_STATE: dict[str, Any] = {"json_command": None, "emitted": False}
+
+
+def _json_command() -> str | None:
+    """The name of the running command when it was asked for ``--json``, else None."""
+    ctx = click.get_current_context(silent=True)
+    while ctx is not None:
+        if ctx.params.get("as_json"):
+            return ctx.info_name or (ctx.command.name if ctx.command else None) or "distctrl"
+        ctx = ctx.parent
+    return _STATE["json_command"]
+
+
+def error_object(message: str, code: ExitCode | int = ExitCode.INVALID_INPUT, command: str | None = None) -> dict:
+    """The JSON object of a command that ends with an error (every command, the same shape):
+    ``{"command": ..., "outcome": "error", "exit_code": 1, "error": "<the stderr line's message>"}``."""
+    return {"command": command, "outcome": "error", "exit_code": int(code), "error": message}
+
+
 def fail(message: str, code: ExitCode = ExitCode.INVALID_INPUT) -> NoReturn:
-    """Print ``error: message`` on stderr and exit with ``code``."""
+    """Print ``error: message`` on stderr and exit with ``code``; with ``--json`` (and no JSON object
+    printed yet) also the :func:`error_object` on stdout."""
     click.echo(f"error: {message}", err=True)
+    command = _json_command()
+    if command is not None and not _STATE["emitted"]:
+        emit_json(error_object(message, code, command))
     sys.exit(int(code))
 
 
@@ -49,7 +81,31 @@ def json_text(obj: Any) -> str:
 
 def emit_json(obj: Any) -> None:
     """Print one JSON object on stdout."""
+    _STATE["emitted"] = True
     click.echo(json_text(obj))
+
+
+class Finite(click.FloatRange):
+    """A float option's type: ``click.FloatRange`` that also refuses NaN and infinities (a bare
+    FloatRange lets ``nan`` through, every comparison with it being false)."""
+
+    name = "float range"
+
+    def convert(self, value, param, ctx):
+        rv = super().convert(value, param, ctx)
+        if not math.isfinite(rv):
+            self.fail(f"{value!r} is not a finite number; allowed: {self._describe_range()}", param, ctx)
+        return rv
+
+
+IntRange = click.IntRange
+
+#: an axis position or a surface height (mm): any finite coordinate within +-1 km
+COORDINATE = Finite(-1e6, 1e6)
+#: a TCP/UDP port (0: the system picks a free one)
+PORT = click.IntRange(0, 65535)
+#: a seed of numpy's random generator
+SEED = click.IntRange(0, 2**32 - 1)
 
 
 def check_writable(path: str, what: str, directory: bool = False) -> None:
@@ -74,7 +130,7 @@ def check_writable(path: str, what: str, directory: bool = False) -> None:
             if not existed:
                 os.unlink(p)
     except OSError as exc:
-        fail(f"cannot write the {what} {path}: {exc.strerror or exc}")
+        fail(output_error_text(exc, path, what))
 
 
 def check_plot_output(path: str | None, check_suffix) -> None:
@@ -91,10 +147,44 @@ def check_plot_output(path: str | None, check_suffix) -> None:
     check_writable(path, "plot")
 
 
+def os_error_reason(exc: OSError, path: str | None = None) -> str:
+    """The real reason of an OSError on ``path`` in the system's words: "Not a directory" where
+    creating a folder failed because a part of the path is an existing file (mkdir says "File
+    exists" then, naming the file), else the error's own words ("No space left on device",
+    "Permission denied")."""
+    import errno
+    import os
+    from pathlib import Path
+
+    where = path if path is not None else exc.filename
+    if exc.errno in (errno.EEXIST, errno.ENOTDIR) and where is not None:
+        p = Path(os.fspath(where))
+        for part in (p, *p.parents):
+            try:
+                if part.exists() and not part.is_dir():
+                    return f"{os.strerror(errno.ENOTDIR)} ({part} is not a folder)"
+            except OSError:
+                break
+    return exc.strerror or str(exc)
+
+
+def output_error_text(exc: OSError, path: str | None = None, what: str | None = None) -> str:
+    """One line for an OSError on an output: ``cannot write the WHAT PATH: REASON`` (the path given,
+    or the error's own filename; the reason from :func:`os_error_reason`). The one helper every
+    command uses for a place it cannot write."""
+    where = path if path is not None else exc.filename
+    head = f"cannot write the {what}" if what else "cannot write"
+    if where is None:
+        return f"{head}: {os_error_reason(exc)}"
+    return f"{head} {where}: {os_error_reason(exc, str(where))}"
+
+
 def os_error_text(exc: OSError) -> str:
-    """One line for an OSError: the path and the system's words."""
-    where = exc.filename if exc.filename is not None else "an output"
-    return f"cannot use {where}: {exc.strerror or exc}"
+    """One line for an OSError that reached the command group: the path and the real reason."""
+    where = exc.filename if exc.filename is not None else None
+    if where is None:
+        return f"cannot use an output: {exc.strerror or exc}"
+    return f"cannot use {where}: {os_error_reason(exc, str(where))}"
 
 
 def human_bytes(n: float) -> str:
@@ -134,10 +224,17 @@ class DistctrlGroup(click.Group):
             raise
 
     def invoke(self, ctx: click.Context):
+        args = [*getattr(ctx, "_protected_args", ()), *ctx.args]
+        if args:
+            own = args[1:args.index("--")] if "--" in args else args[1:]
+            _STATE["json_command"] = args[0] if "--json" in own else None
+        _STATE["emitted"] = False
         try:
             return super().invoke(ctx)
         except click.UsageError as exc:
             exc.exit_code = int(ExitCode.INVALID_INPUT)
+            if _STATE["json_command"] is not None and not _STATE["emitted"]:
+                emit_json(error_object(exc.format_message(), ExitCode.INVALID_INPUT, _STATE["json_command"]))
             raise
         except KeyboardInterrupt:
             click.echo("interrupted (Ctrl-C)", err=True)
@@ -154,3 +251,5 @@ class DistctrlGroup(click.Group):
         except OSError as exc:
             # an output that cannot be written (a full disk, a read-only place): one line, no traceback
             fail(os_error_text(exc))
+        finally:
+            _STATE["json_command"], _STATE["emitted"] = None, False

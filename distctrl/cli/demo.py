@@ -34,8 +34,39 @@ def _mm(value, digits: int) -> str:
     return "n/a" if value is None else f"{value:.{digits}f}"
 
 
-def main(out_dir: str | Path = "out/demo", plate: str | None = "plasma_plate") -> list:
+def main(out_dir: str | Path = "out/demo", plate: str | None = "plasma_plate", as_json: bool = False) -> list:
+    """Run the demo and print its tables (``as_json``: print nothing but one JSON object with the
+    tables' figures, :func:`figures`); returns the three runs' results."""
     from rich.console import Console
+
+    console = Console(quiet=True) if as_json else Console()
+    results, plate_res = run_demo(out_dir, plate, console, progress=not as_json)
+    if as_json:
+        from .common import emit_json
+
+        emit_json(figures(results, plate_res, out_dir, plate))
+    return [r for _, _, r in results]
+
+
+def figures(results: list, plate_res: dict | None, out_dir: str | Path, plate: str | None) -> dict:
+    """``distctrl demo --json``: the figures the demo's tables print, per run and for the plate."""
+    out = Path(out_dir)
+    runs = [{"label": label, "scenario": r.name, "outcome": r.outcome, "exit_code": r.exit_code,
+             "metrics": r.metrics, "errors": r.errors, "warnings": r.warnings,
+             "trace": str(out / f"{stem}.csv"), "plot": str(out / f"{stem}.png"),
+             "report": str(out / f"{stem}_report" / "index.html")} for label, stem, r in results]
+    doc = {"command": "demo", "out_dir": str(out), "runs": runs, "plate": None}
+    if plate_res is not None:
+        keys = ("functions", "min_distance_mm", "min_cut_distance_mm", "time_below_half_s", "collisions",
+                "path_time_s", "set_distance_mm", "completed", "errors", "lifts")
+        doc["plate"] = {"scenario": plate, "with": {k: plate_res["with"].get(k) for k in keys},
+                        "without": {k: plate_res["without"].get(k) for k in keys},
+                        "lift_path_time_increase": plate_res.get("lift_path_time_increase")}
+    return doc
+
+
+def run_demo(out_dir: str | Path, plate: str | None, console, progress: bool = True) -> tuple[list, dict | None]:
+    """The demo's runs and tables on ``console``: ``([(label, stem, result), ...], plate figures or None)``."""
     from rich.markup import escape
     from rich.table import Table
 
@@ -44,7 +75,6 @@ def main(out_dir: str | Path = "out/demo", plate: str | None = "plasma_plate") -
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    console = Console()
     cases = [("CONST_DIST 1 mm, both encoders", "sheet", load_scenario(EXAMPLES / "const_dist_sheet.toml")),
              ("CONST_DIST 1 mm, plain (WARNING EXAMPLE)", "sheet_plain", plain_const_dist_scenario()),
              ("SET_POS 30 mm (%DIST_1)", "dist_1", load_scenario(EXAMPLES / "dist_1.toml"))]
@@ -53,7 +83,7 @@ def main(out_dir: str | Path = "out/demo", plate: str | None = "plasma_plate") -
     results = []
     for label, stem, sc in cases:
         console.print(f"running {label} ...")
-        r = run(sc, trace=out / f"{stem}.csv", progress=True)
+        r = run(sc, trace=out / f"{stem}.csv", progress=progress)
         r.plot(out / f"{stem}.png")
         write_report(r, sc, out / f"{stem}_report")
         results.append((label, stem, r))
@@ -86,9 +116,8 @@ def main(out_dir: str | Path = "out/demo", plate: str | None = "plasma_plate") -
         "documents' warning example: without both encoders the loop oscillates into the sheet (a limit "
         "cycle; its oscillation and collisions are shown: warnings 900032 and 900030). "
         f"Traces, plots and HTML reports: {out}/ (open {out}/sheet_report/index.html)"))
-    if plate is not None:
-        plate_table(console, plate)
-    return [r for _, _, r in results]
+    plate_res = plate_table(console, plate) if plate is not None else None
+    return results, plate_res
 
 
 def plate_table(console, plate: str = "plasma_plate") -> dict:

@@ -24,7 +24,8 @@ import dataclasses
 import math
 from pathlib import Path
 
-__all__ = ["PLATES", "EXAMPLES", "plate_figures", "compare", "TARGET_MIN_SHARE", "TARGET_LIFT_INCREASE"]
+__all__ = ["PLATES", "EXAMPLES", "plate_figures", "compare", "select_functions", "CutWatch", "TARGET_MIN_SHARE",
+           "TARGET_LIFT_INCREASE"]
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 #: the two plates of issue 16 (scenario file stems in examples/scenarios/)
@@ -36,55 +37,116 @@ TARGET_LIFT_INCREASE = 0.05
 _RUNNING = (1, 2, 4)            # ACTIVE, FREEZE, ACTIVE_CONST_DIST (HLI state)
 
 
-def plate_figures(scenario, functions: bool = True, drop: tuple = ()) -> dict:
-    """Run ``scenario`` (a path or a Scenario) with its ``[[process]]`` tables (but those whose function
-    is in ``drop``), or without any, and return the figures (module docstring) plus ``completed``,
-    ``errors``, ``functions`` (names) and ``lifts`` (rapids the lift function lifted)."""
-    import numpy as np
-
-    from . import run
-    from .scenario import Scenario, load_scenario
-
-    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    keep = tuple(p for p in sc.processes if functions and p.function not in drop)
+def select_functions(sc, functions: bool = True, drop: tuple = (), only: tuple | None = None):
+    """``sc`` with its ``[[process]]`` tables (``functions=False``: none; ``only``: just the functions
+    named; ``drop``: all but those), as ``distctrl run --no-process`` / ``--process`` and the plates'
+    comparison run it. A plate program that asks for the touch-off (variable ``IHS``) runs with
+    ``IHS = 0`` when the touch-off is not among them: it would wait for the PLC's answer for ever."""
+    keep = tuple(p for p in sc.processes if functions and p.function not in drop
+                 and (only is None or p.function in only))
     sc = dataclasses.replace(sc, processes=keep)
     if "IHS" in sc.variables and not any(p.function == "touch_off" for p in keep):
         # the plates' programs ask for the touch-off when IHS = 1 and wait for the PLC's answer: without
         # the function the machine's initial height sense is off (distance control's select comes down)
         sc = dataclasses.replace(sc, variables={**sc.variables, "IHS": 0.0})
-    ended = {"cycle": None, "lifts": 0, "up": False, "cut_min": math.inf}
+    return sc
 
-    def watch(machine, cycle):          # a PLC program that only reads: the cycle the program ran last
+
+class CutWatch:
+    """A PLC program that only reads (``run(sc, plc_program=CutWatch(axis))``): the figures of the
+    module docstring for any run, without keeping its trace. Called at the start of cycle k it sees the
+    machine as cycle k-1 left it (the trace's row k-1); :meth:`finish` takes the last cycle's row.
+
+    ``figures(result, cycle_time)``: ``min_cut_distance_mm``, ``time_below_half_s``, ``path_time_s``,
+    ``set_distance_mm``, ``lifts``."""
+
+    def __init__(self, axis: str):
+        self.axis = axis
+        self.machine = None
+        self.ended_cycle: int | None = None
+        self.lifts = 0
+        self._up = False
+        self.cut_min = math.inf
+        self.below = 0
+        self.set_counts: dict[float, int] = {}
+
+    #: False for a run the figures do not apply to (3D distance control, no such axis)
+    applies = True
+
+    def __call__(self, machine, cycle: int) -> None:
+        if cycle == 0:
+            self.applies = machine.ch3d is None and self.axis in machine.dc_axes
+        if not self.applies:
+            return
+        self.machine = machine
         nc = machine.nc
         if nc is not None and nc.running:
-            ended["cycle"] = cycle
-        if machine.channel_path.motion_type == 2 and machine.true_distance < ended["cut_min"]:
-            ended["cut_min"] = machine.true_distance       # the cuts (G1) only: no touch-off, no rapid
+            self.ended_cycle = cycle                       # the cycle the program ran last
+        if machine.channel_path.motion_type == 2 and machine.true_distance < self.cut_min:
+            self.cut_min = machine.true_distance           # the cuts (G1) only: no touch-off, no rapid
         up = any(lm.lift_active for lm in machine.lift_motions)
-        if up and not ended["up"]:
-            ended["lifts"] += 1
-        ended["up"] = up
+        if up and not self._up:
+            self.lifts += 1
+        self._up = up
+        if cycle > 0:
+            self._row(machine)
 
-    r = run(sc, plc_program=watch)
-    tr = r.trace
-    col = tr.columns.index
+    def _row(self, machine) -> None:
+        out = machine.outputs[self.axis]
+        if out.hli_state in _RUNNING:
+            sd = float(out.set_distance)
+            self.set_counts[sd] = self.set_counts.get(sd, 0) + 1
+            if machine.true_distance < 0.5 * sd:
+                self.below += 1
+
+    def finish(self) -> None:
+        """The last cycle's row (no cycle start follows it)."""
+        if self.machine is not None:
+            self._row(self.machine)
+            self.machine = None
+
+    def _set_median(self) -> float:
+        """The median of the set distance over the cycles distance control ran (as numpy's median)."""
+        n = sum(self.set_counts.values())
+        if n == 0:
+            return float("nan")
+        picks, seen, out = sorted({(n - 1) // 2, n // 2}), 0, []
+        for value in sorted(self.set_counts):
+            seen += self.set_counts[value]
+            while picks and picks[0] < seen:
+                out.append(value)
+                picks.pop(0)
+        return float(out[0]) if len(out) == 1 else float((out[0] + out[1]) / 2.0)
+
+    def figures(self, cycle_time: float) -> dict:
+        self.finish()
+        return {"min_cut_distance_mm": self.cut_min if math.isfinite(self.cut_min) else None,
+                "time_below_half_s": self.below * cycle_time,
+                "path_time_s": None if self.ended_cycle is None else (self.ended_cycle + 1) * cycle_time,
+                "set_distance_mm": self._set_median(), "lifts": self.lifts}
+
+
+def plate_figures(scenario, functions: bool = True, drop: tuple = ()) -> dict:
+    """Run ``scenario`` (a path or a Scenario) with its ``[[process]]`` tables (but those whose function
+    is in ``drop``), or without any, and return the figures (module docstring) plus ``completed``,
+    ``errors``, ``functions`` (names) and ``lifts`` (rapids the lift function lifted)."""
+    from . import run
+    from .scenario import Scenario, load_scenario
+
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    sc = select_functions(sc, functions, drop)
     axis = sc.sensor.axis if sc.sensor is not None and sc.sensor.axis else "Z"
-    d = tr.data[:, col("true.distance")]
-    state = tr.data[:, col(f"{axis}.dc.state")]
-    set_dist = tr.data[:, col(f"{axis}.dc.set_dist")]
-    on = np.isin(state, _RUNNING)
-    # the cut's set distance: the one in force for most of the time distance control ran (a touch-off's
-    # SET_DIST = 0 probe and its pierce height are brief)
-    set_cut = float(np.median(set_dist[on])) if on.any() else float("nan")
-    below = int(np.count_nonzero(on & (d < 0.5 * set_dist)))
+    watch = CutWatch(axis)
+    r = run(sc, plc_program=watch, keep_trace=False)
     m = r.metrics
-    path = None if ended["cycle"] is None else (ended["cycle"] + 1) * sc.cycle_time
-    cut_min = ended["cut_min"] if math.isfinite(ended["cut_min"]) else None
-    return {"min_distance_mm": m["min_distance_mm"], "min_cut_distance_mm": cut_min, "time_below_half_s": below * sc.cycle_time,
-            "collisions": m["collisions"], "path_time_s": path, "set_distance_mm": set_cut,
+    f = watch.figures(sc.cycle_time)
+    set_cut = f["set_distance_mm"]
+    return {"min_distance_mm": m["min_distance_mm"], "min_cut_distance_mm": f["min_cut_distance_mm"],
+            "time_below_half_s": f["time_below_half_s"], "collisions": m["collisions"],
+            "path_time_s": f["path_time_s"], "set_distance_mm": set_cut,
             "min_share": (m["min_distance_mm"] / set_cut) if m["min_distance_mm"] is not None else None,
             "completed": r.completed, "errors": [e["id"] for e in r.errors],
-            "functions": [p.function for p in sc.processes], "lifts": ended["lifts"]}
+            "functions": [p.function for p in sc.processes], "lifts": f["lifts"]}
 
 
 def compare(scenario) -> dict:

@@ -4,6 +4,8 @@
 file and/or keeps them; ``close()`` returns a ``Trace`` (columns, units, data, meta) that can be
 saved (``to_csv``), loaded (``Trace.from_csv``) and drawn (``plot``, matplotlib imported lazily).
 """
+from .reader import is_parquet, is_trace_file, load_trace
 from .recorder import HLI_STATE_NAMES, Trace, TraceRecorder, format_rows, sidecar_path
 
-__all__ = ["Trace", "TraceRecorder", "format_rows", "sidecar_path", "HLI_STATE_NAMES"]
+__all__ = ["Trace", "TraceRecorder", "format_rows", "sidecar_path", "HLI_STATE_NAMES", "load_trace",
+           "is_trace_file", "is_parquet"]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from ..cli.common import emit_json, fail
+from ..cli.common import SEED, Finite, emit_json, fail
 from ..errors import DistCtrlError
 
 
@@ -52,21 +52,21 @@ _CHATTER_HELP = "Weight of offset_hf_rms, the offset's motion above 20 Hz, in th
 @click.argument("scenario", type=click.Path(dir_okay=False, exists=True))
 @click.option("--grid", help="Grid to evaluate, e.g. 'kp=0.1:1.0:10,d_tv=0,0.01,filter_type=MOVING_AVERAGE,"
                              "n_cycles=4,8,16' (a:b:n ranges, a:b:n:log, lists).")
-@click.option("--random", "n_random", type=int, help="Evaluate N random points of the default search space.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Seed of --random.")
-@click.option("--cycles", type=int, help="Cycles to replay (default: to the next command after the select).")
+@click.option("--random", "n_random", type=click.IntRange(1, 10**8), help="Evaluate N random points of the default search space.")
+@click.option("--seed", default=0, show_default=True, type=SEED, help="Seed of --random.")
+@click.option("--cycles", type=click.IntRange(1, 10**8), help="Cycles to replay (default: to the next command after the select).")
 @click.option("--out", "out", default="sweep.csv", show_default=True, type=click.Path(dir_okay=False),
               help="Results table: .csv, or .parquet (needs pyarrow).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Save a heatmap (two swept parameters) or parallel-coordinates plot (PNG/SVG).")
 @click.option("--metric", default="rms_error", show_default=True, help="Metric of the plot and the ranking.")
-@click.option("--sat-weight", type=float, default=None, help=_SAT_HELP)
-@click.option("--chatter-weight", type=float, default=None, help=_CHATTER_HELP)
+@click.option("--sat-weight", type=Finite(0.0, 1e6), default=None, help=_SAT_HELP)
+@click.option("--chatter-weight", type=Finite(0.0, 1e6), default=None, help=_CHATTER_HELP)
 @click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
 @click.option("--local", is_flag=True, help="Run in this process without dask.")
-@click.option("--workers", type=int, help="Workers of the embedded LocalCluster (default: all cores).")
-@click.option("--chunk", default=256, show_default=True, type=int, help="Parameter sets per chunk.")
-@click.option("--top", default=10, show_default=True, type=int, help="Rows of the summary table.")
+@click.option("--workers", type=click.IntRange(1, 1024), help="Workers of the embedded LocalCluster (default: all cores).")
+@click.option("--chunk", default=256, show_default=True, type=click.IntRange(1, 10**7), help="Parameter sets per chunk.")
+@click.option("--top", default=10, show_default=True, type=click.IntRange(1, 10**6), help="Rows of the summary table.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (the best --top rows with units, throughput, files) instead of the table.")
 def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_weight, chatter_weight, scheduler,
@@ -137,19 +137,19 @@ def _rate_text(rate: float) -> str:
 
 @click.command("tune")
 @click.argument("scenario", type=click.Path(dir_okay=False, exists=True))
-@click.option("--budget", default=400, show_default=True, type=int, help="Parameter sets to evaluate.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the coarse random sweep.")
-@click.option("--cycles", type=int, help="Cycles to replay (default: to the next command after the select).")
+@click.option("--budget", default=400, show_default=True, type=click.IntRange(2, 10**8), help="Parameter sets to evaluate.")
+@click.option("--seed", default=0, show_default=True, type=SEED, help="Seed of the coarse random sweep.")
+@click.option("--cycles", type=click.IntRange(1, 10**8), help="Cycles to replay (default: to the next command after the select).")
 @click.option("--out", "out_dir", default="tune_out", show_default=True, type=click.Path(file_okay=False),
               help="Folder for tuned.lis, tuned.nc.txt, sweep.csv, before_after.png, report.txt.")
-@click.option("--osc-weight", default=1.0, show_default=True, type=float,
+@click.option("--osc-weight", default=1.0, show_default=True, type=Finite(0.0, 1e6),
               help="Weight of the oscillation penalty (hf_rms) in the cost.")
-@click.option("--sat-weight", type=float, default=None, help=_SAT_HELP)
-@click.option("--chatter-weight", type=float, default=None, help=_CHATTER_HELP)
+@click.option("--sat-weight", type=Finite(0.0, 1e6), default=None, help=_SAT_HELP)
+@click.option("--chatter-weight", type=Finite(0.0, 1e6), default=None, help=_CHATTER_HELP)
 @click.option("--no-robustness", is_flag=True, help="Skip the re-check on perturbed scenarios.")
 @click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
 @click.option("--local", is_flag=True, help="Run in this process without dask.")
-@click.option("--workers", type=int, help="Workers of the embedded LocalCluster (default: all cores).")
+@click.option("--workers", type=click.IntRange(1, 1024), help="Workers of the embedded LocalCluster (default: all cores).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (metrics with units before/after, tuned values, list, NC block, files) "
                    "instead of the report.")

@@ -6,14 +6,16 @@ import sys
 
 import click
 
+from ..cli.common import PORT, Finite
 from ..errors import DistCtrlError
 
 
 def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ...], net_id: str,
                   duration: float | None, no_discovery: bool, ui: bool, ui_port: int, export_dir: str,
                   open_browser: bool = False, as_json: bool = False, rt_priority: int = 10) -> None:
-    """Serve SCENARIO over ADS (and the live page with ``ui``) until ``duration`` or Ctrl-C; print the
-    cycle's lateness at the end."""
+    """Serve SCENARIO over ADS (and the live page with ``ui``) until ``duration``, Ctrl-C or SIGTERM;
+    print the cycle's lateness at the end (and what stopped the session). All three are a normal end:
+    exit code 0 (docs/serve.md)."""
     import logging
     import time
 
@@ -25,6 +27,7 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
     logging.getLogger("bokeh").setLevel(logging.WARNING)
     logging.getLogger("tornado.access").setLevel(logging.WARNING)
     page = None
+    previous_handler = _catch_sigterm()
     try:
         served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id,
                                discovery_port=None if no_discovery else 48899, rt_priority=rt_priority)
@@ -40,15 +43,22 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
                      "(--ui-port chooses another port)")
         try:
             served.start()
-        except BaseException:
+        except BaseException as exc:
             if page is not None:
                 page.stop()
+            if isinstance(exc, OSError):          # the ADS port cannot be bound: name the address
+                fail(f"cannot serve ADS on {host}:{port}: {exc.strerror or exc} (--port chooses another port, "
+                     "--host another address of this machine)")
             raise
     except (DistCtrlError, OSError, ValueError) as exc:
+        _restore_sigterm(previous_handler)
         fail(str(exc))
+    except BaseException:
+        _restore_sigterm(previous_handler)
+        raise
     if not as_json:
         click.echo(f"serving {served.scenario.name}: ADS {net_id} on {host}:{served.server.port}, "
-                   f"allowed {', '.join(allowed)}; Ctrl-C stops")
+                   f"allowed {', '.join(allowed)}; Ctrl-C or SIGTERM stops")
     if page is not None:
         if not as_json:
             click.echo(f"live page: {page.url}")
@@ -57,14 +67,20 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
 
             if not webbrowser.open(page.url) and not as_json:
                 click.echo(f"no browser could be started here: open {page.url} yourself", err=True)
+    stopped_by = "duration"
     try:
         t_end = None if duration is None else time.monotonic() + duration
         while t_end is None or time.monotonic() < t_end:
             time.sleep(0.2)
             if served.loop.error is not None:
                 raise served.loop.error
+            if _TERMINATED["by"] is not None:
+                stopped_by = _TERMINATED["by"]
+                break
     except KeyboardInterrupt:
-        pass
+        stopped_by = "SIGINT"
+    finally:
+        _restore_sigterm(previous_handler)
     if page is not None:
         page.stop()
     stats = served.stop()
@@ -72,10 +88,41 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
         emit_json({"scenario": scenario, "ads": f"{host}:{served.server.port}", "net_id": net_id,
                    "cycle_thread": served.loop.scheduling,
                    "ui_url": page.url if page is not None else None,
-                   "ui_sessions": page.sessions if page is not None else 0, "cycle_lateness": stats})
+                   "ui_sessions": page.sessions if page is not None else 0, "stopped_by": stopped_by,
+                   "cycle_lateness": stats})
         return
+    if stopped_by != "duration":
+        click.echo(f"stopped by {stopped_by}")
     click.echo("cycle jitter: " + ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
                                            for k, v in stats.items()))
+
+
+#: set by the SIGTERM handler of a running session (``systemctl stop``, ``docker stop``, ``kill``)
+_TERMINATED: dict = {"by": None}
+
+
+def _on_sigterm(signum, frame) -> None:          # noqa: ARG001 (the signal module's signature)
+    _TERMINATED["by"] = "SIGTERM"
+
+
+def _catch_sigterm():
+    """SIGTERM ends the session as Ctrl-C does (the report, the JSON, the servers stopped, exit 0)
+    instead of killing the process; returns the previous handler (None where none can be set: only
+    the main thread may)."""
+    import signal
+    import threading
+
+    _TERMINATED["by"] = None
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _on_sigterm)
+
+
+def _restore_sigterm(previous) -> None:
+    import signal
+
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
 
 
 RT_OPTION = click.option(
@@ -90,11 +137,12 @@ RT_OPTION = click.option(
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address the page and ADS listen on.")
 @click.option("--ui-port", default=8050, show_default=True, type=click.IntRange(0, 65535),
               help="HTTP port of the live page (0: a free port).")
-@click.option("--port", default=48898, show_default=True, help="AMS/TCP port.")
+@click.option("--port", default=48898, show_default=True, type=PORT, help="AMS/TCP port (0: a free port).")
 @click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
               help="Client address or network allowed to connect to the page and over ADS; repeat for more.")
 @click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
-@click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--duration", type=Finite(0.0, min_open=True), default=None,
+              help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
 @click.option("--no-discovery", is_flag=True, help="Do not answer route discovery on UDP 48899.")
 @click.option("--export-dir", default=".", show_default=True, type=click.Path(file_okay=False),
               help="Folder the scope's Export CSV writes its trace files to.")

@@ -9,6 +9,7 @@ import sys
 
 import click
 
+from ..cli.common import COORDINATE, Finite
 from ..errors import DistCtrlError, ExitCode
 
 
@@ -19,16 +20,16 @@ from ..errors import DistCtrlError, ExitCode
                    "<scenario>_linearisation.toml beside the scenario.")
 @click.option("--runs", type=click.IntRange(1, 10), default=None,
               help="Calibration runs (down and up each) compared for repeatability [default: the scenario's, else 2].")
-@click.option("--speed", type=click.FloatRange(0.0, 20.0, min_open=True), default=None,
+@click.option("--speed", type=Finite(0.0, 20.0, min_open=True), default=None,
               help="Speed of the descent and ascent [mm/s] (default: the scenario's, else 1).")
-@click.option("--bottom", type=click.FloatRange(0.0, min_open=True), default=None,
+@click.option("--bottom", type=Finite(0.0, 1e3, min_open=True), default=None,
               help="Measured distance the head goes down to [mm] (default: the scenario's, else 0.3).")
-@click.option("--surface", type=float, default=None,
+@click.option("--surface", type=COORDINATE, default=None,
               help="Axis position where the nozzle touches the sheet [mm]: the zero of the true distance "
                    "(default: the scenario's sheet under the head).")
-@click.option("--tolerance", type=click.FloatRange(0.0, min_open=True), default=None,
+@click.option("--tolerance", type=Finite(0.0, 1e3, min_open=True), default=None,
               help="Largest difference between the runs' tables [µm]  [default: 10].")
-@click.option("--bin", "bin_width", type=click.FloatRange(0.01, 1.0), default=0.1, show_default=True,
+@click.option("--bin", "bin_width", type=Finite(0.01, 1.0), default=0.1, show_default=True,
               help="Width of the distance bins, one table point each [mm].")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of a summary.")
 def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, bin_width, as_json) -> None:
@@ -47,7 +48,7 @@ def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, b
     the head touched the sheet, the records give no monotonic table); 3 it did not end in time;
     4 the runs differ by more than the tolerance (no table written).
     """
-    from ..cli.common import check_writable, emit_json, fail
+    from ..cli.common import check_writable, emit_json, fail, output_error_text
     from ..sim.scenario import load_scenario
     from .calibrate import (
         REPEATABILITY_TOLERANCE_UM,
@@ -105,7 +106,7 @@ def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, b
             with open(out, "w", encoding="utf-8") as fh:
                 fh.write(table_toml(res, header))
         except OSError as exc:
-            fail(f"cannot write the table {out}: {exc.strerror or exc}")
+            fail(output_error_text(exc, out, "table"))
         written = out
     payload = dict(info)
     payload.update({

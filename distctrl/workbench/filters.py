@@ -375,17 +375,17 @@ def load_recording(path: str | os.PathLike, time_column: str | None = None, valu
     kept in ``Recording.warnings``) when an interval differs from it by more than 1 %: the filters
     run once per sample, as in the kernel's cycle, so the time axis is treated as uniform.
     """
-    from ..trace import Trace, sidecar_path
+    from ..trace import is_trace_file, load_trace
 
     p = Path(path)
     if not p.is_file():
         raise RecordingError(f"{p}: no such file; expected a CSV recording (header row, one row per sample)")
     tf = _unit_factor(p, "time", time_unit, _TIME_UNITS)
     vf = _unit_factor(p, "value", value_unit, _VALUE_UNITS, mm_per_increment)
-    if sidecar_path(p).exists():
+    if is_trace_file(p):                 # a CSV with its sidecar, or Parquet (distctrl run --trace x.parquet)
         try:
-            trace = Trace.from_csv(p)
-        except (ValueError, OSError) as exc:
+            trace = load_trace(p)
+        except (ValueError, OSError, DistCtrlError) as exc:
             raise RecordingError(f"{p}: not a readable distctrl trace: {exc}") from None
         cols = list(trace.columns)
         if value_column is None:

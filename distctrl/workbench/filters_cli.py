@@ -10,6 +10,7 @@ import warnings
 
 import click
 
+from ..cli.common import SEED, Finite
 from ..errors import DistCtrlError
 
 
@@ -40,15 +41,15 @@ def _edges_option(values: tuple[str, ...]) -> list[float] | str | None:
                                                    "column of a trace).")
 @click.option("--time-unit", default="s", show_default=True, help="Unit of the time column: s, ms or us.")
 @click.option("--value-unit", default="mm", show_default=True, help="Unit of the values: mm, um or inc.")
-@click.option("--mm-per-increment", type=float, default=None, help="Scale for --value-unit inc.")
-@click.option("--cycle-time", type=float, default=None,
+@click.option("--mm-per-increment", type=Finite(0.0, 1e3, min_open=True), default=None, help="Scale for --value-unit inc.")
+@click.option("--cycle-time", type=Finite(0.0, 10.0, min_open=True), default=None,
               help="Cycle time [s] (default 0.001; for a recording its median sample interval).")
 @click.option("--edge", "edge_values", multiple=True, metavar="T|auto",
               help="Obstacle edge time [s] on the signal's time axis (repeat for the falling edge), or 'auto' to "
                    "detect them. The built-in signal knows its edges.")
-@click.option("--noise", type=float, default=0.05, show_default=True,
+@click.option("--noise", type=Finite(0.0, 100.0), default=0.05, show_default=True,
               help="Noise std [mm] of the built-in obstacle signal.")
-@click.option("--seed", type=int, default=1, show_default=True, help="Noise seed of the built-in signal.")
+@click.option("--seed", type=SEED, default=1, show_default=True, help="Noise seed of the built-in signal.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Save the overlay plot (.png, .svg or .pdf).")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), default=None,
@@ -66,14 +67,13 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
     KALMAN_MA:n_cycles=30,kalman_sigma=100,1000 (a list of values expands into one configuration
     each; several keys with lists give their product). Types: DEFAULT, MOVING_AVERAGE, EXPO_MEAN,
     LOWPASS, KALMAN_MA, KALMAN_EXPO. Keys: n_cycles, smoothing_factor (smooth_fact), kalman_sigma
-    (sigma), order, fg_f0. Without SPEC: MOVING_AVERAGE n=10,20,40; EXPO_MEAN n=30 smoothing
-    0.1,0.3; KALMAN_MA n=30 sigma 10,100; LOWPASS order 2 fg 30 Hz.
+    (sigma), order, fg_f0. Without SPEC: {default_set}.
 
     The default signal is the documents' test: a 2.8 mm obstacle crossed by the sensor, with
     Gaussian noise. Prints noise RMS, delay (50 %), dead time (10 %) and overshoot per
     configuration. Exit code 1 with a message for invalid input.
     """
-    from ..cli.common import emit_json
+    from ..cli.common import check_writable, emit_json, output_error_text
     from .filters import (DEFAULT_SPECS, WorkbenchError, check_plot_path, compare, find_edges, format_table, load_recording,
                           obstacle_signal, parse_filter_specs, plot_overlay, results_dicts, signal_noise_rms,
                           write_results_csv)
@@ -86,6 +86,9 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
                 raise WorkbenchError(f"--cycle-time {cycle_time!r}: allowed: a finite number > 0 s")
             if plot_path:
                 check_plot_path(plot_path)
+            for path, what in ((plot_path, "plot"), (csv_path, "table")):
+                if path:
+                    check_writable(path, what)
             edges_opt = _edges_option(edge_values)
             if recording:
                 rec = load_recording(recording, time_column=time_column, value_column=value_column,
@@ -119,13 +122,17 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
     for w in caught:
         click.echo(f"warning: {w.message}", err=True)
     # the files first: a reader that stops early (`| head`) must not cost them
-    try:
-        if plot_path:
-            plot_overlay(t, x, results, path=plot_path, edges=edges or None, title=title)
-        if csv_path:
-            write_results_csv(results, csv_path)
-    except (DistCtrlError, OSError) as exc:
-        _fail(str(exc), [])
+    for path, what, write in ((plot_path, "plot", lambda: plot_overlay(t, x, results, path=plot_path,
+                                                                       edges=edges or None, title=title)),
+                              (csv_path, "table", lambda: write_results_csv(results, csv_path))):
+        if not path:
+            continue
+        try:
+            write()
+        except DistCtrlError as exc:
+            _fail(str(exc), [])
+        except OSError as exc:
+            _fail(output_error_text(exc, path, what), [])
     if as_json:
         emit_json({"command": "filters", "source": source, "recording": recording, "cycle_time_s": T,
                    "edges_s": list(edges) if edges else [], "raw_noise_rms_mm": raw,
@@ -143,8 +150,19 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
         click.echo(f"table: {csv_path}")
 
 
+def _default_set_text() -> str:
+    """The help's "Without SPEC" sentence, made from DEFAULT_SPECS (what the command runs)."""
+    from .filters import DEFAULT_SPECS, default_configs
+
+    return (f"the {len(default_configs(0.001))} configurations of " + "; ".join(DEFAULT_SPECS))
+
+
+filters.help = (filters.help or "").replace("{default_set}", _default_set_text())
+
+
 def _fail(message: str, caught) -> None:
+    from ..cli.common import fail
+
     for w in caught or []:
         click.echo(f"warning: {w.message}", err=True)
-    click.echo(f"error: {message}", err=True)
-    sys.exit(1)
+    fail(message)

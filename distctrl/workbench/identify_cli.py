@@ -8,6 +8,7 @@ import warnings
 
 import click
 
+from ..cli.common import COORDINATE, Finite
 from ..errors import DistCtrlError
 
 
@@ -26,17 +27,17 @@ from ..errors import DistCtrlError
                                                 "Scope export; a trace's own unit).")
 @click.option("--value-unit", default="mm", show_default=True, help="Unit of command and actual: mm, um or inc.")
 @click.option("--sensor-unit", default=None, help="Unit of the sensor: mm, um or inc (default: --value-unit).")
-@click.option("--mm-per-increment", type=float, default=None, help="Scale for the unit inc.")
+@click.option("--mm-per-increment", type=Finite(0.0, 1e3, min_open=True), default=None, help="Scale for the unit inc.")
 @click.option("--sensor-sign", type=click.Choice(["auto", "+1", "-1"]), default="auto", show_default=True,
               help="+1: the sensor reads nozzle - surface (a distance); -1: surface - nozzle (encoder 2, s = -d); "
                    "auto: from the correlation with the motor.")
 @click.option("--actual-sampled", type=click.Choice(["auto", "start", "end"]), default="auto", show_default=True,
               help="When a row's actual position is sampled: start of the cycle (TwinCAT's input mapping) or end "
                    "(distctrl traces); auto: end for a distctrl trace, start otherwise.")
-@click.option("--surface", type=float, default=None,
+@click.option("--surface", type=COORDINATE, default=None,
               help="Surface height in the actual position's coordinates [mm] (the actual position where the nozzle "
                    "touches the sheet): fixes the zero of the true distance for the characteristic.")
-@click.option("--calibrated-at", type=float, default=None,
+@click.option("--calibrated-at", type=Finite(0.0, 1e3, min_open=True), default=None,
               help="Instead of --surface: the distance [mm] at which the sensor reads true (where it was taught in).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (drive, sensor, fit, warnings).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
@@ -70,7 +71,7 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     Exit code 1 with a message for missing files or columns, too short recordings, too poor
     excitation or a non-uniform time base.
     """
-    from ..cli.common import emit_json, fail
+    from ..cli.common import emit_json, fail, output_error_text
     from .identify import IdentifyError, format_summary, identify, load_signals, result_json, write_report, \
         write_scenario
 
@@ -95,7 +96,7 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     except DistCtrlError as exc:
         fail(str(exc))
     except OSError as exc:
-        fail(f"cannot write {getattr(exc, 'filename', None) or out_dir}: {exc.strerror or exc}")
+        fail(output_error_text(exc, getattr(exc, "filename", None) or out_dir, "output"))
     if as_json:
         emit_json(result_json(res, scenario=scenario, report=report))
         return

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import click
 
+from ..cli.common import Finite
 from ..errors import DistCtrlError
 
 __all__ = ["margins"]
@@ -18,7 +19,7 @@ __all__ = ["margins"]
 @click.argument("scenario", type=click.Path(dir_okay=False))
 @click.option("--axis", "axis", default=None,
               help="The distance-controlled axis (default: the sensor's axis, or the only one).")
-@click.option("--kp", type=float, default=None,
+@click.option("--kp", type=Finite(0.0, 2.0, min_open=True), default=None,
               help="Analyse with this KP (0 < KP <= 2) instead of the one in force at the first select.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Save the Bode plot of the open loop, with the Nyquist plot beside it (PNG, SVG or PDF).")

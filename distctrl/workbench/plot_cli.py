@@ -14,13 +14,13 @@ import difflib
 import io
 import json
 import os
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
 import click
 import numpy as np
 
+from ..cli.common import Finite
 from ..errors import CATALOGUE, DistCtrlError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -219,19 +219,14 @@ def plot_trace_file(trace_csv: str | os.PathLike, out: str | os.PathLike | None 
 
     Default ``out``: the trace's path with the suffix ``.png``. Raises :class:`PlotError`.
     """
-    from ..trace import Trace
+    from ..trace import load_trace
     from ..trace.plot import plot_trace
 
     src = Path(trace_csv)
     if not src.is_file():
         raise PlotError(f"{src}: no such trace file" if not src.exists() else f"{src}: not a file")
     try:
-        if src.suffix.lower() == ".parquet":
-            from .parquet import from_parquet
-
-            trace = from_parquet(src)
-        else:
-            trace = Trace.from_csv(src)
+        trace = load_trace(src)               # CSV with its sidecar, or Parquet
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         raise PlotError(f"{src}: cannot read the trace: {exc}") from None
     sigs = resolve_signals(trace, signals, str(src)) if signals is not None else None
@@ -270,27 +265,40 @@ def _split_signals(value: str | None) -> list[str] | None:
 @click.argument("trace_csv", metavar="TRACE", type=click.Path(dir_okay=False))
 @click.option("--signals", help="Comma-separated columns to plot (one panel per unit); default: the "
               "standard panels (positions, distance-control signals, distance).")
-@click.option("--from", "t_from", type=float, default=None, help="Start of the time window [s].")
-@click.option("--to", "t_to", type=float, default=None, help="End of the time window [s].")
+@click.option("--from", "t_from", type=Finite(min=0.0), default=None, help="Start of the time window [s].")
+@click.option("--to", "t_to", type=Finite(min=0.0), default=None, help="End of the time window [s].")
 @click.option("-o", "--output", "out", type=click.Path(dir_okay=False),
               help="Output file (.png, .svg, .pdf, .jpg); default: TRACE with the suffix .png.")
 @click.option("--errors", "errors_path", type=click.Path(dir_okay=False),
               help="JSON of 'distctrl run --json' whose errors/warnings are marked (default: the "
               "trace sidecar's meta, if it lists them).")
 @click.option("--title", default=None, help="Figure title (default: the trace's program/scenario).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object saying what was written (trace, output, format, bytes, signals, window).")
 def plot(trace_csv: str, signals: str | None, t_from: float | None, t_to: float | None, out: str | None,
-         errors_path: str | None, title: str | None) -> None:
+         errors_path: str | None, title: str | None, as_json: bool) -> None:
     """Plot a saved trace TRACE (.csv with its sidecar, or .parquet, as `distctrl run --trace` writes
     them) scope-style: signals over time, state bands, error markers.
 
     Exit code 0 when the plot was written, 1 for a missing file, an unknown signal (the message
-    names the closest column), an empty time window or an unsupported output format.
+    names the closest column), an empty time window, an unsupported output format or an output
+    that cannot be written (the message names it and why).
     """
+    from ..cli.common import emit_json, fail, output_error_text
+
+    names = _split_signals(signals)
     try:
-        path = plot_trace_file(trace_csv, out, _split_signals(signals), t_from, t_to, errors_path, title)
+        path = plot_trace_file(trace_csv, out, names, t_from, t_to, errors_path, title)
     except DistCtrlError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(1)
+        fail(str(exc))
+    except OSError as exc:
+        fail(output_error_text(exc, out if out is not None else str(Path(trace_csv).with_suffix(".png")), "plot"))
+    if as_json:
+        fmt = path.suffix.lstrip(".").lower()
+        emit_json({"command": "plot", "trace": str(trace_csv), "output": str(path),
+                   "format": "jpeg" if fmt == "jpg" else fmt, "bytes": path.stat().st_size,
+                   "signals": names, "from_s": t_from, "to_s": t_to, "title": title})
+        return
     click.echo(f"wrote {path}")
 
 

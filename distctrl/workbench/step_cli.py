@@ -10,8 +10,9 @@ import math
 
 import click
 
-from ..cli.common import emit_json, fail
+from ..cli.common import Finite, emit_json, fail
 from ..errors import DistCtrlError
+from .step import MAX_DURATION
 
 __all__ = ["step"]
 
@@ -47,13 +48,13 @@ def _step_value(text: str) -> "float | str":
                    "a_max), at least 20x the sensor noise, at most 1 mm.")
 @click.option("--mode", default="CONST_DIST", show_default=True, metavar="CONST_DIST|SET_POS",
               help="Distance-control mode: CONST_DIST (SET_DIST) or SET_POS.")
-@click.option("--set-dist", "set_dist", default=1.0, show_default=True, type=float,
+@click.option("--set-dist", "set_dist", default=1.0, show_default=True, type=Finite(0.0, 1e3, min_open=True),
               help="SET_DIST (mm) the axis holds.")
-@click.option("--ramp", "ramp", default=0.0, show_default=True, type=float,
+@click.option("--ramp", "ramp", default=0.0, show_default=True, type=Finite(-1e3, 1e3),
               help="After the step the surface keeps rising at this rate (mm/s): a permanent control "
                    "deviation for P, which the I part removes.")
-@click.option("--t-step", "t_step", default=0.5, show_default=True, type=float, help="Time of the step (s).")
-@click.option("--duration", default=2.0, show_default=True, type=float, help="Length of each run (s).")
+@click.option("--t-step", "t_step", default=0.5, show_default=True, type=Finite(0.0, MAX_DURATION, min_open=True, max_open=True), help="Time of the step (s).")
+@click.option("--duration", default=2.0, show_default=True, type=Finite(0.0, MAX_DURATION, min_open=True), help="Length of each run (s).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Save the overlaid responses (PNG, SVG or PDF by suffix).")
 @click.option("--json", "as_json", is_flag=True,

@@ -131,3 +131,29 @@ def test_diag_json_gives_numbers_with_units():
 def test_no_help_text_or_doc_points_users_at_the_seeds_folder():
     for path in [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "distctrl").rglob("*.py"))]:
         assert "seeds/" not in path.read_text(encoding="utf-8"), path
+
+
+def test_objects_watch_follows_a_served_machine_on_another_port():
+    """R13 (new-user audit): objects --watch had no port option, so a machine served on another
+    port than 48898 (a local TwinCAT router holds it) could not be watched. pyads's router takes
+    the address as host:port: --port passes it."""
+    pytest.importorskip("pyads")
+    from distctrl.ads.machine import ServedMachine
+    from distctrl.sim.scenario import load_scenario
+
+    host, net_id = "127.0.0.6", "127.0.0.6.1.1"
+    gc.collect()
+    gc.freeze()
+    try:
+        with ServedMachine(load_scenario(SCN / "serve_z.toml"), host=host, port=0, net_id=net_id,
+                           discovery_port=None) as served:
+            port = served.server.port
+            assert port != 48898
+            res = CliRunner().invoke(main, ["objects", str(SCN / "serve_z.toml"), "--watch", "--host", host,
+                                            "--port", str(port), "--net-id", net_id, "--count", "1",
+                                            "--axis", "Z", "--json"])
+    finally:
+        gc.unfreeze()
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["port"] == port and {o["name"] for o in doc["objects"]} >= {"DIST_CTRL::kp", "DIST_CTRL::state"}

@@ -74,3 +74,63 @@ def test_an_output_that_cannot_be_written_is_one_line_naming_the_path(option, pa
 def test_decimate_and_max_rows_refuse_nonsense():
     for opt in (["--decimate", "0"], ["--max-rows", "-3"]):
         assert CliRunner().invoke(main, ["run", DIST_1, *opt]).exit_code == ExitCode.INVALID_INPUT
+
+
+# ----------------------------------------------------------------------------- R6: the demo's comparison from run
+
+PLATE = Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "plasma_plate_short.toml"
+
+
+def _run_json(*args):
+    import json
+
+    from click.testing import CliRunner
+
+    from distctrl.cli import main
+
+    r = CliRunner().invoke(main, ["run", str(PLATE), "--json", *args])
+    return r, (json.loads(r.stdout) if r.stdout.strip() else None)
+
+
+def test_run_without_the_process_functions_gives_the_demo_table_figures():
+    """R6 (new-user audit): the demo's with/without comparison could not be reproduced with `run`
+    (no way to switch the [[process]] tables off, and none of the cut figures). --no-process runs
+    the plate as the demo's "without" column, and the JSON has the demo table's figures."""
+    from distctrl.sim.plates import plate_figures
+
+    r, doc = _run_json("--no-process")
+    assert doc is not None, r.output
+    want = plate_figures(PLATE, functions=False)
+    cut = doc["cut"]
+    assert doc["processes"] == [] and doc["metrics"]["collisions"] == want["collisions"] > 0
+    assert doc["metrics"]["min_distance_mm"] == want["min_distance_mm"]
+    for key in ("min_cut_distance_mm", "time_below_half_s", "path_time_s", "set_distance_mm"):
+        assert cut[key] == want[key], key
+
+
+def test_run_with_some_process_functions_only():
+    r, doc = _run_json("--process", "corner_lock,void_lock")
+    assert doc is not None, r.output
+    assert doc["processes"] == ["corner_lock", "void_lock"]
+    assert doc["cut"]["path_time_s"] is not None
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--process", "corner_lock,nosuch"], ["nosuch", "corner_lock", "void_lock", "touch_off", "lift"]),
+    (["--process", "corner_lock", "--no-process"], ["--no-process", "--process"]),
+])
+def test_run_process_selection_errors_exit_1(args, words):
+    r, doc = _run_json(*args)
+    assert r.exit_code == 1 and doc["outcome"] == "error"
+    for w in words:
+        assert w in doc["error"], doc["error"]
+
+
+def test_run_summary_prints_the_cut_figures():
+    from click.testing import CliRunner
+
+    from distctrl.cli import main
+
+    r = CliRunner().invoke(main, ["run", str(PLATE), "--no-process"])
+    assert "while cutting (G1): min" in r.stdout and "below ½ SET_DIST" in r.stdout and "path time" in r.stdout
+    assert "process functions: none (--no-process)" in r.stdout

@@ -13,7 +13,7 @@ from distctrl.control.filters import FilterConfig
 from distctrl.control.kinds import FilterType
 from distctrl.errors import DistCtrlError
 from distctrl.trace import Trace
-from distctrl.workbench.filters import (FilterResult, FilterSpecError, RecordingError,
+from distctrl.workbench.filters import (DEFAULT_SPECS, FilterResult, FilterSpecError, RecordingError,
                                         RecordingWarning, WorkbenchError, WorkbenchWarning, compare,
                                         default_configs, find_edges, format_table, load_recording,
                                         obstacle_signal, parse_filter_spec, plot_overlay, signal_noise_rms,
@@ -484,7 +484,10 @@ def test_plot_overlay_without_edges_and_bad_suffix(tmp_path):
 # ----------------------------------------------------------------------------------------------- CLI
 
 def invoke(*args):
-    return CliRunner().invoke(filters, list(args))
+    """``distctrl filters ARGS`` through the command group (its exit-code table: a usage error is 1)."""
+    from distctrl.cli import main
+
+    return CliRunner().invoke(main, ["filters", *args])
 
 
 def test_cli_default_run_prints_a_table_with_all_configs():
@@ -513,7 +516,7 @@ def test_cli_specs_plot_and_csv(tmp_path):
     (["--recording", "does/not/exist.csv"], ["error:", "no such file"]),
     (["--plot", "x.jpg"], ["error:", ".png"]),
     (["--edge", "soon"], ["error:", "--edge 'soon'"]),
-    (["--cycle-time", "0"], ["error:", "--cycle-time"]),
+    (["--cycle-time", "0"], ["Error:", "--cycle-time", "0.0<x<=10.0"]),      # the option's range (click)
 ])
 def test_cli_bad_input_exits_1_with_the_message(args, words):
     res = invoke(*args)
@@ -542,3 +545,34 @@ def test_cli_bad_unit_of_a_recording_exits_1(tmp_path):
     obstacle_csv(tmp_path / "rec.csv")
     res = invoke("--recording", str(tmp_path / "rec.csv"), "--value-unit", "inch")
     assert res.exit_code == 1 and "value unit 'inch'" in res.output
+
+
+def test_cli_help_lists_the_default_set_the_command_runs():
+    """M3 (new-user audit): the help listed MOVING_AVERAGE n=10,20,40 ... while the command ran
+    DEFAULT_SPECS (9 configurations). The help is made from DEFAULT_SPECS."""
+    res = invoke("--help")
+    assert res.exit_code == 0
+    text = " ".join(res.output.split())
+    for spec in DEFAULT_SPECS:
+        assert spec in text, spec
+    assert f"{len(default_configs(0.001))} configurations" in text
+    assert "n=10,20,40" not in text
+
+
+def test_cli_reads_a_parquet_trace_as_its_csv_twin(tmp_path):
+    """R5: `filters --recording x.parquet` said "x.parquet:15: 2 cells, the header has 1 columns"."""
+    pytest.importorskip("pyarrow")
+    import json
+
+    from distctrl.trace import Trace
+    from distctrl.workbench.parquet import to_parquet
+
+    t, x, _ = obstacle_signal(0.001, noise_std=0.02, seed=3)
+    tr = Trace(["t", "Z.dc.sensor"], np.column_stack([t, x]), units={"t": "s", "Z.dc.sensor": "mm"})
+    tr.to_csv(tmp_path / "r.csv")
+    to_parquet(tr, tmp_path / "r.parquet")
+    a = invoke("MOVING_AVERAGE:n_cycles=10", "--recording", str(tmp_path / "r.csv"), "--edge", "auto", "--json")
+    b = invoke("MOVING_AVERAGE:n_cycles=10", "--recording", str(tmp_path / "r.parquet"), "--edge", "auto", "--json")
+    assert a.exit_code == 0 and b.exit_code == 0, b.output
+    ja, jb = json.loads(a.stdout), json.loads(b.stdout)
+    assert ja["results"] == jb["results"] and ja["edges_s"] == jb["edges_s"] and ja["edges_s"]

@@ -130,3 +130,30 @@ def test_resonant_plant_scenario_runs(tmp_path):
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["completed"]
+
+
+def test_a_parquet_trace_reads_as_its_csv_twin(files, tmp_path):
+    """R5 (new-user audit): a Parquet trace (`run --trace x.parquet`) was read as text ("no command
+    column 'Z.cmd'; columns: PAR1..."). It is read as the trace it is: the same figures as its CSV."""
+    pytest.importorskip("pyarrow")
+    import numpy as np
+
+    from distctrl.trace import Trace
+    from distctrl.workbench.parquet import to_parquet
+
+    args = []
+    for name in ("steps", "chirp", "ramp"):
+        raw = np.genfromtxt(files[name], delimiter=",", names=True)
+        cols = list(raw.dtype.names)
+        tr = Trace(cols, np.column_stack([raw[c] for c in cols]), units={"t": "s", "set_pos": "mm", "act_pos": "mm",
+                                                                        "sensor": "mm"})
+        tr.to_csv(tmp_path / f"{name}.csv")
+        to_parquet(tr, tmp_path / f"{name}.parquet")
+        args.append(name)
+    common = [*ARGS, "--surface", PLANT.surface, "--json"]
+    a = run([*(tmp_path / f"{n}.csv" for n in args), *common])
+    b = run([*(tmp_path / f"{n}.parquet" for n in args), *common])
+    assert a.exit_code == 0 and b.exit_code == 0, b.output
+    ja, jb = json.loads(a.stdout), json.loads(b.stdout)
+    assert ja["drive"] == jb["drive"] and ja["sensor"] == jb["sensor"]
+    assert ja["drive"]["kv"] is not None

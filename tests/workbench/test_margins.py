@@ -462,7 +462,7 @@ def test_cli_json_set_pos_phase_crossover_at_nyquist():
 
 @pytest.mark.parametrize("args, message", [
     ([str(SCENARIOS / "dist3d_2.toml")], "3D (channel) distance control is not supported"),
-    ([str(SHEET), "--kp", "3"], "KP = 3.0 is out of range"),
+    ([str(SHEET), "--kp", "3"], "'--kp': 3.0 is not in the range 0.0<x<=2.0"),
     ([str(SHEET), "--axis", "X"], "axis X has no distance control"),
     ([str(SHEET), "--plot", "out.txt"], "suffix '.txt' not supported"),
     (["does-not-exist.toml"], "does-not-exist.toml"),

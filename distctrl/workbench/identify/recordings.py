@@ -182,7 +182,7 @@ def load_signals(path: str | os.PathLike, *, time: str | None = None, command: s
     (default: ``value_unit``). ``actual_at``: ``start``/``end``/``auto`` (auto: end for a trace,
     start otherwise).
     """
-    from ...trace import Trace, sidecar_path
+    from ...trace import is_trace_file, load_trace
 
     p = Path(path)
     if not p.is_file():
@@ -192,11 +192,11 @@ def load_signals(path: str | os.PathLike, *, time: str | None = None, command: s
     tf = None if time_unit is None else _unit_factor(p, "time", time_unit, _TIME_UNITS)
     wanted = {"command": command, "actual": actual, "sensor": sensor}
     filetime = False
-    if sidecar_path(p).exists():
+    if is_trace_file(p):                 # a CSV with its sidecar, or Parquet (distctrl run --trace x.parquet)
         source = "trace"
         try:
-            trace = Trace.from_csv(p)
-        except (ValueError, OSError) as exc:
+            trace = load_trace(p)
+        except (ValueError, OSError, DistCtrlError) as exc:
             raise IdentifyError(f"{p}: not a readable distctrl trace: {exc}") from None
         cols = list(trace.columns)
         time = time or ("t" if "t" in trace else cols[0])
