@@ -770,21 +770,27 @@ def parse_program(text: str, file: str | None = None) -> Program:
     if not isinstance(text, str):
         raise TypeError(f"NC program text must be str, not {type(text).__name__}")
     text = _normalise(text)
+    # the error is raised after the except block, not inside it: an exception raised while lark's is
+    # handled carries it as __context__, and lark's holds the parser, which cannot be pickled where
+    # exceptions are pickled with their context (dask.distributed's tblib, a sweep worker's error)
+    error: NcSyntaxError | None = None
     try:
         program = _parser().parse(text)
     except NcSyntaxError as exc:
-        raise NcSyntaxError(exc.message, file=file, line=exc.line, column=exc.column) from None
+        error = NcSyntaxError(exc.message, file=file, line=exc.line, column=exc.column)
     except UnexpectedInput as exc:
         try:
-            error = _convert_lark_error(exc, text)
+            found = _convert_lark_error(exc, text)
         except Exception as inner:   # never hide the original position behind a formatting bug
-            error = NcSyntaxError(f"syntax error ({type(inner).__name__} while describing it)",
+            found = NcSyntaxError(f"syntax error ({type(inner).__name__} while describing it)",
                                   line=getattr(exc, "line", None), column=getattr(exc, "column", None))
-        raise NcSyntaxError(error.message, file=file, line=error.line, column=error.column) from None
+        error = NcSyntaxError(found.message, file=file, line=found.line, column=found.column)
     except RecursionError:
-        raise NcSyntaxError("program is nested too deeply", file=file) from None
+        error = NcSyntaxError("program is nested too deeply", file=file)
     except Exception as exc:   # contract: only NcSyntaxError leaves this function
         raise NcSyntaxError(f"internal parser error: {type(exc).__name__}: {exc}", file=file) from exc
+    if error is not None:
+        raise error
     program.source = file
     return program
 

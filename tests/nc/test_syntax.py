@@ -244,3 +244,23 @@ def test_every_terminal_has_a_readable_name_for_messages():
     from distctrl.nc.parser import _TERMINAL_NAMES, _parser
     terminals = {t.name for t in _parser().terminals if not t.name.startswith("__")}   # __IGNORE_n
     assert terminals <= set(_TERMINAL_NAMES)
+
+
+def test_a_syntax_error_pickles_where_dask_pickles_exceptions(monkeypatch):
+    """dask.distributed installs tblib's exception pickling, which pickles ``__context__`` too: an
+    NcSyntaxError raised while lark's exception (which holds the parser) was being handled could not
+    cross from a sweep worker to the client (and made this file's pickling test fail after the
+    tuning tests had started a dask cluster)."""
+    import copyreg
+    import types
+
+    from tblib import pickling_support
+
+    # what pickling_support.install() registers, undone after the test
+    monkeypatch.setitem(copyreg.dispatch_table, types.TracebackType, pickling_support.pickle_traceback)
+    monkeypatch.setitem(copyreg.dispatch_table, NcSyntaxError, pickling_support.pickle_exception)
+    for text in ("Nxx", "N10 Z[DIST_CTRL KP]", "N10 G1 X(1+"):
+        exc = error(text, file=None)
+        assert exc.__context__ is None and exc.__cause__ is None
+        copy = pickle.loads(pickle.dumps(exc))
+        assert (copy.line, copy.column, copy.message) == (exc.line, exc.column, exc.message)
