@@ -23,6 +23,8 @@ import pytest
 from distctrl.sim.runner import run
 from distctrl.sim.scenario import load_scenario
 
+from .test_run3d import L, expected_height
+
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 INACTIVE, TURNING_OFF, ACTIVE_CONST_DIST = 0, 3, 4
 
@@ -86,19 +88,12 @@ def test_off_without_wait_runs_the_next_block_at_once_and_the_offset_runs_out_on
 
 
 # ---------------------------------------------------------------- FCT-M3 §12.4.2.1
-L = 80.0                         # V.G.WZ_AKT.L = 80
-HD2, HD3 = 50.0, 70.0            # PARAM[1] = 500000, PARAM[2] = 700000 (0.0001°); HD4 = 91°
+HD2, HD3 = 50.0, 70.0            # PARAM[1] = 500000, PARAM[2] = 700000 (0.0001°); HD4 = 91°; L = 80
 
 
 def clamping_point_height(theta_deg: float) -> float:
-    """Height of the clamping point above the TCP (SPEC §11): L·cos θ below HD2, L·cos HD2 from HD2 to
-    HD3 (kept constant), L·cos HD2 / cos HD3 · cos θ above HD3."""
-    th, a, b = (math.radians(v) for v in (theta_deg, HD2, HD3))
-    if th < a:
-        return L * math.cos(th)
-    if th <= b:
-        return L * math.cos(a)
-    return L * math.cos(a) / math.cos(b) * math.cos(th)
+    """Height of the clamping point above the TCP (SPEC §11), the geometry of test_run3d."""
+    return expected_height(theta_deg, HD2, HD3)
 
 
 def test_fct_m3_12_4_2_1_ca_listing_runs_end_to_end():
