@@ -200,10 +200,15 @@ def _template():
     if _TEMPLATE is None:
         from bokeh.core.templates import get_env
 
+        from .live import PAGE_JS
+
+        # the page's own script (distctrl.ui.live) is inline, as the CSP allows; it is no template
+        # text (raw), so Jinja leaves its braces alone
         _TEMPLATE = get_env().from_string(
             '{% extends "file.html.jinja" %}{% block preamble %}'
             f'<meta http-equiv="Content-Security-Policy" content="{CSP}">'
-            '<meta name="referrer" content="no-referrer">{% endblock %}')
+            '<meta name="referrer" content="no-referrer">{% endblock %}'
+            '{% block postamble %}<script>{% raw %}' + PAGE_JS + '{% endraw %}</script>{% endblock %}')
     return _TEMPLATE
 
 

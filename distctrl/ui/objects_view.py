@@ -9,13 +9,12 @@ INACTIVE→active or FREEZE→active transition, then "adopted".
 """
 from __future__ import annotations
 
-import html
-
 from bokeh.layouts import column, row
 from bokeh.models import Button, ColumnDataSource, DataTable, Div, NumericInput, Select, TableColumn
 
 from ..objects.registry import SERVED_OBJECTS
 from .hub import MachineHub, object_table
+from .live import STYLE, Live, span
 
 COLUMNS = (("axis", "Axis", 60), ("group", "Group", 80), ("offset", "Offset", 80), ("name", "Name", 260),
            ("type", "Type", 70), ("unit", "Unit", 80), ("raw", "Raw value", 130), ("value", "Value", 140),
@@ -27,8 +26,9 @@ EVERY = 5
 class ObjectBrowser:
     """One page's object browser."""
 
-    def __init__(self, hub: MachineHub):
+    def __init__(self, hub: MachineHub, live: Live | None = None):
         self.hub = hub
+        self.live = live or Live()
         self.source = ColumnDataSource(object_table(hub))
         self.table = DataTable(source=self.source, columns=[TableColumn(field=f, title=t, width=w)
                                                             for f, t, w in COLUMNS],
@@ -47,8 +47,10 @@ class ObjectBrowser:
         self.write = Button(label="Write", button_type="primary", width=90, css_classes=["obj-write"])
         self.write.on_click(self._write)
         self.axis.on_change("value", lambda a, o, v: self._names(v))
-        self.message = Div(text="", width=1200, height=22, css_classes=["obj-message"])
-        self.status = Div(text="", width=1200, height=22, css_classes=["obj-status"])
+        self.message = Div(text=span("obj.msg"), width=1200, height=22, css_classes=["obj-message"],
+                           stylesheets=[STYLE])
+        self.status = Div(text=span("obj.head") + span("obj.state", "", "obj-state", "b"), width=1200, height=22,
+                          css_classes=["obj-status"], stylesheets=[STYLE])
         self.layout = column(row(self.axis, self.name, self.value, self.write), self.message, self.status,
                              self.table, sizing_mode="stretch_width")
         self._frame = 0
@@ -69,13 +71,14 @@ class ObjectBrowser:
         self._frame = EVERY                   # show the pending state at once
 
     def _say(self, ok: bool, message: str) -> None:
-        colour = "green" if ok else "red"
-        self.message.text = f'<span style="color:{colour}">{html.escape(message)}</span>'
+        self.live.stage({"obj.msg": [message, "ok" if ok else "err"]})
 
-    def update(self, visible: bool = True) -> None:
+    def update(self, visible: bool = True) -> dict:
+        """Every frame: the table's changed cells (five times a second, only while the tab is shown);
+        the live values of the status line under the form."""
         self._frame += 1
         if not visible or self._frame < EVERY:
-            return
+            return {}
         self._frame = 0
         data = object_table(self.hub)
         old = self.source.data
@@ -90,9 +93,7 @@ class ObjectBrowser:
         axis_id = int(self.axis.value.split()[0])
         i = next((k for k, (a, n) in enumerate(zip(data["axis_id"], data["name"]))
                   if a == axis_id and n == self.name.value), None)
-        if i is not None:
-            text = (f"{html.escape(self.name.value)} of axis {html.escape(self.axis.value)}: raw "
-                    f"{html.escape(data['raw'][i])} {html.escape(data['unit'][i])}, "
-                    f"<b class='obj-state'>{html.escape(data['pending'][i])}</b>")
-            if self.status.text != text:
-                self.status.text = text
+        if i is None:
+            return {}
+        return {"obj.head": f"{self.name.value} of axis {self.axis.value}: raw {data['raw'][i]} {data['unit'][i]}, ",
+                "obj.state": data["pending"][i]}
