@@ -225,3 +225,24 @@ def test_a_client_outside_the_allowed_networks_is_refused(served):
     finally:
         other.stop()
     assert other.hub._after_cycle not in sm.observers
+
+
+def test_a_stalled_connection_is_said_in_the_status_line(served, page):
+    """R2 of the 2026-11-27 audit: offline for a few seconds, the status line froze without a word."""
+    tab(page, "Scope")
+    lag = page.locator(".dc-lag")
+    expect(lag).to_have_text("")
+    cdp = page.context.new_cdp_session(page)
+    cdp.send("Network.enable")
+    cdp.send("Network.emulateNetworkConditions", {"offline": True, "latency": 0, "downloadThroughput": -1,
+                                                  "uploadThroughput": -1})
+    try:
+        expect(lag).to_contain_text("connection stalled: no update for", timeout=8000)
+    finally:
+        cdp.send("Network.emulateNetworkConditions", {"offline": False, "latency": 0, "downloadThroughput": -1,
+                                                      "uploadThroughput": -1})
+        cdp.detach()
+    expect(lag).to_have_text("", timeout=8000)
+    t0 = float(page.locator(".machine-t").inner_text())
+    page.wait_for_timeout(500)
+    assert float(page.locator(".machine-t").inner_text()) > t0           # live again
