@@ -18,10 +18,12 @@ import numpy as np
 from bokeh.layouts import column, row
 from bokeh.models import (
     Button,
+    BasicTickFormatter,
     ColumnDataSource,
     CrosshairTool,
     DataRange1d,
     Div,
+    FixedTicker,
     HoverTool,
     LinearAxis,
     MultiChoice,
@@ -33,6 +35,7 @@ from bokeh.models import (
 from bokeh.palettes import Category10_10
 from bokeh.plotting import figure
 
+from ..trace.recorder import HLI_STATE_NAMES
 from .hub import MachineHub, state_name
 
 #: rows of the ring shown: every 10th cycle (100 samples/s at 1 ms)
@@ -67,6 +70,7 @@ class Scope:
         self.export = Button(label="Export CSV", width=110, css_classes=["scope-export"])
         self.info = Div(text="", width=1200, height=22, css_classes=["scope-info"])
         self.markers = ColumnDataSource({"t": [], "color": [], "label": []})
+        self._state_cols = {c: hub.column(c) for c in hub.columns if c.endswith(".dc.state")}
         self.plot = self._figure()
         self.layout = column(row(self.choice, self.window, self.pause, self.export),
                              row(self.trig_mode, self.trig_signal, self.trig_level), self.plot, self.info,
@@ -80,7 +84,6 @@ class Scope:
         self._trig_armed = False
         self._trig_prev = None
         self._trig_stop_at = None
-        self._state_cols = {c: hub.column(c) for c in hub.columns if c.endswith(".dc.state")}
         self._state_prev = {}
         self._pending: list[np.ndarray] = []
         self._stale = False
@@ -135,6 +138,13 @@ class Scope:
         if renderers:
             p.legend.location = "top_left"
             p.legend.click_policy = "hide"
+        for axis in p.yaxis:                   # 0.002, not 2.000e-3
+            axis.formatter = BasicTickFormatter(use_scientific=False)
+            names = [s for s in signals if (hub.signal_unit(s) or "-") == axis.axis_label]
+            if names and all(s.endswith(".state") and s in self._state_cols for s in names):
+                # an axis of HLI states only: its ticks are the states, by name
+                axis.ticker = FixedTicker(ticks=sorted(HLI_STATE_NAMES))
+                axis.major_label_overrides = {k: v for k, v in HLI_STATE_NAMES.items()}
         self.y_units = units
         return p
 

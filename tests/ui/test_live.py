@@ -126,3 +126,37 @@ def test_the_set_distance_field_is_not_the_axis_start(hub):
     page.run(5)
     assert page.live.shown["plc.msg"] == ["Z: ON_CONST_DIST needs SET_DIST (mm): enter it first", "err"]
     assert hub.machine.hli["Z"].consumed == 0
+
+
+def test_the_object_table_has_a_value_for_unitless_objects(hub):
+    from distctrl.ui.hub import object_table
+
+    table = object_table(hub)
+    kp = next(i for i, (a, n) in enumerate(zip(table["axis"], table["name"])) if a == "2 Z" and n == "DIST_CTRL::kp")
+    assert table["unit"][kp] == "-" and table["value"][kp] == table["raw"][kp] != ""
+    assert all(v != "" for v in table["value"]), [n for n, v in zip(table["name"], table["value"]) if v == ""]
+
+
+def test_the_object_browser_shows_one_axis_at_a_time(hub):
+    from distctrl.ui.objects_view import ObjectBrowser
+
+    browser = ObjectBrowser(hub)
+    shown = lambda: {browser.source.data["axis"][i] for i in browser.visible_rows()}  # noqa: E731
+    assert browser.show.value == "2 Z" and shown() == {"2 Z"}          # the distance-controlled axis first
+    browser.show.value = "1 X"
+    assert shown() == {"1 X"}
+    browser.show.value = "all axes"
+    assert shown() == {"1 X", "2 Z"}
+
+
+def test_scope_ticks_are_plain_numbers_and_states_have_names(hub):
+    from bokeh.models import FixedTicker
+
+    from distctrl.ui.scope import Scope
+
+    scope = Scope(hub, Path("."))
+    scope.choice.value = ["true.distance", "Z.dc.state"]
+    axes = {a.axis_label: a for a in scope.plot.left + scope.plot.right if hasattr(a, "formatter")}
+    assert axes["mm"].formatter.use_scientific is False
+    state = axes["-"]
+    assert isinstance(state.ticker, FixedTicker) and state.major_label_overrides[1] == "ACTIVE"
