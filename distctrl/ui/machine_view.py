@@ -104,9 +104,10 @@ class MachineView:
         """Z from a little under the surface to a little over the head, so that a distance of 1 mm is
         readable (holes and kerfs run off the bottom); moved only when the head leaves the middle."""
         lo, hi = min(surface, z), max(surface, z)
-        span_ = max(ZOOM_MIN, 2.0 * (hi - lo))
+        margin = max(0.5 * ZOOM_MIN, 0.5 * (hi - lo))
+        width = hi - lo + 2 * margin
         r = self.plot.y_range
         start, end = r.start, r.end
-        if start is None or end is None or not (start <= lo - 0.1 * span_ and hi + 0.1 * span_ <= end) \
-                or (end - start) > 2.5 * span_:
-            r.start, r.end = lo - span_, hi + span_
+        inside = start is not None and end is not None and start + 0.1 * width <= lo and hi <= end - 0.1 * width
+        if not inside or (end - start) > 2.0 * width:
+            r.start, r.end = lo - margin, hi + margin

@@ -160,3 +160,22 @@ def test_scope_ticks_are_plain_numbers_and_states_have_names(hub):
     assert axes["mm"].formatter.use_scientific is False
     state = axes["-"]
     assert isinstance(state.ticker, FixedTicker) and state.major_label_overrides[1] == "ACTIVE"
+
+
+def test_the_machine_view_shows_a_z_range_where_the_distance_is_readable():
+    """R8: on the plate the plot's Z range was the surface's (-10 .. 35 mm, with the holes): the
+    1.5 mm distance lines were invisible."""
+    from distctrl.ui.machine_view import MachineView
+
+    served = ServedMachine(load_scenario(SCN / "plasma_plate_short.toml"), port=0, discovery_port=None)
+    hub = MachineHub(served, buffer_s=1.0)
+    view = MachineView(hub)
+    for _ in range(50):
+        served.step()
+    hub.pump()
+    view.update()
+    r = view.plot.y_range
+    snap = hub.snapshot
+    head = snap["true_surface"] + snap["true_distance"]
+    assert r.start is not None and r.end - r.start <= 3 * max(2.0, abs(snap["true_distance"])) + 1e-9
+    assert r.start < snap["true_surface"] and head < r.end
