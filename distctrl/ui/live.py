@@ -28,8 +28,10 @@ import time
 from bokeh.core.properties import Any, Dict, Int, String
 from bokeh.model import DataModel
 
-#: frames the server sends ahead of the last one the page has drawn
+#: frames the server sends ahead of the last one the page has drawn; a change of the status line or
+#: a message (the answer to a click) may go this many more (they are small and should show at once)
 MAX_IN_FLIGHT = 2
+URGENT_EXTRA = 2
 #: the page says "behind" from this lateness (s) and "stalled" after this long without a message (s)
 BEHIND_S = 1.0
 STALL_S = 2.5
@@ -73,8 +75,8 @@ class Live:
         """Frames sent that the page has not drawn yet."""
         return self.seq - int(self.model.ack or 0)
 
-    def can_send(self) -> bool:
-        ok = self.in_flight < MAX_IN_FLIGHT
+    def can_send(self, urgent: bool = False) -> bool:
+        ok = self.in_flight < MAX_IN_FLIGHT + (URGENT_EXTRA if urgent else 0)
         if not ok:
             self.skipped += 1
         return ok

@@ -81,7 +81,7 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
     def status_line() -> None:
         values = status_values(hub)
         if live.staged or any(live.shown.get(k) != v for k, v in values.items()):
-            if live.can_send():
+            if live.can_send(urgent=True):
                 live.push(values)
 
     def frame() -> None:
