@@ -93,6 +93,10 @@ class Live:
         delta = {k: v for k, v in self.staged.items() if self.shown.get(k) != v}
         self.staged = {}
         self.shown.update(delta)
+        if not self.model.ack:
+            # the page has drawn nothing yet: it may have connected after values changed (its document
+            # holds only the last message), so it gets them all until it acknowledges a frame
+            delta = dict(self.shown)
         self.seq += 1
         delta["__seq"] = self.seq
         delta["__sent"] = round(time.time(), 3)

@@ -179,3 +179,16 @@ def test_the_machine_view_shows_a_z_range_where_the_distance_is_readable():
     head = snap["true_surface"] + snap["true_distance"]
     assert r.start is not None and r.end - r.start <= 3 * max(2.0, abs(snap["true_distance"])) + 1e-9
     assert r.start < snap["true_surface"] and head < r.end
+
+
+def test_a_page_gets_every_value_until_it_has_drawn_one_frame(hub):
+    """Between the page's document and its connection frames may go by: the page would miss the
+    values they changed (they are sent only once), so until it has acknowledged a frame every frame
+    carries all values."""
+    page = Page(hub)
+    page.tabs.active = TAB_PLC
+    page.run(5, frames=1, ack=False)
+    assert {"Z.state", "Z.sem", "state.Z", "t", "plc.events"} <= set(page.live.model.values)
+    page.live.model.ack = page.live.seq
+    page.run(20, frames=1)
+    assert "Z.state" not in page.live.model.values and "t" in page.live.model.values
