@@ -246,3 +246,19 @@ def test_a_stalled_connection_is_said_in_the_status_line(served, page):
     t0 = float(page.locator(".machine-t").inner_text())
     page.wait_for_timeout(500)
     assert float(page.locator(".machine-t").inner_text()) > t0           # live again
+
+
+def test_closing_a_page_logs_nothing(served, browser, caplog):
+    """R8: closing pages logged "Failed sending message as connection was closed" on the console."""
+    import logging
+
+    _, ui = served
+    caplog.set_level(logging.INFO)
+    for _ in range(2):
+        other = browser.new_page(viewport={"width": 1000, "height": 700})
+        other.goto(ui.url)
+        other.locator(".scope-plot").first.wait_for(timeout=15000)
+        other.wait_for_timeout(500)
+        other.close()
+        time.sleep(1.0)
+    assert [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING] == []
