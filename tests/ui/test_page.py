@@ -262,3 +262,17 @@ def test_closing_a_page_logs_nothing(served, browser, caplog):
         other.close()
         time.sleep(1.0)
     assert [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING] == []
+
+
+def test_a_page_behind_says_so_in_the_status_line(served, page, monkeypatch):
+    """Messages that arrive later than the fastest one did (here: stamped 3 s early by the server) make
+    the status line say by how much the page is behind; on time again, it says nothing."""
+    from distctrl.ui.live import Live
+
+    tab(page, "Scope")
+    lag = page.locator(".dc-lag")
+    expect(lag).to_have_text("")
+    monkeypatch.setattr(Live, "clock", staticmethod(lambda: time.time() - 3.0))
+    expect(lag).to_contain_text("page behind by 3.", timeout=5000)
+    monkeypatch.undo()
+    expect(lag).to_have_text("", timeout=5000)
