@@ -15,7 +15,6 @@ value never re-renders the panel, so its buttons stay where they are.
 """
 from __future__ import annotations
 
-import html
 import re
 
 from bokeh.layouts import column, row
