@@ -80,6 +80,8 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
 
     def status_line() -> None:
         values = status_values(hub)
+        if tabs.active == TAB_PLC:               # a click's effect on the panel, as urgent as the status
+            values.update(plc.discrete())
         if live.staged or any(live.shown.get(k) != v for k, v in values.items()):
             if live.can_send(urgent=True):
                 live.push(values)

@@ -28,6 +28,8 @@ SOURCES = {0: "NC program", 1: "PLC"}
 #: the transitions whose command_w.position is the set distance (the others': SET_POS / REF_POS)
 DIST_TRANSITIONS = ("ON_CONST_DIST", "CONST_DIST")
 NO_POSITION = ("FREEZE", "OFF")
+#: the fields of a control unit that change on a command (urgent: sent with the status line's check)
+DISCRETE = ("tr", "en", "sem", "taken", "state", "state_no", "src", "refused")
 _SET_DIST = re.compile(r"SET_DIST\s*=\s*([-+]?\d+(?:\.\d*)?)", re.IGNORECASE)
 
 
@@ -179,6 +181,15 @@ class PlcPanel:
         return "\n".join(f"{e['severity']} {e['id']} at t = {e['t']:.3f} s"
                          + (f", NC line {e['line']}" if e["line"] not in (None, -1) else "")
                          + f": {e['message']}" for e in reversed(events)) or "none"
+
+    def discrete(self) -> dict:
+        """The control units' values that a command changes (state, semaphore, ...), not the positions."""
+        snap = self.hub.snapshot
+        values = {}
+        for n in self.units:
+            v = unit_values(n, snap["units"][n])
+            values.update({f"{n}.{k}": v[f"{n}.{k}"] for k in DISCRETE})
+        return values
 
     def update(self) -> dict:
         """The panel's live values now; the override slider follows the machine's override (not

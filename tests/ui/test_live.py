@@ -192,3 +192,20 @@ def test_a_page_gets_every_value_until_it_has_drawn_one_frame(hub):
     page.live.model.ack = page.live.seq
     page.run(20, frames=1)
     assert "Z.state" not in page.live.model.values and "t" in page.live.model.values
+
+
+def test_a_state_change_on_the_plc_panel_goes_out_with_the_status_check(hub):
+    """The panel's discrete values (state, semaphore, command taken) are as urgent as the status line:
+    they go with its 20 ms check, also when the page is 2 frames behind (a click's effect shows at once)."""
+    from distctrl.ui.live import MAX_IN_FLIGHT
+
+    page = Page(hub)
+    page.tabs.active = TAB_PLC
+    page.run(5)
+    page.run(5, frames=MAX_IN_FLIGHT, ack=False)        # frames wait for the page now
+    assert hub.plc_command("Z", "ON", 40.0)[0]
+    for _ in range(20):
+        hub.served.step()
+    page.status()
+    values = page.live.model.values
+    assert values.get("Z.state") == "ACTIVE" and values.get("Z.taken") == "1" and "Z.apos" not in values
