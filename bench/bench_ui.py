@@ -8,7 +8,8 @@ the measured process holds what ``distctrl serve --ui`` holds.
 
 1. **Cycle lateness under load.** The cycle-start lateness p99 over ``--seconds`` with the page server
    running and no page open, then over the same time with two pages open on the scope (streaming at
-   25 frames/s), in alternating windows (none, two, none, two, ...) so that both see the same machine
+   up to 20 frames/s: fewer when the browser has not drawn the last ones, docs/ui.md "Keeping up"),
+   in alternating windows (none, two, none, two, ...) so that both see the same machine
    state. Target: p99 with pages <= 1.2x p99 without.
 2. **Page update latency** (a value changes in the machine -> the page shows it): the bench sets the
    path override in the machine (under the machine's lock, wall clock noted) to a new value; a
@@ -57,7 +58,8 @@ OBSERVER_JS = """() => {
   const watch = () => { const e = find(document);
     if (e) { const v = e.textContent; if (v !== last) { last = v;
       requestAnimationFrame(() => window.__seen.push([v, Date.now()])); } } };
-  // the status line is re-rendered (new elements) on every change: watch the whole document tree
+  // the override is a fixed element whose text the page's script sets (distctrl.ui.live); the whole
+  // tree is watched all the same, so that the bench also measures a page that re-renders it
   const observe = (root) => { new MutationObserver(watch).observe(root, {subtree: true, childList: true,
       characterData: true}); for (const h of root.querySelectorAll('*')) if (h.shadowRoot) observe(h.shadowRoot); };
   observe(document); watch();

@@ -40,6 +40,17 @@ SWITCH_INTERVAL = 0.00003
 FRAME_MS = 50
 
 
+class _ClosedPageFilter(logging.Filter):
+    """Bokeh warns "Failed sending message as connection was closed" for every frame that was on its
+    way when a page was closed: normal for a live page, so not a warning on the console."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "connection was closed" not in record.getMessage()
+
+
+_CLOSED_PAGE_FILTER = _ClosedPageFilter()
+
+
 def free_port(host: str) -> int:
     """A free TCP port on ``host`` (for ``--ui-port 0``)."""
     with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
@@ -86,6 +97,9 @@ class UiServer:
     # ------------------------------------------------------------------ life cycle
     def start(self) -> None:
         """Start the server thread; returns once it listens (raises OSError if it cannot bind)."""
+        ws_log = logging.getLogger("bokeh.server.views.ws")
+        if _CLOSED_PAGE_FILTER not in ws_log.filters:
+            ws_log.addFilter(_CLOSED_PAGE_FILTER)
         self._switch_interval = sys.getswitchinterval()
         if getattr(self.served.loop, "rt_priority", 0) > 0:
             # the cycle thread waits at most this long for Python's GIL while the page's thread works
@@ -200,10 +214,15 @@ def _template():
     if _TEMPLATE is None:
         from bokeh.core.templates import get_env
 
+        from .live import PAGE_JS
+
+        # the page's own script (distctrl.ui.live) is inline, as the CSP allows; it is no template
+        # text (raw), so Jinja leaves its braces alone
         _TEMPLATE = get_env().from_string(
             '{% extends "file.html.jinja" %}{% block preamble %}'
             f'<meta http-equiv="Content-Security-Policy" content="{CSP}">'
-            '<meta name="referrer" content="no-referrer">{% endblock %}')
+            '<meta name="referrer" content="no-referrer">{% endblock %}'
+            '{% block postamble %}<script>{% raw %}' + PAGE_JS + '{% endraw %}</script>{% endblock %}')
     return _TEMPLATE
 
 

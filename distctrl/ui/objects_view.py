@@ -9,30 +9,44 @@ INACTIVE→active or FREEZE→active transition, then "adopted".
 """
 from __future__ import annotations
 
-import html
-
 from bokeh.layouts import column, row
-from bokeh.models import Button, ColumnDataSource, DataTable, Div, NumericInput, Select, TableColumn
+from bokeh.models import (
+    AllIndices,
+    Button,
+    CDSView,
+    ColumnDataSource,
+    DataTable,
+    Div,
+    GroupFilter,
+    NumericInput,
+    Select,
+    TableColumn,
+)
 
 from ..objects.registry import SERVED_OBJECTS
 from .hub import MachineHub, object_table
+from .live import STYLE, Live, span
 
 COLUMNS = (("axis", "Axis", 60), ("group", "Group", 80), ("offset", "Offset", 80), ("name", "Name", 260),
            ("type", "Type", 70), ("unit", "Unit", 80), ("raw", "Raw value", 130), ("value", "Value", 140),
            ("access", "Access", 80), ("pending", "Write", 140))
-#: frames between two refreshes of the table (at 25 frames/s: 5 per second)
-EVERY = 5
+#: the table's row height (Bokeh's default, px) and the most rows shown without scrolling
+ROW_PX = 25
+MAX_ROWS = 40
+#: frames between two refreshes of the table (at 20 frames/s: 5 per second)
+EVERY = 4
 
 
 class ObjectBrowser:
     """One page's object browser."""
 
-    def __init__(self, hub: MachineHub):
+    def __init__(self, hub: MachineHub, live: Live | None = None):
         self.hub = hub
+        self.live = live or Live()
         self.source = ColumnDataSource(object_table(hub))
         self.table = DataTable(source=self.source, columns=[TableColumn(field=f, title=t, width=w)
                                                             for f, t, w in COLUMNS],
-                               height=560, sizing_mode="stretch_width", index_position=None,
+                               height=ROW_PX * 10, sizing_mode="stretch_width", index_position=None,
                                css_classes=["obj-table"])
         writable = [s.name for s in SERVED_OBJECTS if s.writable]
         self.writable = {"axis": writable, "channel": [s.name for s in hub.channel_objects if s.writable]}
@@ -41,17 +55,38 @@ class ObjectBrowser:
             axes.append("0 channel 1")
         dc = [f"{i} {c.axis_name}" for i, c in hub.contexts.items() if c.axis_name in hub.machine.dc_axes]
         self.axis = Select(title="Axis", options=axes, value=(dc or axes)[0], width=90, css_classes=["obj-axis"])
+        # the table shows one axis (the first with distance control) or all of them
+        self.show = Select(title="Show", options=["all axes", *axes], value=(dc or axes)[0], width=130,
+                           css_classes=["obj-show"])
+        self.show.on_change("value", lambda a, o, v: self._filter())
+        self._filter()
         self.name = Select(title="Read/write object", options=writable, value=writable[0], width=240,
                            css_classes=["obj-name"])
         self.value = NumericInput(title="Value (object unit)", mode="float", width=150, css_classes=["obj-value"])
         self.write = Button(label="Write", button_type="primary", width=90, css_classes=["obj-write"])
         self.write.on_click(self._write)
         self.axis.on_change("value", lambda a, o, v: self._names(v))
-        self.message = Div(text="", width=1200, height=22, css_classes=["obj-message"])
-        self.status = Div(text="", width=1200, height=22, css_classes=["obj-status"])
-        self.layout = column(row(self.axis, self.name, self.value, self.write), self.message, self.status,
+        self.message = Div(text=span("obj.msg"), width=1200, height=22, css_classes=["obj-message"],
+                           stylesheets=[STYLE])
+        self.status = Div(text=span("obj.head") + span("obj.state", "", "obj-state", "b"), width=1200, height=22,
+                          css_classes=["obj-status"], stylesheets=[STYLE])
+        self.layout = column(row(self.axis, self.name, self.value, self.write, self.show), self.message, self.status,
                              self.table, sizing_mode="stretch_width")
         self._frame = 0
+
+    def visible_rows(self) -> list[int]:
+        """The table rows shown (by the axis filter)."""
+        n = len(self.source.data["axis"])
+        if self.show.value == "all axes":
+            return list(range(n))
+        return [i for i, a in enumerate(self.source.data["axis"]) if a == self.show.value]
+
+    def _filter(self) -> None:
+        """Show the chosen axis's objects (a user's choice: the table is laid out anew, once)."""
+        value = self.show.value
+        self.table.view = CDSView(filter=AllIndices() if value == "all axes" else
+                                  GroupFilter(column_name="axis", group=value))
+        self.table.height = ROW_PX * (min(len(self.visible_rows()), MAX_ROWS) + 1) + 4
 
     def _names(self, axis: str) -> None:
         names = self.writable["channel" if axis.startswith("0 ") else "axis"]
@@ -69,13 +104,14 @@ class ObjectBrowser:
         self._frame = EVERY                   # show the pending state at once
 
     def _say(self, ok: bool, message: str) -> None:
-        colour = "green" if ok else "red"
-        self.message.text = f'<span style="color:{colour}">{html.escape(message)}</span>'
+        self.live.stage({"obj.msg": [message, "ok" if ok else "err"]})
 
-    def update(self, visible: bool = True) -> None:
+    def update(self, visible: bool = True) -> dict:
+        """Every frame: the table's changed cells (five times a second, only while the tab is shown);
+        the live values of the status line under the form."""
         self._frame += 1
         if not visible or self._frame < EVERY:
-            return
+            return {}
         self._frame = 0
         data = object_table(self.hub)
         old = self.source.data
@@ -90,9 +126,7 @@ class ObjectBrowser:
         axis_id = int(self.axis.value.split()[0])
         i = next((k for k, (a, n) in enumerate(zip(data["axis_id"], data["name"]))
                   if a == axis_id and n == self.name.value), None)
-        if i is not None:
-            text = (f"{html.escape(self.name.value)} of axis {html.escape(self.axis.value)}: raw "
-                    f"{html.escape(data['raw'][i])} {html.escape(data['unit'][i])}, "
-                    f"<b class='obj-state'>{html.escape(data['pending'][i])}</b>")
-            if self.status.text != text:
-                self.status.text = text
+        if i is None:
+            return {}
+        return {"obj.head": f"{self.name.value} of axis {self.axis.value}: raw {data['raw'][i]} {data['unit'][i]}, ",
+                "obj.state": data["pending"][i]}

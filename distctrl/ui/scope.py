@@ -18,10 +18,12 @@ import numpy as np
 from bokeh.layouts import column, row
 from bokeh.models import (
     Button,
+    BasicTickFormatter,
     ColumnDataSource,
     CrosshairTool,
     DataRange1d,
     Div,
+    FixedTicker,
     HoverTool,
     LinearAxis,
     MultiChoice,
@@ -33,6 +35,7 @@ from bokeh.models import (
 from bokeh.palettes import Category10_10
 from bokeh.plotting import figure
 
+from ..trace.recorder import HLI_STATE_NAMES
 from .hub import MachineHub, state_name
 
 #: rows of the ring shown: every 10th cycle (100 samples/s at 1 ms)
@@ -67,6 +70,7 @@ class Scope:
         self.export = Button(label="Export CSV", width=110, css_classes=["scope-export"])
         self.info = Div(text="", width=1200, height=22, css_classes=["scope-info"])
         self.markers = ColumnDataSource({"t": [], "color": [], "label": []})
+        self._state_cols = {c: hub.column(c) for c in hub.columns if c.endswith(".dc.state")}
         self.plot = self._figure()
         self.layout = column(row(self.choice, self.window, self.pause, self.export),
                              row(self.trig_mode, self.trig_signal, self.trig_level), self.plot, self.info,
@@ -80,8 +84,9 @@ class Scope:
         self._trig_armed = False
         self._trig_prev = None
         self._trig_stop_at = None
-        self._state_cols = {c: hub.column(c) for c in hub.columns if c.endswith(".dc.state")}
         self._state_prev = {}
+        self._pending: list[np.ndarray] = []
+        self._stale = False
         self._fill()
 
     # ------------------------------------------------------------------ the figure
@@ -133,6 +138,13 @@ class Scope:
         if renderers:
             p.legend.location = "top_left"
             p.legend.click_policy = "hide"
+        for axis in p.yaxis:                   # 0.002, not 2.000e-3
+            axis.formatter = BasicTickFormatter(use_scientific=False)
+            names = [s for s in signals if (hub.signal_unit(s) or "-") == axis.axis_label]
+            if names and all(s.endswith(".state") and s in self._state_cols for s in names):
+                # an axis of HLI states only: its ticks are the states, by name
+                axis.ticker = FixedTicker(ticks=sorted(HLI_STATE_NAMES))
+                axis.major_label_overrides = {k: v for k, v in HLI_STATE_NAMES.items()}
         self.y_units = units
         return p
 
@@ -159,9 +171,9 @@ class Scope:
         """Fill the sources from the ring buffer: the window (start, resume, a new selection) or,
         paused, the whole buffer (60 s) to zoom and pan in."""
         hub = self.hub
-        hub.pump()
         back = hub.capacity if whole else self.rollover * self.step
         self.cursor, rows = hub.rows_since(max(0, hub.rows - back), self.step)
+        self._pending = []
         self.source.data = self._fast_data(rows)
         oback = hub.obj_capacity if whole else int(float(self.window.value) / (hub.T * hub.snapshot_every)) + 1
         self.obj_cursor, orows = hub.object_rows_since(max(0, hub.obj_rows - oback))
@@ -200,26 +212,48 @@ class Scope:
                           "draws it")
 
     # ------------------------------------------------------------------ every frame
-    def update(self) -> None:
+    def keep(self, visible: bool = True) -> None:
+        """Every frame, on every tab and also when the page is behind: the new rows go through the
+        state markers and the trigger; while the scope is shown they wait for :meth:`update` (at most
+        a window of them), while it is hidden nothing is kept (it is filled anew when shown)."""
         hub = self.hub
         self._markers()
-        if self.pause.active:
-            return
         cursor, rows = hub.rows_since(self.cursor, self.step)
         self.cursor = cursor
         if len(rows):
             self._states(rows)
             if self._trig_armed:
                 self._trigger(rows)
+            if visible and not self.pause.active and not self._stale:
+                self._pending.append(rows)
+                while sum(len(r) for r in self._pending) - len(self._pending[0]) >= self.rollover:
+                    self._pending.pop(0)
+            if self._trig_stop_at is not None and rows[-1, 0] >= self._trig_stop_at:
+                self._trig_stop_at = None
+                self.pause.active = True
+        if not visible:
+            self._stale = True
+            self._pending = []
+
+    def update(self, visible: bool = True) -> None:
+        """A frame the page will draw: the rows kept since the last one, streamed."""
+        if not visible or self.pause.active:
+            return
+        hub = self.hub
+        if self._stale:                          # shown again: the window anew from the ring buffer
+            self._stale = False
+            self._pending = []
+            self._fill()
+            return
+        if self._pending:
+            rows = np.concatenate(self._pending)[-self.rollover:]
+            self._pending = []
             self.source.stream(self._fast_data(rows), rollover=self.rollover)
         ocursor, orows = hub.object_rows_since(self.obj_cursor)
         self.obj_cursor = ocursor
         if len(orows) and self.slow_cols:
             self.obj_source.stream(self._slow_data(orows),
                                    rollover=int(float(self.window.value) / (hub.T * hub.snapshot_every)) + 1)
-        if self._trig_stop_at is not None and len(rows) and rows[-1, 0] >= self._trig_stop_at:
-            self._trig_stop_at = None
-            self.pause.active = True
 
     def _markers(self) -> None:
         events = self.hub.events

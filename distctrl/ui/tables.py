@@ -14,6 +14,20 @@ def state_name(code: int) -> str:
     return HLI_STATE_NAMES.get(int(code), str(code))
 
 
+def value_cell(spec, raw, resolution_mm: float) -> str:
+    """The Value column: in mm / mm/s / mm/s² or the state's name where the object has one, else the
+    value itself (unitless objects such as kp, flags, strings), never blank."""
+    text = value_text(spec, raw, resolution_mm)
+    if text:
+        return text
+    if isinstance(raw, str):
+        return raw
+    if spec.type == "BOOLEAN" or isinstance(raw, bool):
+        return "TRUE" if raw else "FALSE"
+    number = f"{raw:.10g}" if isinstance(raw, float) else str(raw)
+    return number if spec.unit in ("", "-") else f"{number} {spec.unit}"
+
+
 def object_table(hub) -> dict[str, list]:
     """The object browser's columns from the hub's last snapshot."""
     snap = hub.snapshot
@@ -30,7 +44,7 @@ def object_table(hub) -> dict[str, list]:
             cols["type"].append(spec.type)
             cols["unit"].append(spec.unit)
             cols["raw"].append(raw if isinstance(raw, str) else f"{raw:.10g}" if isinstance(raw, float) else str(raw))
-            cols["value"].append(value_text(spec, raw, ctx.drive_resolution_mm))
+            cols["value"].append(value_cell(spec, raw, ctx.drive_resolution_mm))
             cols["access"].append(spec.access)
             if not spec.writable:
                 cols["pending"].append("")
@@ -47,7 +61,7 @@ def object_table(hub) -> dict[str, list]:
         for key, v in (("name", spec.name), ("type", spec.type), ("unit", spec.unit), ("access", spec.access)):
             cols[key].append(v)
         cols["raw"].append(raw if isinstance(raw, str) else f"{raw:.10g}" if isinstance(raw, float) else str(raw))
-        cols["value"].append(value_text(spec, raw, 1e-4))
+        cols["value"].append(value_cell(spec, raw, 1e-4))
         cols["pending"].append("" if not spec.writable else "adopted" if pending is None
                                else f"pending {pending / spec.write_scale:.10g}")
     return cols

@@ -55,17 +55,17 @@ def test_scope_trigger_on_a_state_change_stops_half_a_window_later(hub):
     scope.trig_mode.value = "state change"
     scope._arm()
     run(hub, 50)
-    scope.update()
+    scope.keep()
     assert not scope.pause.active and scope._trig_armed
     assert hub.plc_command("Z", "ON", 40.0)[0]
     run(hub, 60)
-    scope.update()
+    scope.keep()
     assert "triggered at t = " in scope.info.text and not scope._trig_armed
     t_trig = float(scope.info.text.split("t = ")[1].split(" s")[0])
     assert 0.05 <= t_trig <= 0.11
     assert "trigger" in scope.markers.data["label"] and "Z ACTIVE" in scope.markers.data["label"]
     run(hub, 120)                                     # half the 0.2 s window after the trigger
-    scope.update()
+    scope.keep()
     assert scope.pause.active
 
 
@@ -78,11 +78,11 @@ def test_scope_trigger_on_a_rising_edge_through_a_level(hub):
     scope.trig_mode.value = "rising edge"
     scope._arm()
     run(hub, 30)
-    scope.update()
+    scope.keep()
     assert scope._trig_armed
     hub.plc_command("Z", "ON", 40.0)
     run(hub, 30)
-    scope.update()
+    scope.keep()
     assert "rising edge of Z.dc.state through 0.5 -" in scope.info.text
 
 

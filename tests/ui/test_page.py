@@ -225,3 +225,54 @@ def test_a_client_outside_the_allowed_networks_is_refused(served):
     finally:
         other.stop()
     assert other.hub._after_cycle not in sm.observers
+
+
+def test_a_stalled_connection_is_said_in_the_status_line(served, page):
+    """R2 of the 2026-11-27 audit: offline for a few seconds, the status line froze without a word."""
+    tab(page, "Scope")
+    lag = page.locator(".dc-lag")
+    expect(lag).to_have_text("")
+    cdp = page.context.new_cdp_session(page)
+    cdp.send("Network.enable")
+    cdp.send("Network.emulateNetworkConditions", {"offline": True, "latency": 0, "downloadThroughput": -1,
+                                                  "uploadThroughput": -1})
+    try:
+        expect(lag).to_contain_text("connection stalled: no update for", timeout=8000)
+    finally:
+        cdp.send("Network.emulateNetworkConditions", {"offline": False, "latency": 0, "downloadThroughput": -1,
+                                                      "uploadThroughput": -1})
+        cdp.detach()
+    expect(lag).to_have_text("", timeout=8000)
+    t0 = float(page.locator(".machine-t").inner_text())
+    page.wait_for_timeout(500)
+    assert float(page.locator(".machine-t").inner_text()) > t0           # live again
+
+
+def test_closing_a_page_logs_nothing(served, browser, caplog):
+    """R8: closing pages logged "Failed sending message as connection was closed" on the console."""
+    import logging
+
+    _, ui = served
+    caplog.set_level(logging.INFO)
+    for _ in range(2):
+        other = browser.new_page(viewport={"width": 1000, "height": 700})
+        other.goto(ui.url)
+        other.locator(".scope-plot").first.wait_for(timeout=15000)
+        other.wait_for_timeout(500)
+        other.close()
+        time.sleep(1.0)
+    assert [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING] == []
+
+
+def test_a_page_behind_says_so_in_the_status_line(served, page, monkeypatch):
+    """Messages that arrive later than the fastest one did (here: stamped 3 s early by the server) make
+    the status line say by how much the page is behind; on time again, it says nothing."""
+    from distctrl.ui.live import Live
+
+    tab(page, "Scope")
+    lag = page.locator(".dc-lag")
+    expect(lag).to_have_text("")
+    monkeypatch.setattr(Live, "clock", staticmethod(lambda: time.time() - 3.0))
+    expect(lag).to_contain_text("page behind by 3.", timeout=5000)
+    monkeypatch.undo()
+    expect(lag).to_have_text("", timeout=5000)
