@@ -71,8 +71,8 @@ from ..control import law
 from ..control.commands import Action, Command
 from ..control.controller import AxisDistanceController
 from ..control.cycle_io import CycleOutput
-from ..control.kinds import SensorSource
-from ..control.states import CommandSource
+from ..base.kinds import SensorSource
+from ..base.states import CommandSource
 from ..errors import ErrorId
 from ..params.axis import AxisParameters
 from ..sim import physics

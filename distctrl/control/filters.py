@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..base.kinds import FilterType
 from ..errors import ParameterError
 from . import law
-from .kinds import FilterType
 
 
 @dataclass(frozen=True, slots=True)

@@ -27,7 +27,7 @@ import math
 from typing import Iterable
 
 from ..control.commands3d import CompensationMode
-from ..control.states import CommandSource, HliState, InternalState, Mode
+from ..base.states import CommandSource, HliState, InternalState, Mode
 from ..errors import ErrorEvent
 from .channel3d import Channel3DValues
 

@@ -25,13 +25,9 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["Trace", "TraceRecorder", "format_rows", "sidecar_path", "HLI_STATE_NAMES"]
+from ..base.states import HLI_STATE_NAMES
 
-#: HLI_DIST_CTRL_STATE_* names by value (docs/states.md), used to label ``*.dc.state`` changes.
-HLI_STATE_NAMES: dict[int, str] = {
-    0: "INACTIVE", 1: "ACTIVE", 2: "FREEZE", 3: "TURNING_OFF", 4: "ACTIVE_CONST_DIST", 5: "ERROR",
-    6: "DRYRUN_CONST_DIST", 7: "DRYRUN_SETPOS",
-}
+__all__ = ["Trace", "TraceRecorder", "format_rows", "sidecar_path", "HLI_STATE_NAMES"]
 
 SIDECAR_SUFFIX = ".meta.json"
 _FORMAT_NAME = "distctrl-trace"

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..control.kinds import FilterType
+from ..base.kinds import FilterType
 from ..errors import DistCtrlError
 from .metrics import METRIC_NAMES, compute_metrics, cost, limits_from_packed, wanted_distance
 from .space import NC_WORDS

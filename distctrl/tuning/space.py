@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..control.kinds import FILTER_TYPE_NAMES, FilterType
+from ..base.kinds import FILTER_TYPE_NAMES, FilterType
 from ..errors import DistCtrlError, ParameterError
 from ..params.axis import AxisParameters, check_internal
 from ..params.table import BY_FIELD

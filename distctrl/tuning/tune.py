@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..control.kinds import FilterType
+from ..base.kinds import FilterType
 from ..params.axis import AxisParameters
 from ..sim.surface import Surface
 from .metrics import METRIC_NAMES, METRIC_UNITS, wanted_distance

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..control.filters import FilterConfig, SensorFilter
-from ..control.kinds import FILTER_TYPE_NAMES, FilterType
+from ..base.kinds import FILTER_TYPE_NAMES, FilterType
 from ..errors import DistCtrlError, ParameterError
 from .tables import render_table
 from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)

@@ -402,8 +402,8 @@ def loop_model(scenario: "Scenario | str | os.PathLike", axis: str | None = None
     scenario's duration (at most 60 s) is modelled with the list's values in CONST_DIST, with a note.
     ``kp`` overrides KP (0 < KP <= 2). 3D (channel) distance control is not supported.
     """
-    from ..control.kinds import SensorSource
-    from ..control.states import HliState, Mode
+    from ..base.kinds import SensorSource
+    from ..base.states import HliState, Mode
     from ..sim.machine import Machine
     from ..sim.runner import load_program
     from ..sim.scenario import Scenario, load_scenario

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..trace.recorder import HLI_STATE_NAMES
+from ..base.states import HLI_STATE_NAMES
 from .pages import fmt, render
 from .plot_cli import add_event_markers, distance_error, events_from_meta, figure_bytes, slice_trace
 
