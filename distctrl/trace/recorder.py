@@ -26,6 +26,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from ..base.states import HLI_STATE_NAMES
+from .plot import plot_trace  # matplotlib itself is imported only when a plot is drawn
 
 __all__ = ["Trace", "TraceRecorder", "format_rows", "sidecar_path", "HLI_STATE_NAMES"]
 
@@ -415,7 +416,6 @@ class Trace:
     def plot(self, path: str | os.PathLike | None = None, signals: list[str] | None = None,
              title: str | None = None):
         """Stacked subplots over time (see :func:`distctrl.trace.plot.plot_trace`); returns the Figure."""
-        from .plot import plot_trace
         return plot_trace(self, path=path, signals=signals, title=title)
 
 
