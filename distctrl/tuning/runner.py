@@ -399,10 +399,10 @@ class Evaluator:
         if self._kernels_ready:
             return
         self._kernels_ready = True
-        from ..batch import soa
+        from ..batch.closed_loop import run_blocks
         from ..batch.jitcache import cache_dir, is_cached
 
-        entry = soa.run_blocks
+        entry = run_blocks
         if is_cached(entry):
             if self.mode == "local" and not entry.signatures:
                 # load the cached code now (about 0.5 s), so that the sweep's time is the sweep's
