@@ -67,17 +67,22 @@ from types import SimpleNamespace
 import numpy as np
 from numba import njit, prange
 
+from ..base.kinds import SensorSource
+from ..base.states import CommandSource
 from ..control import law
 from ..control.commands import Action, Command
 from ..control.controller import AxisDistanceController
 from ..control.cycle_io import CycleOutput
-from ..base.kinds import SensorSource
-from ..base.states import CommandSource
 from ..params.axis import AxisParameters
 from ..sim import physics
-from .jitcache import cached
+from ..sim.drive import Drive
+from ..sim.machine import Machine
+from ..sim.runner import MAX_RUN_SECONDS, load_program
+from ..sim.scenario import Scenario, load_scenario
+from ..sim.sensors import NOISE_BLOCK
 from . import kernel as _kernel  # registers law.* with numba; the law-constant columns
 from . import soa
+from .jitcache import cached
 from .layout import (Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR, Q_ADAPTIVE,
                      Q_A_MIN, Q_DEV_A_MIN, Q_DEV_A_MAX, Q_OPTIMIZED, Q_BOTH, Q_MAX_DEV, Q_CHECK_SW, Q_SW_MIN,
                      Q_SW_MAX, Q_JUMP, Q_S_HI, Q_S_LO, Q_MM_PER_INCR, Q_SIGN_REV, Q_REF_OFF, Q_MODULO,
@@ -144,8 +149,6 @@ _TUNING_FIELDS = ("kp", "i_tn", "d_tv", "filter_type", "n_cycles", "fg_f0", "ord
 
 def _noise(sensor_cfg, n: int) -> np.ndarray:
     """The probe's noise samples of cycles 0..n-1, drawn as EncoderProbe draws them."""
-    from ..sim.sensors import NOISE_BLOCK
-
     if not sensor_cfg.noise_std:
         return np.zeros(n)
     noise_seq, _ = np.random.SeedSequence(sensor_cfg.seed).spawn(2)
@@ -209,10 +212,6 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     one hour), stopping before the next command after the select. Raises
     :class:`ClosedLoopError` for scenarios outside the restrictions (module docstring).
     """
-    from ..sim.machine import Machine
-    from ..sim.runner import MAX_RUN_SECONDS, load_program
-    from ..sim.scenario import Scenario, load_scenario
-
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     sc = scenario
@@ -339,7 +338,6 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
                               f"{len(prog_values)} cycles")
     n = stop
     ax = sc.axes[axis]
-    from ..sim.drive import Drive
 
     drive = Drive(T, kv=ax.kv, v_max=ax.v_max, a_max=ax.a_max,
                   bus_delay_cycles=ax.bus_delay_cycles, resolution=ax.resolution,
