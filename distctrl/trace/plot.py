@@ -152,6 +152,7 @@ def plot_trace(trace: TraceLike, path: str | os.PathLike | None = None, signals:
     one panel per unit. Changes of ``*.dc.state`` are shaded (every state but INACTIVE) and named.
     With ``path`` the figure is saved too; the format follows the suffix (.png, .svg, .pdf, ...).
     """
+    # matplotlib loads only when a plot is drawn (import distctrl.trace stays light)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
