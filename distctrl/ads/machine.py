@@ -23,6 +23,7 @@ import struct
 import threading
 import time
 
+from ..base.states import HLI_STATE_NAMES
 from ..objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
 from ..objects.channel3d import read_bytes as read_bytes_3d
 from ..objects.channel3d import write_bytes as write_bytes_3d
@@ -288,8 +289,6 @@ class SessionLog:
     the NC program. Checked after every cycle; it costs a few comparisons unless something changed."""
 
     def __init__(self, machine, logger: logging.Logger = log):
-        from ..trace.recorder import HLI_STATE_NAMES
-
         self.machine, self.log, self.names = machine, logger, HLI_STATE_NAMES
         self.units = [(n, machine.hli[n], machine.outputs[n]) for n in machine.axis_names]
         self.states = {n: out.hli_state for n, _, out in self.units}

@@ -11,10 +11,14 @@ from __future__ import annotations
 import struct
 import threading
 import time
-from dataclasses import dataclass
 
-from . import errors as E
-from .errors import AdsError
+from .errors import (
+    ADSERR_DEVICE_INVALIDSIZE,
+    ADSERR_DEVICE_INVALIDWATCHSIZE,
+    ADSERR_DEVICE_NOMOREHDLS,
+    ADSERR_DEVICE_TRANSMODENOTSUPP,
+    AdsError,
+)
 from .protocol import (
     ADD_NOTIFICATION_REQ,
     CMD_DEVICE_NOTIFICATION,
@@ -23,7 +27,7 @@ from .protocol import (
     AmsHeader,
     frame,
 )
-from .transport import Connection
+from .transport import Connection, Notification
 
 #: ADS transmission modes the server can serve (server cycle / server on change, and the "2"
 #: variants that TwinCAT treats the same way here)
@@ -37,19 +41,6 @@ _NOTIFY_FRAME_DATA = 60000                     # bytes of samples per notificati
 
 
 
-@dataclass
-class Notification:
-    handle: int
-    ams_port: int
-    index_group: int
-    index_offset: int
-    length: int
-    on_change: bool
-    cycle: float                 # seconds
-    route: tuple[bytes, int, bytes, int]   # client NetId, client port, our NetId, device port
-    due: float = 0.0
-    last: bytes | None = None
-
 
 class NotificationService:
     """The notification part of :class:`~distctrl.ads.server.AdsServer` (a mixin: it uses the server's
@@ -60,16 +51,16 @@ class NotificationService:
     # ------------------------------------------------------------------------------------------
     def _add_notification(self, conn: Connection, hdr: AmsHeader, dev: AdsDevice, p: memoryview) -> int:
         if len(p) < ADD_NOTIFICATION_REQ.size:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short AddDeviceNotification request")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short AddDeviceNotification request")
         ig, io, length, mode, _max_delay, cycle, _ = ADD_NOTIFICATION_REQ.unpack_from(p)
         if mode not in _TRANS_CYCLE and mode not in _TRANS_ON_CHANGE:
-            raise AdsError(E.ADSERR_DEVICE_TRANSMODENOTSUPP, f"transmission mode {mode}")
+            raise AdsError(ADSERR_DEVICE_TRANSMODENOTSUPP, f"transmission mode {mode}")
         if length == 0:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "notification length 0")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "notification length 0")
         if length > min(65536, self.max_frame):
-            raise AdsError(E.ADSERR_DEVICE_INVALIDWATCHSIZE, f"notification length {length}")
+            raise AdsError(ADSERR_DEVICE_INVALIDWATCHSIZE, f"notification length {length}")
         if len(conn.notifications) >= self.max_notifications:
-            raise AdsError(E.ADSERR_DEVICE_NOMOREHDLS,
+            raise AdsError(ADSERR_DEVICE_NOMOREHDLS,
                            f"at most {self.max_notifications} notifications per connection")
         self._read(conn, hdr.target_port, dev, ig, io, length)  # must be readable now
         now = time.monotonic()

@@ -36,7 +36,7 @@ import threading
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from . import errors as E
+from .errors import ADSERR_DEVICE_BUSY, ERR_TARGETMACHINENOTFOUND, ERR_TARGETPORTNOTFOUND
 from .protocol import (
     AMS_HEADER,
     AMS_HEADER_SIZE,
@@ -417,11 +417,11 @@ class AdsServer(AdsServices):
             self.log.debug("%s: target NetId %s is not ours (%s)", conn.peer,
                            format_net_id(target_net_id), self.net_id)
             return _pack_response_head(0, AMS_HEADER_SIZE, source_net_id, source_port, target_net_id,
-                                       target_port, cmd, flags, 0, E.ERR_TARGETMACHINENOTFOUND, invoke_id)
+                                       target_port, cmd, flags, 0, ERR_TARGETMACHINENOTFOUND, invoke_id)
         device = self.devices.get(target_port)
         if device is None:
             return _pack_response_head(0, AMS_HEADER_SIZE, source_net_id, source_port, target_net_id,
-                                       target_port, cmd, flags, 0, E.ERR_TARGETPORTNOTFOUND, invoke_id)
+                                       target_port, cmd, flags, 0, ERR_TARGETPORTNOTFOUND, invoke_id)
         data = self._execute(conn, hdr, device, body)
         n = len(data)
         out = _pack_response_head(0, AMS_HEADER_SIZE + n, source_net_id, source_port, target_net_id,
@@ -458,6 +458,6 @@ class AdsServer(AdsServices):
         the lock is not free within ``lock_timeout``."""
         (target_net_id, target_port, source_net_id, source_port, cmd, flags, _length, _err,
          invoke_id) = _unpack_ams_header(body)
-        data = READ_RES.pack(E.ADSERR_DEVICE_BUSY, 0)
+        data = READ_RES.pack(ADSERR_DEVICE_BUSY, 0)
         return _pack_response_head(0, AMS_HEADER_SIZE + len(data), source_net_id, source_port, target_net_id,
                                    target_port, cmd, flags | _RESPONSE_FLAGS, len(data), 0, invoke_id) + data

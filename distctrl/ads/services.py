@@ -9,9 +9,17 @@ import struct
 from collections.abc import Mapping
 from typing import Any
 
-from . import errors as E
 from .datatypes import DataType, encode_data_type, find_type, types_of
-from .errors import AdsError
+from .errors import (
+    ADSERR_DEVICE_BUSY,
+    ADSERR_DEVICE_ERROR,
+    ADSERR_DEVICE_INVALIDACCESS,
+    ADSERR_DEVICE_INVALIDSIZE,
+    ADSERR_DEVICE_NOTIFYHNDINVALID,
+    ADSERR_DEVICE_SRVNOTSUPP,
+    ADSERR_DEVICE_SYMBOLNOTFOUND,
+    AdsError,
+)
 from .notifications import NotificationService
 from .protocol import (
     ADD_NOTIFICATION_RES,
@@ -111,7 +119,7 @@ class AdsServices(NotificationService):
         data); always returns the response payload (errors included)."""
         try:
             if not self._lock_acquired(conn):
-                raise AdsError(E.ADSERR_DEVICE_BUSY, "simulation lock not available")
+                raise AdsError(ADSERR_DEVICE_BUSY, "simulation lock not available")
             try:
                 return self._command(conn, hdr, dev, body)
             finally:
@@ -121,7 +129,7 @@ class AdsServices(NotificationService):
         except Exception:
             self.log.exception("%s: device %r failed on command %d (answered 0x700)", conn.peer,
                                getattr(dev, "name", hdr[1]), hdr[4])
-            code = E.ADSERR_DEVICE_ERROR
+            code = ADSERR_DEVICE_ERROR
         cmd = hdr[4]
         if cmd in (CMD_READ, CMD_READ_WRITE):
             return READ_RES.pack(code, 0)
@@ -137,7 +145,7 @@ class AdsServices(NotificationService):
         cmd, ams_port = hdr[4], hdr[1]
         if cmd == CMD_READ:   # the hot path: no memoryview, no method call for the length check
             if len(body) < _READ_REQ_END:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short Read request")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short Read request")
             ig, io, length = _unpack_read_req(body, AMS_HEADER_SIZE)
             if length > self.max_frame:
                 length = self._capacity(ig, length)
@@ -146,18 +154,18 @@ class AdsServices(NotificationService):
         p = memoryview(body)[AMS_HEADER_SIZE:]
         if cmd == CMD_WRITE:
             if len(p) < WRITE_REQ.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short Write request")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short Write request")
             ig, io, length = WRITE_REQ.unpack_from(p)
             if length > len(p) - WRITE_REQ.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "Write data shorter than its length field")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "Write data shorter than its length field")
             self._write(conn, ams_port, dev, ig, io, bytes(p[WRITE_REQ.size:WRITE_REQ.size + length]))
             return RESULT_RES.pack(0)
         if cmd == CMD_READ_WRITE:
             if len(p) < READ_WRITE_REQ.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short ReadWrite request")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short ReadWrite request")
             ig, io, rlen, wlen = READ_WRITE_REQ.unpack_from(p)
             if wlen > len(p) - READ_WRITE_REQ.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "ReadWrite data shorter than its length field")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "ReadWrite data shorter than its length field")
             if rlen > self.max_frame:
                 rlen = self._capacity(ig, rlen)
             wdata = bytes(p[READ_WRITE_REQ.size:READ_WRITE_REQ.size + wlen])
@@ -173,30 +181,30 @@ class AdsServices(NotificationService):
         if cmd == CMD_WRITE_CONTROL:
             fn = getattr(dev, "write_control", None)
             if fn is None:
-                raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, "WriteControl")
+                raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, "WriteControl")
             if len(p) < WRITE_CONTROL_REQ.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short WriteControl request")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short WriteControl request")
             ads_state, dev_state, length = WRITE_CONTROL_REQ.unpack_from(p)
             if length > len(p) - WRITE_CONTROL_REQ.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "WriteControl data shorter than its length field")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "WriteControl data shorter than its length field")
             fn(ads_state, dev_state, bytes(p[WRITE_CONTROL_REQ.size:WRITE_CONTROL_REQ.size + length]))
             return RESULT_RES.pack(0)
         if cmd == CMD_ADD_DEVICE_NOTIFICATION:
             return ADD_NOTIFICATION_RES.pack(0, self._add_notification(conn, AmsHeader._make(hdr), dev, p))
         if cmd == CMD_DEL_DEVICE_NOTIFICATION:
             if len(p) < DEL_NOTIFICATION_REQ.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "short DeleteDeviceNotification request")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short DeleteDeviceNotification request")
             handle = DEL_NOTIFICATION_REQ.unpack_from(p)[0]
             n = conn.notifications.get(handle)
             if n is None or n.ams_port != ams_port:
-                raise AdsError(E.ADSERR_DEVICE_NOTIFYHNDINVALID, f"unknown notification 0x{handle:X}")
+                raise AdsError(ADSERR_DEVICE_NOTIFYHNDINVALID, f"unknown notification 0x{handle:X}")
             del conn.notifications[handle]
             return RESULT_RES.pack(0)
-        raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, f"unknown command id {cmd}")
+        raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"unknown command id {cmd}")
 
     def _check_length(self, length: int) -> None:
         if length > self.max_frame:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"read length {length} exceeds {self.max_frame}")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"read length {length} exceeds {self.max_frame}")
 
     def _capacity(self, ig: int, length: int) -> int:
         """A read length above the frame limit: for the symbol services it is a buffer's capacity (ads-client
@@ -232,10 +240,10 @@ class AdsServices(NotificationService):
                 return self._fit(b"\x01", length)
             if ig == ADSIGRP_SYM_DT_UPLOAD:
                 return self._fit(b"".join(encode_data_type(t) for t in self._types(dev).values()), length)
-            raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, f"Read of index group 0x{ig:X}")
+            raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"Read of index group 0x{ig:X}")
         data = bytes(dev.read(ig, io, length))
         if len(data) > length:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"0x{ig:X}:0x{io:X} has {len(data)} bytes, "
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"0x{ig:X}:0x{io:X} has {len(data)} bytes, "
                                                         f"{length} requested")
         return data
 
@@ -244,10 +252,10 @@ class AdsServices(NotificationService):
             self._sym_write(dev, conn.symbol(ams_port, io), data)
         elif ig == ADSIGRP_SYM_RELEASEHND:
             if len(data) < 4:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "release handle needs a 4-byte handle")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "release handle needs a 4-byte handle")
             conn.release(ams_port, _U32.unpack_from(data)[0])
         elif ig in _SYMBOL_GROUPS:
-            raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, f"Write to index group 0x{ig:X}")
+            raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"Write to index group 0x{ig:X}")
         else:
             dev.write(ig, io, data)
 
@@ -255,7 +263,7 @@ class AdsServices(NotificationService):
                     data: bytes, nested: bool = False) -> bytes:
         if ig == ADSIGRP_SYM_HNDBYNAME:
             if rlen < 4:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "handle needs a 4-byte read buffer")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "handle needs a 4-byte read buffer")
             sym = self._find(dev, data)
             out = _handle_answer(conn.new_handle(ams_port, sym), sym, rlen)
         elif ig == ADSIGRP_SYM_VALBYNAME:
@@ -266,11 +274,11 @@ class AdsServices(NotificationService):
             name = _name(data)
             t = find_type(self._types(dev), name)
             if t is None:
-                raise AdsError(E.ADSERR_DEVICE_SYMBOLNOTFOUND, f"data type {name!r} not found")
+                raise AdsError(ADSERR_DEVICE_SYMBOLNOTFOUND, f"data type {name!r} not found")
             out = encode_data_type(t)
         elif ig in (ADSIGRP_SUMUP_READ, ADSIGRP_SUMUP_WRITE, ADSIGRP_SUMUP_READWRITE):
             if nested:
-                raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, "nested sum command")
+                raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, "nested sum command")
             if ig == ADSIGRP_SUMUP_READ:
                 out = self._sum_read(conn, ams_port, dev, io, rlen, data)
             elif ig == ADSIGRP_SUMUP_WRITE:
@@ -285,9 +293,9 @@ class AdsServices(NotificationService):
             self._write(conn, ams_port, dev, ig, io, data)
             out = b""
         else:
-            raise AdsError(E.ADSERR_DEVICE_SRVNOTSUPP, f"ReadWrite on index group 0x{ig:X}")
+            raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"ReadWrite on index group 0x{ig:X}")
         if len(out) > rlen:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"answer has {len(out)} bytes, buffer {rlen}")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"answer has {len(out)} bytes, buffer {rlen}")
         return out
 
     # --- sum commands ---------------------------------------------------------------------------
@@ -299,12 +307,12 @@ class AdsServices(NotificationService):
             return e.code, None
         except Exception:
             self.log.exception("%s: device failed in a sum sub-request (answered 0x700)", conn.peer)
-            return E.ADSERR_DEVICE_ERROR, None
+            return ADSERR_DEVICE_ERROR, None
 
     @staticmethod
     def _check_count(n: int, item: int, data: bytes) -> None:
         if n * item > len(data):
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"sum command: {n} sub-requests need "
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"sum command: {n} sub-requests need "
                                                         f"{n * item} bytes, got {len(data)}")
 
     def _sum_read(self, conn, ams_port, dev, n, rlen, data) -> bytes:
@@ -314,7 +322,7 @@ class AdsServices(NotificationService):
         reqs = [SUM_REQ.unpack_from(data, i * SUM_REQ.size) for i in range(n)]
         total = 4 * n + sum(r[2] for r in reqs)
         if total > rlen:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"sum read needs {total} bytes, buffer {rlen}")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"sum read needs {total} bytes, buffer {rlen}")
         codes, chunks = [], []
         for ig, io, size in reqs:
             err, out = self._sub(conn, self._read, conn, ams_port, dev, ig, io, size)
@@ -329,9 +337,9 @@ class AdsServices(NotificationService):
         reqs = [SUM_REQ.unpack_from(data, i * SUM_REQ.size) for i in range(n)]
         pos = n * SUM_REQ.size
         if pos + sum(r[2] for r in reqs) > len(data):
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "sum write: data shorter than announced")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "sum write: data shorter than announced")
         if 4 * n > rlen:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"sum write needs {4 * n} bytes, buffer {rlen}")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"sum write needs {4 * n} bytes, buffer {rlen}")
         codes = []
         for ig, io, size in reqs:
             err, _ = self._sub(conn, self._write, conn, ams_port, dev, ig, io, data[pos:pos + size])
@@ -346,7 +354,7 @@ class AdsServices(NotificationService):
         reqs = [SUM_RW_REQ.unpack_from(data, i * SUM_RW_REQ.size) for i in range(n)]
         pos = n * SUM_RW_REQ.size
         if pos + sum(r[3] for r in reqs) > len(data):
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, "sum read-write: data shorter than announced")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "sum read-write: data shorter than announced")
         heads, chunks, total = [], [], SUM_RW_RES.size * n
         for ig, io, sub_rlen, sub_wlen in reqs:
             err, out = self._sub(conn, self._read_write, conn, ams_port, dev, ig, io, sub_rlen,
@@ -357,7 +365,7 @@ class AdsServices(NotificationService):
             chunks.append(out)
             total += len(out)
         if total > rlen:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"sum read-write needs {total} bytes, buffer {rlen}")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"sum read-write needs {total} bytes, buffer {rlen}")
         return b"".join(heads) + b"".join(chunks)
 
     # --- symbols -------------------------------------------------------------------------------
@@ -370,7 +378,7 @@ class AdsServices(NotificationService):
         name = _name(raw)
         sym = lookup(self._symbols(dev), name)
         if sym is None:
-            raise AdsError(E.ADSERR_DEVICE_SYMBOLNOTFOUND, f"symbol {name!r} not found")
+            raise AdsError(ADSERR_DEVICE_SYMBOLNOTFOUND, f"symbol {name!r} not found")
         return sym
 
     def _types(self, dev: AdsDevice) -> dict[str, DataType]:
@@ -382,7 +390,7 @@ class AdsServices(NotificationService):
     @staticmethod
     def _fit(data: bytes, length: int) -> bytes:
         if len(data) > length:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"{len(data)} bytes, buffer {length}")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{len(data)} bytes, buffer {length}")
         return data
 
     def _sym_read(self, dev: AdsDevice, sym: SymbolInfo, length: int) -> bytes:
@@ -393,21 +401,21 @@ class AdsServices(NotificationService):
             data = bytes(dev.read(sym.index_group, sym.index_offset, sym.size))[:sym.size]
             return data[:length]
         if length < sym.size:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, {length} requested")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, {length} requested")
         data = bytes(dev.read(sym.index_group, sym.index_offset, sym.size))
         if len(data) > sym.size:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"{sym.name}: device returned {len(data)} bytes")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{sym.name}: device returned {len(data)} bytes")
         return data
 
     def _sym_write(self, dev: AdsDevice, sym: SymbolInfo, data: bytes) -> None:
         """Write a symbol. Strings may be shorter than the symbol (zero-padded), other types must
         match its size exactly. Read-only symbols answer 0x704."""
         if sym.read_only:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDACCESS, f"{sym.name} is read-only")
+            raise AdsError(ADSERR_DEVICE_INVALIDACCESS, f"{sym.name} is read-only")
         if sym.ads_type in STRING_TYPES:
             if len(data) > sym.size:
-                raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, got {len(data)}")
+                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, got {len(data)}")
             data = data.ljust(sym.size, b"\0")
         elif len(data) != sym.size:
-            raise AdsError(E.ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, got {len(data)}")
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, got {len(data)}")
         dev.write(sym.index_group, sym.index_offset, data)

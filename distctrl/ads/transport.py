@@ -23,17 +23,14 @@ close.
 """
 from __future__ import annotations
 
+import logging
 import socket
 import threading
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import Protocol
 
-from . import errors as E
-from .errors import AdsError
+from .errors import ADSERR_DEVICE_NOMEMORY, ADSERR_DEVICE_SYMBOLNOTFOUND, AdsError
 from .protocol import AMS_HEADER_SIZE, AMS_TCP_HEADER, AMS_TCP_HEADER_SIZE, SymbolInfo
-
-if TYPE_CHECKING:
-    from .notifications import Notification
-    from .server import AdsServer
 
 CLOSE = object()  # sentinel: close this connection
 PORT_CLOSED = object()  # sentinel: the client unregistered its AMS port: close as a TwinCAT router does
@@ -42,6 +39,36 @@ _unpack_tcp_header = AMS_TCP_HEADER.unpack_from
 _MIN_AMS_FRAME = AMS_TCP_HEADER_SIZE + AMS_HEADER_SIZE
 #: bytes read from a socket at once (into a fixed per-connection buffer)
 _RECV_CHUNK = 64 * 1024
+
+
+class LinkOwner(Protocol):
+    """What a :class:`ClientLink` uses of the server that owns it (:class:`~distctrl.ads.server.AdsServer`).
+    Declared here so that the transport, the lowest layer of the server, imports none of the layers above."""
+
+    log: logging.Logger
+    max_frame: int
+    max_handles: int
+    frames: int
+
+    def _handle_ams(self, conn: Connection, body: bytes) -> bytes | None | object: ...
+
+    def _handle_tcp_command(self, conn: Connection, reserved: int, body: bytes) -> bytes | None: ...
+
+    def _link_closed(self, link: ClientLink) -> None: ...
+
+
+@dataclass
+class Notification:
+    handle: int
+    ams_port: int
+    index_group: int
+    index_offset: int
+    length: int
+    on_change: bool
+    cycle: float                 # seconds
+    route: tuple[bytes, int, bytes, int]   # client NetId, client port, our NetId, device port
+    due: float = 0.0
+    last: bytes | None = None
 
 
 class Connection:
@@ -72,7 +99,7 @@ class Connection:
 
     def new_handle(self, ams_port: int, sym: SymbolInfo) -> int:
         if len(self.handles) >= self.max_handles:
-            raise AdsError(E.ADSERR_DEVICE_NOMEMORY,
+            raise AdsError(ADSERR_DEVICE_NOMEMORY,
                            f"at most {self.max_handles} handles per connection; release some")
         h = self._next_handle
         while h == 0 or h in self.handles:
@@ -84,7 +111,7 @@ class Connection:
     def symbol(self, ams_port: int, handle: int) -> SymbolInfo:
         entry = self.handles.get(handle)
         if entry is None or entry[0] != ams_port:
-            raise AdsError(E.ADSERR_DEVICE_SYMBOLNOTFOUND, f"unknown handle 0x{handle:X}")
+            raise AdsError(ADSERR_DEVICE_SYMBOLNOTFOUND, f"unknown handle 0x{handle:X}")
         return entry[1]
 
     def release(self, ams_port: int, handle: int) -> None:
@@ -103,7 +130,7 @@ class ClientLink:
     __slots__ = ("_closed", "_fd_lock", "buf", "closing", "conn", "reason", "send_lock", "sending", "server",
                  "sock", "thread")
 
-    def __init__(self, server: AdsServer, sock: socket.socket, peer: str) -> None:
+    def __init__(self, server: LinkOwner, sock: socket.socket, peer: str) -> None:
         self.server = server
         self.sock = sock
         self.buf = bytearray()

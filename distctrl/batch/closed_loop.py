@@ -67,17 +67,31 @@ from types import SimpleNamespace
 import numpy as np
 from numba import njit, prange
 
+from ..base.kinds import SensorSource
+from ..base.states import CommandSource
 from ..control import law
 from ..control.commands import Action, Command
 from ..control.controller import AxisDistanceController
 from ..control.cycle_io import CycleOutput
-from ..control.kinds import SensorSource
-from ..control.states import CommandSource
-from ..errors import ErrorId
 from ..params.axis import AxisParameters
 from ..sim import physics
-from .jitcache import cached
+from ..sim.drive import Drive
+from ..sim.machine import Machine
+from ..sim.runner import MAX_RUN_SECONDS, load_program
+from ..sim.scenario import Scenario, load_scenario
+from ..sim.sensors import NOISE_BLOCK
 from . import kernel as _kernel  # registers law.* with numba; the law-constant columns
+from . import soa
+from .jitcache import cached
+from .layout import (Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR, Q_ADAPTIVE,
+                     Q_A_MIN, Q_DEV_A_MIN, Q_DEV_A_MAX, Q_OPTIMIZED, Q_BOTH, Q_MAX_DEV, Q_CHECK_SW, Q_SW_MIN,
+                     Q_SW_MAX, Q_JUMP, Q_S_HI, Q_S_LO, Q_MM_PER_INCR, Q_SIGN_REV, Q_REF_OFF, Q_MODULO,
+                     Q_MIN_POS, Q_MAX_POS, Q_PROBE_IPM, Q_PROBE_REF, Q_LEN, PACKED_LEN, PL_Z0, PL_ACT0, PL_KV,
+                     PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF, PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON,
+                     PL_MODE, PL_SET, PL_RESONANT, PL_P11, PL_P12, PL_P21, PL_P22, PL_SENSOR, PL_K_FIRST,
+                     PL_DRES, PL_NCHAR, PL_LEN, SENSOR_PROBE, SENSOR_DISTANCE, MODE_SET_POS, MODE_CONST_DIST,
+                     _E_JUMP, _E_RUN_MAX, _E_RUN_MIN, _E_MAX_DEV, _E_SW, _LAND, plant_constants,
+                     sensor_constants, resonance_constants)
 
 __all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "closed_loop", "run_batch",
            "Q_LEN", "PACKED_LEN"]
@@ -85,45 +99,6 @@ __all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "closed_loop
 
 class ClosedLoopError(ValueError):
     """The scenario (or a parameter set) is outside what the closed-loop kernel replays."""
-
-
-# ----------------------------------------------------------------------------- layouts
-
-# per parameter set: the float64 vector ``prm`` (after the law's fc in a packed row)
-# the first columns are the law's constants, in the layout of distctrl.batch.kernel (put_law_constants)
-Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR = (
-    _kernel.P_T, _kernel.P_KP, _kernel.P_I_GAIN, _kernel.P_D_GAIN, _kernel.P_V_LIM, _kernel.P_A_BASE,
-    _kernel.P_W_V, _kernel.P_W_A, _kernel.P_A_FLOOR)
-Q_ADAPTIVE, Q_A_MIN, Q_DEV_A_MIN, Q_DEV_A_MAX, Q_OPTIMIZED, Q_BOTH = range(9, 15)
-Q_MAX_DEV, Q_CHECK_SW, Q_SW_MIN, Q_SW_MAX = range(15, 19)
-Q_JUMP, Q_S_HI, Q_S_LO = range(19, 22)
-Q_MM_PER_INCR, Q_SIGN_REV, Q_REF_OFF, Q_MODULO, Q_MIN_POS, Q_MAX_POS = range(22, 28)
-Q_PROBE_IPM, Q_PROBE_REF = range(28, 30)
-Q_LEN = 30
-#: a packed row: ``[fc (law.FC_LEN) | prm (Q_LEN)]``
-PACKED_LEN = law.FC_LEN + Q_LEN
-
-# the scenario's plant and select (``plant``)
-PL_Z0, PL_ACT0, PL_KV, PL_VMAX, PL_DV, PL_BUS, PL_RES, PL_FF = range(8)
-PL_RMIN, PL_RMAX, PL_DELAY, PL_NOISE, PL_K_ON, PL_MODE, PL_SET = range(8, 15)
-# the drive's mechanical resonance: 1.0 when resonant, then Phi = expm(A T) (physics.resonance_step)
-PL_RESONANT, PL_P11, PL_P12, PL_P21, PL_P22 = range(15, 20)
-# the sensor: SENSOR_PROBE (encoder 2, increments) or SENSOR_DISTANCE (the point distance sensor, a V.E.
-# variable in mm: range [0, range max] = PL_RMIN, PL_RMAX, the resolution PL_DRES, PL_NCHAR points of
-# its characteristic after the vector: plant[PL_LEN:PL_LEN + n] true mm, plant[PL_LEN + n:PL_LEN + 2n]
-# reported mm); PL_K_FIRST: the cycle with no earlier reading (0; the distance sensor: the cycle the
-# control switches to SENSOR_SOURCE=VARIABLE, whose reading it takes at once)
-PL_SENSOR, PL_K_FIRST, PL_DRES, PL_NCHAR = range(20, 24)
-PL_LEN = 24
-SENSOR_PROBE, SENSOR_DISTANCE = 0, 1
-
-MODE_SET_POS, MODE_CONST_DIST = 0, 1
-_E_JUMP = int(ErrorId.SENSOR_JUMP)
-_E_RUN_MAX = int(ErrorId.SENSOR_RUN_OUT_MAX)
-_E_RUN_MIN = int(ErrorId.SENSOR_RUN_OUT_MIN)
-_E_MAX_DEV = int(ErrorId.MAX_DEVIATION)
-_E_SW = int(ErrorId.SW_LIMIT)
-_LAND = 1e-9                    # as controller._LAND
 
 
 # ----------------------------------------------------------------------------- prepare
@@ -174,8 +149,6 @@ _TUNING_FIELDS = ("kp", "i_tn", "d_tv", "filter_type", "n_cycles", "fg_f0", "ord
 
 def _noise(sensor_cfg, n: int) -> np.ndarray:
     """The probe's noise samples of cycles 0..n-1, drawn as EncoderProbe draws them."""
-    from ..sim.sensors import NOISE_BLOCK
-
     if not sensor_cfg.noise_std:
         return np.zeros(n)
     noise_seq, _ = np.random.SeedSequence(sensor_cfg.seed).spawn(2)
@@ -239,10 +212,6 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     one hour), stopping before the next command after the select. Raises
     :class:`ClosedLoopError` for scenarios outside the restrictions (module docstring).
     """
-    from ..sim.machine import Machine
-    from ..sim.runner import MAX_RUN_SECONDS, load_program
-    from ..sim.scenario import Scenario, load_scenario
-
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     sc = scenario
@@ -369,7 +338,6 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
                               f"{len(prog_values)} cycles")
     n = stop
     ax = sc.axes[axis]
-    from ..sim.drive import Drive
 
     drive = Drive(T, kv=ax.kv, v_max=ax.v_max, a_max=ax.a_max,
                   bus_delay_cycles=ax.bus_delay_cycles, resolution=ax.resolution,
@@ -459,32 +427,6 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- kernel
-
-@njit(nogil=True, error_model="numpy", inline="always")
-def plant_constants(plant):
-    """What every set shares, from the ``PL_*`` vector: (kv, drive v_max, drive a_max*T, bus delay
-    cycles, encoder resolution, feed-forward, probe range min, max, probe dead time cycles, noise on,
-    select cycle, CONST_DIST, set value)."""
-    return (plant[PL_KV], plant[PL_VMAX], plant[PL_DV], int(plant[PL_BUS]), plant[PL_RES], plant[PL_FF],
-            plant[PL_RMIN], plant[PL_RMAX], int(plant[PL_DELAY]), plant[PL_NOISE] != 0.0, int(plant[PL_K_ON]),
-            int(plant[PL_MODE]) == MODE_CONST_DIST, plant[PL_SET])
-
-
-@njit(nogil=True, error_model="numpy", inline="always")
-def sensor_constants(plant):
-    """The sensor from the ``PL_*`` vector: (distance sensor?, the cycle with no earlier reading,
-    the distance sensor's resolution, its characteristic's true and reported values (views of the
-    plant vector's tail; empty without one))."""
-    nchar = int(plant[PL_NCHAR])
-    return (int(plant[PL_SENSOR]) == SENSOR_DISTANCE, int(plant[PL_K_FIRST]), plant[PL_DRES],
-            plant[PL_LEN:PL_LEN + nchar], plant[PL_LEN + nchar:PL_LEN + 2 * nchar])
-
-
-@njit(nogil=True, error_model="numpy", inline="always")
-def resonance_constants(plant):
-    """The drive's resonance from the ``PL_*`` vector: (resonant, p11, p12, p21, p22)."""
-    return plant[PL_RESONANT] != 0.0, plant[PL_P11], plant[PL_P12], plant[PL_P21], plant[PL_P22]
-
 
 @cached
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -717,6 +659,20 @@ def _closed_loop_batch(packed, plant, prog, surface, noise, out_offset, out_dist
                     out_offset[i], out_distance[i], out_error[i])
 
 
+@cached
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def run_blocks(packed, lanes, counts, rest, plant, prog, surface, noise, out_offset, out_distance, out_error):
+    """All blocks (:func:`distctrl.batch.soa.block_loop`) and then the other rows (:func:`closed_loop`), in
+    parallel."""
+    for j in prange(lanes.shape[0]):
+        soa.block_loop(packed, lanes[j], counts[j], plant, prog, surface, noise, out_offset, out_distance,
+                       out_error)
+    for r in prange(rest.shape[0]):
+        i = rest[r]
+        closed_loop(packed[i, :law.FC_LEN], packed[i, law.FC_LEN:], plant, prog, surface, noise, out_offset[i],
+                    out_distance[i], out_error[i])
+
+
 def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, threads: int | None = None,
               return_errors: bool = False, vectorised: bool = True, out=None):
     """Run the closed loop of ``inputs`` for every parameter set, in parallel over the sets.
@@ -761,15 +717,13 @@ def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, thre
         if np.shares_memory(out_offset, out_distance):
             raise ClosedLoopError("out: the offset and distance arrays overlap")
     out_error = np.empty((n_sets, 2), dtype=np.int64)
-    from . import soa
-
     lanes, counts, rest = soa.plan_blocks(packed)
     old = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(int(threads))
     try:
         if vectorised:
-            soa.run_blocks(packed, lanes, counts, rest, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
+            run_blocks(packed, lanes, counts, rest, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
                            out_offset, out_distance, out_error)
         else:
             _closed_loop_batch(packed, inputs.plant, inputs.prog, inputs.surface, inputs.noise,

@@ -25,7 +25,7 @@ __all__ = ["SOURCES", "sources_stamp", "cached", "is_cached", "cache_dir"]
 
 _PKG = Path(__file__).resolve().parents[1]          # the distctrl package
 #: the files (relative to the distctrl package; globs allowed) the compiled kernels are made of
-SOURCES = ("batch/*.py", "control/*.py", "sim/physics.py", "errors/__init__.py")
+SOURCES = ("base/*.py", "batch/*.py", "control/*.py", "sim/physics.py", "errors/__init__.py")
 
 
 @functools.lru_cache(maxsize=None)

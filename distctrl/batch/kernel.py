@@ -37,6 +37,8 @@ except ImportError as exc:          # pragma: no cover - exercised only without 
         "Use distctrl.batch.numba_available() to check before importing.") from exc
 
 from ..control import law
+from ..control.controller import AxisDistanceController
+from ..sim import physics
 from .jitcache import cached
 
 # ----------------------------------------------------------------------------- registration
@@ -58,8 +60,6 @@ _INLINE = frozenset({"filter_step", "mode_error", "pid_step", "adaptive_accelera
 def register_law() -> None:
     """Register every law function, and the plant's (:mod:`distctrl.sim.physics`), with numba
     (idempotent). Done once on import of this module."""
-    from ..sim import physics
-
     for fn in law.LAW_FUNCTIONS + physics.PHYSICS_FUNCTIONS:
         if id(fn) in _REGISTERED:
             continue
@@ -126,8 +126,6 @@ def pack_params(params, cycle_time: float, set_pos: float, programmed_position: 
     parameters, so kernel and cycle core cannot disagree about them. ``s_before`` is only used
     when ``optimized_scheduling`` is off: the reading the law sees in the first cycle.
     """
-    from ..control.controller import AxisDistanceController
-
     ctrl = AxisDistanceController(params, cycle_time)     # validates, designs the filter
     c = ctrl.law_constants()
     p = params

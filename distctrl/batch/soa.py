@@ -46,13 +46,13 @@ from numba import njit, prange
 
 from ..control import law
 from ..sim import physics
-from . import closed_loop as CL
 from .jitcache import cached
+from .layout import (PL_ACT0, PL_Z0, Q_A_BASE, Q_A_FLOOR, Q_A_MIN, Q_ADAPTIVE, Q_BOTH, Q_CHECK_SW, Q_D_GAIN,
+                     Q_DEV_A_MAX, Q_DEV_A_MIN, Q_I_GAIN, Q_JUMP, Q_KP, Q_LEN, Q_MAX_DEV, Q_MAX_POS, Q_MIN_POS,
+                     Q_MM_PER_INCR, Q_MODULO, Q_OPTIMIZED, Q_PROBE_IPM, Q_PROBE_REF, Q_REF_OFF, Q_S_HI,
+                     Q_S_LO, Q_SIGN_REV, Q_SW_MAX, Q_SW_MIN, Q_T, Q_V_MAX, Q_W_A, Q_W_V, _E_JUMP, _E_RUN_MAX,
+                     _E_RUN_MIN, _E_MAX_DEV, _E_SW, plant_constants, resonance_constants, sensor_constants)
 from .stream import store_fence, store_stream
-from .closed_loop import (PL_ACT0, PL_Z0, Q_A_BASE, Q_A_FLOOR, Q_A_MIN, Q_ADAPTIVE, Q_BOTH, Q_CHECK_SW, Q_D_GAIN,
-                          Q_DEV_A_MAX, Q_DEV_A_MIN, Q_I_GAIN, Q_JUMP, Q_KP, Q_LEN, Q_MAX_DEV, Q_MAX_POS, Q_MIN_POS,
-                          Q_MM_PER_INCR, Q_MODULO, Q_OPTIMIZED, Q_PROBE_IPM, Q_PROBE_REF, Q_REF_OFF, Q_S_HI, Q_S_LO,
-                          Q_SIGN_REV, Q_SW_MAX, Q_SW_MIN, Q_T, Q_V_MAX, Q_W_A, Q_W_V)
 
 __all__ = ["BLOCK", "soa_eligible", "plan_blocks", "block_loop"]
 
@@ -61,11 +61,6 @@ BLOCK = 32
 
 _FC = law.FC_LEN
 _LAND = 1e-9                     # as controller._LAND
-_E_JUMP = CL._E_JUMP
-_E_RUN_MAX = CL._E_RUN_MAX
-_E_RUN_MIN = CL._E_RUN_MIN
-_E_MAX_DEV = CL._E_MAX_DEV
-_E_SW = CL._E_SW
 
 # rows of the work array: state, per-cycle values handed between the loops, then the Q_* parameters.
 # Every access in the vector loops is W[<constant row>, b]: one allocation with constant row
@@ -145,9 +140,9 @@ def block_loop(packed, lanes, count, plant, prog, surface, noise, out_offset, ou
     # the scenario's plant and select (the same for every lane)
     z0 = plant[PL_Z0]
     kv, dr_vmax, dr_dv, nbus, res, ff, r_min, r_max, ndel, has_noise, k_on, const_dist, set_value = \
-        CL.plant_constants(plant)
-    resonant, p11, p12, p21, p22 = CL.resonance_constants(plant)
-    distance, k_first, dres, char_x, char_y = CL.sensor_constants(plant)
+        plant_constants(plant)
+    resonant, p11, p12, p21, p22 = resonance_constants(plant)
+    distance, k_first, dres, char_x, char_y = sensor_constants(plant)
     T = packed[lanes[0], _FC + Q_T]
     inv_T = 1.0 / T
     inv_res = 1.0 / res if res != 0.0 else 0.0
@@ -574,15 +569,3 @@ def _window_sum(window, b, newest_row, nb, scratch):
         scratch[j] = window[r, b]
         r = r + 1 if r + 1 < ring_len else 0
     return law._ring_sum(scratch, nb)
-
-
-@cached
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def run_blocks(packed, lanes, counts, rest, plant, prog, surface, noise, out_offset, out_distance, out_error):
-    """All blocks (``block_loop``) and then the other rows (``closed_loop``), in parallel."""
-    for j in prange(lanes.shape[0]):
-        block_loop(packed, lanes[j], counts[j], plant, prog, surface, noise, out_offset, out_distance, out_error)
-    for r in prange(rest.shape[0]):
-        i = rest[r]
-        CL.closed_loop(packed[i, :_FC], packed[i, _FC:], plant, prog, surface, noise, out_offset[i],
-                       out_distance[i], out_error[i])

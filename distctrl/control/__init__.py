@@ -1,20 +1,24 @@
 """The cycle core: the axis distance controller and the control law it runs.
 
-Names are imported lazily so that ``distctrl.params`` can use the enumerations of this package
-without importing the controller (which itself depends on ``distctrl.params``).
+It stands on :mod:`distctrl.params`, :mod:`distctrl.errors` and the vocabulary of :mod:`distctrl.base`
+(docs/architecture.md). The enumerations ``FilterType``, ``SensorSource``, ``HliState``, ... live in
+:mod:`distctrl.base` and are re-exported here. The other names are resolved on first use, so that
+importing one module of this package (``distctrl.control.law`` for the numba batch kernel) does not
+load the controller.
 """
 from importlib import import_module
+
+from ..base.kinds import FilterType, SensorSource
+from ..base.states import CommandSource, HliState, HliTransition, InternalState, Mode
 
 _EXPORTS = {
     "Action": "commands", "Command": "commands", "ObjectWrite": "commands", "WRITABLE_OBJECTS": "commands",
     "AxisDistanceController": "controller", "ControllerState": "controller", "Tuning": "controller",
     "CycleInput": "cycle_io", "CycleOutput": "cycle_io", "Result": "cycle_io",
     "FilterConfig": "filters", "SensorFilter": "filters",
-    "FilterType": "kinds", "SensorSource": "kinds",
-    "CommandSource": "states", "HliState": "states", "HliTransition": "states", "InternalState": "states",
-    "Mode": "states",
 }
-__all__ = list(_EXPORTS)
+__all__ = [*_EXPORTS, "FilterType", "SensorSource", "CommandSource", "HliState", "HliTransition", "InternalState",
+           "Mode"]
 
 
 def __getattr__(name):

@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import IntEnum
 
-from .kinds import FilterType, SensorSource
-from .states import CommandSource, HliTransition
+from ..base.kinds import FilterType, SensorSource
+from ..base.states import CommandSource, HliTransition
 
 
 class Action(IntEnum):

@@ -11,9 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
+from ..base.kinds import FilterType, SensorSource
+from ..base.states import CommandSource
 from .commands import Action, Command
-from .kinds import FilterType, SensorSource
-from .states import CommandSource
 
 
 class CompensationMode(IntEnum):

@@ -19,6 +19,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from ..base.kinds import FilterType, SensorSource
+from ..base.states import (ERROR_CODE_BY_ID, MONITORED_STATES, CommandSource, HliState, InternalState, Mode,
+                          running_state)
 from ..errors import ErrorEvent, ErrorId, ParameterError, make_event
 from ..params.axis import AxisParameters
 from ..params.table import BY_FIELD
@@ -26,9 +29,6 @@ from . import law
 from .commands import WRITABLE_OBJECTS, Action, Command, ObjectWrite
 from .cycle_io import CycleInput, CycleOutput, Result
 from .filters import FilterConfig, design_coefficients
-from .kinds import FilterType, SensorSource
-from .states import (ERROR_CODE_BY_ID, MONITORED_STATES, CommandSource, HliState, InternalState, Mode,
-                     running_state)
 
 _INACTIVE, _ACTIVE, _FREEZE, _TURNING_OFF = HliState.INACTIVE, HliState.ACTIVE, HliState.FREEZE, \
     HliState.TURNING_OFF

@@ -32,6 +32,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from ..base.kinds import SensorSource
+from ..base.states import HliState
 from ..errors import ErrorEvent
 from ..errors.three_d import event_to_3d, make_event_3d
 from ..params.channel import ChannelParameters
@@ -39,8 +41,6 @@ from .commands import Action, Command, ObjectWrite
 from .commands3d import CompensationMode
 from .controller import AxisDistanceController
 from .cycle_io import CycleInput, CycleOutput, Result
-from .kinds import SensorSource
-from .states import HliState
 
 _Z = (0.0, 0.0, 1.0)
 _RUNNING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST), int(HliState.DRYRUN_SETPOS),

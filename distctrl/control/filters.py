@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..base.kinds import FilterType
 from ..errors import ParameterError
 from . import law
-from .kinds import FilterType
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,7 +171,7 @@ def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
         fc[law.FC_P_PRIOR] = kd.p_prior
         fc[law.FC_PRED:law.FC_PRED + n] = [float(v) for v in kd.coefficients]
     if kind == law.LOWPASS:
-        from scipy import signal
+        from scipy import signal  # only the LOWPASS design needs scipy: not on the cycle core's import path
 
         sos = signal.butter(int(config.order), float(config.fg_f0), btype="low", fs=1.0 / cycle_time,
                             output="sos")

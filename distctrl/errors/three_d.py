@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..control.states import ERROR_CODE_BY_ID, InternalState
+from ..base.states import ERROR_CODE_BY_ID, InternalState
 from . import CATALOGUE, ErrorEvent, ErrorId
 
 

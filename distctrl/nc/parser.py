@@ -20,7 +20,7 @@ from lark import Lark, Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..control.commands3d import DIRECTION_NAMES, SENSOR_SOURCES_3D, CompensationMode
-from ..control.kinds import FILTER_TYPE_NAMES, FilterType, SensorSource
+from ..base.kinds import FILTER_TYPE_NAMES, FilterType, SensorSource
 from .program import (
     ACTION_KEYWORDS, FLAG_KEYWORDS_3D, KIN98_PARAM_COUNT, MAX_EXPR_DEPTH, NAME_KEYWORDS_3D,
     NUMBER_KEYWORDS_3D, OUTSIDE_KEYWORDS_3D, Assignment, BinOp, Block, Compare, DistCtrl3DWord, DistCtrlArg, DistCtrlWord, Expr, ExprError,

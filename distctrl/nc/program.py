@@ -15,7 +15,7 @@ from typing import Union
 
 from ..control.commands import Action, Command
 from ..control.commands3d import Command3D, CompensationMode
-from ..control.kinds import FilterType, SensorSource
+from ..base.kinds import FilterType, SensorSource
 from ..errors import DistCtrlError
 
 Lookup = Union[Callable[[str], float], Mapping[str, float]]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import ctypes
 from typing import Iterable, Mapping
 
-from ..control.states import InternalState
+from ..base.states import InternalState
 from .registry import (SERVED_OBJECTS, AxisObjectContext, ObjectSpec, decode, format_object_table, format_value,
                        index_offset, read_value)
 

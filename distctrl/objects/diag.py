@@ -26,10 +26,12 @@ from __future__ import annotations
 import math
 from typing import Iterable
 
+from ..base.states import CommandSource, HliState, InternalState, Mode
 from ..control.commands3d import CompensationMode
-from ..control.states import CommandSource, HliState, InternalState, Mode
+from ..control.cycle_io import CycleOutput
 from ..errors import ErrorEvent
 from .channel3d import Channel3DValues
+from .units import INT32_MAX, INT32_MIN, round_saturate
 
 __all__ = ["format_diag_axis", "format_diag_3d", "state_name", "hli_state_name"]
 
@@ -190,7 +192,6 @@ def diag_axis(controller, output, axis_name: str, *, axis_index: int = 0,
     events (e.g. a run's event log) listed under ``logged events:`` with this cycle's events and
     the error that holds the controller in ERROR.
     """
-    from ..control.cycle_io import CycleOutput
     out = output if output is not None else CycleOutput()
     p, t, st = controller.params, controller.tuning, controller.state
     f = t.filter
@@ -437,5 +438,4 @@ def diag_3d(values: Channel3DValues, params=None, *, channel: int = 1,
 
 
 def _round(x: float) -> int:
-    from .units import INT32_MAX, INT32_MIN, round_saturate
     return round_saturate(x, INT32_MIN, INT32_MAX)

@@ -9,9 +9,10 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from ..control.kinds import FilterType
+from ..base.kinds import FilterType
 from ..errors import ParameterError
-from .table import AXIS_PARAMETERS, AXIS_TYPE_NAMES, AXIS_TYPE_ROTATOR, AXIS_TYPE_TRANSLATOR, BY_FIELD, ParamSpec
+from .table import (AXIS_PARAMETERS, AXIS_TYPE_NAMES, AXIS_TYPE_ROTATOR, AXIS_TYPE_TRANSLATOR, BY_FIELD, BY_KEY,
+                    ParamSpec)
 
 #: P-AXIS-00018 spellings accepted in a list (the ISG names, the bare names and the numeric codes)
 _AXIS_TYPE_ALIASES = {"ACHSTYP_TRANSLATOR": AXIS_TYPE_TRANSLATOR, "TRANSLATOR": AXIS_TYPE_TRANSLATOR,
@@ -152,7 +153,6 @@ class AxisParameters:
     @classmethod
     def from_interface(cls, values: dict[str, object]) -> "AxisParameters":
         """Build from list-file keys and interface-unit values (already type-checked)."""
-        from .table import BY_KEY
         rotary = any(BY_KEY[k].field == "axis_type" and parse_axis_type(v) == AXIS_TYPE_ROTATOR
                      for k, v in values.items())
         fields = {}

@@ -38,7 +38,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..control.kinds import FILTER_TYPE_NAMES, FilterType
+from ..base.kinds import FILTER_TYPE_NAMES, FilterType
 from ..errors import ParameterError
 from .axis import AxisParameters, check_internal, to_interface_value, to_internal_value
 from .listfile import KeyProblem, ListFormat, ParameterList, format_list, load_list, parse_list_text

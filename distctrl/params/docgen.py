@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import sys
 
+from .channel import AXIS_FIELDS, CHANNEL_PARAMETERS, UNDOCUMENTED_IDS
 from .table import AXIS_PARAMETERS
 
 
@@ -60,8 +61,6 @@ def render() -> str:
 
 def render_channel() -> str:
     """docs/parameters-channel.md: the 3D distance control's channel parameters (FCT-M3 §12.8)."""
-    from .channel import AXIS_FIELDS, CHANNEL_PARAMETERS, UNDOCUMENTED_IDS
-
     lines = [
         "# Channel parameters (3D distance control)",
         "",

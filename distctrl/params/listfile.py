@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from ..control.kinds import FilterType
+from ..base.kinds import FilterType
 from ..errors import ParameterError
 from .axis import AxisParameters, check_internal, parse_axis_type, to_internal_value, to_interface_value
 from .table import AXIS_PARAMETERS, BY_KEY, IGNORED_KEYS, ParamSpec

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from ..control.kinds import FILTER_TYPE_NAMES
+from ..base.kinds import FILTER_TYPE_NAMES
 
 SGN32_MIN, SGN32_MAX = -(2**31), 2**31 - 1
 UNS32_MAX = 2**32 - 1

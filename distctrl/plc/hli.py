@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 from ..control.commands import Command
 from ..control.cycle_io import CycleInput, CycleOutput
-from ..control.states import HliTransition
+from ..base.states import HliTransition
 from ..errors import DistCtrlError
 from ..objects.units import INT32_MAX, INT32_MIN, UINT32_MAX, mm_to_dint_01um
 

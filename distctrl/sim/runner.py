@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from ..control import HliState
-from ..errors import ErrorId, ExitCode
+from ..errors import DistCtrlError, ErrorId, ExitCode
 from ..nc.parser import parse_file, parse_program
+from ..trace import TraceRecorder
 from .config_errors import ConfigError
 from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
 
@@ -212,7 +213,6 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     ``plc_program(machine, cycle)``, if given, runs every cycle before the CNC reads the PLC
     interface: it may write ``machine.hli[axis]`` (command_w + semaphore, cyclic values) and read
     ``state_r``, as a PLC task does."""
-    from ..trace import TraceRecorder
     from .scenario import Scenario, load_scenario
 
     if not isinstance(scenario, Scenario):
@@ -383,8 +383,6 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
 
 
 def _check_count(value, name: str) -> int:
-    from ..errors import DistCtrlError
-
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise DistCtrlError(f"{name} = {value!r}: must be a whole number >= 1")
     return value

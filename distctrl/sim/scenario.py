@@ -33,7 +33,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
-from distctrl.control.states import HliTransition
+from distctrl.base.states import HliTransition
 from distctrl.errors import ParameterError
 from distctrl.params.axis import AxisParameters
 from distctrl.params.channel import ChannelParameters, load_channel_list

@@ -1,5 +1,8 @@
 """Plot a :class:`~distctrl.trace.recorder.Trace`: stacked subplots sharing the time axis.
 
+The functions take any object with the few members of :class:`TraceLike` (a ``Trace`` has them), so
+this module does not import the recorder: ``Trace.plot`` imports it, not the other way round.
+
 matplotlib is imported lazily, and only its object-oriented API is used (a ``Figure`` on an Agg
 canvas, no pyplot): nothing is displayed, no global backend or figure registry is touched, and it
 works on machines without a display.
@@ -8,16 +11,14 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from .recorder import HLI_STATE_NAMES
+from ..base.states import HLI_STATE_NAMES
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
-
-    from .recorder import Trace
 
 __all__ = ["plot_trace", "default_groups", "state_segments", "MAX_POINTS", "MAX_STATE_SEGMENTS"]
 
@@ -27,6 +28,23 @@ MAX_POINTS = 100_000
 MAX_STATE_SEGMENTS = 400
 #: with at most this many runs each is named above the top panel
 MAX_STATE_LABELS = 40
+
+
+class TraceLike(Protocol):
+    """What the plot functions read of a trace (:class:`~distctrl.trace.recorder.Trace`)."""
+
+    columns: list[str]
+    meta: dict
+
+    @property
+    def rows(self) -> int: ...
+
+    def unit(self, column: str) -> str: ...
+
+    def __getitem__(self, column: str) -> np.ndarray: ...
+
+    def __contains__(self, column: object) -> bool: ...
+
 
 _POSITION_SUFFIXES = (".prog", ".cmd", ".act")
 _DC_SUFFIXES = (".dc.offset", ".dc.filtered", ".dc.target_deviation")
@@ -45,7 +63,7 @@ def _dc_axes(columns: list[str]) -> list[str]:
     return axes
 
 
-def default_groups(trace: "Trace") -> list[tuple[str, list[str]]]:
+def default_groups(trace: TraceLike) -> list[tuple[str, list[str]]]:
     """The default panels: (title, columns) for positions, distance-control signals and distance."""
     cols = trace.columns
     have = set(cols)
@@ -67,7 +85,7 @@ def default_groups(trace: "Trace") -> list[tuple[str, list[str]]]:
     return groups
 
 
-def _unit_groups(trace: "Trace", signals: list[str]) -> list[tuple[str, list[str]]]:
+def _unit_groups(trace: TraceLike, signals: list[str]) -> list[tuple[str, list[str]]]:
     by_unit: dict[str, list[str]] = {}
     for s in signals:
         by_unit.setdefault(trace.unit(s), []).append(s)
@@ -113,7 +131,7 @@ def envelope(x: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.ndarray,
     return xs, ys
 
 
-def _ylabel(trace: "Trace", name: str, signals: list[str]) -> str:
+def _ylabel(trace: TraceLike, name: str, signals: list[str]) -> str:
     units: list[str] = []
     for s in signals:
         u = trace.unit(s)
@@ -129,7 +147,7 @@ def _ylabel(trace: "Trace", name: str, signals: list[str]) -> str:
 _ACTIVE_ONLY = (".dc.filtered", ".dc.feedback")
 
 
-def _active_only(trace: "Trace", name: str) -> np.ndarray:
+def _active_only(trace: TraceLike, name: str) -> np.ndarray:
     """The column, NaN in the rows where its axis's distance control is INACTIVE (``_ACTIVE_ONLY``
     signals only; new-user audit R14: the 30 mm surface position of cycle 0 squashed the panel)."""
     y = trace[name]
@@ -159,7 +177,7 @@ def _stack_labels(fig, ax, labels: list) -> None:
         placed.append(box)
 
 
-def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: list[str] | None = None,
+def plot_trace(trace: TraceLike, path: str | os.PathLike | None = None, signals: list[str] | None = None,
                title: str | None = None) -> "Figure":
     """Draw the trace as stacked subplots sharing the time axis and return the Figure.
 
@@ -169,6 +187,7 @@ def plot_trace(trace: "Trace", path: str | os.PathLike | None = None, signals: l
     one panel per unit. Changes of ``*.dc.state`` are shaded (every state but INACTIVE) and named.
     With ``path`` the figure is saved too; the format follows the suffix (.png, .svg, .pdf, ...).
     """
+    # matplotlib loads only when a plot is drawn (import distctrl.trace stays light)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch

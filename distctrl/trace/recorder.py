@@ -25,13 +25,10 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["Trace", "TraceRecorder", "format_rows", "sidecar_path", "HLI_STATE_NAMES"]
+from ..base.states import HLI_STATE_NAMES
+from .plot import plot_trace  # matplotlib itself is imported only when a plot is drawn
 
-#: HLI_DIST_CTRL_STATE_* names by value (docs/states.md), used to label ``*.dc.state`` changes.
-HLI_STATE_NAMES: dict[int, str] = {
-    0: "INACTIVE", 1: "ACTIVE", 2: "FREEZE", 3: "TURNING_OFF", 4: "ACTIVE_CONST_DIST", 5: "ERROR",
-    6: "DRYRUN_CONST_DIST", 7: "DRYRUN_SETPOS",
-}
+__all__ = ["Trace", "TraceRecorder", "format_rows", "sidecar_path", "HLI_STATE_NAMES"]
 
 SIDECAR_SUFFIX = ".meta.json"
 _FORMAT_NAME = "distctrl-trace"
@@ -419,7 +416,6 @@ class Trace:
     def plot(self, path: str | os.PathLike | None = None, signals: list[str] | None = None,
              title: str | None = None):
         """Stacked subplots over time (see :func:`distctrl.trace.plot.plot_trace`); returns the Figure."""
-        from .plot import plot_trace
         return plot_trace(self, path=path, signals=signals, title=title)
 
 

@@ -39,6 +39,7 @@ from the cycles before it and ``failed = True``; the tuner treats it as infinite
 from __future__ import annotations
 
 import numpy as np
+from ..control import law
 
 __all__ = ["METRIC_NAMES", "METRIC_UNITS", "wanted_distance", "compute_metrics", "limits_from_packed", "cost",
            "SAT_WEIGHT", "CHATTER_WEIGHT"]
@@ -55,6 +56,7 @@ _TOL = 1e-3
 
 def wanted_distance(inputs, n: int | None = None) -> np.ndarray:
     """The wanted distance per cycle (mm): SET_DIST in CONST_DIST, ``prog - SET_POS`` in SET_POS."""
+    # numba (optional: [fast], [tune]) loads only when a batch runs
     from ..batch.closed_loop import MODE_CONST_DIST
 
     n = inputs.n_cycles if n is None else n
@@ -65,8 +67,7 @@ def wanted_distance(inputs, n: int | None = None) -> np.ndarray:
 
 def limits_from_packed(packed: np.ndarray) -> dict[str, np.ndarray]:
     """Per-set limiter data (v_max, a_base, weights, adaptive ramp) from packed rows."""
-    from ..batch import closed_loop as CL
-    from ..control import law
+    from ..batch import closed_loop as CL  # numba (optional: [fast], [tune]) loads only when a batch runs
 
     q = packed[:, law.FC_LEN:]
     return {"v_lim": q[:, CL.Q_V_MAX], "a_lim": q[:, CL.Q_A_BASE], "w_v": q[:, CL.Q_W_V],

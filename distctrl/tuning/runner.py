@@ -31,10 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..control.kinds import FilterType
+from ..base.kinds import FilterType
 from ..errors import DistCtrlError
-from .metrics import METRIC_NAMES, compute_metrics, cost, limits_from_packed, wanted_distance
-from .space import NC_WORDS, d_tv_applies
+from ..workbench.tables import render_table
+from .metrics import METRIC_NAMES, METRIC_UNITS, compute_metrics, cost, limits_from_packed, wanted_distance
+from .space import D_TV_NOTE, NC_WORDS, d_tv_applies, filter_fields
 
 __all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "TuningRunError", "PARAM_COLUMNS",
            "plot_sweep"]
@@ -64,7 +65,7 @@ def slim_inputs(inputs):
 def evaluate_chunk(inputs, packed: np.ndarray, cycles: int | None, metric_options: dict,
                    threads: int | None = None) -> dict[str, np.ndarray]:
     """Run the kernel for the packed rows and return their metrics (a pure function of its arguments)."""
-    from ..batch.closed_loop import run_batch
+    from ..batch.closed_loop import run_batch  # numba (optional: [fast], [tune]) loads only when a batch runs
 
     offset, distance, errors = run_batch(inputs, packed, cycles=cycles, threads=threads, return_errors=True)
     n = distance.shape[1]
@@ -152,15 +153,11 @@ class SweepResult:
     def units(self) -> dict:
         """The unit of every column that has one (metrics: :data:`~distctrl.tuning.metrics.METRIC_UNITS`;
         parameters: internal units)."""
-        from .metrics import METRIC_UNITS
-
         units = {"i_tn": "s", "d_tv": "s", "low_pass_filter_fg_f0": "Hz", "v_max": "mm/s", "a_max": "mm/s²"}
         return {c: units.get(c) or METRIC_UNITS.get(c) for c in self.data if units.get(c) or METRIC_UNITS.get(c)}
 
     def best_rows(self, n: int = 10, key: str = "cost") -> list[dict]:
         """The best ``n`` rows by ``key`` as dicts: the parameters the row's filter uses and every metric."""
-        from .space import filter_fields
-
         out = []
         for i in self.order(key)[:n]:
             i = int(i)
@@ -180,8 +177,6 @@ class SweepResult:
     def notes(self, n: int | None = None, key: str = "cost") -> list[str]:
         """Notes on the best ``n`` rows (all with None): :data:`~distctrl.tuning.space.D_TV_NOTE` when one of
         them has kp >= 1 and d_tv is a column."""
-        from .space import D_TV_NOTE
-
         if "kp" not in self.data or "d_tv" not in self.data or not len(self):
             return []
         rows = self.order(key)[:n] if n is not None else range(len(self))
@@ -189,14 +184,11 @@ class SweepResult:
 
     def render(self, n: int = 10, key: str = "cost", plain: bool = False, title: str | None = None) -> str:
         """The best ``n`` rows as a text table."""
-        from ..workbench.tables import render_table
-
         params = [c for c in PARAM_COLUMNS if c in self.data and len(set(map(str, self.data[c]))) > 1] \
             or [c for c in ("kp", "filter_type") if c in self.data]
         mets = ["cost", "rms_error", "max_error", "overshoot", "osc_index", "hf_rms", "offset_hf_rms",
                 "settle_time_50um", "sat_share"]
         cols = params + [m for m in mets if m in self.data]
-        from .space import filter_fields
 
         rows = []
         for i in self.order(key)[:n]:
@@ -391,6 +383,7 @@ class Evaluator:
     def evaluate(self, param_sets, points: list[dict] | None = None, *, description: str = "sweep") -> SweepResult:
         """Metrics of every set (a list of AxisParameters); ``points``: what each set changes (for the
         table; default: the tuning fields of the sets)."""
+        # numba (optional: [fast], [tune]) loads only when a batch runs
         from ..batch.closed_loop import pack_sets
 
         param_sets = list(param_sets)
@@ -425,13 +418,15 @@ class Evaluator:
         if self._kernels_ready:
             return
         self._kernels_ready = True
-        from ..batch import soa
+        # numba (optional: [fast], [tune]) loads only when a batch runs
+        from ..batch.closed_loop import run_blocks
         from ..batch.jitcache import cache_dir, is_cached
 
-        entry = soa.run_blocks
+        entry = run_blocks
         if is_cached(entry):
             if self.mode == "local" and not entry.signatures:
                 # load the cached code now (about 0.5 s), so that the sweep's time is the sweep's
+                # numba (optional: [fast], [tune]) loads only when a batch runs
                 from ..batch.closed_loop import pack_sets, run_batch
 
                 packed = packed_one if packed_one is not None and len(packed_one) else \
@@ -443,6 +438,7 @@ class Evaluator:
             self.log("note: the workers compile the batch kernels on their first chunk if they have not "
                      "yet (about 30 s per machine, cached on disk afterwards)")
             return
+        # numba (optional: [fast], [tune]) loads only when a batch runs
         from ..batch.closed_loop import pack_sets, run_batch
 
         packed = packed_one if packed_one is not None and len(packed_one) else pack_sets(self.inputs,

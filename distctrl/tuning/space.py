@@ -28,7 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..control.kinds import FILTER_TYPE_NAMES, FilterType
+from ..base.kinds import FILTER_TYPE_NAMES, FilterType
+from ..control.controller import AxisDistanceController
 from ..errors import DistCtrlError, ParameterError
 from ..params.axis import AxisParameters, check_internal
 from ..params.table import BY_FIELD
@@ -367,7 +368,6 @@ def to_params(base: AxisParameters, point: dict, cycle_time: float | None = None
     try:
         p = base.replace(**point)
         if cycle_time is not None:
-            from ..control.controller import AxisDistanceController
             AxisDistanceController(p, cycle_time)
     except (ParameterError, ValueError, TypeError) as exc:
         raise SpaceError(f"parameter set {point_label(point)} is not valid: {exc}") from None

@@ -30,10 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..control.kinds import FilterType
+from ..base.kinds import FilterType
+from ..params import format_list
 from ..params.axis import AxisParameters
 from ..sim.surface import Surface
-from .metrics import METRIC_NAMES, METRIC_UNITS, wanted_distance
+from ..workbench.tables import render_table
+from .metrics import CHATTER_WEIGHT, METRIC_NAMES, METRIC_UNITS, SAT_WEIGHT, wanted_distance
 from .runner import Evaluator, SweepResult
 from .space import (D_TV_NOTE, DEFAULT_SPACE, NC_WORDS, Dim, SpaceError, build_sets, d_tv_applies, drop_inert_d_tv,
                     filter_fields, random_sample, resolution, round_point, round_value, to_params)
@@ -75,8 +77,6 @@ def nc_block(params: AxisParameters, axis: str = "Z") -> str:
 
 def param_list(params: AxisParameters) -> str:
     """The kernel list of ``params``, only the values that differ from the defaults."""
-    from ..params import format_list
-
     return format_list(params, only_changed=True)
 
 
@@ -244,8 +244,6 @@ class TuneResult:
                 "notes": self.notes}
 
     def report(self, plain: bool = True) -> str:
-        from ..workbench.tables import render_table
-
         names = ["cost"] + list(METRIC_NAMES)
         rows = [[n, METRIC_UNITS.get(n, "-"), _num(self.base_metrics.get(n)), _num(self.best_metrics.get(n))]
                 for n in names]
@@ -317,7 +315,7 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     go to :class:`Evaluator` (``mode``, ``scheduler``, ``n_workers``, ``progress`` ...)."""
     import time
 
-    from ..batch.closed_loop import prepare
+    from ..batch.closed_loop import prepare  # numba (optional: [fast], [tune]) loads only when a batch runs
     from ..sim.scenario import Scenario, load_scenario
 
     say = log or (lambda msg: None)
@@ -441,7 +439,6 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     finally:
         if own:
             ev.close()
-    from .metrics import CHATTER_WEIGHT, SAT_WEIGHT
 
     weights = {"osc_weight": osc_weight, "sat_weight": SAT_WEIGHT, "chatter_weight": CHATTER_WEIGHT,
                **getattr(ev, "cost_weights", {})}
@@ -459,6 +456,7 @@ def plot_before_after(scenario_or_inputs, base: AxisParameters, best: AxisParame
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    # numba (optional: [fast], [tune]) loads only when a batch runs
     from ..batch.closed_loop import LoopInputs, prepare, run_batch
 
     inputs = scenario_or_inputs if isinstance(scenario_or_inputs, LoopInputs) else prepare(scenario_or_inputs, cycles)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..control.states import HliTransition
+from ..base.states import HliTransition
 from ..errors import DistCtrlError
 from ..objects.channel3d import (
     CHANNEL3D_OBJECTS,

@@ -208,7 +208,7 @@ class PlcPanel:
 
 
 def _transition(number: int) -> str:
-    from ..control.states import HliTransition
+    from ..base.states import HliTransition
 
     try:
         return HliTransition(number).name

@@ -4,7 +4,7 @@ from __future__ import annotations
 from ..objects.browser import value_text
 from ..objects.channel3d import INDEX_GROUP_3D_BASE
 from ..objects.registry import SERVED_OBJECTS, index_offset
-from ..trace.recorder import HLI_STATE_NAMES
+from ..base.states import HLI_STATE_NAMES
 
 #: the "axis id" of channel 1's 3D objects in the hub's tables
 CHANNEL = 0

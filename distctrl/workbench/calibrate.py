@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DistCtrlError
+from ..errors import DistCtrlError, ExitCode
 from ..sim.config_errors import ConfigError
 from .identify.fit import CHAR_BIN, characteristic_points
 
@@ -188,7 +188,6 @@ def run_calibration(scenario, *, runs: int | None = None, speed: float | None = 
     program must select the sensor (``SENSOR_SOURCE=VARIABLE``) and leave the head above the sheet.
     ``surface`` (axis coordinates, mm): where the nozzle touches the sheet; default the scenario's
     surface under the head (a simulation knows it; on a machine, touch off)."""
-    from ..errors import ExitCode
     from ..sim.machine import Machine
     from ..sim.runner import load_program
 

@@ -29,11 +29,13 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from ..base.kinds import FILTER_TYPE_NAMES, FilterType
 from ..control.filters import FilterConfig, SensorFilter
-from ..control.kinds import FILTER_TYPE_NAMES, FilterType
 from ..errors import DistCtrlError, ParameterError
-from .tables import render_table
+from ..trace import Trace, is_trace_file, load_trace, sidecar_path
+from ..trace.plot import MAX_POINTS, envelope
 from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
+from .tables import render_table
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -375,8 +377,6 @@ def load_recording(path: str | os.PathLike, time_column: str | None = None, valu
     kept in ``Recording.warnings``) when an interval differs from it by more than 1 %: the filters
     run once per sample, as in the kernel's cycle, so the time axis is treated as uniform.
     """
-    from ..trace import is_trace_file, load_trace
-
     p = Path(path)
     if not p.is_file():
         raise RecordingError(f"{p}: no such file; expected a CSV recording (header row, one row per sample)")
@@ -773,8 +773,6 @@ def plot_overlay(t, signal, results: Sequence[FilterResult], path: str | os.Path
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-
-    from ..trace.plot import MAX_POINTS, envelope
 
     if path is not None:
         path = check_plot_path(path)

@@ -51,6 +51,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..base.kinds import SensorSource
+from ..base.states import HliState, Mode
+from ..control import law
+from ..control.controller import AxisDistanceController
 from ..errors import DistCtrlError
 from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
 
@@ -94,8 +98,6 @@ def filter_coefficients(fc: list[float]) -> tuple[list[float], list[float]]:
     ``K x + (1 - K) sum_i c_i x_(-(n-i))`` (the prediction from the n previous measurements, c oldest
     first); LOWPASS the product of the second-order sections.
     """
-    from ..control import law
-
     kind = int(fc[law.FC_KIND])
     n = int(fc[law.FC_N])
     if kind == law.PASS:
@@ -177,8 +179,6 @@ class LoopModel:
 
     def with_kp(self, kp: float) -> "LoopModel":
         """The same loop with another KP; the D gain follows KP as the core computes it."""
-        from ..control import law
-
         return dataclasses.replace(self, kp=float(kp), d_gain=law.derivative_gain(float(kp), self.d_tv,
                                                                                    self.cycle_time))
 
@@ -328,8 +328,6 @@ def model_from_parts(params, cycle_time: float, *, axis: str = "Z", mode: str = 
     filter (e.g. the values an NC block programmed). The gains and the filter coefficients are the
     ones the core itself derives (``AxisDistanceController.law_constants``).
     """
-    from ..control.controller import AxisDistanceController
-
     mode_u = str(mode).upper()
     if mode_u not in ("CONST_DIST", "SET_POS"):
         raise MarginsError(f"mode = {mode!r}; allowed: CONST_DIST or SET_POS")
@@ -402,8 +400,6 @@ def loop_model(scenario: "Scenario | str | os.PathLike", axis: str | None = None
     scenario's duration (at most 60 s) is modelled with the list's values in CONST_DIST, with a note.
     ``kp`` overrides KP (0 < KP <= 2). 3D (channel) distance control is not supported.
     """
-    from ..control.kinds import SensorSource
-    from ..control.states import HliState, Mode
     from ..sim.machine import Machine
     from ..sim.runner import load_program
     from ..sim.scenario import Scenario, load_scenario

@@ -14,16 +14,12 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..trace.recorder import json_default
-
 from ..errors import DistCtrlError
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..trace import Trace
+from ..trace import Trace
+from ..trace.recorder import json_default
 
 __all__ = ["to_parquet", "from_parquet", "ParquetError", "METADATA_KEY"]
 
@@ -86,8 +82,6 @@ def from_parquet(path: str | os.PathLike) -> "Trace":
     Units and meta come from the schema metadata; without it (a foreign file) the units come from the
     fields' ``unit`` metadata and the meta is empty. Nulls become NaN.
     """
-    from ..trace import Trace
-
     pa, pq = _pyarrow()
     path = Path(path)
     if not path.is_file():

@@ -25,7 +25,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..trace.recorder import HLI_STATE_NAMES
+from ..base.states import HLI_STATE_NAMES
+from ..params.channel import CHANNEL_LIST
+from ..params.listfile import format_list
+from ..trace import Trace
+from ..trace.plot import plot_trace
 from .pages import fmt, render
 from .plot_cli import add_event_markers, distance_error, events_from_meta, figure_bytes, slice_trace
 
@@ -34,7 +38,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from ..sim.runner import RunResult
     from ..sim.scenario import Scenario
-    from ..trace import Trace
 
 __all__ = ["write_report", "report_from_trace", "METRIC_UNITS", "REPORT_FILE"]
 
@@ -98,8 +101,6 @@ def _scope_signals(trace: "Trace") -> list[str] | None:
 
 
 def _scope_png(trace: "Trace", title: str, events: list[dict]) -> bytes:
-    from ..trace.plot import plot_trace
-
     fig = plot_trace(trace, signals=_scope_signals(trace), title=title)
     if trace.rows:
         add_event_markers(fig, events, float(trace.t[0]), float(trace.t[-1]))
@@ -116,8 +117,6 @@ def _largest_error(trace: "Trace") -> tuple[int, float, str | None] | None:
 
 
 def _zoom_png(trace: "Trace", title: str, events: list[dict]) -> tuple[bytes, str] | None:
-    from ..trace.plot import plot_trace
-
     found = _largest_error(trace)
     if found is None:
         return None
@@ -323,8 +322,6 @@ def _axes_view(axes: dict) -> dict:
 
 def _parameters_view(scenario: "Scenario") -> dict:
     """Per axis (and the channel) the list in the kernel format: the changed values and the full list."""
-    from ..params.listfile import format_list
-
     axes = []
     for name, ax in scenario.axes.items():
         source = f" ({ax.params_file})" if ax.params_file else " (no list: defaults)"
@@ -334,8 +331,6 @@ def _parameters_view(scenario: "Scenario") -> dict:
     channel = None
     ch = getattr(scenario, "channel_params", None)
     if ch is not None:
-        from ..params.channel import CHANNEL_LIST
-
         channel = {"source": f" ({scenario.channel_params_file})" if scenario.channel_params_file else "",
                    "changed": format_list(ch, only_changed=True, fmt=CHANNEL_LIST),
                    "full": format_list(ch, fmt=CHANNEL_LIST)}
@@ -392,8 +387,6 @@ def _trace_of(result: "RunResult") -> tuple["Trace | None", str]:
     if result.trace is not None:
         return result.trace, ""
     if result.trace_path and Path(result.trace_path).is_file():
-        from ..trace import Trace
-
         return Trace.from_csv(result.trace_path), ""
     return None, "The trace was not kept (keep_trace=False) and no trace file exists: no plots."
 
@@ -459,8 +452,6 @@ def report_from_trace(trace_csv: str | os.PathLike, out_dir: str | os.PathLike, 
     the trace, the errors/warnings (``errors``: a ``distctrl run --json`` object or list; default:
     the sidecar meta's ``errors``/``warnings`` if any), the timeline, the scope plot and the zoom.
     """
-    from ..trace import Trace
-
     src = Path(trace_csv)
     trace = Trace.from_csv(src)
     out = Path(out_dir)

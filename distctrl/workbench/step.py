@@ -39,7 +39,10 @@ from typing import TYPE_CHECKING, Any, Iterable, NamedTuple, Sequence
 
 import numpy as np
 
+from ..control.controller import AxisDistanceController
 from ..errors import DistCtrlError
+from ..params.listfile import parse_list_text
+from ..trace.plot import MAX_POINTS, envelope
 from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
 from .tables import render_table
 
@@ -327,7 +330,6 @@ def step_scenario(base: "Scenario | str | os.PathLike | None", setting: StepSett
     cycle time and seed; its program, surface, other axes and events are not used. The list must
     enable distance control (P-AXIS-00328); KP / I_TN / D_TV come from ``setting``.
     """
-    from ..params.listfile import parse_list_text
     from ..sim.scenario import Scenario, load_scenario, scenario_from_dict
 
     if not isinstance(setting, StepSetting):
@@ -686,8 +688,6 @@ def _limits(params, setting: StepSetting, cycle_time: float) -> dict[str, float]
     lowering weights applied when smaller) and ``linear_step_mm``: the largest step whose first cycle
     the PID answers inside them (the wanted step ``k·step`` with ``k = KP (1 + T/T_n) + g_D`` within
     ``v_max·T``, ``a_max·T²`` and the braking bound ``sqrt(2 a_max e)``)."""
-    from ..control.controller import AxisDistanceController
-
     ctrl = AxisDistanceController(params.replace(kp=setting.kp, i_tn=setting.i_tn, d_tv=setting.d_tv),
                                   cycle_time)
     c = ctrl.law_constants()
@@ -704,8 +704,6 @@ def _limits(params, setting: StepSetting, cycle_time: float) -> dict[str, float]
 def _axis_data(base: "Scenario | None") -> tuple[Any, float, dict[str, Any]]:
     """(parameter list, cycle time, sensor dict) of the axis a step runs on."""
     if base is None:
-        from ..params.listfile import parse_list_text
-
         return (parse_list_text(DEFAULT_AXIS_LIST, "<distctrl step default Z axis>").params, 0.001,
                 dict(DEFAULT_SENSOR, axis="Z"))
     axis = _step_axis(base)
@@ -1073,7 +1071,6 @@ def plot_steps(results: Sequence[StepResult], path: str | os.PathLike | None = N
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from ..trace.plot import MAX_POINTS, envelope
 
     if not results:
         raise StepError("plot_steps: no results; allowed: the list run_steps returns")

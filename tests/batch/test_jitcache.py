@@ -15,7 +15,7 @@ pytest.importorskip("numba")
 from distctrl.batch import closed_loop, jitcache, kernel, soa  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-ENTRY_POINTS = [soa.run_blocks, soa.block_loop, closed_loop.closed_loop, closed_loop._closed_loop_batch,
+ENTRY_POINTS = [closed_loop.run_blocks, soa.block_loop, closed_loop.closed_loop, closed_loop._closed_loop_batch,
                 kernel.run_setpos_loop, kernel.run_setpos_loop_into, kernel.run_setpos_batch]
 
 
@@ -31,14 +31,15 @@ def test_every_kernel_has_the_dependency_keyed_disk_cache(dispatcher):
 
 
 def test_the_stamp_covers_the_law_the_plant_and_the_kernels(tmp_path, monkeypatch):
-    for rel in ("batch/kernel.py", "control/law.py", "sim/physics.py", "errors/__init__.py", "sim/other.py"):
+    for rel in ("batch/kernel.py", "control/law.py", "sim/physics.py", "errors/__init__.py", "base/states.py",
+                "sim/other.py"):
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text(f"# {rel}\n")
     monkeypatch.setattr(jitcache, "_PKG", tmp_path)
     stamp = jitcache.sources_stamp()
     (tmp_path / "sim/other.py").write_text("# not a kernel source\nX = 1\n")
     assert jitcache.sources_stamp() == stamp
-    for rel in ("control/law.py", "sim/physics.py", "errors/__init__.py", "batch/kernel.py"):
+    for rel in ("control/law.py", "sim/physics.py", "errors/__init__.py", "base/states.py", "batch/kernel.py"):
         (tmp_path / rel).write_text((tmp_path / rel).read_text() + "X = 2\n")
         new = jitcache.sources_stamp()
         assert new != stamp, rel

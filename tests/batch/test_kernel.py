@@ -180,7 +180,7 @@ _REFERENCE_SCRIPT = r"""
 import json, sys
 from distctrl.control import law
 from distctrl.control.filters import FilterConfig, design_coefficients
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 import distctrl.control.controller  # the whole cycle core
 out = {}
 for ft in (FilterType.MOVING_AVERAGE, FilterType.EXPO_MEAN, FilterType.LOWPASS, FilterType.KALMAN_MA,

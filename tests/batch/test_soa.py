@@ -176,8 +176,8 @@ def test_outputs_that_are_not_contiguous_rows_take_ordinary_stores(tmp_path):
     wide_d = np.full((len(sets), 2 * n), -7.0)
     out_o, out_d = wide_o[:, ::2], wide_d[:, ::2]
     out_e = np.empty((len(sets), 2), dtype=np.int64)
-    soa.run_blocks(packed, lanes, counts, rest, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
-                   out_o, out_d, out_e)
+    CL.run_blocks(packed, lanes, counts, rest, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
+                  out_o, out_d, out_e)
     for x, y in zip(ref, (out_o, out_d, out_e)):
         assert np.array_equal(x, y, equal_nan=True)
     assert np.all(wide_o[:, 1::2] == -7.0) and np.all(wide_d[:, 1::2] == -7.0)    # nothing else written

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from distctrl.control import (Action, AxisDistanceController, Command, CycleInput, CycleOutput, FilterType,
                               HliState, ObjectWrite, SensorSource)
-from distctrl.control.states import MONITORED_STATES
+from distctrl.base.states import MONITORED_STATES
 from distctrl.params import AxisParameters
 
 S = HliState

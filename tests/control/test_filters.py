@@ -6,7 +6,7 @@ import pytest
 from scipy import signal
 
 from distctrl.control.filters import FilterConfig, SensorFilter
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 from distctrl.errors import ParameterError
 
 T = 0.001

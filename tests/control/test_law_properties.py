@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from distctrl.control import law
 from distctrl.control.filters import FilterConfig, SensorFilter
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 
 SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

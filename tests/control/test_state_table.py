@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
 from distctrl.control import Action, Command, ObjectWrite
-from distctrl.control.states import HliState
+from distctrl.base.states import HliState
 from distctrl.params import AxisParameters
 
 from .conftest import RUNNING, Plant

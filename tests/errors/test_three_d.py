@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from distctrl.control.states import InternalState
+from distctrl.base.states import InternalState
 from distctrl.errors import CATALOGUE, ErrorEvent, ErrorId, make_event
 from distctrl.errors.three_d import (AXIS_TO_3D, CATALOGUE_3D, ERROR_CODE_BY_ID_3D, THREE_D_TO_AXIS, event_to_3d,
                                make_event_3d, render, severity_and_text, to_3d_id)

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from distctrl.control.commands import Action, Command
 from distctrl.control.commands3d import Command3D, CompensationMode
-from distctrl.control.kinds import FilterType, SensorSource
+from distctrl.base.kinds import FilterType, SensorSource
 from distctrl.nc import (
     Assignment, BinOp, DistCtrl3DWord, KinematicsWord, NcSyntaxError, Num, Program, Var, kin_param_var, parse_file,
     parse_program,

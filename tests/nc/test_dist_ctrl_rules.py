@@ -6,7 +6,7 @@ import math
 import pytest
 
 from distctrl.control.commands import Action, Command
-from distctrl.control.kinds import FilterType, SensorSource
+from distctrl.base.kinds import FilterType, SensorSource
 from distctrl.errors import DistCtrlError
 from distctrl.nc import NcSyntaxError, dist_ctrl_range_error, parse_program
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from distctrl.control.commands import Action, Command
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 from distctrl.nc import Program, parse_file
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 from distctrl.errors import ParameterError
 from distctrl.params import AxisParameters, parse_list_text
 from distctrl.params.channel import (

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 from distctrl.errors import ParameterError
 from distctrl.params import AXIS_PARAMETERS, AxisParameters, format_list, load_list, parse_list_text
 

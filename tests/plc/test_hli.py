@@ -6,7 +6,7 @@ import pytest
 
 from distctrl.control import (Action, AxisDistanceController, Command, CommandSource, CycleInput, CycleOutput,
                               HliState)
-from distctrl.control.states import HliTransition
+from distctrl.base.states import HliTransition
 from distctrl.params import AxisParameters
 from distctrl.plc import (ChannelDistanceStatus, DistanceControlUnit, HliCyclicCommand, HliDistanceControlCommand,
                           HliDistanceControlState, SemaphoreBusyError, transition_number)

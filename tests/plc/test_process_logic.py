@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from distctrl.control import CycleOutput
-from distctrl.control.states import HliState, HliTransition
+from distctrl.base.states import HliState, HliTransition
 from distctrl.plc import DistanceControlUnit
 from distctrl.plc.process import (AutoSetValue, CornerLock, ProcessProgram, VoidLock)
 from distctrl.plc.process.channel import ChannelPathStatus

@@ -32,7 +32,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from distctrl.control import Action, Command, HliState
-from distctrl.control.states import MONITORED_STATES
+from distctrl.base.states import MONITORED_STATES
 from distctrl.params import AxisParameters
 
 from ..control.conftest import Plant, axis_parameters

@@ -28,7 +28,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
 from distctrl.control import Action, Command, CommandSource, ObjectWrite
-from distctrl.control.states import HliState, HliTransition
+from distctrl.base.states import HliState, HliTransition
 from distctrl.params import AxisParameters
 from distctrl.plc import DistanceControlUnit
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from distctrl.control.states import HliTransition
+from distctrl.base.states import HliTransition
 from distctrl.errors import DistCtrlError, ParameterError
 from distctrl.params.axis import AxisParameters
 from distctrl.sim.config_errors import ConfigError

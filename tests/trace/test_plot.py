@@ -106,7 +106,7 @@ def test_state_segments_and_names():
 
 
 def test_state_names_match_the_control_enum():
-    states = pytest.importorskip("distctrl.control.states")
+    states = pytest.importorskip("distctrl.base.states")
     assert HLI_STATE_NAMES == {int(s): s.name for s in states.HliState}
 
 

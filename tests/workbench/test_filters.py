@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from distctrl.control.filters import FilterConfig
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 from distctrl.errors import DistCtrlError
 from distctrl.trace import Trace
 from distctrl.workbench.filters import (DEFAULT_SPECS, FilterResult, FilterSpecError, RecordingError,

@@ -21,7 +21,7 @@ from scipy import signal
 
 from distctrl.cli import main
 from distctrl.control.filters import FilterConfig, SensorFilter
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 from distctrl.cli.demo import plain_const_dist_scenario
 from distctrl.sim.runner import run
 from distctrl.sim.scenario import load_scenario

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from distctrl.control.kinds import FilterType
+from distctrl.base.kinds import FilterType
 from distctrl.workbench.margins import analyse, loop_model, model_from_parts, resonance_polynomials
 from distctrl.workbench.step import StepSetting
 

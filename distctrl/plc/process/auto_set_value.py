@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 
-from ...control.states import HliState
+from ...base.states import HliState
 from ...sim.config_errors import require_number
 from .base import ProcessFunction, tracking_or_held
 

@@ -2,7 +2,7 @@
 switch that turns it on and off while the machine runs."""
 from __future__ import annotations
 
-from ...control.states import HliState
+from ...base.states import HliState
 from ...sim.config_errors import ConfigError
 from .hold import RUNNING_TRACKING, FreezeHold
 

@@ -42,7 +42,7 @@ ST equivalent (one instance per axis; ``bReq`` the OR of the lock requests)::
 """
 from __future__ import annotations
 
-from ...control.states import HliState, HliTransition
+from ...base.states import HliState, HliTransition
 from .plc_io import read_object
 
 __all__ = ["FreezeHold", "IDLE", "FREEZING", "FROZEN", "RELEASING", "RUNNING_TRACKING"]

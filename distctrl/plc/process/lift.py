@@ -64,7 +64,7 @@ and of the CNC part (what the CNC's lift does each GEO cycle; ``lrTau`` the time
 """
 from __future__ import annotations
 
-from ...control.states import HliState
+from ...base.states import HliState
 from ...sim.config_errors import require_number
 from ...sim.interpolator import brake_velocity, trapezoid_time
 from .base import ProcessFunction

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import DistCtrlError
+from ...trace import Trace, is_trace_file, load_trace, sidecar_path
 from ..filters import _TIME_UNITS, _VALUE_UNITS, _pick_column, _read_plain_csv, _unit_factor
 from .common import MIN_SAMPLES, MIN_SECONDS, IdentifyError
 
@@ -182,8 +183,6 @@ def load_signals(path: str | os.PathLike, *, time: str | None = None, command: s
     (default: ``value_unit``). ``actual_at``: ``start``/``end``/``auto`` (auto: end for a trace,
     start otherwise).
     """
-    from ...trace import is_trace_file, load_trace
-
     p = Path(path)
     if not p.is_file():
         raise IdentifyError(f"{p}: no such file; expected a CSV recording (header row, one row per cycle)")

@@ -17,6 +17,10 @@ class HliState(IntEnum):
     DRYRUN_SETPOS = 7
 
 
+#: HLI_DIST_CTRL_STATE_* names by value (docs/states.md), used to label ``*.dc.state`` changes
+HLI_STATE_NAMES: dict[int, str] = {int(s): s.name for s in HliState}
+
+
 class HliTransition(IntEnum):
     """HLI_DIST_CTRL_* transitions a PLC may command through ``command_w.transition``."""
 
