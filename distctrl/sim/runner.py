@@ -224,7 +224,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     columns, units = trace_columns(machine, record)
     parquet_path = Path(trace) if trace is not None and str(trace).lower().endswith(".parquet") else None
     if parquet_path is not None:
-        from ..workbench.parquet import require_pyarrow
+        from ..trace.parquet import require_pyarrow
         require_pyarrow()                       # fail before the run, not after it
         trace, keep_trace = None, True
         keep_at_most = None                     # the Parquet file is written from the kept rows: all of them
@@ -366,7 +366,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         if bar is not None:
             bar.close()
     if parquet_path is not None and kept is not None:
-        from ..workbench.parquet import to_parquet
+        from ..trace.parquet import to_parquet
         to_parquet(kept, parquet_path)
         trace = parquet_path
     if out3d is not None:

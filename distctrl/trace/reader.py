@@ -4,13 +4,14 @@
 * :func:`is_parquet`: a Parquet file (its magic bytes ``PAR1``, whatever its name);
 * :func:`is_trace_file`: a distctrl trace: a Parquet file, or a CSV with its ``.meta.json`` sidecar;
 * :func:`load_trace`: the :class:`~distctrl.trace.Trace` of either (Parquet through
-  :mod:`distctrl.workbench.parquet`, which needs pyarrow).
+  :mod:`distctrl.trace.parquet`, which needs pyarrow).
 """
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
+from .parquet import from_parquet
 from .recorder import Trace, sidecar_path
 
 __all__ = ["is_parquet", "is_trace_file", "load_trace"]
@@ -37,11 +38,9 @@ def load_trace(path: str | os.PathLike) -> Trace:
     """The trace in ``path``: Parquet (``run --trace x.parquet``) or CSV with its sidecar.
 
     Raises ``ValueError`` or ``OSError`` for a CSV that cannot be read, and
-    :class:`~distctrl.workbench.parquet.ParquetError` (a DistCtrlError) for a Parquet file that
+    :class:`~distctrl.trace.parquet.ParquetError` (a DistCtrlError) for a Parquet file that
     cannot (pyarrow missing, not numeric columns).
     """
     if is_parquet(path):
-        from ..workbench.parquet import from_parquet
-
         return from_parquet(Path(path))
     return Trace.from_csv(path)

@@ -298,7 +298,7 @@ def test_feed_hold_event_on_the_axis_holds_the_offset():
 
 def test_record_extra_object_values_and_parquet_and_errors_in_the_sidecar(tmp_path):
     pytest.importorskip("pyarrow")
-    from distctrl.workbench.parquet import from_parquet
+    from distctrl.trace.parquet import from_parquet
     r = run(SCN / "dist_1.toml", trace=tmp_path / "t.parquet", record=("a_max_int", "kp", "m_actual_offset"))
     tr = from_parquet(tmp_path / "t.parquet")
     assert tr.rows == r.cycles and tr.units["Z.dc.a_max_int"] == "mm/s²"

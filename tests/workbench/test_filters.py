@@ -565,7 +565,7 @@ def test_cli_reads_a_parquet_trace_as_its_csv_twin(tmp_path):
     import json
 
     from distctrl.trace import Trace
-    from distctrl.workbench.parquet import to_parquet
+    from distctrl.trace.parquet import to_parquet
 
     t, x, _ = obstacle_signal(0.001, noise_std=0.02, seed=3)
     tr = Trace(["t", "Z.dc.sensor"], np.column_stack([t, x]), units={"t": "s", "Z.dc.sensor": "mm"})

@@ -139,7 +139,7 @@ def test_a_parquet_trace_reads_as_its_csv_twin(files, tmp_path):
     import numpy as np
 
     from distctrl.trace import Trace
-    from distctrl.workbench.parquet import to_parquet
+    from distctrl.trace.parquet import to_parquet
 
     args = []
     for name in ("steps", "chirp", "ramp"):

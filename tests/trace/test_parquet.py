@@ -1,4 +1,4 @@
-"""Traces as Parquet (distctrl.workbench.parquet): exact round trip with units and meta in the schema
+"""Traces as Parquet (distctrl.trace.parquet): exact round trip with units and meta in the schema
 metadata; a clear error when pyarrow is missing."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from distctrl.errors import DistCtrlError
 from distctrl.trace import Trace
-from distctrl.workbench.parquet import METADATA_KEY, ParquetError, from_parquet, to_parquet
+from distctrl.trace.parquet import METADATA_KEY, ParquetError, from_parquet, to_parquet
 
 ROOT = Path(__file__).resolve().parents[2]
 
