@@ -106,10 +106,15 @@ class Live:
         self.model.values = delta
 
 
+#: the name of the object browser's table: the page script redraws its grid after a change of its source
+TABLE_NAME = "dc-objects"
+
 #: the page's script (in the page template; the Content-Security-Policy allows inline scripts, not
 #: eval, so no CustomJS): finds the live model, applies every delta to the elements ``[data-k]``
 #: (looked up once through the Bokeh views' shadow roots, again when one has been re-rendered),
-#: acknowledges the frame after the browser has drawn it, and shows "behind" / "stalled".
+#: acknowledges the frame after the browser has drawn it, and shows "behind" / "stalled". It also redraws
+#: the object browser's grid when its source changes: Bokeh 3.9's DataTable redraws only when its view's
+#: indices change (CDSView sets equal indices silently), so patched values stood still on the page.
 PAGE_JS = """
 (function () {
   const BEHIND = %(behind)s, STALL = %(stall)s;
@@ -176,8 +181,21 @@ PAGE_JS = """
     scan();
     live.properties.values.change.connect(apply);
     apply();
+    let table = null;
+    for (const doc of Bokeh.documents) { table = doc.get_model_by_name('%(table)s'); if (table) break; }
+    if (table) {
+      const redraw = () => {
+        const walk = (v) => {
+          if (v.model === table) { if (v.updateGrid) v.updateGrid(); return; }
+          for (const c of (v.child_views || [])) walk(c);
+        };
+        for (const root of Object.values(Bokeh.index)) walk(root);
+      };
+      table.source.patching.connect(redraw);
+      table.source.properties.data.change.connect(redraw);
+    }
     setInterval(indicator, 250);
   };
   find();
 })();
-""" % {"behind": BEHIND_S, "stall": STALL_S}
+""" % {"behind": BEHIND_S, "stall": STALL_S, "table": TABLE_NAME}

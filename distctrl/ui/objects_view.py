@@ -11,13 +11,10 @@ from __future__ import annotations
 
 from bokeh.layouts import column, row
 from bokeh.models import (
-    AllIndices,
     Button,
-    CDSView,
     ColumnDataSource,
     DataTable,
     Div,
-    GroupFilter,
     NumericInput,
     Select,
     TableColumn,
@@ -25,7 +22,7 @@ from bokeh.models import (
 
 from ..objects.registry import SERVED_OBJECTS
 from .hub import MachineHub, object_table
-from .live import STYLE, Live, span
+from .live import STYLE, TABLE_NAME, Live, span
 
 COLUMNS = (("axis", "Axis", 60), ("group", "Group", 80), ("offset", "Offset", 80), ("name", "Name", 260),
            ("type", "Type", 70), ("unit", "Unit", 80), ("raw", "Raw value", 130), ("value", "Value", 140),
@@ -43,11 +40,12 @@ class ObjectBrowser:
     def __init__(self, hub: MachineHub, live: Live | None = None):
         self.hub = hub
         self.live = live or Live()
-        self.source = ColumnDataSource(object_table(hub))
+        # the source holds the shown rows only (one axis: 31 rows to compare and patch, not all axes')
+        self.source = ColumnDataSource({f: [] for f, _, _ in COLUMNS})
         self.table = DataTable(source=self.source, columns=[TableColumn(field=f, title=t, width=w)
                                                             for f, t, w in COLUMNS],
                                height=ROW_PX * 10, sizing_mode="stretch_width", index_position=None,
-                               css_classes=["obj-table"])
+                               css_classes=["obj-table"], name=TABLE_NAME)
         writable = [s.name for s in SERVED_OBJECTS if s.writable]
         self.writable = {"axis": writable, "channel": [s.name for s in hub.channel_objects if s.writable]}
         axes = [f"{i} {c.axis_name}" for i, c in hub.contexts.items()]
@@ -74,19 +72,23 @@ class ObjectBrowser:
                              self.table, sizing_mode="stretch_width")
         self._frame = 0
 
-    def visible_rows(self) -> list[int]:
-        """The table rows shown (by the axis filter)."""
-        n = len(self.source.data["axis"])
+    def visible_rows(self, data: dict | None = None) -> list[int]:
+        """The rows of :func:`object_table` shown (by the axis filter)."""
+        axes = (data if data is not None else object_table(self.hub))["axis"]
         if self.show.value == "all axes":
-            return list(range(n))
-        return [i for i, a in enumerate(self.source.data["axis"]) if a == self.show.value]
+            return list(range(len(axes)))
+        return [i for i, a in enumerate(axes) if a == self.show.value]
+
+    def _shown(self, data: dict) -> dict:
+        """The table's columns for the shown rows."""
+        rows = self.visible_rows(data)
+        return {f: [data[f][i] for i in rows] for f, _, _ in COLUMNS}
 
     def _filter(self) -> None:
-        """Show the chosen axis's objects (a user's choice: the table is laid out anew, once)."""
-        value = self.show.value
-        self.table.view = CDSView(filter=AllIndices() if value == "all axes" else
-                                  GroupFilter(column_name="axis", group=value))
-        self.table.height = ROW_PX * (min(len(self.visible_rows()), MAX_ROWS) + 1) + 4
+        """Show the chosen axis's objects (a user's choice: the table is filled and laid out anew, once)."""
+        shown = self._shown(object_table(self.hub))
+        self.source.data = shown
+        self.table.height = ROW_PX * (min(len(shown["axis"]), MAX_ROWS) + 1) + 4
 
     def _names(self, axis: str) -> None:
         names = self.writable["channel" if axis.startswith("0 ") else "axis"]
@@ -115,10 +117,12 @@ class ObjectBrowser:
         self._frame = 0
         data = object_table(self.hub)
         old = self.source.data
-        # only the cells that changed (a table redrawn whole five times a second costs the browser)
+        shown = self._shown(data)
+        # only the cells that changed (a table redrawn whole five times a second costs the browser); the
+        # page script redraws the grid after a patch (PAGE_JS: Bokeh 3.9's table does not on its own)
         patches = {}
         for key in ("raw", "value", "pending"):
-            changed = [(i, v) for i, (v, w) in enumerate(zip(data[key], old[key])) if v != w]
+            changed = [(i, v) for i, (v, w) in enumerate(zip(shown[key], old[key])) if v != w]
             if changed:
                 patches[key] = changed
         if patches:

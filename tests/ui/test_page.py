@@ -142,6 +142,19 @@ def test_object_write_shows_pending_then_adopted(served, page):
     expect(page.locator(".obj-status .bk-clearfix")).to_contain_text("raw 0.5 -")
 
 
+def test_the_object_table_shows_what_the_machine_has_now(served, page):
+    """The table's shown cells follow the machine, not only its data: with the axis filter (a CDSView)
+    Bokeh's DataTable drew the patched source's old values (DIST_CTRL::state IDLE while ACTIVE)."""
+    bring_to(served, "OFF", 0)
+    tab(page, "Object browser")
+    state_row = page.locator(".obj-table .slick-row", has_text="DIST_CTRL::state")
+    expect(state_row).to_contain_text("IDLE", timeout=3000)
+    bring_to(served, "ON", 1)
+    expect(state_row).to_contain_text("ACTIVE", timeout=3000)
+    bring_to(served, "OFF", 0)
+    expect(state_row).to_contain_text("IDLE", timeout=3000)
+
+
 def test_object_write_out_of_range_is_refused_in_the_page(served, page):
     tab(page, "Object browser")
     page.locator(".obj-name select").select_option("DIST_CTRL::kp")
