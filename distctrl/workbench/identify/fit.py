@@ -55,6 +55,8 @@ class Identification:
     fit: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    #: standard deviations of the identified figures: {"drive": {key: sd}, "sensor": {key: sd}}
+    uncertainty: dict = field(default_factory=dict)
     recordings: list[dict] = field(default_factory=list)
     # for the report: per recording (t, X, S, Y) and model curves
     curves: dict = field(default_factory=dict)
@@ -505,7 +507,8 @@ def characteristic_points(x: np.ndarray, y: np.ndarray, bin_width: float = CHAR_
 
 
 def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float, surface: float | None,
-                    calibrated_at: float | None, gain: float | None, res: Identification) -> dict:
+                    calibrated_at: float | None, gain: float | None, res: Identification,
+                    model_points=None) -> dict:
     xs, ys = [], []
     for r in recs:
         ok = _quasi_static(r, T, settle)
@@ -519,6 +522,10 @@ def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float,
                             f"{RECORD_STANDSTILL} and {RECORD_RAMP}")
         return out
     pts, resid, slopes = characteristic_points(x, y)
+    if model_points and len(model_points) >= 2:
+        # the complete model of the sensor path (every sample, the nozzle's motion modelled) gives the
+        # characteristic over the whole range moved, also where settling excludes quasi-static samples
+        pts = list(model_points)
     if resid:
         rr = np.concatenate(resid)
         std = float(np.sqrt(np.mean(rr * rr)))
@@ -591,13 +598,15 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
     if all(drive[k] is None for k in ("kv", "v_max", "a_max")) and np.ptp(np.concatenate([r.S for r in recs])) < 1e-3:
         raise IdentifyError("excitation too poor: the command moves less than 1 um; record "
                             f"{RECORD_STEPS}, {RECORD_CHIRP} and {RECORD_RAMP}")
-    # sensor path: frequency response motor -> sensor
+    # sensor path: frequency response motor -> sensor (a first look: the band, the gain, a hint of the
+    # resonance), then the complete model of the motor -> sensor path in the time domain (nozzle.py)
     frf = _frf(recs, T)
-    fr = _fit_frf(*frf[:3], T, res) if frf is not None else {"resonance_hz": None, "damping": None, "delay": None,
-                                                             "gain": None}
-    if frf is None:
-        _warn(res.warnings, f"sensor delay and resonance: recordings too short for a frequency response; record "
-                            f"{RECORD_CHIRP}")
+    scratch = Identification(cycle_time=T, drive={}, sensor={})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fr = _fit_frf(*frf[:3], T, scratch) if frf is not None else {"resonance_hz": None, "damping": None,
+                                                                      "delay": None, "gain": None}
+    _sensor_path(recs, T, res, fr, scratch.warnings)
     res.drive["resonance_hz"] = fr.get("resonance_hz")
     res.drive["damping"] = fr.get("damping")
     res.sensor["delay"] = fr.get("delay")
@@ -609,10 +618,11 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
         settle = max(settle, 5.0 / (2 * math.pi * res.drive["resonance_hz"] * res.drive["damping"]))
     settle = min(settle, 2.0)
     delay = res.sensor["delay"] if res.sensor["delay"] is not None else (fr.get("_model") or (0, 0))[1]
-    ch = _characteristic(recs, T, delay or 0.0, settle, surface, calibrated_at, fr.get("gain"), res)
-    res.sensor["noise_std"] = ch["noise_std"]
+    ch = _characteristic(recs, T, delay or 0.0, settle, surface, calibrated_at, fr.get("gain"), res,
+                         model_points=fr.get("points_motor"))
+    res.sensor["noise_std"] = fr["noise_std"] if fr.get("noise_std") is not None else ch["noise_std"]
     res.sensor["characteristic"] = ch["characteristic"]
-    if ch["noise_std"] is None and not any("noise_std" in w for w in res.warnings):
+    if res.sensor["noise_std"] is None and not any("noise_std" in w for w in res.warnings):
         _warn(res.warnings, f"noise_std: no quasi-static samples; record {RECORD_STANDSTILL}")
     res.extra.update({"sensor_gain": fr.get("gain"), "surface_mm": ch.get("surface"),
                       "frequency_band_hz": fr.get("band_hz"), "sensor_delay_sd_s": fr.get("delay_sd"),
@@ -627,6 +637,64 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
     res.curves["frf_fit"] = fr
     res.curves["char_points"] = ch.get("points_motor")
     return res
+
+
+#: the sensor delay is reported when its standard deviation is below this (s)
+DELAY_SD_MAX = 0.3e-3
+
+
+def _sensor_path(recs, T: float, res: Identification, fr: dict, frf_warnings: list[str]) -> None:
+    """Resonance, damping, sensor delay and noise from the complete model of the motor -> sensor path in
+    the time domain (:mod:`.nozzle`), started from the frequency response ``fr`` (updated in place). The
+    frequency response's own warnings are kept only where the time-domain fit does not determine the
+    figure either."""
+    from .nozzle import fit_sensor_path
+
+    if max(float(np.ptp(r.X)) for r in recs) <= 0.0:
+        for w in frf_warnings:
+            _warn(res.warnings, w)
+        return
+    tp = fit_sensor_path(recs, T, f_hint=fr.get("resonance_hz"))
+    sd = tp["sd"]
+    res.extra["sensor_path"] = {"likelihood_ratio_resonant_vs_rigid": tp["lr"], "candidate": tp.get("candidate"),
+                                "samples": tp["n"], "sensor_quantum_mm": tp["quantum"] or None}
+    band = fr.get("band_hz")
+    if tp["resonance_hz"] is None:
+        cand = tp.get("candidate") or {}
+        if cand and tp["lr"] >= 50.0:
+            _warn(res.warnings, f"resonance_hz, damping: a mode near {cand['resonance_hz']:.3g} Hz shows, but the "
+                                f"recordings do not determine it (±{100 * cand['resonance_rel_sd']:.2g} %); record "
+                                f"{RECORD_CHIRP}")
+        else:
+            top = f" up to {band[1]:.0f} Hz" if band else ""
+            _warn(res.warnings, f"resonance_hz, damping: no resonance between motor and nozzle{top} (a rigid drive "
+                                "fits the motor -> sensor path: the scenario keeps resonance_hz = 0)")
+    for w in frf_warnings:
+        if w.startswith("resonance_hz") or w.startswith("sensor delay"):
+            continue
+        _warn(res.warnings, w)
+    delay_sd = sd.get("delay", math.inf)
+    delay = tp["delay"] if delay_sd <= DELAY_SD_MAX else None
+    if delay is None:
+        _warn(res.warnings, f"sensor delay: uncertain by {delay_sd * 1e3:.2g} ms with this excitation; record "
+                            f"{RECORD_CHIRP}")
+    g = fr.get("gain") or tp["gain"]
+    fr.update(resonance_hz=tp["resonance_hz"], damping=tp["damping"], delay=delay, delay_sd=delay_sd,
+              noise_std=tp["noise_std"], gain=g, points_motor=tp["points_motor"])
+    fr["_model"] = (g, tp["delay"], tp["resonance_hz"], tp["damping"])
+    if fr.get("_points") is not None:            # the frequency response against the final model
+        fs_, Hs, cs = fr["_points"]
+        w = np.sqrt(cs / (1.0 - cs))
+        model = g * np.exp(-2j * np.pi * fs_ * tp["delay"])
+        if tp["resonance_hz"]:
+            model = model * _mode(fs_, tp["resonance_hz"], tp["damping"])
+        err = np.linalg.norm(w * (model - Hs)) / max(np.linalg.norm(w * Hs), 1e-300)
+        fr["frf_fit_percent"] = float(100.0 * (1.0 - err))
+    res.fit["sensor_path_rms_mm"] = math.sqrt(tp["rss"] / max(tp["n"], 1))
+    res.uncertainty.setdefault("drive", {}).update(
+        {k: sd.get(k) for k in ("resonance_hz", "damping") if tp[k] is not None})
+    res.uncertainty.setdefault("sensor", {}).update(
+        {"delay": delay_sd if delay is not None else None, "noise_std": sd.get("noise_std")})
 
 
 def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
