@@ -65,8 +65,22 @@ def main(argv=None) -> dict:
             print(f"seed {seed:3d}: {r['seconds']:5.2f} s  {'all ok' if not bad else 'FAIL ' + ', '.join(bad)}",
                   flush=True)
     rates = {q: sum(r["pass"][q] for r in rows) / len(rows) for q in QUANTITIES}
+    # how honest the uncertainties are: |error| / standard deviation per quantity (median, 90th pct)
+    ratios = {}
+    for q in ("kv", "dead_time", "resonance_hz", "damping", "delay", "noise_std"):
+        group = "sensor" if q in ("delay", "noise_std") else "drive"
+        vals = []
+        for r in rows:
+            sd = ((r.get("uncertainty") or {}).get(group) or {}).get(q)
+            est = r["estimate"].get(q)
+            if sd and est is not None:
+                vals.append(abs(est - r["truth"][q]) / sd)
+        if vals:
+            vals.sort()
+            ratios[q] = {"median": round(vals[len(vals) // 2], 2), "p90": round(vals[int(0.9 * (len(vals) - 1))], 2)}
     out = {"plants": len(rows), "seeds": [args.first_seed, args.first_seed + args.n - 1], "tolerances": TOL,
            "pass_rate": {k: round(v, 3) for k, v in rates.items()},
+           "error_over_sd": ratios,
            "all_within": round(sum(all(r["pass"].values()) for r in rows) / len(rows), 3),
            "seconds_max": max(r["seconds"] for r in rows),
            "seconds_median": sorted(r["seconds"] for r in rows)[len(rows) // 2], "per_plant": rows}

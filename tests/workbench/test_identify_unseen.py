@@ -66,3 +66,40 @@ def test_uncertainty_says_how_sure(fitted):
     assert u["drive"]["resonance_hz"] > 0 and u["drive"]["damping"] > 0
     assert u["sensor"]["delay"] > 0 and u["sensor"]["noise_std"] > 0
     assert u["drive"]["resonance_hz"] < 0.05 * res.drive["resonance_hz"]
+
+
+def test_json_uncertainty_beside_the_pinned_keys_and_validation_on_a_recording_not_fitted(tmp_path):
+    """--json: "uncertainty" has the pinned keys of "drive" and "sensor" (null where the figure is null);
+    --validate REC.csv: the prediction error on a recording the fit did not use, the sensor's about the
+    noise (the complete model explains everything else)."""
+    import json
+
+    from click.testing import CliRunner
+
+    from distctrl.cli import main
+    from tests.workbench.unseen_plants import chirp_command, simulate
+
+    seed = 5
+    plant = random_plant(seed)
+    paths = []
+    for name, rows in recordings(plant, seed).items():
+        p = tmp_path / f"{name}.csv"
+        write_csv(p, *rows)
+        paths.append(str(p))
+    other = tmp_path / "chirp_other.csv"
+    write_csv(other, *simulate(plant, chirp_command(np.random.default_rng(1), 8.0, plant.surface + 1.3), seed=99))
+    r = CliRunner().invoke(main, ["identify", *paths, "--command", "set_pos", "--actual", "act_pos", "--sensor",
+                                  "sensor", "--surface", "10", "--json", "--validate", str(other)],
+                           catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.output)
+    for group in ("drive", "sensor"):
+        assert set(out["uncertainty"][group]) == set(out[group])
+        for k, v in out[group].items():
+            sd = out["uncertainty"][group][k]
+            assert (sd is None) == (v is None) or (v is not None and k in ("v_max", "a_max"))
+    assert out["uncertainty"]["drive"]["resonance_hz"] > 0
+    (val,) = out["validation"]["recordings"]
+    assert val["path"].endswith("chirp_other.csv")
+    assert val["drive_fit_percent"] > 95.0
+    assert 0.8 < val["sensor_rms_over_noise"] < 1.3

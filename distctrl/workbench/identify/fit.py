@@ -57,6 +57,8 @@ class Identification:
     warnings: list[str] = field(default_factory=list)
     #: standard deviations of the identified figures: {"drive": {key: sd}, "sensor": {key: sd}}
     uncertainty: dict = field(default_factory=dict)
+    #: the prediction error on recordings not used for the fit (``validate``), else None
+    validation: dict | None = None
     recordings: list[dict] = field(default_factory=list)
     # for the report: per recording (t, X, S, Y) and model curves
     curves: dict = field(default_factory=dict)
@@ -243,10 +245,54 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         return out
     out["kv"], out["dead_time"] = -math.log1p(-alpha) / T, theta
     out["v_max"], out["a_max"] = v_max, a_max
+    res.uncertainty.setdefault("drive", {}).update(
+        _drive_uncertainty(recs, T, theta, scale, alpha, v_max, a_max))
     if v_max is None or a_max is None:
         _limit_bounds(recs, T, res, v_max is None, a_max is None)
     res.extra["drive_samples_velocity_limited"] = n_v
     res.extra["drive_samples_acceleration_limited"] = n_a
+    return out
+
+
+def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max) -> dict:
+    """Standard deviations of kv, the dead time and the limits (statistical: the one-step equation's
+    residuals taken as white noise of the robust scale). kv from the least squares on the inliers; the
+    dead time from the curvature of the cost (which counts squared residuals in units of the scale, so
+    it rises by 1 at one standard deviation ... by 2 of the half-curvature); the limits from the spread
+    of the saturated samples."""
+    z, y, yp = _drive_rows(recs, theta, T)
+    r = y - alpha * z
+    inl = np.abs(r) <= 4.0 * scale
+    szz = float(np.dot(z[inl], z[inl]))
+    kv_sd = (scale / math.sqrt(szz)) / (T * (1.0 - alpha)) if szz > 0 else None
+    h = 0.25 * T
+    c0 = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
+    cm = _limited_cost(recs, T, max(theta - h, 0.0), scale, alpha, v_max, a_max)
+    cp = _limited_cost(recs, T, theta + h, scale, alpha, v_max, a_max)
+    curv = (cp - 2.0 * c0 + cm) / (h * h)
+    # the residuals are not white where the model misses something (the mode, the limits within a
+    # cycle): N / (1 + 2 sum rho_k) independent samples (lags up to 50 cycles)
+    rc = np.where(inl, r, 0.0)
+    rc = rc - rc.mean()
+    den = float(np.dot(rc, rc))
+    infl = 1.0
+    if den > 0:
+        rho = [float(np.dot(rc[:-k], rc[k:])) / den for k in range(1, 51)]
+        infl = max(1.0, 1.0 + 2.0 * sum(rho))
+    out = {"kv": kv_sd * math.sqrt(infl) if kv_sd is not None else None,
+           "dead_time": (math.sqrt(2.0 / curv) if curv > 0 else h) * math.sqrt(infl)}
+    v, vp, vd = y / T, yp / T, alpha * z / T
+    sv = 3.0 * scale / T + 1e-9
+    if v_max is not None:
+        sat = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.abs(v - vp) < 0.05 * np.abs(v) + 3 * sv) & \
+              (np.abs(v) > 10 * sv)
+        n = int(sat.sum())
+        out["v_max"] = 1.25 * float(np.std(np.abs(v[sat]))) / math.sqrt(n) + sv / math.sqrt(max(n, 1)) if n else None
+    if a_max is not None:
+        dv = np.abs(v - vp)
+        big = dv >= 0.9 * a_max * T
+        n = int(big.sum())
+        out["a_max"] = float(np.std(dv[big])) / T / math.sqrt(n) + sv / T / math.sqrt(max(n, 1)) if n else None
     return out
 
 
@@ -567,13 +613,15 @@ def _sign(recs: Sequence[_Rec]) -> float:
 
 
 def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, surface: float | None = None,
-             calibrated_at: float | None = None) -> Identification:
+             calibrated_at: float | None = None, validate: Sequence[Signals] = ()) -> Identification:
     """Fit the drive and the sensor to the recordings (see the module docstring).
 
     ``sensor_sign``: +1 if the sensor reads nozzle - surface (a distance), -1 if surface - nozzle
     (encoder 2, s = -d); None: detected from the correlation with the motor. ``surface``: the
     surface height in the actual column's coordinates (fixes the zero of the true distance for the
     characteristic); ``calibrated_at``: instead, the distance (mm) at which the sensor reads true.
+    ``validate``: recordings not used for the fit; the fitted plant's prediction error on them goes to
+    ``Identification.validation``.
     """
     if not signals:
         raise IdentifyError("no recording given")
@@ -629,6 +677,12 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
                       "quasi_static_samples": ch.get("quasi_static_samples"), "settle_s": settle,
                       "noise_samples": ch.get("noise_samples")})
     _fit_quality(recs, T, res, fr, ch)
+    if validate:
+        for v in validate:
+            if abs(v.cycle_time - T) > 0.01 * T:
+                raise IdentifyError(f"{v.path}: cycle {v.cycle_time * 1e3:.6g} ms, the fitted recordings "
+                                    f"{T * 1e3:.6g} ms; record the validation at the same cycle")
+        res.validation = _validate([_prepare(v, sign) for v in validate], T, res, fr, ch)
     res.recordings = [{"path": s.path, "source": s.source, "samples": int(s.t.size), "duration_s": s.duration,
                        "columns": {"command": s.columns[0], "actual": s.columns[1], "sensor": s.columns[2]},
                        "actual_sampled_at": s.actual_at, "cycle_time_s": s.cycle_time} for s in signals]
@@ -694,7 +748,45 @@ def _sensor_path(recs, T: float, res: Identification, fr: dict, frf_warnings: li
     res.uncertainty.setdefault("drive", {}).update(
         {k: sd.get(k) for k in ("resonance_hz", "damping") if tp[k] is not None})
     res.uncertainty.setdefault("sensor", {}).update(
-        {"delay": delay_sd if delay is not None else None, "noise_std": sd.get("noise_std")})
+        {"delay": delay_sd if delay is not None else None, "noise_std": sd.get("noise_std"),
+         "characteristic": sd.get("characteristic")})
+
+
+def _nozzle_at_sensor(r: _Rec, T: float, f0, zeta, tau: float) -> np.ndarray:
+    """The nozzle the sensor sees at each row (the model of the sensor path, :mod:`.nozzle`)."""
+    from .nozzle import _paths, nozzle_delayed
+
+    return nozzle_delayed(_paths([r], T)[0], T, f0, zeta, tau)
+
+
+def _validate(recs: Sequence[_Rec], T: float, res: Identification, fr: dict, ch: dict) -> dict:
+    """The fitted plant's prediction error on recordings not used for the fit: the motor simulated from
+    the command (RMS, fit %), the sensor predicted from the measured motor by the complete model (mode,
+    delay, characteristic; RMS, and its ratio to the identified noise: about 1 when the model explains
+    everything but the noise)."""
+    d = res.drive
+    out = []
+    model = fr.get("_model")
+    pts = ch.get("points_motor")
+    for r in recs:
+        row = {"path": r.sig.path, "samples": int(r.X.size)}
+        if d.get("kv") is not None:
+            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"])
+            e = r.X - xh
+            den = float(np.linalg.norm(r.X - r.X.mean()))
+            row["drive_rms_mm"] = float(np.sqrt(np.mean(e * e)))
+            row["drive_fit_percent"] = float(100.0 * (1.0 - np.linalg.norm(e) / den)) if den > 0 else None
+        if model is not None and pts:
+            g, tau, f0, zeta = model
+            nd = _nozzle_at_sensor(r, T, f0, zeta, max(tau, 0.0))
+            yh = np.interp(nd, [p[0] for p in pts], [p[1] for p in pts])
+            e = (r.Y - yh)[32:-32]
+            row["sensor_rms_mm"] = float(np.sqrt(np.mean(e * e)))
+            noise = res.sensor.get("noise_std")
+            if noise:
+                row["sensor_rms_over_noise"] = row["sensor_rms_mm"] / (noise * abs(fr.get("gain") or 1.0))
+        out.append(row)
+    return {"recordings": out}
 
 
 def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
@@ -720,8 +812,7 @@ def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
         g, tau, f0, zeta = model
         errs = []
         for r in recs:
-            n = nozzle_from_motor(r.X, T, f0, zeta)
-            nd = _delayed(n, max(tau, 0.0) / T)
+            nd = _nozzle_at_sensor(r, T, f0, zeta, max(tau, 0.0))
             pts = ch.get("points_motor")
             if ch.get("characteristic") is not None and pts:
                 yh = np.interp(nd, [p[0] for p in pts], [p[1] for p in pts])

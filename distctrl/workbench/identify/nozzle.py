@@ -115,7 +115,8 @@ class _Basis:
             D = np.diff(np.eye(m), 2, axis=0)
             self._pen = D.T @ D
         lam = 1e-3 * max(float(np.mean(np.diag(A))), 1.0)
-        c = np.linalg.solve(A + lam * self._pen, b)
+        self._normal = A + lam * self._pen
+        c = np.linalg.solve(self._normal, b)
         self.support = np.bincount(i, a0, m) + np.bincount(i + 1, w, m)
         r = y - (c[i] * a0 + c[i + 1] * w)
         return c, r, (np.diff(c)[i] / KNOT if slopes else None)
@@ -139,6 +140,28 @@ class SensorPath:
         if full:
             return r, c, ns, slopes
         return r
+
+    def jacobian(self, f0, zeta, delay) -> np.ndarray:
+        """d residual / d (ln f0, ln zeta, delay), the characteristic held (variable projection's
+        approximation): -C'(n) dn/dp, dn/dp exact in the frequency domain."""
+        ns = [nozzle_delayed(p, self.T, f0, zeta, delay)[EDGE:-EDGE] for p in self.paths]
+        ys = [p.Y[EDGE:-EDGE] for p in self.paths]
+        _, _, slopes = self.basis.solve(ns, ys, slopes=True)
+        cols = []
+        for p in self.paths:
+            s = 2j * np.pi * p.f
+            w0 = 2 * np.pi * f0
+            N = w0 * w0 + 2 * zeta * w0 * s
+            D = s * s + 2 * zeta * w0 * s + w0 * w0
+            E = np.exp(-s * delay)
+            dM_dlnf = w0 * ((2 * w0 + 2 * zeta * s) * D - N * (2 * zeta * s + 2 * w0)) / (D * D)
+            dM_dlnz = zeta * 2 * w0 * s * s * s / (D * D)
+            M = N / D
+            parts = [np.fft.irfft(p.Xf * g, p.nfft)[: p.n] for g in (dM_dlnf * E, dM_dlnz * E, -s * M * E)]
+            # the line (rigid, delayed) contributes to d/d delay only
+            parts[2] = parts[2] - p.slope / self.T
+            cols.append(np.column_stack(parts)[EDGE:-EDGE])
+        return -np.concatenate(cols) * slopes[:, None]
 
     def rss(self, f0, zeta, delay) -> float:
         r = self.residuals(f0, zeta, delay)
@@ -182,7 +205,7 @@ def fit_sensor_path(recs, T: float, f_hint: float | None = None) -> dict:
     tau_rigid = float(fr.x[0])
     # 2. f0 x zeta on a grid at that delay
     fmax = 0.4 / T
-    f_grid = np.exp(np.linspace(math.log(3.0), math.log(fmax), 30))
+    f_grid = np.exp(np.linspace(math.log(3.0), math.log(fmax), 24))
     if f_hint:
         f_grid = np.append(f_grid, f_hint)
     z_grid = (0.02, 0.07, 0.25)
@@ -202,14 +225,16 @@ def fit_sensor_path(recs, T: float, f_hint: float | None = None) -> dict:
     def fun(p):
         return sp.residuals(math.exp(p[0]), math.exp(p[1]), p[2])
 
+    def jac(p):
+        return sp.jacobian(math.exp(p[0]), math.exp(p[1]), p[2])
+
     best = None
     lb = [math.log(1.0), math.log(0.002), 0.0]
     ub = [math.log(0.45 / T), math.log(1.5), DELAY_MAX]
     for _, f0, z in starts:
         x0 = [math.log(f0), math.log(z), min(max(tau_rigid, 0.0), DELAY_MAX)]
         try:
-            r = least_squares(fun, x0, bounds=(lb, ub), x_scale=[0.05, 0.2, T], diff_step=[1e-4, 1e-3, 1e-3],
-                              max_nfev=40)
+            r = least_squares(fun, x0, jac=jac, bounds=(lb, ub), x_scale=[0.05, 0.2, T], max_nfev=40)
         except ValueError:
             continue
         if best is None or r.cost < best.cost:
@@ -257,6 +282,11 @@ def fit_sensor_path(recs, T: float, f_hint: float | None = None) -> dict:
     knots = b.x0 + KNOT * np.arange(b.m)
     ok = b.support >= 20.0
     out["points_motor"] = [(float(x), float(v)) for x, v in zip(knots[ok], c[ok])]
+    try:       # the knots' standard deviations (noise of the reading through the normal equations)
+        cvar = np.diag(np.linalg.inv(b._normal)) * float(np.dot(r, r)) / max(N - c.size, 1)
+        sd["characteristic"] = float(np.sqrt(np.max(cvar[ok]))) if ok.any() else None
+    except np.linalg.LinAlgError:
+        sd["characteristic"] = None
     out.update(resonance_hz=f0, damping=zeta, delay=max(tau, 0.0), noise_std=noise, gain=g, lr=lr,
                quantum=q, rss=float(np.dot(r, r)))
     sd["noise_std"] = noise / math.sqrt(2.0 * N)
