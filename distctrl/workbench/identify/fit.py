@@ -281,6 +281,26 @@ def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float,
         infl = max(1.0, 1.0 + 2.0 * sum(rho))
     out = {"kv": kv_sd * math.sqrt(infl) if kv_sd is not None else None,
            "dead_time": (math.sqrt(2.0 / curv) if curv > 0 else h) * math.sqrt(infl)}
+    # the model's own error (a drive that is not exactly the sampled P loop) is not noise: the spread of
+    # kv and the dead time fitted to each recording with command transients alone says more; the larger
+    # of the two is reported
+    kvs, thetas = [], []
+    win = theta + h * np.arange(-12, 13)
+    win = win[(win >= 0.0) & (win <= MAX_DELAY)]
+    for r in recs:
+        if _command_transients([r], alpha, scale) < 3:
+            continue
+        a_r = _robust_alpha(*_drive_rows([r], theta, T)[:2], scale)[0]
+        if not 0.0 < a_r < 1.0:
+            continue
+        kvs.append(-math.log1p(-a_r) / T)
+        costs = [_limited_cost([r], T, th, scale, a_r, v_max, a_max) for th in win]
+        thetas.append(float(win[int(np.argmin(costs))]))
+    if len(kvs) >= 2:
+        if out["kv"] is not None:
+            out["kv"] = max(out["kv"], float(np.std(kvs, ddof=1)) / math.sqrt(len(kvs)))
+        out["dead_time"] = max(out["dead_time"], float(np.std(thetas, ddof=1)) / math.sqrt(len(thetas)))
+    out["dead_time"] = max(out["dead_time"], h / math.sqrt(12.0))      # the search grid's resolution
     v, vp, vd = y / T, yp / T, alpha * z / T
     sv = 3.0 * scale / T + 1e-9
     if v_max is not None:
