@@ -103,3 +103,17 @@ def test_json_uncertainty_beside_the_pinned_keys_and_validation_on_a_recording_n
     assert val["path"].endswith("chirp_other.csv")
     assert val["drive_fit_percent"] > 95.0
     assert 0.8 < val["sensor_rms_over_noise"] < 1.3
+
+
+def test_a_ramp_alone_asks_for_a_chirp_rather_than_calling_the_drive_rigid(tmp_path):
+    """A slow ramp excites no mode: the resonance is null with "record a chirp", not "no resonance"."""
+    seed = 0
+    plant = random_plant(seed)
+    p = tmp_path / "ramp.csv"
+    write_csv(p, *recordings(plant, seed)["ramp"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify([load_signals(p, command="set_pos", actual="act_pos", sensor="sensor")], surface=plant.surface)
+    assert res.drive["resonance_hz"] is None
+    (w,) = [w for w in res.warnings if w.startswith("resonance_hz")]
+    assert "record a chirp" in w and "rigid" not in w

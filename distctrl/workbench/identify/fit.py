@@ -739,10 +739,13 @@ def _sensor_path(recs, T: float, res: Identification, fr: dict, frf_warnings: li
             _warn(res.warnings, f"resonance_hz, damping: a mode near {cand['resonance_hz']:.3g} Hz shows, but the "
                                 f"recordings do not determine it (±{100 * cand['resonance_rel_sd']:.2g} %); record "
                                 f"{RECORD_CHIRP}")
+        elif band and band[1] >= 100.0:
+            _warn(res.warnings, f"resonance_hz, damping: no resonance between motor and nozzle up to {band[1]:.0f} Hz "
+                                "(a rigid drive fits the motor -> sensor path: the scenario keeps resonance_hz = 0)")
         else:
-            top = f" up to {band[1]:.0f} Hz" if band else ""
-            _warn(res.warnings, f"resonance_hz, damping: no resonance between motor and nozzle{top} (a rigid drive "
-                                "fits the motor -> sensor path: the scenario keeps resonance_hz = 0)")
+            what = f"coherently only up to {band[1]:.0f} Hz" if band else "at no frequency coherently"
+            _warn(res.warnings, f"resonance_hz, damping: the recordings excite the axis {what} and show no "
+                                f"resonance there; record {RECORD_CHIRP}")
     for w in frf_warnings:
         if w.startswith("resonance_hz") or w.startswith("sensor delay"):
             continue
