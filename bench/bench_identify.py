@@ -35,20 +35,23 @@ def main() -> dict:
             p = pathlib.Path(d) / f"{name}.csv"
             write_csv(p, *simulate(plant, cmd, seed=i))
             paths.append(p)
-        best = float("inf")
+        best = best_cpu = float("inf")
         for _ in range(3):
             t0 = time.perf_counter()
+            c0 = time.process_time()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 sigs = [load_signals(p, command="set_pos", actual="act_pos", sensor="sensor") for p in paths]
                 res = identify(sigs, surface=plant.surface)
             best = min(best, time.perf_counter() - t0)
+            best_cpu = min(best_cpu, time.process_time() - c0)
     ok = best <= TARGET_S
-    out = {"identify_3x20s_s": round(best, 3), "identify_target_s": TARGET_S, "identify_ok": ok,
+    out = {"identify_3x20s_s": round(best, 3), "identify_3x20s_cpu_s": round(best_cpu, 3), "identify_target_s": TARGET_S, "identify_ok": ok,
            "identify_kv_error_percent": round(100 * (res.drive["kv"] / plant.kv - 1), 2)}
     lines = ["", "## identify (issue 15)", "",
              f"- 3 recordings x 20 s at 1 ms (60 000 rows, CSV loading included): {best:.2f} s "
-             f"(target <= {TARGET_S:g} s: {'ok' if ok else 'MISSED'})"]
+             f"(target <= {TARGET_S:g} s: {'ok' if ok else 'MISSED'}; CPU {best_cpu:.2f} s: the wall time "
+             f"includes waiting for a busy machine)"]
     merge_results(ROOT / "bench", out, lines)
     print("\n".join(lines[1:]))
     return out

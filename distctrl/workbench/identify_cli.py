@@ -45,10 +45,13 @@ from ..errors import DistCtrlError
 @click.option("--template", type=click.Path(dir_okay=False), default=None,
               help="Scenario whose program, surface and other keys the written scenario keeps (default: a "
                    "CONST_DIST run over a sheet with a 0.5 mm step).")
+@click.option("--validate", "validate_paths", multiple=True, type=click.Path(dir_okay=False), metavar="REC.csv",
+              help="A recording NOT used for the fit (repeatable): the fitted plant's prediction error on it is "
+                   "reported (\"validation\" in --json).")
 @click.option("--axis", default="Z", show_default=True, help="The identified axis in the written scenario.")
 def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time_unit, value_unit, sensor_unit,
                  mm_per_increment, sensor_sign, actual_sampled, surface, calibrated_at, as_json, out_dir, template,
-                 axis) -> None:
+                 validate_paths, axis) -> None:
     """Identify the drive and the sensor from recordings of the machine (TwinCAT Scope CSV export,
     a plain CSV with a header row, or a distctrl trace) at the interpolation cycle.
 
@@ -84,9 +87,12 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
             warnings.simplefilter("always")
             sigs = [load_signals(p, time=time_col, command=command_col, actual=actual_col, sensor=sensor_col,
                                  time_unit=time_unit, value_unit=value_unit, sensor_unit=sensor_unit,
-                                 mm_per_increment=mm_per_increment, actual_at=actual_sampled) for p in recordings]
+                                 mm_per_increment=mm_per_increment, actual_at=actual_sampled)
+                    for p in recordings + validate_paths]
             sign = None if sensor_sign == "auto" else float(sensor_sign)
-            res = identify(sigs, sensor_sign=sign, surface=surface, calibrated_at=calibrated_at)
+            n = len(recordings)
+            res = identify(sigs[:n], sensor_sign=sign, surface=surface, calibrated_at=calibrated_at,
+                           validate=sigs[n:])
         scenario = report = None
         if out_dir is not None:
             path, notes = write_scenario(res, out_dir, template=template, axis=axis)

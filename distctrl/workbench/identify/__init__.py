@@ -18,11 +18,13 @@ and the classic tools fit it:
   with ``c_k`` the command delayed by the dead time (fractional, interpolated), by robust least
   squares (:func:`scipy.optimize.least_squares`, soft-L1) on a grid of dead times, then refined;
   ``v_max`` and ``a_max`` from the samples where the loop demands more than the motor does;
-* resonance and sensor delay: the frequency response motor -> sensor ``H = Pxy / Pxx``
-  (:func:`scipy.signal.csd`, :func:`scipy.signal.welch`, averaged over the recordings) fitted by
-  complex least squares with ``g * M(f0, zeta) * exp(-j 2 pi f delay)``, weighted by the coherence;
-* characteristic and noise: the quasi-static samples (a slow ramp, settled holds) against the motor
-  encoder, in bins of the true distance (local linear fits: the bin's value and its residual noise).
+* resonance, damping, sensor delay, noise and characteristic: the path that sees the nozzle, motor
+  encoder -> sensor. The frequency response motor -> sensor ``H = Pxy / Pxx``
+  (:func:`scipy.signal.csd`, :func:`scipy.signal.welch`) gives the coherent band, the gain and a
+  first guess; then the complete model (mode, delay, piecewise-linear characteristic) is fitted to
+  every sample in the time domain (:mod:`.nozzle`); the noise is what it leaves over;
+* each identified figure gets a standard deviation (``Identification.uncertainty``); recordings not
+  used for the fit (``validate``) give the prediction error (``Identification.validation``).
 
 A figure that the recordings cannot determine is ``None`` with a warning that says what to record.
 Errors are :class:`IdentifyError` (a ``DistCtrlError``) whose message names the file, the column or

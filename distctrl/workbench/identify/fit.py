@@ -55,6 +55,10 @@ class Identification:
     fit: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    #: standard deviations of the identified figures: {"drive": {key: sd}, "sensor": {key: sd}}
+    uncertainty: dict = field(default_factory=dict)
+    #: the prediction error on recordings not used for the fit (``validate``), else None
+    validation: dict | None = None
     recordings: list[dict] = field(default_factory=list)
     # for the report: per recording (t, X, S, Y) and model curves
     curves: dict = field(default_factory=dict)
@@ -241,10 +245,74 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         return out
     out["kv"], out["dead_time"] = -math.log1p(-alpha) / T, theta
     out["v_max"], out["a_max"] = v_max, a_max
+    res.uncertainty.setdefault("drive", {}).update(
+        _drive_uncertainty(recs, T, theta, scale, alpha, v_max, a_max))
     if v_max is None or a_max is None:
         _limit_bounds(recs, T, res, v_max is None, a_max is None)
     res.extra["drive_samples_velocity_limited"] = n_v
     res.extra["drive_samples_acceleration_limited"] = n_a
+    return out
+
+
+def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max) -> dict:
+    """Standard deviations of kv, the dead time and the limits (statistical: the one-step equation's
+    residuals taken as white noise of the robust scale). kv from the least squares on the inliers; the
+    dead time from the curvature of the cost (which counts squared residuals in units of the scale, so
+    it rises by 1 at one standard deviation ... by 2 of the half-curvature); the limits from the spread
+    of the saturated samples."""
+    z, y, yp = _drive_rows(recs, theta, T)
+    r = y - alpha * z
+    inl = np.abs(r) <= 4.0 * scale
+    szz = float(np.dot(z[inl], z[inl]))
+    kv_sd = (scale / math.sqrt(szz)) / (T * (1.0 - alpha)) if szz > 0 else None
+    h = 0.25 * T
+    c0 = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
+    cm = _limited_cost(recs, T, max(theta - h, 0.0), scale, alpha, v_max, a_max)
+    cp = _limited_cost(recs, T, theta + h, scale, alpha, v_max, a_max)
+    curv = (cp - 2.0 * c0 + cm) / (h * h)
+    # the residuals are not white where the model misses something (the mode, the limits within a
+    # cycle): N / (1 + 2 sum rho_k) independent samples (lags up to 50 cycles)
+    rc = np.where(inl, r, 0.0)
+    rc = rc - rc.mean()
+    den = float(np.dot(rc, rc))
+    infl = 1.0
+    if den > 0:
+        rho = [float(np.dot(rc[:-k], rc[k:])) / den for k in range(1, 51)]
+        infl = max(1.0, 1.0 + 2.0 * sum(rho))
+    out = {"kv": kv_sd * math.sqrt(infl) if kv_sd is not None else None,
+           "dead_time": (math.sqrt(2.0 / curv) if curv > 0 else h) * math.sqrt(infl)}
+    # the model's own error (a drive that is not exactly the sampled P loop) is not noise: the spread of
+    # kv and the dead time fitted to each recording with command transients alone says more; the larger
+    # of the two is reported
+    kvs, thetas = [], []
+    win = theta + h * np.arange(-12, 13)
+    win = win[(win >= 0.0) & (win <= MAX_DELAY)]
+    for r in recs:
+        if _command_transients([r], alpha, scale) < 3:
+            continue
+        a_r = _robust_alpha(*_drive_rows([r], theta, T)[:2], scale)[0]
+        if not 0.0 < a_r < 1.0:
+            continue
+        kvs.append(-math.log1p(-a_r) / T)
+        costs = [_limited_cost([r], T, th, scale, a_r, v_max, a_max) for th in win]
+        thetas.append(float(win[int(np.argmin(costs))]))
+    if len(kvs) >= 2:
+        if out["kv"] is not None:
+            out["kv"] = max(out["kv"], float(np.std(kvs, ddof=1)) / math.sqrt(len(kvs)))
+        out["dead_time"] = max(out["dead_time"], float(np.std(thetas, ddof=1)) / math.sqrt(len(thetas)))
+    out["dead_time"] = max(out["dead_time"], h / math.sqrt(12.0))      # the search grid's resolution
+    v, vp, vd = y / T, yp / T, alpha * z / T
+    sv = 3.0 * scale / T + 1e-9
+    if v_max is not None:
+        sat = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.abs(v - vp) < 0.05 * np.abs(v) + 3 * sv) & \
+              (np.abs(v) > 10 * sv)
+        n = int(sat.sum())
+        out["v_max"] = 1.25 * float(np.std(np.abs(v[sat]))) / math.sqrt(n) + sv / math.sqrt(max(n, 1)) if n else None
+    if a_max is not None:
+        dv = np.abs(v - vp)
+        big = dv >= 0.9 * a_max * T
+        n = int(big.sum())
+        out["a_max"] = float(np.std(dv[big])) / T / math.sqrt(n) + sv / T / math.sqrt(max(n, 1)) if n else None
     return out
 
 
@@ -505,7 +573,8 @@ def characteristic_points(x: np.ndarray, y: np.ndarray, bin_width: float = CHAR_
 
 
 def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float, surface: float | None,
-                    calibrated_at: float | None, gain: float | None, res: Identification) -> dict:
+                    calibrated_at: float | None, gain: float | None, res: Identification,
+                    model_points=None) -> dict:
     xs, ys = [], []
     for r in recs:
         ok = _quasi_static(r, T, settle)
@@ -519,6 +588,10 @@ def _characteristic(recs: Sequence[_Rec], T: float, delay: float, settle: float,
                             f"{RECORD_STANDSTILL} and {RECORD_RAMP}")
         return out
     pts, resid, slopes = characteristic_points(x, y)
+    if model_points and len(model_points) >= 2:
+        # the complete model of the sensor path (every sample, the nozzle's motion modelled) gives the
+        # characteristic over the whole range moved, also where settling excludes quasi-static samples
+        pts = list(model_points)
     if resid:
         rr = np.concatenate(resid)
         std = float(np.sqrt(np.mean(rr * rr)))
@@ -560,13 +633,15 @@ def _sign(recs: Sequence[_Rec]) -> float:
 
 
 def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, surface: float | None = None,
-             calibrated_at: float | None = None) -> Identification:
+             calibrated_at: float | None = None, validate: Sequence[Signals] = ()) -> Identification:
     """Fit the drive and the sensor to the recordings (see the module docstring).
 
     ``sensor_sign``: +1 if the sensor reads nozzle - surface (a distance), -1 if surface - nozzle
     (encoder 2, s = -d); None: detected from the correlation with the motor. ``surface``: the
     surface height in the actual column's coordinates (fixes the zero of the true distance for the
     characteristic); ``calibrated_at``: instead, the distance (mm) at which the sensor reads true.
+    ``validate``: recordings not used for the fit; the fitted plant's prediction error on them goes to
+    ``Identification.validation``.
     """
     if not signals:
         raise IdentifyError("no recording given")
@@ -591,13 +666,15 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
     if all(drive[k] is None for k in ("kv", "v_max", "a_max")) and np.ptp(np.concatenate([r.S for r in recs])) < 1e-3:
         raise IdentifyError("excitation too poor: the command moves less than 1 um; record "
                             f"{RECORD_STEPS}, {RECORD_CHIRP} and {RECORD_RAMP}")
-    # sensor path: frequency response motor -> sensor
+    # sensor path: frequency response motor -> sensor (a first look: the band, the gain, a hint of the
+    # resonance), then the complete model of the motor -> sensor path in the time domain (nozzle.py)
     frf = _frf(recs, T)
-    fr = _fit_frf(*frf[:3], T, res) if frf is not None else {"resonance_hz": None, "damping": None, "delay": None,
-                                                             "gain": None}
-    if frf is None:
-        _warn(res.warnings, f"sensor delay and resonance: recordings too short for a frequency response; record "
-                            f"{RECORD_CHIRP}")
+    scratch = Identification(cycle_time=T, drive={}, sensor={})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fr = _fit_frf(*frf[:3], T, scratch) if frf is not None else {"resonance_hz": None, "damping": None,
+                                                                      "delay": None, "gain": None}
+    _sensor_path(recs, T, res, fr, scratch.warnings)
     res.drive["resonance_hz"] = fr.get("resonance_hz")
     res.drive["damping"] = fr.get("damping")
     res.sensor["delay"] = fr.get("delay")
@@ -609,16 +686,23 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
         settle = max(settle, 5.0 / (2 * math.pi * res.drive["resonance_hz"] * res.drive["damping"]))
     settle = min(settle, 2.0)
     delay = res.sensor["delay"] if res.sensor["delay"] is not None else (fr.get("_model") or (0, 0))[1]
-    ch = _characteristic(recs, T, delay or 0.0, settle, surface, calibrated_at, fr.get("gain"), res)
-    res.sensor["noise_std"] = ch["noise_std"]
+    ch = _characteristic(recs, T, delay or 0.0, settle, surface, calibrated_at, fr.get("gain"), res,
+                         model_points=fr.get("points_motor"))
+    res.sensor["noise_std"] = fr["noise_std"] if fr.get("noise_std") is not None else ch["noise_std"]
     res.sensor["characteristic"] = ch["characteristic"]
-    if ch["noise_std"] is None and not any("noise_std" in w for w in res.warnings):
+    if res.sensor["noise_std"] is None and not any("noise_std" in w for w in res.warnings):
         _warn(res.warnings, f"noise_std: no quasi-static samples; record {RECORD_STANDSTILL}")
     res.extra.update({"sensor_gain": fr.get("gain"), "surface_mm": ch.get("surface"),
                       "frequency_band_hz": fr.get("band_hz"), "sensor_delay_sd_s": fr.get("delay_sd"),
                       "quasi_static_samples": ch.get("quasi_static_samples"), "settle_s": settle,
                       "noise_samples": ch.get("noise_samples")})
     _fit_quality(recs, T, res, fr, ch)
+    if validate:
+        for v in validate:
+            if abs(v.cycle_time - T) > 0.01 * T:
+                raise IdentifyError(f"{v.path}: cycle {v.cycle_time * 1e3:.6g} ms, the fitted recordings "
+                                    f"{T * 1e3:.6g} ms; record the validation at the same cycle")
+        res.validation = _validate([_prepare(v, sign) for v in validate], T, res, fr, ch)
     res.recordings = [{"path": s.path, "source": s.source, "samples": int(s.t.size), "duration_s": s.duration,
                        "columns": {"command": s.columns[0], "actual": s.columns[1], "sensor": s.columns[2]},
                        "actual_sampled_at": s.actual_at, "cycle_time_s": s.cycle_time} for s in signals]
@@ -627,6 +711,105 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
     res.curves["frf_fit"] = fr
     res.curves["char_points"] = ch.get("points_motor")
     return res
+
+
+#: the sensor delay is reported when its standard deviation is below this (s)
+DELAY_SD_MAX = 0.3e-3
+
+
+def _sensor_path(recs, T: float, res: Identification, fr: dict, frf_warnings: list[str]) -> None:
+    """Resonance, damping, sensor delay and noise from the complete model of the motor -> sensor path in
+    the time domain (:mod:`.nozzle`), started from the frequency response ``fr`` (updated in place). The
+    frequency response's own warnings are kept only where the time-domain fit does not determine the
+    figure either."""
+    from .nozzle import fit_sensor_path
+
+    if max(float(np.ptp(r.X)) for r in recs) <= 0.0:
+        for w in frf_warnings:
+            _warn(res.warnings, w)
+        return
+    tp = fit_sensor_path(recs, T, f_hint=fr.get("resonance_hz"))
+    sd = tp["sd"]
+    res.extra["sensor_path"] = {"likelihood_ratio_resonant_vs_rigid": tp["lr"], "candidate": tp.get("candidate"),
+                                "samples": tp["n"], "sensor_quantum_mm": tp["quantum"] or None}
+    band = fr.get("band_hz")
+    if tp["resonance_hz"] is None:
+        cand = tp.get("candidate") or {}
+        if cand and tp["lr"] >= 50.0:
+            _warn(res.warnings, f"resonance_hz, damping: a mode near {cand['resonance_hz']:.3g} Hz shows, but the "
+                                f"recordings do not determine it (±{100 * cand['resonance_rel_sd']:.2g} %); record "
+                                f"{RECORD_CHIRP}")
+        elif band and band[1] >= 100.0:
+            _warn(res.warnings, f"resonance_hz, damping: no resonance between motor and nozzle up to {band[1]:.0f} Hz "
+                                "(a rigid drive fits the motor -> sensor path: the scenario keeps resonance_hz = 0)")
+        else:
+            what = f"coherently only up to {band[1]:.0f} Hz" if band else "at no frequency coherently"
+            _warn(res.warnings, f"resonance_hz, damping: the recordings excite the axis {what} and show no "
+                                f"resonance there; record {RECORD_CHIRP}")
+    for w in frf_warnings:
+        if w.startswith("resonance_hz") or w.startswith("sensor delay"):
+            continue
+        _warn(res.warnings, w)
+    delay_sd = sd.get("delay", math.inf)
+    delay = tp["delay"] if delay_sd <= DELAY_SD_MAX else None
+    if delay is None:
+        _warn(res.warnings, f"sensor delay: uncertain by {delay_sd * 1e3:.2g} ms with this excitation; record "
+                            f"{RECORD_CHIRP}")
+    g = fr.get("gain") or tp["gain"]
+    fr.update(resonance_hz=tp["resonance_hz"], damping=tp["damping"], delay=delay, delay_sd=delay_sd,
+              noise_std=tp["noise_std"], gain=g, points_motor=tp["points_motor"])
+    fr["_model"] = (g, tp["delay"], tp["resonance_hz"], tp["damping"])
+    if fr.get("_points") is not None:            # the frequency response against the final model
+        fs_, Hs, cs = fr["_points"]
+        w = np.sqrt(cs / (1.0 - cs))
+        model = g * np.exp(-2j * np.pi * fs_ * tp["delay"])
+        if tp["resonance_hz"]:
+            model = model * _mode(fs_, tp["resonance_hz"], tp["damping"])
+        err = np.linalg.norm(w * (model - Hs)) / max(np.linalg.norm(w * Hs), 1e-300)
+        fr["frf_fit_percent"] = float(100.0 * (1.0 - err))
+    res.fit["sensor_path_rms_mm"] = math.sqrt(tp["rss"] / max(tp["n"], 1))
+    res.uncertainty.setdefault("drive", {}).update(
+        {k: sd.get(k) for k in ("resonance_hz", "damping") if tp[k] is not None})
+    res.uncertainty.setdefault("sensor", {}).update(
+        {"delay": delay_sd if delay is not None else None, "noise_std": sd.get("noise_std"),
+         "characteristic": sd.get("characteristic")})
+
+
+def _nozzle_at_sensor(r: _Rec, T: float, f0, zeta, tau: float) -> np.ndarray:
+    """The nozzle the sensor sees at each row (the model of the sensor path, :mod:`.nozzle`)."""
+    from .nozzle import _paths, nozzle_delayed
+
+    return nozzle_delayed(_paths([r], T)[0], T, f0, zeta, tau)
+
+
+def _validate(recs: Sequence[_Rec], T: float, res: Identification, fr: dict, ch: dict) -> dict:
+    """The fitted plant's prediction error on recordings not used for the fit: the motor simulated from
+    the command (RMS, fit %), the sensor predicted from the measured motor by the complete model (mode,
+    delay, characteristic; RMS, and its ratio to the identified noise: about 1 when the model explains
+    everything but the noise)."""
+    d = res.drive
+    out = []
+    model = fr.get("_model")
+    pts = ch.get("points_motor")
+    for r in recs:
+        row = {"path": r.sig.path, "samples": int(r.X.size)}
+        if d.get("kv") is not None:
+            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"])
+            e = r.X - xh
+            den = float(np.linalg.norm(r.X - r.X.mean()))
+            row["drive_rms_mm"] = float(np.sqrt(np.mean(e * e)))
+            row["drive_fit_percent"] = float(100.0 * (1.0 - np.linalg.norm(e) / den)) if den > 0 else None
+        if model is not None and pts:
+            g, tau, f0, zeta = model
+            nd = _nozzle_at_sensor(r, T, f0, zeta, max(tau, 0.0))
+            yh = np.interp(nd, [p[0] for p in pts], [p[1] for p in pts])
+            e = (r.Y - yh)[32:-32]
+            row["sensor_rms_mm"] = float(np.sqrt(np.mean(e * e)))
+            noise = res.sensor.get("noise_std")
+            if noise:
+                row["sensor_rms_over_noise"] = row["sensor_rms_mm"] / (noise * abs(fr.get("gain") or 1.0))
+        out.append(row)
+    return {"recordings": out}
 
 
 def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
@@ -652,8 +835,7 @@ def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
         g, tau, f0, zeta = model
         errs = []
         for r in recs:
-            n = nozzle_from_motor(r.X, T, f0, zeta)
-            nd = _delayed(n, max(tau, 0.0) / T)
+            nd = _nozzle_at_sensor(r, T, f0, zeta, max(tau, 0.0))
             pts = ch.get("points_motor")
             if ch.get("characteristic") is not None and pts:
                 yh = np.interp(nd, [p[0] for p in pts], [p[1] for p in pts])

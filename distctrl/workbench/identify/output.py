@@ -18,8 +18,29 @@ def result_json(res: Identification, scenario: str | None = None, report: str | 
     under other keys."""
     return {"drive": {k: res.drive.get(k) for k in DRIVE_KEYS},
             "sensor": {k: res.sensor.get(k) for k in SENSOR_KEYS},
+            "uncertainty": uncertainty_json(res),
+            "validation": res.validation,
             "units": UNITS, "cycle_time_s": res.cycle_time, "fit": res.fit, "details": res.extra,
             "recordings": res.recordings, "warnings": list(res.warnings), "scenario": scenario, "report": report}
+
+
+def uncertainty_json(res: Identification) -> dict:
+    """Standard deviations beside the pinned keys: ``drive`` and ``sensor`` with the same keys (same
+    units; ``characteristic``: the largest standard deviation of a table point, mm), null where the
+    figure is not identified."""
+    u = res.uncertainty or {}
+    drive = {k: (u.get("drive", {}).get(k) if res.drive.get(k) is not None else None) for k in DRIVE_KEYS}
+    sensor = {k: (u.get("sensor", {}).get(k) if res.sensor.get(k) is not None else None) for k in SENSOR_KEYS}
+    return {"drive": drive, "sensor": sensor, "kind": "standard deviation (statistical, from the fit's residuals)"}
+
+
+def _pm(res: Identification, group: str, key: str, scale: float, spec: str, unit: str) -> str:
+    """'  ± sd unit' when the figure is identified and has a standard deviation."""
+    values = res.drive if group == "drive" else res.sensor
+    sd = (res.uncertainty or {}).get(group, {}).get(key)
+    if values.get(key) is None or sd is None or not math.isfinite(sd):
+        return ""
+    return f"  ± {sd * scale:{spec}} {unit}".rstrip()
 
 
 def _fmt(v, scale=1.0, spec=".4g", unit=""):
@@ -38,15 +59,15 @@ def format_summary(res: Identification) -> str:
     ch = s["characteristic"]
     lines = [f"identified at cycle {res.cycle_time * 1e3:g} ms from {len(res.recordings)} recording(s)",
              "drive:",
-             f"  kv            {_fmt(d['kv'], unit='1/s')}",
-             f"  dead time     {_fmt(d['dead_time'], 1e3, '.3g', 'ms')}",
+             f"  kv            {_fmt(d['kv'], unit='1/s')}{_pm(res, 'drive', 'kv', 1, '.2g', '1/s')}",
+             f"  dead time     {_fmt(d['dead_time'], 1e3, '.3g', 'ms')}{_pm(res, 'drive', 'dead_time', 1e3, '.2g', 'ms')}",
              f"  v_max         {_fmt(d['v_max'], unit='mm/s')}{_bound(res, 'v_max', 'mm/s')}",
              f"  a_max         {_fmt(d['a_max'], unit='mm/s^2')}{_bound(res, 'a_max', 'mm/s^2')}",
-             f"  resonance     {_fmt(d['resonance_hz'], unit='Hz')}",
-             f"  damping       {_fmt(d['damping'], spec='.3g')}",
+             f"  resonance     {_fmt(d['resonance_hz'], unit='Hz')}{_pm(res, 'drive', 'resonance_hz', 1, '.2g', 'Hz')}",
+             f"  damping       {_fmt(d['damping'], spec='.3g')}{_pm(res, 'drive', 'damping', 1, '.2g', '')}",
              "sensor:" + f" ({res.extra.get('sensor_reads', '')})",
-             f"  delay         {_fmt(s['delay'], 1e3, '.3g', 'ms')}",
-             f"  noise std     {_fmt(s['noise_std'], 1e3, '.3g', 'um')}",
+             f"  delay         {_fmt(s['delay'], 1e3, '.3g', 'ms')}{_pm(res, 'sensor', 'delay', 1e3, '.2g', 'ms')}",
+             f"  noise std     {_fmt(s['noise_std'], 1e3, '.3g', 'um')}{_pm(res, 'sensor', 'noise_std', 1e3, '.2g', 'um')}",
              "  characteristic " + ("-" if ch is None else
                                     f"{len(ch)} points, true {ch[0][0]:.3f} .. {ch[-1][0]:.3f} mm, "
                                     f"reported - true {min(b - a for a, b in ch) * 1e3:+.1f} .. "
@@ -61,6 +82,15 @@ def format_summary(res: Identification) -> str:
         band = res.extra.get("frequency_band_hz") or [math.nan, math.nan]
         lines.append(f"  motor -> sensor frequency response: {f['frf_fit_percent']:.1f} % "
                      f"(coherent {band[0]:.1f} .. {band[1]:.1f} Hz)")
+    for v in (res.validation or {}).get("recordings", []):
+        parts = []
+        if v.get("drive_fit_percent") is not None:
+            parts.append(f"drive {v['drive_fit_percent']:.1f} % (RMS {v['drive_rms_mm'] * 1e3:.3g} um)")
+        if v.get("sensor_rms_mm") is not None:
+            parts.append(f"sensor RMS {v['sensor_rms_mm'] * 1e3:.3g} um"
+                         + (f" ({v['sensor_rms_over_noise']:.2f} x the noise)" if v.get("sensor_rms_over_noise")
+                            else ""))
+        lines.append(f"  validation {v['path']} (not fitted): " + ", ".join(parts))
     if f.get("sensor_rms_mm"):
         lines.append("  sensor (predicted from the actual): RMS " + ", ".join(
             _fmt(e, 1e3, ".3g", "um") for e in f["sensor_rms_mm"]))
