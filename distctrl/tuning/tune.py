@@ -195,6 +195,9 @@ class TuneResult:
     unrounded: AxisParameters | None = None
     unrounded_metrics: dict = field(default_factory=dict)
     cost_weights: dict = field(default_factory=dict)
+    #: the linearised loop's margins on the plant tuned on (:func:`stability`), tuned and scenario's set
+    stability: dict = field(default_factory=dict)
+    base_stability: dict = field(default_factory=dict)
 
     @property
     def param_list(self) -> str:
@@ -235,8 +238,10 @@ class TuneResult:
         return {"axis": self.axis, "evaluations": self.evaluations, "seconds": self.seconds,
                 "cost_weights": dict(self.cost_weights), "metric_units": dict(METRIC_UNITS),
                 "resolution": {k: resolution(k) for k in self.tuned_values()},
-                "scenario_params": {"values": self.tuned_values(self.base), "metrics": metrics(self.base_metrics)},
+                "scenario_params": {"values": self.tuned_values(self.base), "metrics": metrics(self.base_metrics),
+                                    "stability": dict(self.base_stability) or None},
                 "tuned": {"values": self.tuned_values(), "metrics": metrics(self.best_metrics),
+                          "stability": dict(self.stability) or None,
                           "unrounded_values": self.tuned_values(self.unrounded) if self.unrounded is not None else None,
                           "unrounded_metrics": metrics(self.unrounded_metrics)},
                 "robustness": [{k: _plain(v) for k, v in r.items()} for r in self.robustness],
@@ -255,6 +260,7 @@ class TuneResult:
             out.append(f"tuned values rounded to what one types into the list and the NC ({steps}) and run "
                        f"again: the table shows that run (cost before rounding "
                        f"{_num(self.unrounded_metrics.get('cost'))} mm)")
+        out.extend(_stability_lines(self.stability, self.base_stability))
         sat = self.best_metrics.get("sat_share")
         if sat is not None and math.isfinite(float(sat)) and float(sat) > 0.1:
             out.append(f"warning: the tuned set runs at the limiter (P-AXIS-00415/00416) {float(sat):.0%} of the "
@@ -272,6 +278,54 @@ class TuneResult:
         out.append("# axis parameter list (changed values)\n" + self.param_list)
         out.append("; NC block\n" + self.nc_block)
         return "\n".join(out) + "\n"
+
+
+def stability(scenario, params: AxisParameters) -> dict:
+    """Gain and phase margin of ``params`` on the scenario's plant: the linearised loop of
+    ``distctrl margins`` (:mod:`distctrl.workbench.margins`: drive kv, bus delay, resonance, sensor delay
+    and gain of the scenario) with the list ``params`` (in CONST_DIST or the mode of the first select).
+    ``{"error": text}`` where the margins cannot be computed (e.g. a 3D scenario)."""
+    from ..errors import DistCtrlError
+    from ..workbench.margins import analyse, loop_model, model_from_parts
+
+    try:
+        m = loop_model(scenario)
+        r = analyse(model_from_parts(params, m.cycle_time, axis=m.axis, mode=m.mode, kv=m.kv,
+                                     feedforward=m.feedforward, bus_delay_cycles=m.bus_delay_cycles,
+                                     sensor_delay_cycles=m.sensor_delay_cycles, sensor_gain=m.sensor_gain,
+                                     scenario=m.scenario, kp_source="tuned list", notes=m.notes,
+                                     resonance_hz=m.resonance_hz, damping=m.damping))
+    except DistCtrlError as exc:
+        return {"error": str(exc)}
+    d = r.to_dict()
+    return {k: _plain(d[k]) for k in ("stable", "verdict", "gain_margin", "gain_margin_db", "phase_crossover_hz",
+                                      "phase_margin_deg", "gain_crossover_hz", "kp", "kp_limit",
+                                      "closed_loop_pole_max_abs")}
+
+
+def _stability_lines(tuned: dict, base: dict) -> list[str]:
+    """The report's lines on the margins (``distctrl margins`` of the tuned plant)."""
+    def one(s: dict) -> str:
+        if not s:
+            return "-"
+        if "error" in s:
+            return f"not computed ({s['error']})"
+        gm, db, pm = s.get("gain_margin"), s.get("gain_margin_db"), s.get("phase_margin_deg")
+        parts = [s["verdict"]]
+        parts.append(f"gain margin {gm:.3g} ({db:+.1f} dB) at {_hz_text(s.get('phase_crossover_hz'))}"
+                     if gm is not None and db is not None else "gain margin - (no phase crossover)")
+        parts.append(f"phase margin {pm:.1f} deg at {_hz_text(s.get('gain_crossover_hz'))}"
+                     if pm is not None else "phase margin - (no gain crossover)")
+        return ", ".join(parts)
+
+    if not tuned and not base:
+        return []
+    return ["margins on the plant tuned on (distctrl margins, linearised loop):",
+            f"  tuned:           {one(tuned)}", f"  scenario params: {one(base)}"]
+
+
+def _hz_text(f) -> str:
+    return f"{f:.3g} Hz" if f is not None else "- Hz"
 
 
 def _num(x) -> str:
@@ -444,7 +498,8 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
                **getattr(ev, "cost_weights", {})}
     return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
                       time.perf_counter() - t0, stats, unrounded=unrounded, unrounded_metrics=unrounded_metrics,
-                      cost_weights=weights)
+                      cost_weights=weights, stability=stability(scenario, best),
+                      base_stability=stability(scenario, base))
 
 
 # ----------------------------------------------------------------------------- plot
