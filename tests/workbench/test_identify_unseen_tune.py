@@ -1,9 +1,16 @@
-"""Tuning stays safe on the fitted plant (issue 26): recordings of an unseen plant
-(tests/workbench/unseen_plants.py: a 66 Hz mode with zeta 0.019 that the frequency-response-only fit
-missed) -> ``distctrl identify --out`` -> ``distctrl tune`` on the fitted twin -> the tuned list on the
+"""Tuning stays safe on the fitted plant (issue 26): recordings of unseen plants
+(tests/workbench/unseen_plants.py; seed 0: a 66 Hz mode with zeta 0.019 that the frequency-response-only
+fit missed; seed 5: 39 Hz, zeta 0.010, the lightest damping of the first seeds; seed 6: 67 Hz, zeta
+0.028, with 4 cycles of dead time) -> ``distctrl identify --out`` -> ``distctrl tune`` on the fitted twin -> the tuned list on the
 TRUE plant (the fitted scenario with the generator's kv, dead time, limits, mode, sensor delay, noise
 and characteristic): ``distctrl margins`` stable with positive margins, ``distctrl run`` without an
-oscillation warning."""
+oscillation warning.
+
+Not among the seeds: 3 (17 Hz, zeta 0.035) and 11 (13.5 Hz, zeta 0.018). Their modes are low in the
+loop's band: on the fitted twin and on the true plant, the scenario's own list (KP 0.05, the space's
+lowest) already crosses 0 dB a second time at the resonance with a negative phase margin (-15 deg,
+-19 deg; the closed loop is still stable, gain margin 1.3-1.5), and so does the tuned set; ``tune``
+now reports it (``stability``), but no list in the space gives positive margins there."""
 from __future__ import annotations
 
 import json
@@ -22,7 +29,7 @@ from distctrl.cli import main  # noqa: E402
 from tests.workbench.unseen_plants import T, random_plant, recordings, write_csv  # noqa: E402
 
 OSCILLATION = 900032
-SEED = 0
+SEEDS = (0, 5, 6)
 
 
 def cli(*args):
@@ -39,10 +46,11 @@ def _set(text: str, section: str, key: str, value: str) -> str:
     return text[:head] + body + text[end:]
 
 
-def test_tuned_on_the_fitted_twin_is_stable_on_the_true_plant(tmp_path):
-    plant = random_plant(SEED)
+@pytest.mark.parametrize("seed", SEEDS)
+def test_tuned_on_the_fitted_twin_is_stable_on_the_true_plant(tmp_path, seed):
+    plant = random_plant(seed)
     files = []
-    for name, rows in recordings(plant, SEED).items():
+    for name, rows in recordings(plant, seed).items():
         p = tmp_path / f"{name}.csv"
         write_csv(p, *rows)
         files.append(p)
@@ -57,6 +65,8 @@ def test_tuned_on_the_fitted_twin_is_stable_on_the_true_plant(tmp_path):
     tuned = tmp_path / "tuned"
     r = cli("tune", scenario, "--budget", 40, "--local", "--no-robustness", "--out", tuned, "--json")
     assert r.exit_code == 0, r.output
+    st = json.loads(r.stdout)["tuned"]["stability"]      # the margins tune reports on the fitted twin
+    assert st["stable"], st
     shutil.copy(tuned / "tuned.lis", fitted / doc["axes"]["Z"]["params"])
 
     # the true plant: the fitted scenario with the generator's figures
