@@ -22,18 +22,14 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from distctrl.workbench.identify import identify, load_signals  # noqa: E402
-from tests.workbench.unseen_plants import TOL, random_plant, recordings, score, write_csv  # noqa: E402
+from tests.workbench.unseen_plants import TOL, random_plant, score, write_recordings  # noqa: E402
 
 QUANTITIES = ("kv", "dead_time", "resonance_hz", "damping", "delay", "noise_std", "characteristic")
 
 
 def run_one(seed: int, tmp: pathlib.Path) -> dict:
     plant = random_plant(seed)
-    paths = []
-    for name, rows in recordings(plant, seed).items():
-        p = tmp / f"{seed}_{name}.csv"
-        write_csv(p, *rows)
-        paths.append(p)
+    paths = write_recordings(plant, seed, tmp, prefix=f"{seed}_")
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -3,10 +3,15 @@ the whole session. Chromium must be there (``make chromium`` installs it): a mis
 never skips."""
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import pytest
 from playwright.sync_api import sync_playwright
+
+from distctrl.ads.machine import ServedMachine
+from distctrl.sim.scenario import load_scenario
+from distctrl.ui import UiServer
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
@@ -28,3 +33,17 @@ def open_page(browser, url: str):
     page.goto(url)
     page.locator(".scope-plot").first.wait_for(timeout=15000)
     return page
+
+
+@contextlib.contextmanager
+def serve_with_page_server(scenario: Path):
+    """``scenario`` served on free ports (no discovery) with its page server: ``(served, ui)``."""
+    served = ServedMachine(load_scenario(scenario), port=0, discovery_port=None)
+    ui = UiServer(served, port=0)
+    ui.start()
+    served.start()
+    try:
+        yield served, ui
+    finally:
+        ui.stop()
+        served.stop()

@@ -16,10 +16,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import expect
 
-from distctrl.ads.machine import ServedMachine
-from distctrl.sim.scenario import load_scenario
-from distctrl.ui import UiServer
-from tests.ui.conftest import open_page
+from tests.ui.conftest import open_page, serve_with_page_server
 from tests.ui.test_page import tab
 
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "serve_z.toml"
@@ -40,15 +37,8 @@ def load():
 
 @pytest.fixture(scope="module")
 def served(load):
-    served = ServedMachine(load_scenario(SCN), port=0, discovery_port=None)
-    ui = UiServer(served, port=0)
-    ui.start()
-    served.start()
-    try:
-        yield served, ui
-    finally:
-        ui.stop()
-        served.stop()
+    with serve_with_page_server(SCN) as pair:
+        yield pair
 
 
 @pytest.fixture(scope="module")

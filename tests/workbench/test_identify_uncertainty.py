@@ -8,7 +8,7 @@ import warnings
 import pytest
 
 from distctrl.workbench.identify import identify, load_signals
-from tests.workbench.unseen_plants import random_plant, recordings, write_csv
+from tests.workbench.unseen_plants import random_plant, write_recordings
 
 # seeds of bench/bench_identify_unseen.py --first-seed 100; |error|/sd of kv before: 8.6, 12.6, 10.2
 SEEDS = (106, 109, 114)
@@ -17,11 +17,7 @@ SEEDS = (106, 109, 114)
 @pytest.mark.parametrize("seed", SEEDS)
 def test_kv_error_is_within_three_reported_standard_deviations(tmp_path, seed):
     plant = random_plant(seed)
-    paths = []
-    for name, rows in recordings(plant, seed).items():
-        p = tmp_path / f"{name}.csv"
-        write_csv(p, *rows)
-        paths.append(p)
+    paths = write_recordings(plant, seed, tmp_path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = identify([load_signals(p, command="set_pos", actual="act_pos", sensor="sensor") for p in paths],

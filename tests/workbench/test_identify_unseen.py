@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from distctrl.workbench.identify import identify, load_signals
-from tests.workbench.unseen_plants import TOL, random_plant, recordings, write_csv
+from tests.workbench.unseen_plants import TOL, random_plant, recordings, write_csv, write_recordings
 
 SEEDS = (0, 3, 13)
 
@@ -22,11 +22,7 @@ def fitted(request, tmp_path_factory):
     seed = request.param
     plant = random_plant(seed)
     d = tmp_path_factory.mktemp(f"unseen{seed}")
-    paths = []
-    for name, rows in recordings(plant, seed).items():
-        p = d / f"{name}.csv"
-        write_csv(p, *rows)
-        paths.append(p)
+    paths = write_recordings(plant, seed, d)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sigs = [load_signals(p, command="set_pos", actual="act_pos", sensor="sensor") for p in paths]
@@ -81,11 +77,7 @@ def test_json_uncertainty_beside_the_pinned_keys_and_validation_on_a_recording_n
 
     seed = 5
     plant = random_plant(seed)
-    paths = []
-    for name, rows in recordings(plant, seed).items():
-        p = tmp_path / f"{name}.csv"
-        write_csv(p, *rows)
-        paths.append(str(p))
+    paths = [str(p) for p in write_recordings(plant, seed, tmp_path)]
     other = tmp_path / "chirp_other.csv"
     write_csv(other, *simulate(plant, chirp_command(np.random.default_rng(1), 8.0, plant.surface + 1.3), seed=99))
     r = CliRunner().invoke(main, ["identify", *paths, "--command", "set_pos", "--actual", "act_pos", "--sensor",

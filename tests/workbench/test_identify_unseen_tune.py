@@ -26,7 +26,7 @@ from click.testing import CliRunner
 pytest.importorskip("numba")
 
 from distctrl.cli import main  # noqa: E402
-from tests.workbench.unseen_plants import T, random_plant, recordings, write_csv  # noqa: E402
+from tests.workbench.unseen_plants import T, random_plant, write_recordings  # noqa: E402
 
 OSCILLATION = 900032
 SEEDS = (0, 5, 6)
@@ -49,11 +49,7 @@ def _set(text: str, section: str, key: str, value: str) -> str:
 @pytest.mark.parametrize("seed", SEEDS)
 def test_tuned_on_the_fitted_twin_is_stable_on_the_true_plant(tmp_path, seed):
     plant = random_plant(seed)
-    files = []
-    for name, rows in recordings(plant, seed).items():
-        p = tmp_path / f"{name}.csv"
-        write_csv(p, *rows)
-        files.append(p)
+    files = write_recordings(plant, seed, tmp_path)
     fitted = tmp_path / "fitted"
     r = cli("identify", *files, "--command", "set_pos", "--actual", "act_pos", "--sensor", "sensor",
             "--surface", plant.surface, "--out", fitted)

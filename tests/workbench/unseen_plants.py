@@ -26,6 +26,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+from pathlib import Path
+
 import numpy as np
 
 T = 0.001
@@ -202,6 +204,16 @@ def recordings(plant: UnseenPlant, seed: int) -> dict:
 def write_csv(path, t, command, actual, sensor) -> None:
     data = np.column_stack([t, command, actual, sensor])
     np.savetxt(path, data, delimiter=",", fmt="%.9f", header="time,set_pos,act_pos,sensor", comments="")
+
+
+def write_recordings(plant: UnseenPlant, seed: int, folder, prefix: str = "") -> list:
+    """The plant's recordings (:func:`recordings`) as CSV files ``<folder>/<prefix><name>.csv``; their paths."""
+    paths = []
+    for name, rows in recordings(plant, seed).items():
+        path = Path(folder) / f"{prefix}{name}.csv"
+        write_csv(path, *rows)
+        paths.append(path)
+    return paths
 
 
 # ---------------------------------------------------------------- scoring
