@@ -478,7 +478,7 @@ class _SampledSetValue:
         fn = self.fn
         if fn.phase != "DONE":
             return True
-        return (state == 4 or state == 1) and fn.enabled and getattr(fn, "_last_state", None) == 0
+        return (state == 4 or state == 1) and fn.enabled and fn.last_state == 0
 
     def correction(self, const_dist: bool, set_value: float) -> float:
         """mm to add to the nominal wanted distance (0 unless the sampled value is in force)."""

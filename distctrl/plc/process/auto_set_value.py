@@ -77,14 +77,16 @@ class AutoSetValue(ProcessFunction):
         #: the last sampled mean (mm), NaN before the first (kept by reset())
         self.result = math.nan
         self.reset()
-        self._last_state = _INACTIVE                   # the PLC starts with nLastState = 0 (INACTIVE)
+        #: the HLI state seen in the last cycle (the PLC's nLastState; None after reset()): an
+        #: INACTIVE -> active change starts a sampling
+        self.last_state: int | None = _INACTIVE        # the PLC starts with nLastState = 0 (INACTIVE)
 
     def reset(self) -> None:
         """No sampling under way, and the state seen last forgotten: a function switched on (or off
         and on again) while distance control already runs waits for the next cut (INACTIVE ->
         ACTIVE) instead of taking the running one for a new cut. ``result`` and ``log`` are kept."""
         self.phase = DONE
-        self._last_state = None
+        self.last_state = None
         self._count = 0
         self._sum = 0.0
         self.const_dist = False
@@ -93,12 +95,12 @@ class AutoSetValue(ProcessFunction):
         state_r = machine.hli[self.axis].state_r
         state = state_r.actual_state
         hold = self.hold
-        if self._last_state == _INACTIVE and state in (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST)):
+        if self.last_state == _INACTIVE and state in (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST)):
             self.phase = WAITING
             self.const_dist = state == int(HliState.ACTIVE_CONST_DIST)
             self._count = 0
             self._sum = 0.0
-        self._last_state = state
+        self.last_state = state
         if self.phase == DONE:
             return
         if not tracking_or_held(state, hold):
