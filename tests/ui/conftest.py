@@ -36,10 +36,13 @@ def open_page(browser, url: str):
 
 
 @contextlib.contextmanager
-def serve_with_page_server(scenario: Path):
-    """``scenario`` served on free ports (no discovery) with its page server: ``(served, ui)``."""
-    served = ServedMachine(load_scenario(scenario), port=0, discovery_port=None)
-    ui = UiServer(served, port=0)
+def serve_with_page_server(scenario, *, machine: dict | None = None, page: dict | None = None):
+    """``scenario`` (a path or a loaded scenario) served without discovery, on a free port or as
+    ``machine`` (ServedMachine's options) says, with its page server (``page``: UiServer's options
+    beside a free port): ``(served, ui)``."""
+    sc = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
+    served = ServedMachine(sc, **(machine if machine is not None else {"port": 0}), discovery_port=None)
+    ui = UiServer(served, **{"port": 0, **(page or {})})
     ui.start()
     served.start()
     try:

@@ -14,10 +14,10 @@ import pyads
 import pytest
 from playwright.sync_api import expect
 
-from distctrl.ads.machine import ServedMachine
 from distctrl.sim.scenario import scenario_from_dict
 from distctrl.ui import UiServer
 from tests.ads import wait_for
+from tests.ui.conftest import serve_with_page_server
 
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 # an address of our own: pyads keeps one TCP connection per IP for the whole process (tests/ads has
@@ -36,15 +36,12 @@ def served(tmp_path_factory):
                    "seed": 3}}, base_dir=SCN)
     gc.collect()
     gc.freeze()              # as tests/test_serve.py: pytest's heap must not stop the cycle for long
-    served = ServedMachine(sc, host=HOST, net_id=NET_ID, discovery_port=None)
-    ui = UiServer(served, host=HOST, port=0, allowed=["127.0.0.0/8"], export_dir=tmp_path_factory.mktemp("exports"))
-    ui.start()
-    served.start()
     try:
-        yield served, ui
+        with serve_with_page_server(sc, machine={"host": HOST, "net_id": NET_ID},
+                                    page={"host": HOST, "allowed": ["127.0.0.0/8"],
+                                          "export_dir": tmp_path_factory.mktemp("exports")}) as pair:
+            yield pair
     finally:
-        ui.stop()
-        served.stop()
         gc.unfreeze()
 
 
