@@ -14,7 +14,63 @@ import numpy as np
 
 from ..base.kinds import FilterType
 from ..errors import ParameterError
+from ..params.table import BY_FIELD, ParamSpec
 from . import law
+
+
+@dataclass(frozen=True)
+class FilterParam:
+    """A filter parameter as the parameter table declares it (params/table.py, the only range table):
+    its :class:`FilterConfig` field is the spec's canonical short key (``order`` for
+    ``low_pass_filter_order``); ``symbol`` names the value in range texts."""
+
+    field: str                   # AxisParameters field (ParamSpec.field)
+    symbol: str = "value"
+    range_override: str = ""     # a range the table cannot state (fg_f0: below Nyquist, depends on the cycle time)
+
+    @property
+    def spec(self) -> ParamSpec:
+        return BY_FIELD[self.field]
+
+    @property
+    def name(self) -> str:
+        """The FilterConfig field and canonical short key."""
+        return self.spec.short_keys[0]
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """Every accepted spelling: the short keys, then the AxisParameters field."""
+        return tuple(dict.fromkeys((*self.spec.short_keys, self.field)))
+
+    def allowed(self) -> str:
+        """The documented range as text: ``0..6`` for a closed integer range, else e.g. ``0 < value <= 1``."""
+        s = self.spec
+        if s.integer and s.lo is not None and s.hi is not None and not (s.lo_open or s.hi_open):
+            return f"{s.lo:g}..{s.hi:g}"
+        return s.range_text(self.symbol)
+
+    def range_label(self) -> str:
+        """The range with its parameter ID, as the filter specs' messages give it, e.g.
+        ``integer 0 <= n < 100 (P-AXIS-00413)``."""
+        s = self.spec
+        text = self.range_override or ("integer " if s.integer else "") + self.allowed()
+        return f"{text} ({s.id})"
+
+    def check(self, value) -> None:
+        """Raise ParameterError (ID, field, value, range) unless ``value`` lies in the documented range."""
+        s = self.spec
+        ok = value == value and s.check(value) and (not s.integer or int(value) == value)   # NaN: not ok
+        if not ok:
+            text = ("integer " if s.integer and ".." not in self.allowed() else "") + self.allowed()
+            raise ParameterError(f"{s.id} {s.field} = {value!r} out of range; allowed: {text}",
+                                 param_id=s.id, value=value, allowed=self.allowed())
+
+
+#: the filter parameters, in FilterConfig order (fg_f0's range depends on the cycle time: Nyquist)
+FILTER_PARAMS: dict[str, FilterParam] = {p.name: p for p in (
+    FilterParam("n_cycles", symbol="n"), FilterParam("smoothing_factor"), FilterParam("kalman_sigma"),
+    FilterParam("low_pass_filter_order"),
+    FilterParam("low_pass_filter_fg_f0", range_override="0 < value < Nyquist = 1/(2 cycle time) Hz"))}
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,20 +88,8 @@ class FilterConfig:
         """Raise ParameterError unless the configuration is usable at this cycle time."""
         if not isinstance(self.filter_type, FilterType) or self.filter_type == FilterType.PASS:
             raise ParameterError(f"filter type {self.filter_type!r} not allowed", param_id="P-AXIS-00782")
-        if not (0 <= int(self.n_cycles) < law.MAX_N) or int(self.n_cycles) != self.n_cycles:
-            raise ParameterError(f"P-AXIS-00413 n_cycles = {self.n_cycles!r} out of range; allowed: integer 0 <= n < 100",
-                                 param_id="P-AXIS-00413", value=self.n_cycles, allowed="0 <= n < 100")
-        if not (0.0 < self.smoothing_factor <= 1.0):
-            raise ParameterError(f"P-AXIS-00784 smoothing_factor = {self.smoothing_factor!r} out of range; allowed: "
-                                 "0 < value <= 1", param_id="P-AXIS-00784", value=self.smoothing_factor,
-                                 allowed="0 < value <= 1")
-        if not (1.0 <= self.kalman_sigma <= 10000.0):
-            raise ParameterError(f"P-AXIS-00783 kalman_sigma = {self.kalman_sigma!r} out of range; allowed: "
-                                 "1 <= value <= 10000", param_id="P-AXIS-00783", value=self.kalman_sigma,
-                                 allowed="1 <= value <= 10000")
-        if not (0 <= int(self.order) <= 6) or int(self.order) != self.order:
-            raise ParameterError(f"P-AXIS-00507 low_pass_filter_order = {self.order!r} out of range; allowed: 0..6",
-                                 param_id="P-AXIS-00507", value=self.order, allowed="0..6")
+        for name in ("n_cycles", "smoothing_factor", "kalman_sigma", "order"):
+            FILTER_PARAMS[name].check(getattr(self, name))
         if self.filter_type == FilterType.LOWPASS and self.order > 0:
             nyquist = 0.5 / cycle_time
             if not (0.0 < self.fg_f0 < nyquist):

@@ -17,6 +17,7 @@ from ..control.commands import Action, Command
 from ..control.commands3d import Command3D, CompensationMode
 from ..base.kinds import FilterType, SensorSource
 from ..errors import DistCtrlError
+from ..params.table import BY_NC_WORD
 
 Lookup = Union[Callable[[str], float], Mapping[str, float]]
 
@@ -237,16 +238,21 @@ def _fmt(value: float) -> str:
     return str(int(value)) if float(value).is_integer() else repr(value)
 
 
-#: checked ranges; keywords not listed only need a finite value
+def _value_range(spec) -> ValueRange:
+    """The NC range of a parameter's keyword: the parameter table's range (an integer's open bound as
+    the closed one next to it, so ``0 <= n < 100`` reads ``0 <= N_CYCLES <= 99``)."""
+    low, high, low_open, high_open = spec.lo, spec.hi, spec.lo_open, spec.hi_open
+    if spec.integer:
+        if low is not None and low_open:
+            low, low_open = low + 1, False
+        if high is not None and high_open:
+            high, high_open = high - 1, False
+    return ValueRange(low, high, low_open, high_open, integer=spec.integer)
+
+
+#: checked ranges, from the parameter table (params/table.py); keywords not listed only need a finite value
 VALUE_RANGES: dict[str, ValueRange] = {
-    "KP": ValueRange(0.0, 2.0, low_open=True),
-    "I_TN": ValueRange(0.0, 50.0),
-    "D_TV": ValueRange(0.0, 2.0),
-    "N_CYCLES": ValueRange(0, 99, integer=True),
-    "ORDER": ValueRange(0, 6, integer=True),
-    "SMOOTH_FACT": ValueRange(0.0, 1.0, low_open=True),
-    "KALMAN_SIGMA": ValueRange(1.0, 10000.0),
-    "FG_F0": ValueRange(0.0, None),
+    **{word: _value_range(spec) for word, spec in BY_NC_WORD.items() if not spec.choices},
     # 3D only: sin² blend of activation/deactivation, in interpolator cycles (FCT-M3 §12.2)
     "FILTER_TIME": ValueRange(0, None, integer=True),
 }
@@ -270,10 +276,10 @@ def dist_ctrl_range_error(keyword: str, value: float) -> str | None:
 
 DistCtrlValue = Union[Expr, FilterType, SensorSource, CompensationMode, str, None]
 
-_FLOAT_FIELDS = {"SET_POS": "set_pos", "SET_DIST": "set_dist", "KP": "kp", "I_TN": "i_tn",
-                 "D_TV": "d_tv", "FG_F0": "fg_f0", "SMOOTH_FACT": "smooth_fact",
-                 "KALMAN_SIGMA": "kalman_sigma"}
-_INT_FIELDS = {"N_CYCLES": "n_cycles", "ORDER": "order"}
+#: numeric keyword -> Command field (the keyword in lower case); the tuning words come from the parameter table
+_FLOAT_FIELDS = {"SET_POS": "set_pos", "SET_DIST": "set_dist",
+                 **{w: w.lower() for w, spec in BY_NC_WORD.items() if spec.type == "REAL64"}}
+_INT_FIELDS = {w: w.lower() for w, spec in BY_NC_WORD.items() if spec.integer}
 #: keywords with a name as value (MODE and DIRECTION exist only in the 3D command)
 _NAME_FIELDS = {"FILTER_TYPE": "filter_type", "SENSOR_SOURCE": "sensor_source", "SENSOR_VAR": "sensor_var",
                 "MODE": "mode", "DIRECTION": "direction"}

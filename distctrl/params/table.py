@@ -36,19 +36,27 @@ class ParamSpec:
     note: str = ""               # where the project resolved a contradiction of the documents
     unit_rotary: str = ""        # list unit on a rotary axis (P-AXIS-00018 ACHSTYP_ROTATOR), if it differs
     scale_rotary: float | None = None   # internal = value * scale_rotary on a rotary axis (None: scale)
+    nc_word: str = ""            # the DIST_CTRL keyword that sets it in a program (FCT-M3 §6), if any
+    short_keys: tuple = ()       # names accepted in a filter spec / sweep grid; the first is the canonical one
+
+    @property
+    def integer(self) -> bool:
+        """True for the integer data types (SGN32, UNS32, UNS16)."""
+        return self.type in ("SGN32", "UNS32", "UNS16")
 
     def scale_for(self, rotary: bool) -> float:
         """internal = list value * this, on a translatory (``rotary`` False) or rotary axis."""
         return self.scale_rotary if rotary and self.scale_rotary is not None else self.scale
 
-    def range_text(self) -> str:
+    def range_text(self, name: str = "value") -> str:
+        """The documented range as text, e.g. ``0 < value <= 1`` (``name`` stands for the value)."""
         if self.choices:
             return "one of " + ", ".join(str(c) for c in self.choices)
         if self.type == "BOOLEAN":
             return "0 or 1"
         lo = "" if self.lo is None else f"{_fmt(self.lo)} {'<' if self.lo_open else '<='} "
         hi = "" if self.hi is None else f" {'<' if self.hi_open else '<='} {_fmt(self.hi)}"
-        return f"{lo}value{hi}"
+        return f"{lo}{name}{hi}"
 
     def check(self, value: float) -> bool:
         """True when ``value`` (interface units) lies in the documented range."""
@@ -83,14 +91,15 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
     _p("P-AXIS-00328", "lr_param.distance_control_on", "enabled", "BOOLEAN", "-", "bool", 1, 0,
        description="Enabling of distance control (spindle with touch probe)"),
     _p("P-AXIS-00413", "kenngr.distc.n_cycles", "n_cycles", "SGN32", "-", "-", 1, 4, 0, 100, hi_open=True,
+       nc_word="N_CYCLES", short_keys=("n_cycles",),
        description="Number of sensor values used by the filter (n <= 1: pass-through)"),
     _p("P-AXIS-00414", "kenngr.distc.max_deviation", "max_deviation", "SGN32", "0.1 µm", "mm", UM, 50000,
        0, SGN32_MAX, hi_open=True, aliases=("kenngr.distc.max_abweichung",),
        description="Maximum position offset; exceeding it raises 70331 and the offset is limited"),
     _p("P-AXIS-00415", "kenngr.distc.v_max", "v_max", "SGN32", "µm/s", "mm/s", UM_S, 5000, 0, SGN32_MAX,
-       hi_open=True, description="Maximum velocity of the offset"),
+       hi_open=True, short_keys=("v_max",), description="Maximum velocity of the offset"),
     _p("P-AXIS-00416", "kenngr.distc.a_max", "a_max", "SGN32", "mm/s²", "mm/s²", 1, 0, 0, SGN32_MAX,
-       hi_open=True, description="Maximum acceleration of the offset; 0 = axis acceleration P-AXIS-00008"),
+       hi_open=True, short_keys=("a_max",), description="Maximum acceleration of the offset; 0 = axis acceleration P-AXIS-00008"),
     _p("P-AXIS-00417", "kenngr.distc.max_act_value_change", "max_act_value_change", "SGN32", "µm/s", "mm/s",
        UM_S, 5000, 0, SGN32_MAX, hi_open=True, aliases=("kenngr.distc.max_istw_sprung",),
        description="Maximum permissible change speed of the sensor reading (70329)",
@@ -123,11 +132,11 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
     _p("P-AXIS-00505", "kenngr.distc.dist_error_a_max", "dist_error_a_max", "UNS32", "0.1 µm", "mm", UM, 5000,
        0, UNS32_MAX, hi_open=True, description="Distance error from which a_max is used"),
     _p("P-AXIS-00507", "kenngr.distc.low_pass_filter_order", "low_pass_filter_order", "UNS32", "-", "-", 1, 4,
-       0, 6, description="Order of the Butterworth low-pass (0 = pass-through)"),
+       0, 6, nc_word="ORDER", short_keys=("order",), description="Order of the Butterworth low-pass (0 = pass-through)"),
     _p("P-AXIS-00508", "kenngr.distc.low_pass_filter_fg_f0", "low_pass_filter_fg_f0", "REAL64", "Hz", "Hz", 1,
-       25.0, 0, None, description="Cut-off frequency of the low-pass; must lie below 1/(2T) when used"),
+       25.0, 0, None, nc_word="FG_F0", short_keys=("fg_f0",), description="Cut-off frequency of the low-pass; must lie below 1/(2T) when used"),
     _p("P-AXIS-00509", "kenngr.distc.optimized_scheduling", "optimized_scheduling", "BOOLEAN", "-", "bool", 1,
-       0, description="Dead time reduction: 1 = this cycle's sensor value is used, 0 = last cycle's"),
+       0, short_keys=("optimized_scheduling",), description="Dead time reduction: 1 = this cycle's sensor value is used, 0 = last cycle's"),
     _p("P-AXIS-00533", "kenngr.distc.v_weight_down", "v_weight_down", "UNS32", "0.1 %", "fraction", 1e-3, 0,
        0, 2000, hi_open=True, description="Velocity weighting of the lowering movement (0 = off)"),
     _p("P-AXIS-00534", "kenngr.distc.a_weight_down", "a_weight_down", "UNS32", "0.1 %", "fraction", 1e-3, 0,
@@ -147,17 +156,19 @@ AXIS_PARAMETERS: tuple[ParamSpec, ...] = (
        description="Sensor value range: 0 by axis type P-AXIS-00018 (linear on a translatory axis, modulo on a "
                    "rotary axis), 1 linear, 2 modulo (min_pos..max_pos)"),
     _p("P-AXIS-00759", "kenngr.distc.kp", "kp", "REAL64", "-", "-", 1, 1.0, 0.0, 2.0, lo_open=True,
+       nc_word="KP", short_keys=("kp",),
        description="Weighting of the output (P gain)"),
-    _p("P-AXIS-00764", "kenngr.distc.i_tn", "i_tn", "REAL64", "s", "s", 1, 0.0, 0.0, 50.0,
+    _p("P-AXIS-00764", "kenngr.distc.i_tn", "i_tn", "REAL64", "s", "s", 1, 0.0, 0.0, 50.0, nc_word="I_TN", short_keys=("i_tn",),
        description="Integral action time (0 = no I component)"),
-    _p("P-AXIS-00765", "kenngr.distc.d_tv", "d_tv", "REAL64", "s", "s", 1, 0.0, 0.0, 2.0,
+    _p("P-AXIS-00765", "kenngr.distc.d_tv", "d_tv", "REAL64", "s", "s", 1, 0.0, 0.0, 2.0, nc_word="D_TV", short_keys=("d_tv",),
        description="Derivative action time (0 = no D component)"),
     _p("P-AXIS-00782", "kenngr.distc.filter_type", "filter_type", "STRING", "-", "-", 1, "DEFAULT",
-       choices=FILTER_TYPE_NAMES, aliases=("kenng.disc.filter_type",), description="Filter for the sensor values"),
+       choices=FILTER_TYPE_NAMES, nc_word="FILTER_TYPE", short_keys=("filter_type",), aliases=("kenng.disc.filter_type",), description="Filter for the sensor values"),
     _p("P-AXIS-00783", "kenngr.distc.kalman_sigma", "kalman_sigma", "REAL64", "-", "-", 1, 4.0, 1.0, 10000.0,
+       nc_word="KALMAN_SIGMA", short_keys=("kalman_sigma", "sigma"),
        aliases=("kenngr.distc.sigma", "kenng.disc.kalman_sigma"), description="Kalman filter: uncertainty of the measured values"),
     _p("P-AXIS-00784", "kenngr.distc.smoothing_factor", "smoothing_factor", "REAL64", "-", "-", 1, 0.7, 0.0, 1.0,
-       lo_open=True, aliases=("kenngn.distc.smoothing_factor",),
+       lo_open=True, nc_word="SMOOTH_FACT", short_keys=("smoothing_factor", "smooth_fact"), aliases=("kenngn.distc.smoothing_factor",),
        description="Exponential mean: weight of the newest value"),
     # --- axis type (ISG axis list): translatory (T, mm) or rotary (R, °) distance-controlled axis ---
     _p("P-AXIS-00018", "kenngr.achs_typ", "axis_type", "STRING", "-", "-", 1, AXIS_TYPE_TRANSLATOR,
@@ -210,3 +221,10 @@ for _spec in AXIS_PARAMETERS:
         BY_KEY[_alias] = _spec
 BY_FIELD: dict[str, ParamSpec] = {s.field: s for s in AXIS_PARAMETERS}
 BY_ID: dict[str, ParamSpec] = {s.id: s for s in AXIS_PARAMETERS}
+#: DIST_CTRL keyword -> the parameter it sets (FCT-M3 §6); the NC grammar's number and name keys include them
+BY_NC_WORD: dict[str, ParamSpec] = {s.nc_word: s for s in AXIS_PARAMETERS if s.nc_word}
+
+
+def short_key_fields(specs=AXIS_PARAMETERS) -> dict[str, str]:
+    """Every accepted short key (and the field name itself) -> field, for the specs with short keys."""
+    return {k: s.field for s in specs if s.short_keys for k in (*s.short_keys, s.field)}

@@ -32,7 +32,7 @@ from ..base.kinds import FILTER_TYPE_NAMES, FilterType
 from ..control.controller import AxisDistanceController
 from ..errors import DistCtrlError, ParameterError
 from ..params.axis import AxisParameters, check_internal
-from ..params.table import BY_FIELD
+from ..params.table import BY_FIELD, BY_NC_WORD, short_key_fields
 
 __all__ = ["SpaceError", "Dim", "DEFAULT_SPACE", "ALIASES", "NC_WORDS", "canonical", "parse_grid",
            "grid_points", "random_sample", "to_params", "build_sets", "point_label", "filter_fields",
@@ -44,20 +44,15 @@ class SpaceError(DistCtrlError, ValueError):
     """A grid text, a search-space value or a combination of values that is not allowed."""
 
 
-#: names accepted in a grid -> AxisParameters field
-ALIASES = {
-    "kp": "kp", "i_tn": "i_tn", "d_tv": "d_tv", "filter_type": "filter_type", "n_cycles": "n_cycles",
-    "smoothing_factor": "smoothing_factor", "smooth_fact": "smoothing_factor",
-    "kalman_sigma": "kalman_sigma", "sigma": "kalman_sigma",
-    "order": "low_pass_filter_order", "low_pass_filter_order": "low_pass_filter_order",
-    "fg_f0": "low_pass_filter_fg_f0", "low_pass_filter_fg_f0": "low_pass_filter_fg_f0",
-    # limiter settings may be swept too (not part of the default tuning space)
-    "v_max": "v_max", "a_max": "a_max", "optimized_scheduling": "optimized_scheduling",
-}
-#: AxisParameters field -> NC DIST_CTRL word
-NC_WORDS = {"kp": "KP", "i_tn": "I_TN", "d_tv": "D_TV", "filter_type": "FILTER_TYPE", "n_cycles": "N_CYCLES",
-            "smoothing_factor": "SMOOTH_FACT", "kalman_sigma": "KALMAN_SIGMA",
-            "low_pass_filter_order": "ORDER", "low_pass_filter_fg_f0": "FG_F0"}
+#: names accepted in a grid -> AxisParameters field (the parameter table's short keys; the limiter
+#: settings v_max, a_max, optimized_scheduling may be swept too, not part of the default tuning space)
+ALIASES = {**short_key_fields()}
+#: AxisParameters field -> NC DIST_CTRL word (from the parameter table; this order is the column order
+#: of sweep results)
+_NC_WORD_ORDER = ("kp", "i_tn", "d_tv", "filter_type", "n_cycles", "smoothing_factor", "kalman_sigma",
+                  "low_pass_filter_order", "low_pass_filter_fg_f0")
+NC_WORDS = {s.field: s.nc_word for s in sorted(
+    BY_NC_WORD.values(), key=lambda s: _NC_WORD_ORDER.index(s.field) if s.field in _NC_WORD_ORDER else 99)}
 _INT_FIELDS = {"n_cycles", "low_pass_filter_order"}
 _BOOL_FIELDS = {"optimized_scheduling"}
 

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..base.kinds import FILTER_TYPE_NAMES, FilterType
-from ..control.filters import FilterConfig, SensorFilter
+from ..control.filters import FILTER_PARAMS, FilterConfig, SensorFilter
 from ..errors import DistCtrlError, ParameterError
 from ..trace import Trace, is_trace_file, load_trace, sidecar_path
 from ..trace.plot import MAX_POINTS, envelope
@@ -78,14 +78,8 @@ class RecordingWarning(WorkbenchWarning):
 SPEC_SYNTAX = ("TYPE[:key=value[,value...][,key=value[,value...]...]], e.g. MOVING_AVERAGE:n_cycles=10,20,40 "
                "or KALMAN_MA:n_cycles=30,kalman_sigma=100,1000; several specs separated by ';'")
 
-#: accepted key spellings -> FilterConfig field (the brief's short names and the kernel's parameter names)
-KEY_ALIASES: dict[str, str] = {
-    "n_cycles": "n_cycles",
-    "smoothing_factor": "smoothing_factor", "smooth_fact": "smoothing_factor",
-    "kalman_sigma": "kalman_sigma", "sigma": "kalman_sigma",
-    "order": "order", "low_pass_filter_order": "order",
-    "fg_f0": "fg_f0", "low_pass_filter_fg_f0": "fg_f0",
-}
+#: accepted key spellings -> FilterConfig field (the parameter table's short keys and the kernel's parameter names)
+KEY_ALIASES: dict[str, str] = {k: p.name for p in FILTER_PARAMS.values() for k in p.keys}
 
 #: the keys that have an effect, per filter type (a key that does nothing is an error, not silence)
 KEYS_BY_TYPE: dict[FilterType, tuple[str, ...]] = {
@@ -97,14 +91,8 @@ KEYS_BY_TYPE: dict[FilterType, tuple[str, ...]] = {
     FilterType.KALMAN_EXPO: ("n_cycles", "smoothing_factor", "kalman_sigma"),
 }
 
-_INT_KEYS = {"n_cycles", "order"}
-_RANGES = {
-    "n_cycles": "integer 0 <= n < 100 (P-AXIS-00413)",
-    "smoothing_factor": "0 < value <= 1 (P-AXIS-00784)",
-    "kalman_sigma": "1 <= value <= 10000 (P-AXIS-00783)",
-    "order": "integer 0..6 (P-AXIS-00507)",
-    "fg_f0": "0 < value < Nyquist = 1/(2 cycle time) Hz (P-AXIS-00508)",
-}
+_INT_KEYS = {p.name for p in FILTER_PARAMS.values() if p.spec.integer}
+_RANGES = {p.name: p.range_label() for p in FILTER_PARAMS.values()}
 
 #: the comparison ``distctrl filters`` runs without a SPEC: the documents' example values (FCT-M3
 #: §4.1 n 20, §4.2 n 30 alpha 0.3, §4.3 order 2 at 30 Hz, §4.4 n 30 sigma 1000, §4.5, §9.3 n 20
