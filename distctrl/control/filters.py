@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -99,35 +100,21 @@ class FilterConfig:
                     value=self.fg_f0, allowed=f"0 < value < {nyquist:g}")
 
     @property
+    def kind(self) -> "FilterKind":
+        """The descriptor of this filter type (:data:`FILTER_KINDS`)."""
+        return FILTER_KINDS[self.filter_type]
+
+    @property
     def effective_kind(self) -> int:
         """The law's filter code after DEFAULT and the pass-through cases are resolved."""
-        ft = self.filter_type
-        if ft == FilterType.DEFAULT:
-            return law.MOVING_AVERAGE
-        if ft == FilterType.LOWPASS:
-            return law.LOWPASS if self.order > 0 else law.PASS
-        if self.n_cycles <= 1:
-            return law.PASS
-        if ft == FilterType.EXPO_MEAN and self.smoothing_factor >= 1.0:
-            return law.PASS
-        return int(ft)
+        return self.kind.code(self)
 
     @property
     def effective_n(self) -> int:
         return 4 if self.filter_type == FilterType.DEFAULT else int(self.n_cycles)
 
     def label(self) -> str:
-        ft = self.filter_type
-        if ft == FilterType.LOWPASS:
-            return f"LOWPASS(order={self.order}, fg_f0={self.fg_f0:g} Hz)"
-        if ft == FilterType.DEFAULT:
-            return "DEFAULT(MOVING_AVERAGE n=4)"
-        extra = []
-        if ft in (FilterType.EXPO_MEAN, FilterType.KALMAN_EXPO):
-            extra.append(f"smoothing_factor={self.smoothing_factor:g}")
-        if ft in (FilterType.KALMAN_MA, FilterType.KALMAN_EXPO):
-            extra.append(f"kalman_sigma={self.kalman_sigma:g}")
-        return f"{ft.name}(n_cycles={self.n_cycles}{''.join(', ' + x for x in extra)})"
+        return self.kind.label(self)
 
 
 #: Kalman filters: process variance q per cycle, the unit in which ``kalman_sigma`` (the measurement
@@ -204,28 +191,136 @@ def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
     # (sum -> n, beta -> 1/(n-1)) instead of a 0/0
     log_rho = math.log1p(-alpha) if alpha < 1.0 else -math.inf
     fc[law.FC_DECAY_N] = math.exp(n * log_rho)
-    if kind == law.EXPO_MEAN:
-        fc[law.FC_WSUM] = -math.expm1(n * log_rho) / alpha
-        fc[law.FC_EXPO_OLDER] = alpha / -math.expm1((n - 1) * log_rho)
-    else:
-        fc[law.FC_WSUM] = 1.0
-    if kind in (law.KALMAN_MA, law.KALMAN_EXPO):
-        kd = kalman_design(kind, n, alpha, float(config.kalman_sigma))
-        fc[law.FC_GAIN] = kd.gain
-        fc[law.FC_P_PRIOR] = kd.p_prior
-        fc[law.FC_PRED:law.FC_PRED + n] = [float(v) for v in kd.coefficients]
-    if kind == law.LOWPASS:
-        from scipy import signal  # only the LOWPASS design needs scipy: not on the cycle core's import path
-
-        sos = signal.butter(int(config.order), float(config.fg_f0), btype="low", fs=1.0 / cycle_time,
-                            output="sos")
-        zi = signal.sosfilt_zi(sos)     # steady state for a unit input: seeding causes no jump
-        fc[law.FC_NSEC] = float(len(sos))
-        for s, row in enumerate(sos):
-            fc[law.FC_SOS + 6 * s: law.FC_SOS + 6 * s + 6] = [float(v) for v in row]
-            fc[law.FC_ZI + 2 * s] = float(zi[s, 0])
-            fc[law.FC_ZI + 2 * s + 1] = float(zi[s, 1])
+    fc[law.FC_WSUM] = 1.0
+    design = FILTER_KINDS[FilterType(kind)].design
+    if design is not None:
+        design(config, fc, cycle_time)
     return fc
+
+
+# ------------------------------------------------------------------------------------------------------
+# the filter types, each described once
+# ------------------------------------------------------------------------------------------------------
+def _design_expo(config: FilterConfig, fc: list[float], cycle_time: float) -> None:
+    n, alpha = int(fc[law.FC_N]), fc[law.FC_ALPHA]
+    log_rho = math.log1p(-alpha) if alpha < 1.0 else -math.inf
+    fc[law.FC_WSUM] = -math.expm1(n * log_rho) / alpha
+    fc[law.FC_EXPO_OLDER] = alpha / -math.expm1((n - 1) * log_rho)
+
+
+def _design_kalman(config: FilterConfig, fc: list[float], cycle_time: float) -> None:
+    n = int(fc[law.FC_N])
+    kd = kalman_design(int(fc[law.FC_KIND]), n, fc[law.FC_ALPHA], float(config.kalman_sigma))
+    fc[law.FC_GAIN] = kd.gain
+    fc[law.FC_P_PRIOR] = kd.p_prior
+    fc[law.FC_PRED:law.FC_PRED + n] = [float(v) for v in kd.coefficients]
+
+
+def _design_lowpass(config: FilterConfig, fc: list[float], cycle_time: float) -> None:
+    from scipy import signal  # only the LOWPASS design needs scipy: not on the cycle core's import path
+
+    sos = signal.butter(int(config.order), float(config.fg_f0), btype="low", fs=1.0 / cycle_time, output="sos")
+    zi = signal.sosfilt_zi(sos)     # steady state for a unit input: seeding causes no jump
+    fc[law.FC_NSEC] = float(len(sos))
+    for s, row in enumerate(sos):
+        fc[law.FC_SOS + 6 * s: law.FC_SOS + 6 * s + 6] = [float(v) for v in row]
+        fc[law.FC_ZI + 2 * s] = float(zi[s, 0])
+        fc[law.FC_ZI + 2 * s + 1] = float(zi[s, 1])
+
+
+def _poly_pass(fc):
+    return [1.0], [1.0]
+
+
+def _poly_mean(fc):
+    return [fc[law.FC_INV_N]] * int(fc[law.FC_N]), [1.0]
+
+
+def _poly_expo(fc):
+    alpha, beta, rho = fc[law.FC_ALPHA], fc[law.FC_EXPO_OLDER], 1.0 - fc[law.FC_ALPHA]
+    return [alpha] + [beta * rho ** k for k in range(1, int(fc[law.FC_N]))], [1.0]
+
+
+def _poly_kalman(fc):
+    n, gain = int(fc[law.FC_N]), fc[law.FC_GAIN]
+    pred = fc[law.FC_PRED:law.FC_PRED + n]          # oldest first: pred[n-1] weighs x_(-1)
+    return [gain] + [(1.0 - gain) * pred[n - m] for m in range(1, n + 1)], [1.0]
+
+
+def _poly_lowpass(fc):
+    b, a = np.array([1.0]), np.array([1.0])
+    for s in range(int(fc[law.FC_NSEC])):
+        o = law.FC_SOS + 6 * s
+        b = np.convolve(b, fc[o:o + 3])
+        a = np.convolve(a, fc[o + 3:o + 6])
+    return [float(v) for v in b], [float(v) for v in a]
+
+
+def _code_windowed(c: FilterConfig) -> int:
+    """Filters over the last n_cycles values: n <= 1 passes the value through."""
+    return law.PASS if c.n_cycles <= 1 else int(c.filter_type)
+
+
+def _code_expo(c: FilterConfig) -> int:
+    return law.PASS if c.n_cycles <= 1 or c.smoothing_factor >= 1.0 else law.EXPO_MEAN
+
+
+def _label_windowed(c: FilterConfig) -> str:
+    extra = "".join(f", {p}={getattr(c, p):g}" for p in c.kind.params if p != "n_cycles")
+    return f"{c.filter_type.name}(n_cycles={c.n_cycles}{extra})"
+
+
+@dataclass(frozen=True)
+class FilterKind:
+    """One filter type, described once (SPEC §4): what control, workbench, tuning and margins read.
+
+    * ``params``: the :class:`FilterConfig` fields (= short keys, :data:`FILTER_PARAMS`) that change
+      the law; the others have no effect (a filter spec naming one is an error, tuning does not vary it);
+    * ``code(config)``: the law's filter code in force (DEFAULT and the pass-through cases resolved);
+    * ``design(config, fc, cycle_time)``: fills this kind's part of the coefficient buffer (after the
+      common part of :func:`design_coefficients`), None when it needs nothing more;
+    * ``polynomials(fc)``: its transfer function ``(b, a)`` in ``z^-1`` as the law computes it, for
+      the margins (None: no linear model, e.g. an order statistic);
+    * ``example``: its spec in the workbench's default comparison (``distctrl filters``), if any;
+    * ``tunable``: one of the choices of the default tuning space.
+
+    A new filter type: a branch in :func:`distctrl.control.law.filter_step` (and a code constant),
+    a member of :class:`~distctrl.base.kinds.FilterType` and a descriptor here.
+    """
+
+    type: FilterType
+    params: tuple[str, ...]
+    code: Callable[[FilterConfig], int]
+    label: Callable[[FilterConfig], str] = _label_windowed
+    design: Callable[[FilterConfig, list, float], None] | None = None
+    polynomials: Callable[[list], tuple[list, list]] | None = None
+    example: str = ""
+    tunable: bool = True
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        """The AxisParameters fields of :attr:`params` (``order`` -> ``low_pass_filter_order``)."""
+        return tuple(FILTER_PARAMS[p].field for p in self.params)
+
+
+#: every filter type, in FilterType order (the tuning space's choices keep this order)
+FILTER_KINDS: dict[FilterType, FilterKind] = {k.type: k for k in (
+    FilterKind(FilterType.DEFAULT, (), lambda c: law.MOVING_AVERAGE,
+               label=lambda c: "DEFAULT(MOVING_AVERAGE n=4)", tunable=False),
+    FilterKind(FilterType.PASS, (), lambda c: law.PASS, polynomials=_poly_pass, tunable=False),
+    FilterKind(FilterType.MOVING_AVERAGE, ("n_cycles",), _code_windowed, polynomials=_poly_mean,
+               example="MOVING_AVERAGE:n_cycles=20,30"),
+    FilterKind(FilterType.EXPO_MEAN, ("n_cycles", "smoothing_factor"), _code_expo, design=_design_expo,
+               polynomials=_poly_expo, example="EXPO_MEAN:n_cycles=30,smoothing_factor=0.3"),
+    FilterKind(FilterType.LOWPASS, ("order", "fg_f0"), lambda c: law.LOWPASS if c.order > 0 else law.PASS,
+               label=lambda c: f"LOWPASS(order={c.order}, fg_f0={c.fg_f0:g} Hz)", design=_design_lowpass,
+               polynomials=_poly_lowpass, example="LOWPASS:order=2,fg_f0=30"),
+    FilterKind(FilterType.KALMAN_MA, ("n_cycles", "kalman_sigma"), _code_windowed, design=_design_kalman,
+               polynomials=_poly_kalman, example="KALMAN_MA:n_cycles=20,30,kalman_sigma=4,1000"),
+    FilterKind(FilterType.KALMAN_EXPO, ("n_cycles", "smoothing_factor", "kalman_sigma"), _code_windowed,
+               design=_design_kalman, polynomials=_poly_kalman,
+               example="KALMAN_EXPO:n_cycles=30,smoothing_factor=0.3,kalman_sigma=1000"),
+)}
 
 
 class SensorFilter:

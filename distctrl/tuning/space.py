@@ -30,6 +30,7 @@ import numpy as np
 
 from ..base.kinds import FILTER_TYPE_NAMES, FilterType
 from ..control.controller import AxisDistanceController
+from ..control.filters import FILTER_KINDS
 from ..errors import DistCtrlError, ParameterError
 from ..params.axis import AxisParameters, check_internal
 from ..params.table import BY_FIELD, BY_NC_WORD, short_key_fields
@@ -67,15 +68,7 @@ def canonical(name: str) -> str:
 
 def filter_fields(filter_type: FilterType) -> tuple[str, ...]:
     """The filter parameters a filter type uses (the others do not change the law)."""
-    ft = FilterType(filter_type)
-    return {
-        FilterType.DEFAULT: (),
-        FilterType.MOVING_AVERAGE: ("n_cycles",),
-        FilterType.EXPO_MEAN: ("n_cycles", "smoothing_factor"),
-        FilterType.LOWPASS: ("low_pass_filter_order", "low_pass_filter_fg_f0"),
-        FilterType.KALMAN_MA: ("n_cycles", "kalman_sigma"),
-        FilterType.KALMAN_EXPO: ("n_cycles", "smoothing_factor", "kalman_sigma"),
-    }[ft]
+    return FILTER_KINDS[FilterType(filter_type)].fields
 
 
 @dataclass(frozen=True)
@@ -118,8 +111,7 @@ class Dim:
 #: the default tuning space: inside the documented ranges, narrowed to what makes sense for a
 #: distance control at 1 ms (kp in (0, 2], n_cycles 0..99, i_tn 0..50 s, d_tv 0..2 s documented)
 DEFAULT_SPACE: tuple[Dim, ...] = (
-    Dim("filter_type", "choice", choices=(FilterType.MOVING_AVERAGE, FilterType.EXPO_MEAN, FilterType.LOWPASS,
-                                          FilterType.KALMAN_MA, FilterType.KALMAN_EXPO)),
+    Dim("filter_type", "choice", choices=tuple(t for t, k in FILTER_KINDS.items() if k.tunable)),
     Dim("n_cycles", "int", 1, 32),
     Dim("smoothing_factor", "float", 0.05, 1.0),
     Dim("kalman_sigma", "log", 1.0, 1000.0),

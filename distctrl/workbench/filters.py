@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..base.kinds import FILTER_TYPE_NAMES, FilterType
-from ..control.filters import FILTER_PARAMS, FilterConfig, SensorFilter
+from ..control.filters import FILTER_KINDS, FILTER_PARAMS, FilterConfig, SensorFilter
 from ..errors import DistCtrlError, ParameterError
 from ..trace import Trace, is_trace_file, load_trace, sidecar_path
 from ..trace.plot import MAX_POINTS, envelope
@@ -82,29 +82,22 @@ SPEC_SYNTAX = ("TYPE[:key=value[,value...][,key=value[,value...]...]], e.g. MOVI
 KEY_ALIASES: dict[str, str] = {k: p.name for p in FILTER_PARAMS.values() for k in p.keys}
 
 #: the keys that have an effect, per filter type (a key that does nothing is an error, not silence)
-KEYS_BY_TYPE: dict[FilterType, tuple[str, ...]] = {
-    FilterType.DEFAULT: (),
-    FilterType.MOVING_AVERAGE: ("n_cycles",),
-    FilterType.EXPO_MEAN: ("n_cycles", "smoothing_factor"),
-    FilterType.LOWPASS: ("order", "fg_f0"),
-    FilterType.KALMAN_MA: ("n_cycles", "kalman_sigma"),
-    FilterType.KALMAN_EXPO: ("n_cycles", "smoothing_factor", "kalman_sigma"),
-}
+KEYS_BY_TYPE: dict[FilterType, tuple[str, ...]] = {t: k.params for t, k in FILTER_KINDS.items()
+                                                   if t != FilterType.PASS}
 
 _INT_KEYS = {p.name for p in FILTER_PARAMS.values() if p.spec.integer}
 _RANGES = {p.name: p.range_label() for p in FILTER_PARAMS.values()}
 
-#: the comparison ``distctrl filters`` runs without a SPEC: the documents' example values (FCT-M3
-#: §4.1 n 20, §4.2 n 30 alpha 0.3, §4.3 order 2 at 30 Hz, §4.4 n 30 sigma 1000, §4.5, §9.3 n 20
+#: the comparison ``distctrl filters`` runs without a SPEC: each filter kind's example
+#: (control/filters.FILTER_KINDS) in this order, the documents' example values (FCT-M3 §4.1 n 20, §4.2 n 30 alpha 0.3, §4.3 order 2 at 30 Hz, §4.4 n 30 sigma 1000, §4.5, §9.3 n 20
 #: sigma 1000) and the default sigma 4, so the plain filters and the Kalman filters of the same n
 #: (shorter dead time, overshoot growing with n and sigma) are side by side
-DEFAULT_SPECS: tuple[str, ...] = (
-    "MOVING_AVERAGE:n_cycles=20,30",
-    "KALMAN_MA:n_cycles=20,30,kalman_sigma=4,1000",
-    "EXPO_MEAN:n_cycles=30,smoothing_factor=0.3",
-    "KALMAN_EXPO:n_cycles=30,smoothing_factor=0.3,kalman_sigma=1000",
-    "LOWPASS:order=2,fg_f0=30",
-)
+_COMPARISON_ORDER = (FilterType.MOVING_AVERAGE, FilterType.KALMAN_MA, FilterType.EXPO_MEAN,
+                     FilterType.KALMAN_EXPO, FilterType.LOWPASS)
+DEFAULT_SPECS: tuple[str, ...] = tuple(
+    FILTER_KINDS[t].example for t in sorted(FILTER_KINDS, key=lambda t: _COMPARISON_ORDER.index(t)
+                                            if t in _COMPARISON_ORDER else len(_COMPARISON_ORDER))
+    if FILTER_KINDS[t].example)
 
 
 def _keys_text(ft: FilterType) -> str:

@@ -55,6 +55,7 @@ from ..base.kinds import SensorSource
 from ..base.states import HliState, Mode
 from ..control import law
 from ..control.controller import AxisDistanceController
+from ..control.filters import FILTER_KINDS
 from ..errors import DistCtrlError
 from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
 
@@ -93,32 +94,17 @@ def filter_coefficients(fc: list[float]) -> tuple[list[float], list[float]]:
     (:func:`distctrl.control.filters.design_coefficients`), as polynomials in ``z^-1``:
     ``(b, a)`` with ``F(z) = (b0 + b1 z^-1 + ...) / (a0 + a1 z^-1 + ...)``.
 
-    Read off :func:`distctrl.control.law.filter_step`: PASS ``1``; MOVING_AVERAGE the mean of the last n
+    Each filter type's :attr:`~distctrl.control.filters.FilterKind.polynomials`, read off
+    :func:`distctrl.control.law.filter_step`: PASS ``1``; MOVING_AVERAGE the mean of the last n
     values; EXPO_MEAN ``alpha x + beta sum_(k=1..n-1) rho^k x_(-k)``; KALMAN_MA / KALMAN_EXPO
     ``K x + (1 - K) sum_i c_i x_(-(n-i))`` (the prediction from the n previous measurements, c oldest
     first); LOWPASS the product of the second-order sections.
     """
     kind = int(fc[law.FC_KIND])
-    n = int(fc[law.FC_N])
-    if kind == law.PASS:
-        return [1.0], [1.0]
-    if kind == law.MOVING_AVERAGE:
-        return [fc[law.FC_INV_N]] * n, [1.0]
-    if kind == law.EXPO_MEAN:
-        alpha, beta, rho = fc[law.FC_ALPHA], fc[law.FC_EXPO_OLDER], 1.0 - fc[law.FC_ALPHA]
-        return [alpha] + [beta * rho ** k for k in range(1, n)], [1.0]
-    if kind in (law.KALMAN_MA, law.KALMAN_EXPO):
-        gain = fc[law.FC_GAIN]
-        pred = fc[law.FC_PRED:law.FC_PRED + n]          # oldest first: pred[n-1] weighs x_(-1)
-        return [gain] + [(1.0 - gain) * pred[n - m] for m in range(1, n + 1)], [1.0]
-    if kind == law.LOWPASS:
-        b, a = np.array([1.0]), np.array([1.0])
-        for s in range(int(fc[law.FC_NSEC])):
-            o = law.FC_SOS + 6 * s
-            b = np.convolve(b, fc[o:o + 3])
-            a = np.convolve(a, fc[o + 3:o + 6])
-        return [float(v) for v in b], [float(v) for v in a]
-    raise MarginsError(f"filter kind {kind} unknown")  # pragma: no cover - the core has no other kind
+    desc = FILTER_KINDS.get(kind)
+    if desc is None or desc.polynomials is None:
+        raise MarginsError(f"filter kind {kind} has no linear model")  # pragma: no cover - every core kind has one
+    return desc.polynomials(fc)
 
 
 def _zinv(b, a, T: float) -> "control.TransferFunction":
