@@ -133,7 +133,7 @@ class Machine:
         self.process_program = process_plc
         #: the CNC's lift motions of the scenario's ``lift`` functions (docs/process.md "Lift"): each is
         #: stepped after the interpolator and superimposed on its axis's programmed position
-        self.lift_motions = tuple(f.cnc_lift for f in process_plc.functions if hasattr(f, "cnc_lift")) \
+        self.lift_motions = tuple(f.cnc_lift for f in process_plc.functions if f.cnc_lift is not None) \
             if process_plc is not None else ()
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
         #: program, the ADS server); a batch run without readers publishes once at the end
@@ -152,7 +152,7 @@ class Machine:
         # the V.E. variables the process functions hand over to the NC program (the touch-off's request):
         # they exist from the start (0), so the program can wait on them and ADS serves them as symbols
         for f in (process_plc.functions if process_plc is not None else ()):
-            for name in getattr(f, "declares", ()):
+            for name in f.declares:
                 self.variables.setdefault(name, 0.0)
         self.shift = {n: 0.0 for n in axes}            # absorbed offsets the channel has not taken yet
         self.channel_override = 1.0

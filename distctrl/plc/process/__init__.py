@@ -12,6 +12,7 @@ from .calibrate import CALIBRATE_DEFAULTS, Calibrate, CalibrationRecord
 from .channel import ChannelPathStatus
 from .collision_retract import COLLISION_DEFAULTS, RETRACT_MARGIN, CollisionRetract
 from .config import (
+                     PROCESS_CLASSES,
                      PROCESS_COMMON_KEYS,
                      PROCESS_FUNCTIONS,
                      PROCESS_KEYS,
@@ -27,7 +28,7 @@ from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
 
 __all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS", "CALIBRATE_DEFAULTS", "Calibrate", "CalibrationRecord",
-           "AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
+           "AUTO_DEFAULTS", "AutoSetValue", "ChannelPathStatus", "PROCESS_CLASSES", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
            "ProcessConfig", "make_process_program", "process_configs",
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
            "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",

@@ -48,7 +48,7 @@ import math
 
 from ...base.states import HliState
 from ...sim.config_errors import require_number
-from .base import ProcessFunction, tracking_or_held
+from .base import Key, ProcessFunction, ProcessTable, tracking_or_held
 
 __all__ = ["AutoSetValue", "AUTO_DEFAULTS"]
 
@@ -62,14 +62,21 @@ class AutoSetValue(ProcessFunction):
     """``delay`` (s, >= 0) and ``sample_time`` (s, > 0) after the cut starts; ``cycle_time`` (s)."""
 
     name = "auto_set_value"
+    KEYS = {
+        "delay": Key(AUTO_DEFAULTS["delay"], "s after the cut starts before sampling", lo=0.0, hi=10.0),
+        "sample_time": Key(AUTO_DEFAULTS["sample_time"], "s of sampling (at least one cycle)", hi=10.0),
+    }
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        return {"delay": table.read(cls, "delay"), "sample_time": table.read(cls, "sample_time", lo=table.cycle_time)}
 
     def __init__(self, axis: str, cycle_time: float, delay: float = AUTO_DEFAULTS["delay"],
                  sample_time: float = AUTO_DEFAULTS["sample_time"], enabled: bool = True):
         super().__init__(axis, enabled)
         self.cycle_time = require_number(cycle_time, "auto_set_value.cycle_time", lo=0.0, lo_open=True)
-        self.delay = require_number(delay, "auto_set_value.delay", lo=0.0, hi=10.0)
-        self.sample_time = require_number(sample_time, "auto_set_value.sample_time", lo=self.cycle_time,
-                                          hi=10.0)
+        self.delay = self.KEYS["delay"].check(delay, "auto_set_value.delay")
+        self.sample_time = self.KEYS["sample_time"].check(sample_time, "auto_set_value.sample_time", lo=self.cycle_time)
         self.delay_cycles = round(self.delay / self.cycle_time)
         self.sample_cycles = max(1, round(self.sample_time / self.cycle_time))
         #: (cycle, mean mm) of every sampling that completed (kept by reset())

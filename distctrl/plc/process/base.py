@@ -2,11 +2,17 @@
 switch that turns it on and off while the machine runs."""
 from __future__ import annotations
 
+import re
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
 from ...base.states import HliState
-from ...sim.config_errors import ConfigError
+from ...sim.config_errors import ConfigError, require_int, require_number
 from .hold import RUNNING_TRACKING, FreezeHold
 
-__all__ = ["ProcessFunction", "tracking_or_held", "require_bool"]
+__all__ = ["ProcessFunction", "Key", "ProcessTable", "tracking_or_held", "require_bool", "ve_key"]
+
+_VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
 
 _FREEZE = int(HliState.FREEZE)
 
@@ -23,6 +29,74 @@ def require_bool(value: object, key: str) -> bool:
     return value
 
 
+def ve_key(value: object, key: str, allowed: str) -> str:
+    """A V.E. variable name given in a [[process]] table, stored without the ``V.E.`` prefix; else
+    :class:`ConfigError` naming ``key``."""
+    if not isinstance(value, str) or not _VAR_RE.match(value):
+        raise ConfigError(key, value, allowed)
+    return value[4:] if value.startswith("V.E.") else value
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a process function's ``[[process]]`` table, declared once by the function (``KEYS``):
+    its default (None: none, or one that depends on the scenario, see ``doc``), its documented range
+    (``kind`` "number" or "int" with ``lo``/``hi``; "name" a V.E. variable; "any" checked by the function)
+    and what it does. The constructor and the scenario loader both check against this range; the
+    loader may narrow it by the scenario (an axis's v_max, the cycle time)."""
+
+    default: Any = None
+    doc: str = ""
+    kind: str = "number"
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def check(self, value: object, key: str, **narrow) -> Any:
+        """``value`` checked against the declared range (``narrow`` overrides lo/hi/lo_open/hi_open),
+        else :class:`ConfigError` naming ``key``."""
+        b = {"lo": self.lo, "hi": self.hi, "lo_open": self.lo_open, "hi_open": self.hi_open, **narrow}
+        if self.kind == "int":
+            return require_int(value, key, lo=b["lo"], hi=b["hi"])
+        if self.kind == "number":
+            return require_number(value, key, **b)
+        return value
+
+
+class ProcessTable:
+    """One ``[[process]]`` table as its function reads it (Klipper's config section): the raw table,
+    the key prefix for messages (``process[2].``), the axis, its scenario config, the sensor and the
+    cycle time."""
+
+    def __init__(self, raw: dict, prefix: str, axis: str, axis_cfg, sensor, cycle_time: float):
+        self.raw, self.prefix, self.axis, self.axis_cfg = raw, prefix, axis, axis_cfg
+        self.sensor, self.cycle_time = sensor, cycle_time
+
+    def get(self, name: str, default: object = None) -> object:
+        return self.raw.get(name, default)
+
+    def read(self, cls: "type[ProcessFunction]", name: str, default: object = None, **narrow) -> Any:
+        """Key ``name`` of ``cls.KEYS``: the given value, else ``default`` (else the declared default),
+        checked against the declared range narrowed by ``narrow``."""
+        key = cls.KEYS[name]
+        if default is None:
+            default = key.default
+        return key.check(self.raw.get(name, default), self.prefix + name, **narrow)
+
+
+def signal_variable(table: "ProcessTable") -> str | None:
+    """The ``variable`` key of the motion functions: a V.E. distance in mm; default the sensor's
+    distance variable (a distance sensor's, or the linearised one of an arc-voltage sensor); none for
+    the probe on encoder 2 (``state_r.actual_distance``)."""
+    sensor = table.sensor
+    default = sensor.variable if sensor is not None and sensor.kind in ("distance", "arc_voltage") else None
+    var = table.get("variable", default)
+    if var is None:
+        return None
+    return ve_key(var, table.prefix + "variable", "a V.E. variable name holding the distance in mm (e.g. \"SENSOR\")")
+
+
 class ProcessFunction:
     """One process function on one distance-controlled axis. :meth:`step` runs once per PLC cycle
     (the GEO cycle) while :attr:`enabled` and may call ``self.hold.request(self.name)``; the
@@ -35,6 +109,24 @@ class ProcessFunction:
     """
 
     name = "process"
+    #: the keys of its ``[[process]]`` table besides function, axis and enabled, in documentation order
+    KEYS: ClassVar[dict[str, Key]] = {}
+    #: the V.E. variables the machine creates (0) at the start (a handshake); an instance may set its own
+    declares: tuple[str, ...] = ()
+    #: the CNC part of a function that moves the axis itself (run by the machine every GEO cycle), or None
+    cnc_lift = None
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        """The function's validated keys, defaults filled in, from its ``[[process]]`` table. This
+        default reads every declared key with its declared default and range; a function whose
+        defaults or ranges depend on the scenario overrides it."""
+        return {name: table.read(cls, name) for name in cls.KEYS}
+
+    @classmethod
+    def build(cls, axis: str, cycle_time: float, params: dict) -> "ProcessFunction":
+        """The function for ``axis`` from the keys :meth:`from_config` returned."""
+        return cls(axis, cycle_time, **params)
 
     def __init__(self, axis: str, enabled: bool = True):
         self.axis = axis

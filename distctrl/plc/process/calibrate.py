@@ -77,9 +77,9 @@ from __future__ import annotations
 import math
 
 from ...base.states import HliState, HliTransition
-from ...sim.config_errors import require_int, require_number
+from ...sim.config_errors import ConfigError, require_number
 from ..variables import ve_name
-from .base import ProcessFunction
+from .base import Key, ProcessFunction, ProcessTable, ve_key
 
 __all__ = ["Calibrate", "CALIBRATE_DEFAULTS", "CalibrationRecord"]
 
@@ -123,6 +123,32 @@ class Calibrate(ProcessFunction):
     ``variable`` (the V.E. variable with the reading), ``cycle_time`` (s)."""
 
     name = "calibrate"
+    KEYS = {
+        "speed": Key(CALIBRATE_DEFAULTS["speed"], "mm/s of set distance", lo=0.0, hi=20.0, lo_open=True),
+        "bottom": Key(CALIBRATE_DEFAULTS["bottom"], "mm measured, the lowest point (below the sensor's range_max)",
+                      lo=0.0, hi=100.0, lo_open=True),
+        "settle": Key(CALIBRATE_DEFAULTS["settle"], "s of rest before a point is taken (at least one cycle)",
+                      hi=10.0),
+        "runs": Key(CALIBRATE_DEFAULTS["runs"], "runs down and up", kind="int", lo=1, hi=10),
+        "variable": Key(None, "V.E. variable with the reading; default the one the sensor writes", kind="name"),
+    }
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        """The calibration run's keys: it records a distance sensor's reading on the axis it measures."""
+        sensor, k, axis = table.sensor, table.prefix, table.axis
+        if sensor is None or sensor.kind != "distance" or sensor.axis != axis:
+            what = "no [sensor]" if sensor is None else f"a {sensor.kind!r} sensor on {sensor.axis}"
+            raise ConfigError(k + "axis", axis, "the axis of a [sensor] with kind = 'distance' (the calibration "
+                              f"run records a distance sensor's reading; the scenario has {what})",
+                              "no distance sensor on")
+        default_var = sensor.output_variable          # the raw reading when a linearisation is in force
+        var = ve_key(table.get("variable", default_var), k + "variable",
+                     "a V.E. variable name (default: the one the sensor writes)")
+        return {"speed": table.read(cls, "speed"),
+                "bottom": table.read(cls, "bottom", hi=sensor.range_max, hi_open=True),
+                "settle": table.read(cls, "settle", lo=table.cycle_time), "runs": table.read(cls, "runs"),
+                "variable": var}
 
     def __init__(self, axis: str, cycle_time: float, variable: str = "SENSOR", *,
                  speed: float = CALIBRATE_DEFAULTS["speed"], bottom: float = CALIBRATE_DEFAULTS["bottom"],
@@ -130,10 +156,11 @@ class Calibrate(ProcessFunction):
                  enabled: bool = True):
         super().__init__(axis, enabled)
         self.cycle_time = require_number(cycle_time, "calibrate.cycle_time", lo=0.0, lo_open=True)
-        self.speed = require_number(speed, "calibrate.speed", lo=0.0, hi=20.0, lo_open=True)
-        self.bottom = require_number(bottom, "calibrate.bottom", lo=0.0, hi=100.0, lo_open=True)
-        self.settle = require_number(settle, "calibrate.settle", lo=self.cycle_time, hi=10.0)
-        self.runs = require_int(runs, "calibrate.runs", lo=1, hi=10)
+        keys = self.KEYS
+        self.speed = keys["speed"].check(speed, "calibrate.speed")
+        self.bottom = keys["bottom"].check(bottom, "calibrate.bottom")
+        self.settle = keys["settle"].check(settle, "calibrate.settle", lo=self.cycle_time)
+        self.runs = keys["runs"].check(runs, "calibrate.runs")
         self.variable = ve_name(variable)
         self.settle_cycles = max(1, round(self.settle / self.cycle_time))
         self.select_cycles = max(1, round(SELECT_TIMEOUT / self.cycle_time))

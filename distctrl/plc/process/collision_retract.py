@@ -71,9 +71,9 @@ import math
 
 from ...base.states import HliState, HliTransition
 from ...errors import ErrorId, make_event
-from ...sim.config_errors import require_int, require_number
+from ...sim.config_errors import require_number
 from ..variables import ve_name
-from .base import ProcessFunction
+from .base import Key, ProcessFunction, ProcessTable, signal_variable
 from .plc_io import MM_PER_UNIT, HliCommandSender, read_signal, write_object
 
 __all__ = ["CollisionRetract", "COLLISION_DEFAULTS", "RETRACT_MARGIN"]
@@ -100,6 +100,30 @@ class CollisionRetract(HliCommandSender, ProcessFunction):
     ``variable`` the V.E. signal in mm (None: ``state_r.actual_distance``)."""
 
     name = "collision_retract"
+    KEYS = {
+        "variable": Key(None, "V.E. distance in mm; default the sensor's, else state_r.actual_distance",
+                        kind="name"),
+        "threshold": Key(COLLISION_DEFAULTS["threshold"], "mm: a reading at or below it is a contact",
+                         lo=0.0, hi=100.0),
+        "short_circuit": Key(COLLISION_DEFAULTS["short_circuit"], "a reading that means a short circuit "
+                             "(None: none)", kind="any"),
+        "confirm_cycles": Key(COLLISION_DEFAULTS["confirm_cycles"], "cycles a contact must last", kind="int",
+                              lo=1, hi=1000),
+        "retract": Key(COLLISION_DEFAULTS["retract"], "mm the head retracts", lo=0.0, hi=1000.0, lo_open=True),
+        "retract_speed": Key(None, "mm/s; default and upper bound the axis's v_max", lo=0.001, hi=2_000_000.0),
+        "retract_accel": Key(None, "mm/s²; default and upper bound the axis's a_max", lo=1.0, hi=2_000_000_000.0),
+    }
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        axis_cfg, k = table.axis_cfg, table.prefix
+        sc = table.get("short_circuit", COLLISION_DEFAULTS["short_circuit"])
+        return {"variable": signal_variable(table), "threshold": table.read(cls, "threshold"),
+                "short_circuit": None if sc is None else require_number(sc, k + "short_circuit"),
+                "confirm_cycles": table.read(cls, "confirm_cycles"), "retract": table.read(cls, "retract"),
+                # the retract runs at the axis's limits unless slower ones are given
+                "retract_speed": table.read(cls, "retract_speed", axis_cfg.v_max, hi=axis_cfg.v_max),
+                "retract_accel": table.read(cls, "retract_accel", axis_cfg.a_max, hi=axis_cfg.a_max)}
 
     def __init__(self, axis: str, cycle_time: float, retract_speed: float, retract_accel: float, *,
                  variable: str | None = None, threshold: float = COLLISION_DEFAULTS["threshold"],
@@ -108,11 +132,12 @@ class CollisionRetract(HliCommandSender, ProcessFunction):
         super().__init__(axis)
         n = "collision_retract."
         self.cycle_time = require_number(cycle_time, n + "cycle_time", lo=0.0, lo_open=True)
-        self.retract_speed = require_number(retract_speed, n + "retract_speed", lo=0.001, hi=2_000_000.0)
-        self.retract_accel = require_number(retract_accel, n + "retract_accel", lo=1.0, hi=2_000_000_000.0)
-        self.threshold = require_number(threshold, n + "threshold", lo=0.0, hi=100.0)
-        self.confirm_cycles = require_int(confirm_cycles, n + "confirm_cycles", lo=1, hi=1000)
-        self.retract = require_number(retract, n + "retract", lo=0.0, hi=1000.0, lo_open=True)
+        keys = self.KEYS
+        self.retract_speed = keys["retract_speed"].check(retract_speed, n + "retract_speed")
+        self.retract_accel = keys["retract_accel"].check(retract_accel, n + "retract_accel")
+        self.threshold = keys["threshold"].check(threshold, n + "threshold")
+        self.confirm_cycles = keys["confirm_cycles"].check(confirm_cycles, n + "confirm_cycles")
+        self.retract = keys["retract"].check(retract, n + "retract")
         self.short_circuit = None if short_circuit is None else require_number(short_circuit, n + "short_circuit")
         self.variable = None if variable is None else ve_name(variable)
         self.stop_cycles = round(STOP_TIMEOUT_S / self.cycle_time)

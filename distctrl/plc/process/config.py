@@ -1,53 +1,36 @@
 """``[[process]]`` tables of a scenario: validation, documented defaults, and the PLC program."""
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
-from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
-from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
-from .base import require_bool
-from .calibrate import CALIBRATE_DEFAULTS, Calibrate
-from .collision_retract import COLLISION_DEFAULTS, CollisionRetract
-from .corner_lock import CORNER_DEFAULTS, CornerLock
-from .lift import LIFT_DEFAULTS, Lift
+from ...sim.config_errors import MISSING, ConfigError, require_mapping
+from .auto_set_value import AutoSetValue
+from .base import ProcessFunction, ProcessTable, require_bool
+from .calibrate import Calibrate
+from .collision_retract import CollisionRetract
+from .corner_lock import CornerLock
+from .lift import Lift
 from .program import ProcessProgram
-from .touch_off import TOUCH_DEFAULTS, TouchOff
-from .void_lock import (VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VOID_WINDOW_DISTANCE_S,
-                        VoidLock)
+from .touch_off import TouchOff
+from .void_lock import VoidLock
 
-__all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_FUNCTIONS", "PROCESS_KEYS", "process_configs",
-           "make_process_program"]
+__all__ = ["ProcessConfig", "PROCESS_COMMON_KEYS", "PROCESS_CLASSES", "PROCESS_FUNCTIONS", "PROCESS_KEYS",
+           "process_configs", "make_process_program"]
 
-#: the functions a [[process]] table may name, and their own keys (besides function and axis)
-PROCESS_KEYS: dict[str, tuple[str, ...]] = {
-    "corner_lock": ("share", "hysteresis"),
-    "void_lock": ("variable", "threshold", "window", "on_cycles", "off_cycles", "release_band"),
-    "auto_set_value": ("delay", "sample_time"),
-    # capacitive calibration run (distctrl calibrate)
-    "calibrate": ("speed", "bottom", "settle", "runs", "variable"),
-    # --- touch-off (docs/process.md "Touch-off")
-    "touch_off": ("variable", "request", "probe_speed", "detect", "pierce_height", "stroke", "retries",
-                  "verify_time", "verify_band", "tolerance"),
-    # --- collision retract (docs/process.md "Collision retract")
-    "collision_retract": ("variable", "threshold", "short_circuit", "confirm_cycles", "retract", "retract_speed",
-                          "retract_accel"),
-    # --- lift (issue 16, h16-lift) ---
-    "lift": ("height", "min_distance", "v_max", "a_max", "settle_time"),
-}
+#: the functions a [[process]] table may name: the registry (a new function: its module and one line here)
+PROCESS_CLASSES: dict[str, type[ProcessFunction]] = {cls.name: cls for cls in (
+    CornerLock, VoidLock, AutoSetValue,
+    Calibrate,              # capacitive calibration run (distctrl calibrate)
+    TouchOff,               # docs/process.md "Touch-off"
+    CollisionRetract,       # docs/process.md "Collision retract"
+    Lift,                   # issue 16, h16-lift
+)}
+#: each function's own keys (besides function, axis and enabled), as the function declares them
+PROCESS_KEYS: dict[str, tuple[str, ...]] = {name: tuple(cls.KEYS) for name, cls in PROCESS_CLASSES.items()}
 PROCESS_FUNCTIONS = tuple(PROCESS_KEYS)
 #: the keys every function has besides function and axis: ``enabled`` (bool, default true) switches it
 #: on or off at start; ``distctrl serve`` switches it at run time (ADS ``Process.<axis>.<function>.enabled``)
 PROCESS_COMMON_KEYS = ("enabled",)
-_VAR_RE = re.compile(r"^(V\.E\.)?[A-Za-z_][A-Za-z0-9_]*$")
-
-
-def _ve_key(value: object, key: str, allowed: str) -> str:
-    """A V.E. variable name given in a [[process]] table, stored without the ``V.E.`` prefix; else
-    :class:`ConfigError` naming ``key``."""
-    if not isinstance(value, str) or not _VAR_RE.match(value):
-        raise ConfigError(key, value, allowed)
-    return value[4:] if value.startswith("V.E.") else value
 
 
 @dataclass(frozen=True)
@@ -61,24 +44,7 @@ class ProcessConfig:
     enabled: bool = True
 
     def make(self, cycle_time: float):
-        p = self.params
-        if self.function == "corner_lock":
-            return CornerLock(self.axis, p["share"], p["hysteresis"])
-        if self.function == "void_lock":
-            return VoidLock(self.axis, cycle_time, p["threshold"], variable=p["variable"], window=p["window"],
-                            on_cycles=p["on_cycles"], off_cycles=p["off_cycles"], release_band=p["release_band"])
-        if self.function == "calibrate":
-            return Calibrate(self.axis, cycle_time, p["variable"], speed=p["speed"], bottom=p["bottom"],
-                             settle=p["settle"], runs=p["runs"])
-        if self.function == "touch_off":
-            return TouchOff(self.axis, cycle_time, **p)
-        if self.function == "collision_retract":
-            return CollisionRetract(self.axis, cycle_time, **p)
-        # --- lift (issue 16, h16-lift) ---
-        if self.function == "lift":
-            return Lift(self.axis, cycle_time, p["v_max"], p["a_max"], height=p["height"],
-                        min_distance=p["min_distance"], settle_time=p["settle_time"])
-        return AutoSetValue(self.axis, cycle_time, p["delay"], p["sample_time"])
+        return PROCESS_CLASSES[self.function].build(self.axis, cycle_time, self.params)
 
 
 def _function(value: object, key: str) -> str:
@@ -110,127 +76,8 @@ def _process(n: int, cfg: object, axes: dict, sensor, cycle_time: float, has_3d:
         raise ConfigError(f"{key}.axis", axis, "an axis whose parameter list switches distance control on "
                           "(P-AXIS-00328 lr_param.distance_control_on 1): " + (", ".join(dc_axes) or "none"),
                           "distance control is off on")
-    k = f"{key}."
-    if fn == "corner_lock":
-        share = require_number(cfg.get("share", CORNER_DEFAULTS["share"]), k + "share", lo=0.0, hi=1.0,
-                               lo_open=True)
-        hyst = require_number(cfg.get("hysteresis", CORNER_DEFAULTS["hysteresis"]), k + "hysteresis", lo=0.0,
-                              hi=min(0.5, 1.0 - share))
-        params = {"share": share, "hysteresis": hyst}
-    elif fn == "void_lock":
-        voltage = sensor.voltage_variable if sensor is not None and sensor.kind == "arc_voltage" else None
-        default_var = voltage or (sensor.variable if sensor is not None and sensor.kind == "distance" else None)
-        var = cfg.get("variable", default_var)
-        if var is not None:
-            var = _ve_key(var, k + "variable", "a V.E. variable name (e.g. \"ARC_VOLTAGE\" or \"SENSOR\")")
-        is_voltage = var is not None and var == voltage
-        threshold = require_number(cfg.get("threshold", VOID_THRESHOLD_V_S if is_voltage else VOID_THRESHOLD_MM_S),
-                                   k + "threshold", lo=0.0, lo_open=True)
-        # a mains period on an arc voltage; on a distance (no ripple) a short window (issue 16's laser sheet)
-        window = require_number(cfg.get("window", VOID_DEFAULTS["window"] if is_voltage
-                                        else max(VOID_WINDOW_DISTANCE_S, cycle_time)),
-                                k + "window", lo=cycle_time, hi=1.0)
-        band = require_number(cfg.get("release_band", 0.5 * threshold * window), k + "release_band", lo=0.0,
-                              lo_open=True)
-        params = {"variable": var, "threshold": threshold, "window": window,
-                  "on_cycles": require_int(cfg.get("on_cycles", VOID_DEFAULTS["on_cycles"]), k + "on_cycles",
-                                           lo=1, hi=10000),
-                  "off_cycles": require_int(cfg.get("off_cycles", VOID_DEFAULTS["off_cycles"]), k + "off_cycles",
-                                            lo=1, hi=100000),
-                  "release_band": band}
-    elif fn == "calibrate":
-        params = _calibrate_params(cfg, k, axis, sensor, cycle_time)
-    elif fn == "touch_off":
-        params = _touch_off(cfg, k, axes[axis], sensor, cycle_time)
-    elif fn == "collision_retract":
-        params = _collision_retract(cfg, k, axes[axis], sensor)
-    # --- lift (issue 16, h16-lift) ---
-    elif fn == "lift":
-        ax = axes[axis]
-        params = {"height": require_number(cfg.get("height", LIFT_DEFAULTS["height"]), k + "height", lo=0.0,
-                                           hi=1000.0, lo_open=True),
-                  "min_distance": require_number(cfg.get("min_distance", LIFT_DEFAULTS["min_distance"]),
-                                                 k + "min_distance", lo=0.0, hi=1.0e6),
-                  "v_max": require_number(cfg.get("v_max", ax.v_max), k + "v_max", lo=0.0, hi=ax.v_max,
-                                          lo_open=True),
-                  "a_max": require_number(cfg.get("a_max", ax.a_max), k + "a_max", lo=0.0, hi=ax.a_max,
-                                          lo_open=True),
-                  "settle_time": require_number(cfg.get("settle_time", LIFT_DEFAULTS["settle_time"]),
-                                                k + "settle_time", lo=0.0, hi=1.0)}
-    else:
-        params = {"delay": require_number(cfg.get("delay", AUTO_DEFAULTS["delay"]), k + "delay", lo=0.0, hi=10.0),
-                  "sample_time": require_number(cfg.get("sample_time", AUTO_DEFAULTS["sample_time"]),
-                                                k + "sample_time", lo=cycle_time, hi=10.0)}
-    return ProcessConfig(fn, axis, params, n, enabled)
-
-
-def _calibrate_params(cfg: dict, k: str, axis: str, sensor, cycle_time: float) -> dict:
-    """The calibration run's keys: it records a distance sensor's reading on the axis it measures."""
-    if sensor is None or sensor.kind != "distance" or sensor.axis != axis:
-        what = "no [sensor]" if sensor is None else f"a {sensor.kind!r} sensor on {sensor.axis}"
-        raise ConfigError(k + "axis", axis, "the axis of a [sensor] with kind = 'distance' (the calibration run "
-                          f"records a distance sensor's reading; the scenario has {what})", "no distance sensor on")
-    default_var = sensor.output_variable          # the raw reading when a linearisation is in force
-    var = _ve_key(cfg.get("variable", default_var), k + "variable",
-                  "a V.E. variable name (default: the one the sensor writes)")
-    d = CALIBRATE_DEFAULTS
-    speed = require_number(cfg.get("speed", d["speed"]), k + "speed", lo=0.0, hi=20.0, lo_open=True)
-    bottom = require_number(cfg.get("bottom", d["bottom"]), k + "bottom", lo=0.0, hi=sensor.range_max,
-                            lo_open=True, hi_open=True)
-    return {"speed": speed, "bottom": bottom,
-            "settle": require_number(cfg.get("settle", d["settle"]), k + "settle", lo=cycle_time, hi=10.0),
-            "runs": require_int(cfg.get("runs", d["runs"]), k + "runs", lo=1, hi=10), "variable": var}
-
-
-def _signal_variable(cfg: dict, k: str, sensor) -> str | None:
-    """The ``variable`` key of the motion functions: a V.E. distance in mm; default the sensor's
-    distance variable (a distance sensor's, or the linearised one of an arc-voltage sensor); none for
-    the probe on encoder 2 (``state_r.actual_distance``)."""
-    default = sensor.variable if sensor is not None and sensor.kind in ("distance", "arc_voltage") else None
-    var = cfg.get("variable", default)
-    if var is None:
-        return None
-    return _ve_key(var, k + "variable", "a V.E. variable name holding the distance in mm (e.g. \"SENSOR\")")
-
-
-def _touch_off(cfg: dict, k: str, axis_cfg, sensor, cycle_time: float) -> dict:
-    d = TOUCH_DEFAULTS
-    request = _ve_key(cfg.get("request", d["request"]), k + "request",
-                      "a V.E. variable name (the NC handshake, e.g. \"TOUCH_OFF\")")
-    max_dev = axis_cfg.params.max_deviation
-    stroke = require_number(cfg.get("stroke", min(d["stroke"], 0.9 * max_dev)), k + "stroke", lo=0.0,
-                            hi=max_dev, lo_open=True, hi_open=True)
-    return {"variable": _signal_variable(cfg, k, sensor), "request": request,
-            "probe_speed": require_number(cfg.get("probe_speed", d["probe_speed"]), k + "probe_speed", lo=0.001,
-                                          hi=min(1000.0, axis_cfg.v_max)),
-            "detect": require_number(cfg.get("detect", d["detect"]), k + "detect", lo=0.0, hi=100.0),
-            "pierce_height": require_number(cfg.get("pierce_height", d["pierce_height"]), k + "pierce_height",
-                                            lo=0.0, hi=100.0, lo_open=True),
-            "stroke": stroke,
-            "retries": require_int(cfg.get("retries", d["retries"]), k + "retries", lo=0, hi=10),
-            "verify_time": require_number(cfg.get("verify_time", d["verify_time"]), k + "verify_time", lo=0.0,
-                                          hi=1.0),
-            "verify_band": require_number(cfg.get("verify_band", d["verify_band"]), k + "verify_band", lo=0.0,
-                                          hi=100.0),
-            "tolerance": require_number(cfg.get("tolerance", d["tolerance"]), k + "tolerance", lo=0.0, hi=10.0,
-                                        lo_open=True)}
-
-
-def _collision_retract(cfg: dict, k: str, axis_cfg, sensor) -> dict:
-    d = COLLISION_DEFAULTS
-    sc = cfg.get("short_circuit", d["short_circuit"])
-    return {"variable": _signal_variable(cfg, k, sensor),
-            "threshold": require_number(cfg.get("threshold", d["threshold"]), k + "threshold", lo=0.0, hi=100.0),
-            "short_circuit": None if sc is None else require_number(sc, k + "short_circuit"),
-            "confirm_cycles": require_int(cfg.get("confirm_cycles", d["confirm_cycles"]), k + "confirm_cycles",
-                                          lo=1, hi=1000),
-            "retract": require_number(cfg.get("retract", d["retract"]), k + "retract", lo=0.0, hi=1000.0,
-                                      lo_open=True),
-            # the retract runs at the axis's limits unless slower ones are given
-            "retract_speed": require_number(cfg.get("retract_speed", axis_cfg.v_max), k + "retract_speed", lo=0.001,
-                                            hi=axis_cfg.v_max),
-            "retract_accel": require_number(cfg.get("retract_accel", axis_cfg.a_max), k + "retract_accel", lo=1.0,
-                                            hi=axis_cfg.a_max)}
+    table = ProcessTable(cfg, f"{key}.", axis, axes[axis], sensor, cycle_time)
+    return ProcessConfig(fn, axis, PROCESS_CLASSES[fn].from_config(table), n, enabled)
 
 
 def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: bool = False

@@ -32,8 +32,8 @@ ST equivalent (one instance per axis; ``pMC`` the channel, ``dc`` the axis's con
 """
 from __future__ import annotations
 
-from ...sim.config_errors import ConfigError, require_number
-from .base import ProcessFunction, tracking_or_held
+from ...sim.config_errors import ConfigError
+from .base import Key, ProcessFunction, ProcessTable, tracking_or_held
 
 __all__ = ["CornerLock", "CORNER_DEFAULTS"]
 
@@ -46,12 +46,27 @@ class CornerLock(ProcessFunction):
     share + hysteresis <= 1) above it before distance control is re-activated."""
 
     name = "corner_lock"
+    KEYS = {
+        "share": Key(CORNER_DEFAULTS["share"], "share of the programmed feed below which the height is held",
+                     lo=0.0, hi=1.0, lo_open=True),
+        "hysteresis": Key(CORNER_DEFAULTS["hysteresis"], "above share before distance control is re-activated "
+                          "(share + hysteresis <= 1)", lo=0.0, hi=0.5),
+    }
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        share = table.read(cls, "share")
+        return {"share": share, "hysteresis": table.read(cls, "hysteresis", hi=min(0.5, 1.0 - share))}
+
+    @classmethod
+    def build(cls, axis: str, cycle_time: float, params: dict) -> "CornerLock":
+        return cls(axis, **params)
 
     def __init__(self, axis: str, share: float = CORNER_DEFAULTS["share"],
                  hysteresis: float = CORNER_DEFAULTS["hysteresis"], enabled: bool = True):
         super().__init__(axis, enabled)
-        self.share = require_number(share, "corner_lock.share", lo=0.0, hi=1.0, lo_open=True)
-        self.hysteresis = require_number(hysteresis, "corner_lock.hysteresis", lo=0.0, hi=0.5)
+        self.share = self.KEYS["share"].check(share, "corner_lock.share")
+        self.hysteresis = self.KEYS["hysteresis"].check(hysteresis, "corner_lock.hysteresis")
         if self.share + self.hysteresis > 1.0:
             raise ConfigError("corner_lock.hysteresis", hysteresis,
                               f"share + hysteresis <= 1 (share = {self.share:g}): the path must be able "

@@ -67,7 +67,7 @@ from __future__ import annotations
 from ...base.states import HliState
 from ...sim.config_errors import require_number
 from ...sim.interpolator import brake_velocity, trapezoid_time
-from .base import ProcessFunction
+from .base import Key, ProcessFunction, ProcessTable
 
 __all__ = ["Lift", "LiftMotion", "LIFT_DEFAULTS"]
 
@@ -205,6 +205,23 @@ class Lift(ProcessFunction):
     CNC part the machine runs."""
 
     name = "lift"
+    KEYS = {
+        "height": Key(LIFT_DEFAULTS["height"], "mm the head rises", lo=0.0, hi=1000.0, lo_open=True),
+        "min_distance": Key(LIFT_DEFAULTS["min_distance"], "mm of rapid below which the head does not lift",
+                            lo=0.0, hi=1.0e6),
+        "v_max": Key(None, "mm/s of the lift; default and upper bound the axis's v_max", lo=0.0, lo_open=True),
+        "a_max": Key(None, "mm/s² of the lift; default and upper bound the axis's a_max", lo=0.0, lo_open=True),
+        "settle_time": Key(LIFT_DEFAULTS["settle_time"], "s after landing before distance control resumes",
+                           lo=0.0, hi=1.0),
+    }
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        ax = table.axis_cfg
+        return {"height": table.read(cls, "height"), "min_distance": table.read(cls, "min_distance"),
+                "v_max": table.read(cls, "v_max", ax.v_max, hi=ax.v_max),
+                "a_max": table.read(cls, "a_max", ax.a_max, hi=ax.a_max),
+                "settle_time": table.read(cls, "settle_time")}
 
     def __init__(self, axis: str, cycle_time: float, v_max: float, a_max: float,
                  height: float = LIFT_DEFAULTS["height"], min_distance: float = LIFT_DEFAULTS["min_distance"],
@@ -212,11 +229,11 @@ class Lift(ProcessFunction):
         self.motion = None
         super().__init__(axis, enabled)
         T = require_number(cycle_time, "lift.cycle_time", lo=0.0, lo_open=True)
-        self.height = require_number(height, "lift.height", lo=0.0, hi=1000.0, lo_open=True)
-        self.v_max = require_number(v_max, "lift.v_max", lo=0.0, lo_open=True)
-        self.a_max = require_number(a_max, "lift.a_max", lo=0.0, lo_open=True)
-        self.min_distance = require_number(min_distance, "lift.min_distance", lo=0.0, hi=1.0e6)
-        self.settle_time = require_number(settle_time, "lift.settle_time", lo=0.0, hi=1.0)
+        self.height = self.KEYS["height"].check(height, "lift.height")
+        self.v_max = self.KEYS["v_max"].check(v_max, "lift.v_max")
+        self.a_max = self.KEYS["a_max"].check(a_max, "lift.a_max")
+        self.min_distance = self.KEYS["min_distance"].check(min_distance, "lift.min_distance")
+        self.settle_time = self.KEYS["settle_time"].check(settle_time, "lift.settle_time")
         #: the CNC part (run by the machine every GEO cycle, whether or not this function is enabled)
         self.motion = LiftMotion(axis, T, self.height, self.v_max, self.a_max, self.min_distance,
                                  self.settle_time, self)

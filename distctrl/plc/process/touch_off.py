@@ -92,9 +92,9 @@ import math
 
 from ...base.states import HliState, HliTransition
 from ...errors import ErrorId
-from ...sim.config_errors import require_int, require_number
+from ...sim.config_errors import require_number
 from ..variables import ve_name
-from .base import ProcessFunction
+from .base import Key, ProcessFunction, ProcessTable, signal_variable, ve_key
 from .plc_io import (
     MM_PER_UNIT,
     HliCommandSender,
@@ -139,6 +139,37 @@ class TouchOff(HliCommandSender, ProcessFunction):
     V.E. signal in mm (None: ``state_r.actual_distance``), ``request`` the V.E. handshake variable."""
 
     name = "touch_off"
+    KEYS = {
+        "variable": Key(None, "V.E. distance in mm; default the sensor's, else state_r.actual_distance",
+                        kind="name"),
+        "request": Key(TOUCH_DEFAULTS["request"], "V.E. variable of the NC handshake", kind="name"),
+        "probe_speed": Key(TOUCH_DEFAULTS["probe_speed"], "mm/s of the probe move (at most the axis's v_max)",
+                           lo=0.001, hi=1000.0),
+        "detect": Key(TOUCH_DEFAULTS["detect"], "mm: the reading at which the surface counts as found",
+                      lo=0.0, hi=100.0),
+        "pierce_height": Key(TOUCH_DEFAULTS["pierce_height"], "mm above the surface after the touch-off",
+                             lo=0.0, hi=100.0, lo_open=True),
+        "stroke": Key(TOUCH_DEFAULTS["stroke"], "mm the probe may travel (below the axis's max_deviation; "
+                      "default at most 0.9 max_deviation)", lo=0.0, hi=1000.0, lo_open=True),
+        "retries": Key(TOUCH_DEFAULTS["retries"], "further attempts after a failed verify", kind="int", lo=0, hi=10),
+        "verify_time": Key(TOUCH_DEFAULTS["verify_time"], "s the reading is verified at the pierce height",
+                           lo=0.0, hi=1.0),
+        "verify_band": Key(TOUCH_DEFAULTS["verify_band"], "mm the reading may move while verified", lo=0.0, hi=100.0),
+        "tolerance": Key(TOUCH_DEFAULTS["tolerance"], "mm of the back-off target", lo=0.0, hi=10.0, lo_open=True),
+    }
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        axis_cfg, k = table.axis_cfg, table.prefix
+        request = ve_key(table.get("request", TOUCH_DEFAULTS["request"]), k + "request",
+                         "a V.E. variable name (the NC handshake, e.g. \"TOUCH_OFF\")")
+        max_dev = axis_cfg.params.max_deviation
+        stroke = table.read(cls, "stroke", min(TOUCH_DEFAULTS["stroke"], 0.9 * max_dev), hi=max_dev, hi_open=True)
+        return {"variable": signal_variable(table), "request": request,
+                "probe_speed": table.read(cls, "probe_speed", hi=min(1000.0, axis_cfg.v_max)),
+                "detect": table.read(cls, "detect"), "pierce_height": table.read(cls, "pierce_height"),
+                "stroke": stroke, "retries": table.read(cls, "retries"), "verify_time": table.read(cls, "verify_time"),
+                "verify_band": table.read(cls, "verify_band"), "tolerance": table.read(cls, "tolerance")}
 
     def __init__(self, axis: str, cycle_time: float, *, variable: str | None = None,
                  request: str = TOUCH_DEFAULTS["request"], probe_speed: float = TOUCH_DEFAULTS["probe_speed"],
@@ -149,14 +180,15 @@ class TouchOff(HliCommandSender, ProcessFunction):
         super().__init__(axis)
         n = "touch_off."
         self.cycle_time = require_number(cycle_time, n + "cycle_time", lo=0.0, lo_open=True)
-        self.probe_speed = require_number(probe_speed, n + "probe_speed", lo=0.001, hi=1000.0)
-        self.detect = require_number(detect, n + "detect", lo=0.0, hi=100.0)
-        self.pierce_height = require_number(pierce_height, n + "pierce_height", lo=0.0, hi=100.0, lo_open=True)
-        self.stroke = require_number(stroke, n + "stroke", lo=0.0, hi=1000.0, lo_open=True)
-        self.retries = require_int(retries, n + "retries", lo=0, hi=10)
-        self.verify_time = require_number(verify_time, n + "verify_time", lo=0.0, hi=1.0)
-        self.verify_band = require_number(verify_band, n + "verify_band", lo=0.0, hi=100.0)
-        self.tolerance = require_number(tolerance, n + "tolerance", lo=0.0, hi=10.0, lo_open=True)
+        keys = self.KEYS
+        self.probe_speed = keys["probe_speed"].check(probe_speed, n + "probe_speed")
+        self.detect = keys["detect"].check(detect, n + "detect")
+        self.pierce_height = keys["pierce_height"].check(pierce_height, n + "pierce_height")
+        self.stroke = keys["stroke"].check(stroke, n + "stroke")
+        self.retries = keys["retries"].check(retries, n + "retries")
+        self.verify_time = keys["verify_time"].check(verify_time, n + "verify_time")
+        self.verify_band = keys["verify_band"].check(verify_band, n + "verify_band")
+        self.tolerance = keys["tolerance"].check(tolerance, n + "tolerance")
         self.variable = None if variable is None else ve_name(variable)
         self.request = ve_name(request)
         #: the V.E. variables the machine creates (0) at the start: the handshake

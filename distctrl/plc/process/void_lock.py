@@ -60,9 +60,9 @@ from __future__ import annotations
 
 import math
 
-from ...sim.config_errors import require_int, require_number
+from ...sim.config_errors import require_number
 from ..variables import ve_name
-from .base import ProcessFunction, tracking_or_held
+from .base import Key, ProcessFunction, ProcessTable, tracking_or_held, ve_key
 
 __all__ = ["VoidLock", "VOID_DEFAULTS", "VOID_THRESHOLD_V_S", "VOID_THRESHOLD_MM_S", "VOID_WINDOW_DISTANCE_S"]
 
@@ -83,6 +83,37 @@ class VoidLock(ProcessFunction):
     None for ``state_r.actual_distance``), ``cycle_time`` (s, the PLC cycle)."""
 
     name = "void_lock"
+    KEYS = {
+        "variable": Key(None, "V.E. variable of the signal; default the arc-voltage sensor's voltage, else the "
+                        "distance sensor's variable, else state_r.actual_distance", kind="name"),
+        "threshold": Key(None, "signal unit/s of a void; default VOID_THRESHOLD_V_S on a voltage, else "
+                         "VOID_THRESHOLD_MM_S", lo=0.0, lo_open=True),
+        "window": Key(VOID_DEFAULTS["window"], "s the rate is averaged over (at least one cycle; default on a "
+                      "distance VOID_WINDOW_DISTANCE_S)", hi=1.0),
+        "on_cycles": Key(VOID_DEFAULTS["on_cycles"], "cycles over the threshold before the lock", kind="int",
+                         lo=1, hi=10000),
+        "off_cycles": Key(VOID_DEFAULTS["off_cycles"], "cycles inside the release band before the release",
+                          kind="int", lo=1, hi=100000),
+        "release_band": Key(None, "signal unit; default threshold · window / 2", lo=0.0, lo_open=True),
+    }
+
+    @classmethod
+    def from_config(cls, table: ProcessTable) -> dict:
+        sensor, cycle_time, k = table.sensor, table.cycle_time, table.prefix
+        voltage = sensor.voltage_variable if sensor is not None and sensor.kind == "arc_voltage" else None
+        default_var = voltage or (sensor.variable if sensor is not None and sensor.kind == "distance" else None)
+        var = table.get("variable", default_var)
+        if var is not None:
+            var = ve_key(var, k + "variable", "a V.E. variable name (e.g. \"ARC_VOLTAGE\" or \"SENSOR\")")
+        is_voltage = var is not None and var == voltage
+        threshold = table.read(cls, "threshold", VOID_THRESHOLD_V_S if is_voltage else VOID_THRESHOLD_MM_S)
+        # a mains period on an arc voltage; on a distance (no ripple) a short window (issue 16's laser sheet)
+        window = table.read(cls, "window", VOID_DEFAULTS["window"] if is_voltage
+                            else max(VOID_WINDOW_DISTANCE_S, cycle_time), lo=cycle_time)
+        band = table.read(cls, "release_band", 0.5 * threshold * window)
+        return {"variable": var, "threshold": threshold, "window": window,
+                "on_cycles": table.read(cls, "on_cycles"), "off_cycles": table.read(cls, "off_cycles"),
+                "release_band": band}
 
     def __init__(self, axis: str, cycle_time: float, threshold: float, *, variable: str | None = None,
                  window: float = VOID_DEFAULTS["window"], on_cycles: int = VOID_DEFAULTS["on_cycles"],
@@ -90,13 +121,14 @@ class VoidLock(ProcessFunction):
                  enabled: bool = True):
         super().__init__(axis, enabled)
         self.cycle_time = require_number(cycle_time, "void_lock.cycle_time", lo=0.0, lo_open=True)
-        self.threshold = require_number(threshold, "void_lock.threshold", lo=0.0, lo_open=True)
-        self.window = require_number(window, "void_lock.window", lo=self.cycle_time, hi=1.0)
-        self.on_cycles = require_int(on_cycles, "void_lock.on_cycles", lo=1, hi=10000)
-        self.off_cycles = require_int(off_cycles, "void_lock.off_cycles", lo=1, hi=100000)
+        keys = self.KEYS
+        self.threshold = keys["threshold"].check(threshold, "void_lock.threshold")
+        self.window = keys["window"].check(window, "void_lock.window", lo=self.cycle_time)
+        self.on_cycles = keys["on_cycles"].check(on_cycles, "void_lock.on_cycles")
+        self.off_cycles = keys["off_cycles"].check(off_cycles, "void_lock.off_cycles")
         if release_band is None:
             release_band = 0.5 * self.threshold * self.window
-        self.release_band = require_number(release_band, "void_lock.release_band", lo=0.0, lo_open=True)
+        self.release_band = keys["release_band"].check(release_band, "void_lock.release_band")
         self.variable = None if variable is None else ve_name(variable)
         self.n = max(1, round(self.window / self.cycle_time))
         self._rate_scale = 1.0 / (self.n * self.cycle_time)
