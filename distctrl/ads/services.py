@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from .datatypes import DataType, encode_data_type, find_type, types_of
@@ -29,7 +30,6 @@ from .protocol import (
     ADSIGRP_SYM_DT_INFOBYNAMEEX,
     ADSIGRP_SYM_DT_UPLOAD,
     ADSIGRP_SYM_HNDBYNAME,
-    ADSIGRP_SYM_INFOBYNAME,
     ADSIGRP_SYM_INFOBYNAMEEX,
     ADSIGRP_SYM_RELEASEHND,
     ADSIGRP_SYM_UPLOAD,
@@ -74,13 +74,6 @@ _UPLOADINFO = struct.Struct("<II")
 _UPLOADINFO2 = struct.Struct("<IIIIII")
 _HANDLE_EX = struct.Struct("<IIIH")    # handle, size, type decoration, type-name length
 
-#: index groups the server answers itself (never passed to a device)
-_SYMBOL_GROUPS = frozenset({
-    ADSIGRP_SYM_HNDBYNAME, ADSIGRP_SYM_VALBYNAME, ADSIGRP_SYM_VALBYHND, ADSIGRP_SYM_RELEASEHND,
-    ADSIGRP_SYM_INFOBYNAME, ADSIGRP_SYM_VERSION, ADSIGRP_SYM_INFOBYNAMEEX, ADSIGRP_SYM_UPLOAD,
-    ADSIGRP_SYM_UPLOADINFO, ADSIGRP_SYM_DT_UPLOAD, ADSIGRP_SYM_UPLOADINFO2, ADSIGRP_SYM_DT_INFOBYNAMEEX,
-    ADSIGRP_SUMUP_READ, ADSIGRP_SUMUP_WRITE, ADSIGRP_SUMUP_READWRITE,
-})
 
 _pack_read_res = READ_RES.pack
 _unpack_read_req = READ_REQ.unpack_from
@@ -130,16 +123,8 @@ class AdsServices(NotificationService):
             self.log.exception("%s: device %r failed on command %d (answered 0x700)", conn.peer,
                                getattr(dev, "name", hdr[1]), hdr[4])
             code = ADSERR_DEVICE_ERROR
-        cmd = hdr[4]
-        if cmd in (CMD_READ, CMD_READ_WRITE):
-            return READ_RES.pack(code, 0)
-        if cmd == CMD_READ_STATE:
-            return READ_STATE_RES.pack(code, 0, 0)
-        if cmd == CMD_READ_DEVICE_INFO:
-            return DEVICE_INFO_RES.pack(code, 0, 0, 0, b"")
-        if cmd == CMD_ADD_DEVICE_NOTIFICATION:
-            return ADD_NOTIFICATION_RES.pack(code, 0)
-        return RESULT_RES.pack(code)
+        entry = _COMMANDS.get(hdr[4])
+        return entry[1](code) if entry is not None else _result_error(code)
 
     def _command(self, conn: Connection, hdr: tuple, dev: AdsDevice, body: bytes) -> bytes:
         cmd, ams_port = hdr[4], hdr[1]
@@ -151,56 +136,75 @@ class AdsServices(NotificationService):
                 length = self._capacity(ig, length)
             data = self._read(conn, ams_port, dev, ig, io, length)
             return _pack_read_res(0, len(data)) + data
-        p = memoryview(body)[AMS_HEADER_SIZE:]
-        if cmd == CMD_WRITE:
-            if len(p) < WRITE_REQ.size:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short Write request")
-            ig, io, length = WRITE_REQ.unpack_from(p)
-            if length > len(p) - WRITE_REQ.size:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "Write data shorter than its length field")
-            self._write(conn, ams_port, dev, ig, io, bytes(p[WRITE_REQ.size:WRITE_REQ.size + length]))
-            return RESULT_RES.pack(0)
-        if cmd == CMD_READ_WRITE:
-            if len(p) < READ_WRITE_REQ.size:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short ReadWrite request")
-            ig, io, rlen, wlen = READ_WRITE_REQ.unpack_from(p)
-            if wlen > len(p) - READ_WRITE_REQ.size:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "ReadWrite data shorter than its length field")
-            if rlen > self.max_frame:
-                rlen = self._capacity(ig, rlen)
-            wdata = bytes(p[READ_WRITE_REQ.size:READ_WRITE_REQ.size + wlen])
-            data = self._read_write(conn, ams_port, dev, ig, io, rlen, wdata)
-            return READ_RES.pack(0, len(data)) + data
-        if cmd == CMD_READ_STATE:
-            ads_state, dev_state = dev.state()
-            return READ_STATE_RES.pack(0, int(ads_state) & 0xFFFF, int(dev_state) & 0xFFFF)
-        if cmd == CMD_READ_DEVICE_INFO:
-            major, minor, build = (tuple(dev.version) + (0, 0, 0))[:3]
-            name = str(dev.name).encode(SYMBOL_ENCODING, errors="replace")[:15]
-            return DEVICE_INFO_RES.pack(0, int(major) & 0xFF, int(minor) & 0xFF, int(build) & 0xFFFF, name)
-        if cmd == CMD_WRITE_CONTROL:
-            fn = getattr(dev, "write_control", None)
-            if fn is None:
-                raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, "WriteControl")
-            if len(p) < WRITE_CONTROL_REQ.size:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short WriteControl request")
-            ads_state, dev_state, length = WRITE_CONTROL_REQ.unpack_from(p)
-            if length > len(p) - WRITE_CONTROL_REQ.size:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "WriteControl data shorter than its length field")
-            fn(ads_state, dev_state, bytes(p[WRITE_CONTROL_REQ.size:WRITE_CONTROL_REQ.size + length]))
-            return RESULT_RES.pack(0)
-        if cmd == CMD_ADD_DEVICE_NOTIFICATION:
-            return ADD_NOTIFICATION_RES.pack(0, self._add_notification(conn, AmsHeader._make(hdr), dev, p))
-        if cmd == CMD_DEL_DEVICE_NOTIFICATION:
-            if len(p) < DEL_NOTIFICATION_REQ.size:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short DeleteDeviceNotification request")
-            handle = DEL_NOTIFICATION_REQ.unpack_from(p)[0]
-            n = conn.notifications.get(handle)
-            if n is None or n.ams_port != ams_port:
-                raise AdsError(ADSERR_DEVICE_NOTIFYHNDINVALID, f"unknown notification 0x{handle:X}")
-            del conn.notifications[handle]
-            return RESULT_RES.pack(0)
-        raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"unknown command id {cmd}")
+        entry = _COMMANDS.get(cmd)
+        if entry is None:
+            raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"unknown command id {cmd}")
+        return entry[0](self, conn, hdr, dev, memoryview(body)[AMS_HEADER_SIZE:])
+
+    # --- the commands (the table _COMMANDS below; Read's hot path is inline in _command) -------------
+    def _cmd_read(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        if len(p) < READ_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short Read request")
+        ig, io, length = READ_REQ.unpack_from(p)
+        if length > self.max_frame:
+            length = self._capacity(ig, length)
+        data = self._read(conn, hdr[1], dev, ig, io, length)
+        return _pack_read_res(0, len(data)) + data
+
+    def _cmd_write(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        if len(p) < WRITE_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short Write request")
+        ig, io, length = WRITE_REQ.unpack_from(p)
+        if length > len(p) - WRITE_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "Write data shorter than its length field")
+        self._write(conn, hdr[1], dev, ig, io, bytes(p[WRITE_REQ.size:WRITE_REQ.size + length]))
+        return RESULT_RES.pack(0)
+
+    def _cmd_read_write(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        if len(p) < READ_WRITE_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short ReadWrite request")
+        ig, io, rlen, wlen = READ_WRITE_REQ.unpack_from(p)
+        if wlen > len(p) - READ_WRITE_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "ReadWrite data shorter than its length field")
+        if rlen > self.max_frame:
+            rlen = self._capacity(ig, rlen)
+        wdata = bytes(p[READ_WRITE_REQ.size:READ_WRITE_REQ.size + wlen])
+        data = self._read_write(conn, hdr[1], dev, ig, io, rlen, wdata)
+        return READ_RES.pack(0, len(data)) + data
+
+    def _cmd_read_state(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        ads_state, dev_state = dev.state()
+        return READ_STATE_RES.pack(0, int(ads_state) & 0xFFFF, int(dev_state) & 0xFFFF)
+
+    def _cmd_read_device_info(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        major, minor, build = (tuple(dev.version) + (0, 0, 0))[:3]
+        name = str(dev.name).encode(SYMBOL_ENCODING, errors="replace")[:15]
+        return DEVICE_INFO_RES.pack(0, int(major) & 0xFF, int(minor) & 0xFF, int(build) & 0xFFFF, name)
+
+    def _cmd_write_control(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        fn = getattr(dev, "write_control", None)
+        if fn is None:
+            raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, "WriteControl")
+        if len(p) < WRITE_CONTROL_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short WriteControl request")
+        ads_state, dev_state, length = WRITE_CONTROL_REQ.unpack_from(p)
+        if length > len(p) - WRITE_CONTROL_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "WriteControl data shorter than its length field")
+        fn(ads_state, dev_state, bytes(p[WRITE_CONTROL_REQ.size:WRITE_CONTROL_REQ.size + length]))
+        return RESULT_RES.pack(0)
+
+    def _cmd_add_notification(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        return ADD_NOTIFICATION_RES.pack(0, self._add_notification(conn, AmsHeader._make(hdr), dev, p))
+
+    def _cmd_del_notification(self, conn: Connection, hdr: tuple, dev: AdsDevice, p: memoryview) -> bytes:
+        if len(p) < DEL_NOTIFICATION_REQ.size:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "short DeleteDeviceNotification request")
+        handle = DEL_NOTIFICATION_REQ.unpack_from(p)[0]
+        n = conn.notifications.get(handle)
+        if n is None or n.ams_port != hdr[1]:
+            raise AdsError(ADSERR_DEVICE_NOTIFYHNDINVALID, f"unknown notification 0x{handle:X}")
+        del conn.notifications[handle]
+        return RESULT_RES.pack(0)
 
     def _check_length(self, length: int) -> None:
         if length > self.max_frame:
@@ -221,26 +225,10 @@ class AdsServices(NotificationService):
     # ------------------------------------------------------------------------------------------
     def _read(self, conn: Connection, ams_port: int, dev: AdsDevice, ig: int, io: int, length: int) -> bytes:
         if ig in _SYMBOL_GROUPS:   # (one test on the hot path: a device's own index group)
-            if ig == ADSIGRP_SYM_VALBYHND:
-                return self._sym_read(dev, conn.symbol(ams_port, io), length)
-            if ig == ADSIGRP_SYM_UPLOADINFO2:
-                syms = self._symbols(dev)
-                total = sum(len(encode_symbol_entry(s)) for s in syms.values())
-                types = self._types(dev)
-                types_total = sum(len(encode_data_type(t)) for t in types.values())
-                return self._fit(_UPLOADINFO2.pack(len(syms), total, len(types), types_total, 0, 0), length)
-            if ig == ADSIGRP_SYM_UPLOADINFO:
-                syms = self._symbols(dev)
-                total = sum(len(encode_symbol_entry(s)) for s in syms.values())
-                return self._fit(_UPLOADINFO.pack(len(syms), total), length)
-            if ig == ADSIGRP_SYM_UPLOAD:
-                blob = b"".join(encode_symbol_entry(s) for s in self._symbols(dev).values())
-                return self._fit(blob, length)
-            if ig == ADSIGRP_SYM_VERSION:
-                return self._fit(b"\x01", length)
-            if ig == ADSIGRP_SYM_DT_UPLOAD:
-                return self._fit(b"".join(encode_data_type(t) for t in self._types(dev).values()), length)
-            raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"Read of index group 0x{ig:X}")
+            fn = _SYMBOL_SERVICES[ig].read
+            if fn is None:
+                raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"Read of index group 0x{ig:X}")
+            return fn(self, conn, ams_port, dev, io, length)
         data = bytes(dev.read(ig, io, length))
         if len(data) > length:
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"0x{ig:X}:0x{io:X} has {len(data)} bytes, "
@@ -248,44 +236,22 @@ class AdsServices(NotificationService):
         return data
 
     def _write(self, conn: Connection, ams_port: int, dev: AdsDevice, ig: int, io: int, data: bytes) -> None:
-        if ig == ADSIGRP_SYM_VALBYHND:
-            self._sym_write(dev, conn.symbol(ams_port, io), data)
-        elif ig == ADSIGRP_SYM_RELEASEHND:
-            if len(data) < 4:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "release handle needs a 4-byte handle")
-            conn.release(ams_port, _U32.unpack_from(data)[0])
-        elif ig in _SYMBOL_GROUPS:
-            raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"Write to index group 0x{ig:X}")
+        if ig in _SYMBOL_GROUPS:
+            fn = _SYMBOL_SERVICES[ig].write
+            if fn is None:
+                raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, f"Write to index group 0x{ig:X}")
+            fn(self, conn, ams_port, dev, io, data)
         else:
             dev.write(ig, io, data)
 
     def _read_write(self, conn: Connection, ams_port: int, dev: AdsDevice, ig: int, io: int, rlen: int,
                     data: bytes, nested: bool = False) -> bytes:
-        if ig == ADSIGRP_SYM_HNDBYNAME:
-            if rlen < 4:
-                raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "handle needs a 4-byte read buffer")
-            sym = self._find(dev, data)
-            out = _handle_answer(conn.new_handle(ams_port, sym), sym, rlen)
-        elif ig == ADSIGRP_SYM_VALBYNAME:
-            out = self._sym_read(dev, self._find(dev, data), rlen)
-        elif ig == ADSIGRP_SYM_INFOBYNAMEEX:
-            out = encode_symbol_entry(self._find(dev, data))
-        elif ig == ADSIGRP_SYM_DT_INFOBYNAMEEX:
-            name = _name(data)
-            t = find_type(self._types(dev), name)
-            if t is None:
-                raise AdsError(ADSERR_DEVICE_SYMBOLNOTFOUND, f"data type {name!r} not found")
-            out = encode_data_type(t)
-        elif ig in (ADSIGRP_SUMUP_READ, ADSIGRP_SUMUP_WRITE, ADSIGRP_SUMUP_READWRITE):
-            if nested:
+        service = _SYMBOL_SERVICES.get(ig)
+        if service is not None and service.read_write is not None:
+            if nested and service.sum:
                 raise AdsError(ADSERR_DEVICE_SRVNOTSUPP, "nested sum command")
-            if ig == ADSIGRP_SUMUP_READ:
-                out = self._sum_read(conn, ams_port, dev, io, rlen, data)
-            elif ig == ADSIGRP_SUMUP_WRITE:
-                out = self._sum_write(conn, ams_port, dev, io, rlen, data)
-            else:
-                out = self._sum_read_write(conn, ams_port, dev, io, rlen, data)
-        elif ig not in _SYMBOL_GROUPS and hasattr(dev, "read_write"):
+            out = service.read_write(self, conn, ams_port, dev, io, rlen, data)
+        elif service is None and hasattr(dev, "read_write"):
             out = bytes(dev.read_write(ig, io, rlen, data))  # type: ignore[attr-defined]
         elif not data:
             out = self._read(conn, ams_port, dev, ig, io, rlen)
@@ -297,6 +263,58 @@ class AdsServices(NotificationService):
         if len(out) > rlen:
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"answer has {len(out)} bytes, buffer {rlen}")
         return out
+
+    # --- the symbol services (the table _SYMBOL_SERVICES below) -------------------------------------
+    def _sym_valbyhnd_read(self, conn, ams_port, dev, io, length) -> bytes:
+        return self._sym_read(dev, conn.symbol(ams_port, io), length)
+
+    def _sym_valbyhnd_write(self, conn, ams_port, dev, io, data) -> None:
+        self._sym_write(dev, conn.symbol(ams_port, io), data)
+
+    def _sym_release_handle(self, conn, ams_port, dev, io, data) -> None:
+        if len(data) < 4:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "release handle needs a 4-byte handle")
+        conn.release(ams_port, _U32.unpack_from(data)[0])
+
+    def _sym_upload_info2(self, conn, ams_port, dev, io, length) -> bytes:
+        syms = self._symbols(dev)
+        total = sum(len(encode_symbol_entry(s)) for s in syms.values())
+        types = self._types(dev)
+        types_total = sum(len(encode_data_type(t)) for t in types.values())
+        return self._fit(_UPLOADINFO2.pack(len(syms), total, len(types), types_total, 0, 0), length)
+
+    def _sym_upload_info(self, conn, ams_port, dev, io, length) -> bytes:
+        syms = self._symbols(dev)
+        total = sum(len(encode_symbol_entry(s)) for s in syms.values())
+        return self._fit(_UPLOADINFO.pack(len(syms), total), length)
+
+    def _sym_upload(self, conn, ams_port, dev, io, length) -> bytes:
+        return self._fit(b"".join(encode_symbol_entry(s) for s in self._symbols(dev).values()), length)
+
+    def _sym_version(self, conn, ams_port, dev, io, length) -> bytes:
+        return self._fit(b"\x01", length)
+
+    def _sym_dt_upload(self, conn, ams_port, dev, io, length) -> bytes:
+        return self._fit(b"".join(encode_data_type(t) for t in self._types(dev).values()), length)
+
+    def _sym_handle_by_name(self, conn, ams_port, dev, io, rlen, data) -> bytes:
+        if rlen < 4:
+            raise AdsError(ADSERR_DEVICE_INVALIDSIZE, "handle needs a 4-byte read buffer")
+        sym = self._find(dev, data)
+        return _handle_answer(conn.new_handle(ams_port, sym), sym, rlen)
+
+    def _sym_value_by_name(self, conn, ams_port, dev, io, rlen, data) -> bytes:
+        return self._sym_read(dev, self._find(dev, data), rlen)
+
+    def _sym_info_by_name_ex(self, conn, ams_port, dev, io, rlen, data) -> bytes:
+        return encode_symbol_entry(self._find(dev, data))
+
+    def _sym_dt_info_by_name_ex(self, conn, ams_port, dev, io, rlen, data) -> bytes:
+        name = _name(data)
+        t = find_type(self._types(dev), name)
+        if t is None:
+            raise AdsError(ADSERR_DEVICE_SYMBOLNOTFOUND, f"data type {name!r} not found")
+        return encode_data_type(t)
 
     # --- sum commands ---------------------------------------------------------------------------
     def _sub(self, conn: Connection, fn, *args) -> tuple[int, Any]:
@@ -419,3 +437,65 @@ class AdsServices(NotificationService):
         elif len(data) != sym.size:
             raise AdsError(ADSERR_DEVICE_INVALIDSIZE, f"{sym.name} has {sym.size} bytes, got {len(data)}")
         dev.write(sym.index_group, sym.index_offset, data)
+
+
+# ----------------------------------------------------------------------------------------------------
+# the dispatch tables
+# ----------------------------------------------------------------------------------------------------
+def _reply_read(code: int) -> bytes:
+    return READ_RES.pack(code, 0)
+
+
+def _result_error(code: int) -> bytes:
+    return RESULT_RES.pack(code)
+
+
+#: AMS command id -> (handler, the error reply: code -> payload of that command's response structure).
+#: Read is dispatched inline first in ``AdsServices._command`` (the hot path); its entry serves the error
+#: reply and documents it.
+_COMMANDS: dict[int, tuple[Any, Any]] = {
+    CMD_READ: (AdsServices._cmd_read, _reply_read),
+    CMD_WRITE: (AdsServices._cmd_write, _result_error),
+    CMD_READ_WRITE: (AdsServices._cmd_read_write, _reply_read),
+    CMD_READ_STATE: (AdsServices._cmd_read_state, lambda code: READ_STATE_RES.pack(code, 0, 0)),
+    CMD_READ_DEVICE_INFO: (AdsServices._cmd_read_device_info, lambda code: DEVICE_INFO_RES.pack(code, 0, 0, 0, b"")),
+    CMD_WRITE_CONTROL: (AdsServices._cmd_write_control, _result_error),
+    CMD_ADD_DEVICE_NOTIFICATION: (AdsServices._cmd_add_notification, lambda code: ADD_NOTIFICATION_RES.pack(code, 0)),
+    CMD_DEL_DEVICE_NOTIFICATION: (AdsServices._cmd_del_notification, _result_error),
+}
+
+
+@dataclass(frozen=True)
+class SymbolService:
+    """What the server does itself for one index group: ``read(self, conn, ams_port, dev, io, length)``,
+    ``write(self, conn, ams_port, dev, io, data)``, ``read_write(self, conn, ams_port, dev, io, rlen,
+    data)``; None: that access is answered 0x701 (a ReadWrite without its own handler falls back to the
+    read with no data, the write with rlen 0). ``sum``: a sum command (not allowed inside another)."""
+
+    read: Any = None
+    write: Any = None
+    read_write: Any = None
+    sum: bool = False
+
+
+#: index group -> the server's own service for it (never passed to a device). ADSIGRP_SYM_INFOBYNAME
+#: (0xF007, the TwinCAT 2 symbol info by name) is not served: clients use ADSIGRP_SYM_INFOBYNAMEEX;
+#: a request for it goes to the device like any index group the server does not serve.
+_SYMBOL_SERVICES: dict[int, SymbolService] = {
+    ADSIGRP_SYM_HNDBYNAME: SymbolService(read_write=AdsServices._sym_handle_by_name),
+    ADSIGRP_SYM_VALBYNAME: SymbolService(read_write=AdsServices._sym_value_by_name),
+    ADSIGRP_SYM_VALBYHND: SymbolService(read=AdsServices._sym_valbyhnd_read, write=AdsServices._sym_valbyhnd_write),
+    ADSIGRP_SYM_RELEASEHND: SymbolService(write=AdsServices._sym_release_handle),
+    ADSIGRP_SYM_VERSION: SymbolService(read=AdsServices._sym_version),
+    ADSIGRP_SYM_INFOBYNAMEEX: SymbolService(read_write=AdsServices._sym_info_by_name_ex),
+    ADSIGRP_SYM_UPLOAD: SymbolService(read=AdsServices._sym_upload),
+    ADSIGRP_SYM_UPLOADINFO: SymbolService(read=AdsServices._sym_upload_info),
+    ADSIGRP_SYM_DT_UPLOAD: SymbolService(read=AdsServices._sym_dt_upload),
+    ADSIGRP_SYM_UPLOADINFO2: SymbolService(read=AdsServices._sym_upload_info2),
+    ADSIGRP_SYM_DT_INFOBYNAMEEX: SymbolService(read_write=AdsServices._sym_dt_info_by_name_ex),
+    ADSIGRP_SUMUP_READ: SymbolService(read_write=AdsServices._sum_read, sum=True),
+    ADSIGRP_SUMUP_WRITE: SymbolService(read_write=AdsServices._sum_write, sum=True),
+    ADSIGRP_SUMUP_READWRITE: SymbolService(read_write=AdsServices._sum_read_write, sum=True),
+}
+#: index groups the server answers itself: exactly those with a service
+_SYMBOL_GROUPS = frozenset(_SYMBOL_SERVICES)

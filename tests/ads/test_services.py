@@ -295,3 +295,27 @@ def test_symbol_reads_take_the_length_as_a_capacity_and_answer_the_real_size(c, 
     # smaller than the symbol stays an error; a device's own index group keeps the exact-size rule
     assert c.read(P.ADSIGRP_SYM_VALBYHND, h, 7).result == E.ADSERR_DEVICE_INVALIDSIZE
     assert c.read(IG_DATA, 0, ANY).result == E.ADSERR_DEVICE_INVALIDSIZE
+
+
+# --- the dispatch tables ---------------------------------------------------------------------------
+def test_every_index_group_the_server_answers_itself_has_a_service(c):
+    """An index group in the server's own set is never passed to a device, so it must be served:
+    0xF007 (SymbolInfoByName) was in the set with no service and answered 0x701 to everything."""
+    from distctrl.ads.server import SYMBOL_GROUPS
+
+    for ig in sorted(SYMBOL_GROUPS):
+        results = {c.read(ig, 0, 4).result, c.write(ig, 0, b"\0" * 4).result,
+                   c.read_write(ig, 0, 4, b"MAIN.value\0").result}
+        assert results != {E.ADSERR_DEVICE_SRVNOTSUPP}, hex(ig)
+
+
+def test_the_dispatch_tables_cover_every_command_and_served_group():
+    from distctrl.ads import services as S
+
+    # every request command has a handler and an error reply (DeviceNotification goes server -> client)
+    assert set(S._COMMANDS) == set(P.COMMAND_NAMES) - {P.CMD_DEVICE_NOTIFICATION}
+    for cmd, (handler, error_reply) in S._COMMANDS.items():
+        assert callable(handler) and error_reply(E.ADSERR_DEVICE_ERROR)[:4] == struct.pack("<I", E.ADSERR_DEVICE_ERROR)
+    assert S._SYMBOL_GROUPS == frozenset(S._SYMBOL_SERVICES)
+    for ig, service in S._SYMBOL_SERVICES.items():
+        assert any((service.read, service.write, service.read_write)), hex(ig)
