@@ -497,6 +497,19 @@ class FilterResult:
     overshoot_mm: float
     overshoot_pct: float
 
+    def to_dict(self) -> dict:
+        """This config's entry of ``distctrl filters --json``: label, filter type, the parameters the
+        type uses, and the metrics with their units in the names (NaN where not measurable)."""
+        c = self.config
+        used = KEYS_BY_TYPE.get(c.filter_type, ())
+        params = {k: getattr(c, k) for k in KEY_ORDER if k in used}
+        if c.filter_type == FilterType.DEFAULT:
+            params["n_cycles"] = c.effective_n
+        return {"label": self.label, "filter_type": c.filter_type.name, "params": params,
+                "noise_rms_mm": float(self.noise_rms), "delay_s": float(self.delay_s),
+                "dead_time_s": float(self.dead_time_s), "overshoot_mm": float(self.overshoot_mm),
+                "overshoot_pct": float(self.overshoot_pct)}
+
 
 def warmup_samples(config: FilterConfig, cycle_time: float) -> int:
     """Samples skipped before measuring noise: max(n, 50); for the low-pass n is one period of fg."""
@@ -722,18 +735,7 @@ def write_results_csv(results: Sequence[FilterResult], path: str | os.PathLike) 
 def results_dicts(results: Sequence[FilterResult]) -> list[dict]:
     """One dict per config (``distctrl filters --json``): label, filter type, the parameters the type
     uses, and the metrics with their units in the names (NaN where not measurable)."""
-    out = []
-    for r in results:
-        c = r.config
-        used = KEYS_BY_TYPE.get(c.filter_type, ())
-        params = {k: getattr(c, k) for k in KEY_ORDER if k in used}
-        if c.filter_type == FilterType.DEFAULT:
-            params["n_cycles"] = c.effective_n
-        out.append({"label": r.label, "filter_type": c.filter_type.name, "params": params,
-                    "noise_rms_mm": float(r.noise_rms), "delay_s": float(r.delay_s),
-                    "dead_time_s": float(r.dead_time_s), "overshoot_mm": float(r.overshoot_mm),
-                    "overshoot_pct": float(r.overshoot_pct)})
-    return out
+    return [r.to_dict() for r in results]
 
 
 

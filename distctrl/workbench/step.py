@@ -655,6 +655,26 @@ class StepResult(NamedTuple):
     metrics: StepMetrics
     trace: "Trace"
 
+    def to_dict(self) -> dict:
+        """This setting's row of ``distctrl step --json``: its words, metrics (s, mm, %), class,
+        limiter reach, errors and warnings."""
+        info = self.trace.meta.get("step", {})
+        s = self.setting
+        return {"setting": {"kp": s.kp, "i_tn_s": s.i_tn, "d_tv_s": s.d_tv, "label": s.label, "kind": s.kind},
+                "metrics": self.metrics.to_dict(), "class": _classify(self.metrics),
+                "limiter": {"v_max_mm_s": info.get("v_max"), "a_max_mm_s2": info.get("a_max"),
+                            "linear_step_mm": info.get("linear_step_mm")},
+                "errors": list(_errors_of(self)),
+                "warnings": list(self.trace.meta.get("warnings") or []) if hasattr(self.trace, "meta") else []}
+
+    def plot(self, path: str | os.PathLike | None = None, title: str | None = None) -> "Figure":
+        """The offset response (:func:`plot_steps` of this one result); saved too with ``path``."""
+        return plot_steps([self], path, title)
+
+    def to_csv(self, path: str | os.PathLike) -> None:
+        """The run's trace as CSV with its ``.meta.json`` sidecar (units, meta) (:meth:`distctrl.trace.Trace.to_csv`)."""
+        self.trace.to_csv(path)
+
 
 class _Bar:
     """A rich progress bar over the settings, on a terminal only."""
@@ -1032,16 +1052,7 @@ def results_json(results: Sequence[StepResult]) -> dict:
     words, metrics (s, mm, %), class, limiter share and errors, the hints and the suggested KP."""
     info0 = results[0].trace.meta.get("step", {}) if results else {}
     best = suggested_kp(results)
-    rows = []
-    for r in results:
-        info = r.trace.meta.get("step", {})
-        rows.append({"setting": {"kp": r.setting.kp, "i_tn_s": r.setting.i_tn, "d_tv_s": r.setting.d_tv,
-                                 "label": r.setting.label, "kind": r.setting.kind},
-                     "metrics": r.metrics.to_dict(), "class": _classify(r.metrics),
-                     "limiter": {"v_max_mm_s": info.get("v_max"), "a_max_mm_s2": info.get("a_max"),
-                                 "linear_step_mm": info.get("linear_step_mm")},
-                     "errors": list(_errors_of(r)),
-                     "warnings": list(r.trace.meta.get("warnings") or []) if hasattr(r.trace, "meta") else []})
+    rows = [r.to_dict() for r in results]
     return {"step_mm": info0.get("step_mm"), "step_auto": info0.get("auto"), "mode": info0.get("mode"),
             "t_step_s": info0.get("t_step"), "ramp_mm_s": info0.get("ramp_mm_s"),
             "limited_share_threshold": LIMITED_SHARE, "results": rows, "hints": hints(results),

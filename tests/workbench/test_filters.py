@@ -576,3 +576,13 @@ def test_cli_reads_a_parquet_trace_as_its_csv_twin(tmp_path):
     assert a.exit_code == 0 and b.exit_code == 0, b.output
     ja, jb = json.loads(a.stdout), json.loads(b.stdout)
     assert ja["results"] == jb["results"] and ja["edges_s"] == jb["edges_s"] and ja["edges_s"]
+
+
+def test_a_filter_result_answers_to_dict_as_the_json_entry():
+    from distctrl.workbench.filters import results_dicts
+
+    t, x, e = obstacle_signal()
+    rs = compare(x, t, parse_filter_spec("DEFAULT;KALMAN_MA:n_cycles=10,kalman_sigma=100", T), T, e)
+    assert [r.to_dict() for r in rs] == results_dicts(rs)
+    assert rs[0].to_dict()["params"] == {"n_cycles": 4}
+    assert rs[1].to_dict()["params"] == {"n_cycles": 10, "kalman_sigma": 100.0}

@@ -417,3 +417,18 @@ def test_plot_time_axis_follows_the_settling_responses_and_marks_the_others(tmp_
     assert "KP=0.2 I_TN=0 D_TV=0" in labels and "KP=0.5 I_TN=0 D_TV=0" in labels
     assert whole.get_xlim()[1] >= 0.9                      # the whole run after the step
     plot_steps(res, tmp_path / "s.png")
+
+
+def test_a_step_result_has_the_result_face_to_dict_plot_to_csv(tmp_path):
+    """Like python-control's results: one object answers to_dict, plot and to_csv."""
+    from distctrl.workbench.step import results_json
+
+    (r,) = run_steps(parse_settings("0.3"), progress=False, **FAST)
+    d = r.to_dict()
+    assert d == results_json([r])["results"][0]
+    assert d["setting"]["kp"] == 0.3 and d["metrics"]["settled"] == r.metrics.settled
+    fig = r.plot(tmp_path / "one.png")
+    assert (tmp_path / "one.png").stat().st_size > 0 and fig.axes
+    r.to_csv(tmp_path / "one.csv")
+    back = Trace.from_csv(tmp_path / "one.csv")
+    assert back.rows == r.trace.rows and list(back.columns) == list(r.trace.columns)
