@@ -174,7 +174,7 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
 
 def _select_processes(sc, path: str, no_process: bool, process_only: str | None):
     """The scenario with the [[process]] functions ``run`` was asked for (--no-process, --process)."""
-    from ..sim.config_errors import ConfigError
+    from ..errors.config import ConfigError
     from ..sim.plates import select_functions
 
     if no_process and process_only is not None:

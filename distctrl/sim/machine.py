@@ -41,8 +41,10 @@ from ..objects.units import mm_to_dint_01um, round_saturate
 from ..plc.chain import chain
 from ..plc.hli import ChannelDistanceStatus, DistanceControlUnit
 from ..plc.process.channel import ChannelPathStatus
+from ..plc.process.lift import Lift
 from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
+from .lift import attach_lift
 from .sensors import Fault
 
 _TRACKING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST))
@@ -133,7 +135,7 @@ class Machine:
         self.process_program = process_plc
         #: the CNC's lift motions of the scenario's ``lift`` functions (docs/process.md "Lift"): each is
         #: stepped after the interpolator and superimposed on its axis's programmed position
-        self.lift_motions = tuple(f.cnc_lift for f in process_plc.functions if hasattr(f, "cnc_lift")) \
+        self.lift_motions = tuple(attach_lift(f) for f in process_plc.functions if isinstance(f, Lift)) \
             if process_plc is not None else ()
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
         #: program, the ADS server); a batch run without readers publishes once at the end

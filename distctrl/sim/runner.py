@@ -17,7 +17,7 @@ from ..control import HliState
 from ..errors import DistCtrlError, ErrorId, ExitCode
 from ..nc.parser import parse_file, parse_program
 from ..trace import TraceRecorder
-from .config_errors import ConfigError
+from ..errors.config import ConfigError
 from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
 
 #: safety cap when a scenario has no duration: one hour of machine time

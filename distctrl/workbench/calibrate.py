@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DistCtrlError, ExitCode
-from ..sim.config_errors import ConfigError
+from ..errors.config import ConfigError
 from .identify.fit import CHAR_BIN, characteristic_points
 
 __all__ = ["CalibrationError", "CalibrationTable", "calibration_table", "run_calibration", "CalibrationRun",

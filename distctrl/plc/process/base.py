@@ -3,7 +3,7 @@ switch that turns it on and off while the machine runs."""
 from __future__ import annotations
 
 from ...base.states import HliState
-from ...sim.config_errors import ConfigError
+from ...errors.config import ConfigError
 from .hold import RUNNING_TRACKING, FreezeHold
 
 __all__ = ["ProcessFunction", "tracking_or_held", "require_bool"]

@@ -77,7 +77,7 @@ from __future__ import annotations
 import math
 
 from ...base.states import HliState, HliTransition
-from ...sim.config_errors import require_int, require_number
+from ...errors.config import require_int, require_number
 from ..variables import ve_name
 from .base import ProcessFunction
 

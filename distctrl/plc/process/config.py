@@ -4,7 +4,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapping, require_number
+from ...errors.config import MISSING, ConfigError, require_int, require_mapping, require_number
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import require_bool
 from .calibrate import CALIBRATE_DEFAULTS, Calibrate
