@@ -27,7 +27,7 @@ from typing import Any, NoReturn
 
 import click
 
-from ..errors import ExitCode
+from ..errors import DistCtrlError, ExitCode
 
 
 #: the state of the command line in this process: the command whose ``--json`` was given (set by
@@ -136,8 +136,6 @@ def check_writable(path: str, what: str, directory: bool = False) -> None:
 def check_plot_output(path: str | None, check_suffix) -> None:
     """A ``--plot`` file before the work: its suffix (``check_suffix`` raises a DistCtrlError) and
     that it can be written; fails with one line otherwise."""
-    from ..errors import DistCtrlError
-
     if not path:
         return
     try:

@@ -46,6 +46,7 @@ from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
 from .lift import attach_lift
 from .sensors import Fault
+from .status import EventCursor, machine_status
 
 _TRACKING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST))
 _VARIABLE = SensorSource.VARIABLE
@@ -933,6 +934,17 @@ class Machine:
             self.hli[name].publish(self.outputs[name])
 
     # ------------------------------------------------------------------ status
+    def status(self) -> dict:
+        """A snapshot of plain values that consumers read (per axis the HLI unit, state, offset and
+        drive position; the NC line; override; the head over the surface; the process functions):
+        :func:`distctrl.sim.status.machine_status`."""
+        return machine_status(self)
+
+    def event_cursor(self, *, from_now: bool = False) -> EventCursor:
+        """A cursor over :attr:`events` that takes each ``(t, ErrorEvent)`` once
+        (:class:`~distctrl.sim.status.EventCursor`); ``from_now``: skip the events there already."""
+        return EventCursor(self, len(self.events) if from_now else 0)
+
     def settled(self) -> bool:
         """At rest once the program has ended: the path stopped, no deselection still running out its
         offset, and every drive at rest. A distance control left tracking (ACTIVE, ACTIVE_CONST_DIST,

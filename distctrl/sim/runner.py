@@ -253,6 +253,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     bar = _Progress(max_cycles if scenario.duration is not None else None, T) if progress else None
     interrupted = False
     settled_for = 0
+    events = machine.event_cursor()              # every error and warning of the run, for its summary
     nc = machine.nc
     append = recorder.append
     build_row = row_builder(machine, record, pack=recorder.pack)    # rows packed at once (no floats kept)
@@ -346,7 +347,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         interrupted = True
     finally:
         errors, warnings = [], []
-        for t, ev in machine.events:
+        for t, ev in events.take():
             item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
             (warnings if ev.severity == "warning" else errors).append(item)
         warnings.extend(metrics.oscillation_warnings())

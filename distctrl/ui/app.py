@@ -16,15 +16,14 @@ from __future__ import annotations
 
 import asyncio
 import gc
-import ipaddress
 import logging
 import socket
 import sys
 import threading
 from pathlib import Path
 
-from ..ads.server import address_allowed
-from ..sim.realtime import sched_fifo
+from ..serve.net import address_allowed, networks
+from ..serve.realtime import sched_fifo
 from .hub import MachineHub
 
 log = logging.getLogger("distctrl.ui")
@@ -61,7 +60,7 @@ def free_port(host: str) -> int:
 class UiServer:
     """The Bokeh server of the live page over one served machine.
 
-    :param served: a started or not yet started :class:`~distctrl.ads.machine.ServedMachine`.
+    :param served: a started or not yet started :class:`~distctrl.serve.machine.ServedMachine`.
     :param host: address to listen on; ``port`` 0 picks a free port (:attr:`port` tells which).
     :param allowed: networks (CIDR) whose clients may connect, like the ADS server's ``--allow``.
     :param export_dir: where the scope's "Export CSV" writes its trace files.
@@ -72,8 +71,7 @@ class UiServer:
         self.served = served
         self.host = host
         self.port = int(port) or free_port(host)
-        self.allowed = [ipaddress.ip_network(a, strict=False) for a in ([allowed] if isinstance(allowed, str)
-                                                                         else allowed)]
+        self.allowed = networks(allowed)
         self.export_dir = Path(export_dir)
         self.hub = MachineHub(served, buffer_s=buffer_s)
         self.refused = 0

@@ -31,7 +31,7 @@ from ..params.listfile import format_list
 from ..trace import Trace
 from ..trace.plot import plot_trace
 from .pages import fmt, render
-from .plot_cli import add_event_markers, distance_error, events_from_meta, figure_bytes, slice_trace
+from ..trace.plot import add_event_markers, distance_error, events_from_meta, figure_bytes, slice_trace
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

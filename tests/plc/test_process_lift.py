@@ -378,9 +378,9 @@ def test_example_plate_end_to_end(tmp_path):
 
 
 def test_served_machine_lifts_and_the_plc_freezes_and_re_activates():
-    from distctrl.ads.machine import ServedMachine
+    from distctrl.ads.devices import serve_over_ads
 
-    served = ServedMachine(load_scenario(EX / "process_lift.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "process_lift.toml"), port=0, discovery_port=None)
     m = served.machine
     lm = m.lift_motions[0]
     top = 0.0
