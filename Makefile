@@ -74,6 +74,7 @@ docs: $(STAMP)
 	$(PY) -m distctrl.errors.three_d > docs/errors-3d.md
 	$(PY) tools/law_figures.py --write
 	$(PY) tools/traceability.py --write
+	$(PY) tools/layer_map.py --svg docs/architecture-layers.svg > /dev/null
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis $(NODE_DIR)/node_modules
