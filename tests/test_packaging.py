@@ -157,3 +157,12 @@ def test_the_workbench_templates_are_package_data():
     files = sorted(p.relative_to(root).as_posix() for p in (root / "templates").iterdir() if p.is_file())
     assert files, "no templates found"
     assert [f for f in files if not any(fnmatch(f, pat) for pat in patterns)] == []
+
+
+def test_the_live_page_without_bokeh_says_which_extra_to_install():
+    """`distctrl serve --ui` without Bokeh (the [ui] extra): one error line naming it, exit code 1 (before:
+    the page's thread died unseen, and the session served on without a page, exit code 0)."""
+    r = _python("from distctrl.cli import main; main()", "serve", "examples/scenarios/serve_z.toml", "--ui",
+                "--port", "0", "--ui-port", "0", "--no-discovery", "--duration", "0.5", blocked=("bokeh",))
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert "Traceback" not in r.stderr and "pip install 'distctrl[ui]'" in r.stderr and "bokeh" in r.stderr

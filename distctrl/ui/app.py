@@ -143,11 +143,17 @@ class UiServer:
         self.stop()
 
     def _run(self) -> None:
-        from bokeh.application import Application
-        from bokeh.application.handlers.function import FunctionHandler
-        from bokeh.server.server import Server
-        from tornado.ioloop import IOLoop, PeriodicCallback
-
+        try:
+            # Bokeh (the [ui] extra) loads here, in the page's thread; without it start() raises the
+            # ModuleNotFoundError, which the command line turns into one line naming the extra
+            from bokeh.application import Application
+            from bokeh.application.handlers.function import FunctionHandler
+            from bokeh.server.server import Server
+            from tornado.ioloop import IOLoop, PeriodicCallback
+        except BaseException as exc:   # noqa: BLE001 - handed to start()
+            self._error = exc
+            self._ready.set()
+            return
         asyncio.set_event_loop(asyncio.new_event_loop())
         self._set_scheduling()
         io = IOLoop.current()
@@ -197,7 +203,7 @@ class UiServer:
 
     # ------------------------------------------------------------------ one page
     def _make_document(self, doc) -> None:
-        from .page import build_page
+        from .page import build_page      # Bokeh (the [ui] extra): loaded when the first page opens
 
         self.sessions += 1
         build_page(doc, self.hub, self.export_dir, FRAME_MS)
@@ -212,7 +218,7 @@ def _template():
     if _TEMPLATE is None:
         from bokeh.core.templates import get_env
 
-        from .live import PAGE_JS
+        from .live import PAGE_JS         # Bokeh, as above
 
         # the page's own script (distctrl.ui.live) is inline, as the CSP allows; it is no template
         # text (raw), so Jinja leaves its braces alone
