@@ -32,8 +32,8 @@ class SessionLog:
     """What a served session tells its console (logger ``distctrl.serve``): per axis the HLI commands
     the CNC took from the PLC and the distance-control state changes, every error and warning with its
     ID (e.g. 70336 for a command to an axis without distance control, P-AXIS-00328 = 0), and the end of
-    the NC program. Checked after every cycle from the machine's status and event cursor
-    (:mod:`distctrl.sim.status`)."""
+    the NC program. Checked after every cycle from the machine's event cursor and its activity, the
+    status snapshot taken when the activity changed (:mod:`distctrl.sim.status`)."""
 
     def __init__(self, machine, logger: logging.Logger = log):
         self.machine, self.log, self.names = machine, logger, HLI_STATE_NAMES
@@ -42,6 +42,7 @@ class SessionLog:
         self.consumed = {n: a["consumed"] for n, a in axes.items()}
         self.rejected = {n: a["rejected_count"] for n, a in axes.items()}
         self.events = machine.event_cursor(from_now=True)
+        self.activity = machine.activity()
         self.program_ended = False
 
     def axis_lines(self) -> list[str]:
@@ -53,10 +54,25 @@ class SessionLog:
                 for n, a in m.status()["axes"].items()]
 
     def after_cycle(self) -> None:
-        status = self.machine.status()
+        m, log_ = self.machine, self.log
+        t = m.cycle * m.T
+        activity = m.activity()                 # a few comparisons; the snapshot only when it changed
+        if activity != self.activity:
+            self.activity = activity
+            self._report_axes(m.status()["axes"], t)
+        for when, ev in self.events.take():
+            level = logging.ERROR if ev.severity == "error" else logging.WARNING
+            line = f", NC line {ev.line}" if ev.line not in (None, -1) else ""
+            log_.log(level, "t=%.3f s %s %d%s: %s", when, ev.severity, ev.id, line, ev.message)
+        nc_state = activity[0]
+        if not self.program_ended and nc_state in ("ended", "aborted"):
+            self.program_ended = True
+            log_.info("t=%.3f s NC program %s", t, "aborted" if nc_state == "aborted" else "ended (M30)")
+
+    def _report_axes(self, axes: dict, t: float) -> None:
+        """The PLC commands taken and refused and the state changes since the last report."""
         log_ = self.log
-        t = status["cycle"] * status["cycle_time"]
-        for n, a in status["axes"].items():
+        for n, a in axes.items():
             if a["consumed"] != self.consumed[n]:
                 self.consumed[n] = a["consumed"]
                 log_.info("t=%.3f s axis %s (gpAx[%d]): PLC command transition %d, position %.4f mm taken",
@@ -71,14 +87,6 @@ class SessionLog:
                 log_.info("t=%.3f s axis %s: distance control %s -> %s", t, n,
                           self.names.get(int(self.states[n]), self.states[n]), self.names.get(int(state), state))
                 self.states[n] = state
-        for when, ev in self.events.take():
-            level = logging.ERROR if ev.severity == "error" else logging.WARNING
-            line = f", NC line {ev.line}" if ev.line not in (None, -1) else ""
-            log_.log(level, "t=%.3f s %s %d%s: %s", when, ev.severity, ev.id, line, ev.message)
-        nc_state = status["nc"]["state"]
-        if not self.program_ended and nc_state in ("ended", "aborted"):
-            self.program_ended = True
-            log_.info("t=%.3f s NC program %s", t, "aborted" if nc_state == "aborted" else "ended (M30)")
 
 
 class ServedMachine:

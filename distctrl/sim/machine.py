@@ -26,8 +26,7 @@ from __future__ import annotations
 
 import math
 
-from ..control import (Action, AxisDistanceController, Command, CycleInput, CycleOutput, HliState,
-                       SensorSource)
+from ..control import Action, AxisDistanceController, Command, CycleInput, CycleOutput, HliState, SensorSource
 from ..control.commands3d import Command3D, CompensationMode
 from ..control.controller3d import ChannelDistanceController, Cycle3DInput, Cycle3DOutput
 from ..errors import ErrorEvent, ErrorId, ParameterError
@@ -37,6 +36,7 @@ from ..kinematics.kin98 import InclinationViolation, Kinematic98Params
 from ..nc.interpreter import NcAbort, NcInterpreter
 from ..nc.parser import parse_file, parse_program
 from ..nc.program import KinematicsWord, Program, kin_param_var
+from ..objects.channel3d import Channel3DValues
 from ..objects.units import mm_to_dint_01um, round_saturate
 from ..plc.chain import chain
 from ..plc.hli import ChannelDistanceStatus, DistanceControlUnit
@@ -46,7 +46,7 @@ from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
 from .lift import attach_lift
 from .sensors import Fault
-from .status import EventCursor, machine_status
+from .status import EventCursor, activity, machine_status
 
 _TRACKING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST))
 _VARIABLE = SensorSource.VARIABLE
@@ -896,7 +896,6 @@ class Machine:
         (docs/objects-3d.md, docs/diag.md); None without 3D distance control."""
         if self.ch3d is None:
             return None
-        from ..objects.channel3d import Channel3DValues
 
         o3 = self.out3d
         ch = self.ch3d
@@ -939,6 +938,11 @@ class Machine:
         drive position; the NC line; override; the head over the surface; the process functions):
         :func:`distctrl.sim.status.machine_status`."""
         return machine_status(self)
+
+    def activity(self) -> tuple:
+        """The cheap part of :meth:`status` that changes when a PLC command is taken or refused, a
+        state changes or the NC program ends (:func:`distctrl.sim.status.activity`)."""
+        return activity(self)
 
     def event_cursor(self, *, from_now: bool = False) -> EventCursor:
         """A cursor over :attr:`events` that takes each ``(t, ErrorEvent)`` once

@@ -1,6 +1,7 @@
 """What consumers of a running machine read, in one place (Klipper's ``get_status`` is the model):
 :func:`machine_status`, a snapshot of plain values, and :class:`EventCursor`, the machine's errors and
-warnings each taken once.
+warnings each taken once. :func:`activity` is the cheap part a consumer that looks every cycle (the
+session log) compares, to take the whole snapshot only when something happened.
 
 The session log of ``distctrl serve`` (:class:`~distctrl.serve.machine.SessionLog`), the live page
 (:class:`~distctrl.ui.hub.MachineHub`) and the run summary (:func:`~distctrl.sim.runner.run`) read the
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 from ..errors import ErrorEvent
 
-__all__ = ["EventCursor", "machine_status", "axis_status", "REJECTED_SHOWN"]
+__all__ = ["EventCursor", "machine_status", "axis_status", "activity", "REJECTED_SHOWN"]
 
 #: how many of an axis's last refused PLC commands the status names (``rejected``)
 REJECTED_SHOWN = 3
@@ -84,11 +85,26 @@ def machine_status(machine) -> dict:
     return {
         "cycle": machine.cycle, "t": max(machine.cycle - 1, 0) * machine.T, "cycle_time": machine.T,
         "axes": {n: axis_status(machine, n) for n in machine.axis_names},
-        "nc": {"line": nc.line if nc is not None else None,
-               "state": "none" if nc is None else "aborted" if nc.aborted else "ended" if nc.ended else "running"},
+        "nc": {"line": nc.line if nc is not None else None, "state": _nc_state(nc)},
         "override": machine.channel_override,
         "x": drives["X"].nozzle if "X" in drives else 0.0,
         "true_surface": machine.true_surface, "true_distance": machine.true_distance,
         "process": [] if proc is None else [(f.name, f.axis, f.enabled) for f in proc.functions],
         "events": len(machine.events),
     }
+
+
+def _nc_state(nc) -> str:
+    return "none" if nc is None else "aborted" if nc.aborted else "ended" if nc.ended else "running"
+
+
+def activity(machine) -> tuple:
+    """What changes when something the session log reports happens: the NC program's state, then per
+    axis the PLC commands taken, the commands refused and distance control's HLI state. A few
+    comparisons a cycle; equal values mean :func:`machine_status` has nothing new in those fields."""
+    hli, outputs = machine.hli, machine.outputs
+    out = [_nc_state(machine.nc)]
+    for n in machine.axis_names:
+        u = hli[n]
+        out += (u.consumed, len(u.rejected), outputs[n].hli_state)
+    return tuple(out)

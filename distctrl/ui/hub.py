@@ -26,23 +26,13 @@ import numpy as np
 
 from ..base.states import HliTransition
 from ..errors import DistCtrlError
-from ..objects.channel3d import (
-    CHANNEL3D_OBJECTS,
-    Channel3DObjectContext,
-    find_spec_3d,
-    read_value_3d,
-)
-from ..objects.channel3d import write_value as write_value_3d
-from ..objects.registry import (
-    SERVED_OBJECTS,
-    ObjectAccessError,
-    ObjectValueError,
-    find_spec,
-    index_offset,
-    read_value,
-    write_value,
-)
+from ..objects.channel3d import (CHANNEL3D_OBJECTS, Channel3DObjectContext, find_spec_3d, read_value_3d,
+                                 write_value as write_value_3d)
+from ..objects.registry import (SERVED_OBJECTS, ObjectAccessError, ObjectValueError, find_spec, index_offset,
+                                read_value, write_value)
 from ..sim.runner import row_builder, trace_columns
+from ..sim.scenario import OVERRIDE_PATH_MAX, Event
+from ..trace import Trace
 from .ring import program_lines, ring_put, ring_since
 from .tables import CHANNEL, object_table, state_name  # noqa: F401 - the page's modules import them here
 
@@ -188,7 +178,6 @@ class MachineHub:
         return True, f"{axis}: {transition} {position_mm:.4f} mm written, command_semaphore_rw TRUE"
 
     def set_override(self, value: float) -> tuple[bool, str]:
-        from ..sim.scenario import OVERRIDE_PATH_MAX
 
         if not (isinstance(value, (int, float)) and 0.0 <= value <= OVERRIDE_PATH_MAX):
             return False, f"override {value!r}: allowed 0 .. {OVERRIDE_PATH_MAX:g}"
@@ -210,7 +199,6 @@ class MachineHub:
         return True, "CNC reset: the program stops, distance control is deselected"
 
     def sensor_fault(self, kind: str, value: float, duration_s: float | None) -> tuple[bool, str]:
-        from ..sim.scenario import Event
 
         if self.machine.sensor is None:
             return False, "this scenario has no [sensor]: no sensor fault to inject"
@@ -289,7 +277,6 @@ class MachineHub:
     def export_csv(self, folder: Path, signals: list[str] | None = None) -> Path:
         """The ring buffer as a trace CSV with its ``.meta.json`` (what ``distctrl plot`` reads): every
         trace column at every cycle, plus the chosen CNC objects held between their samples."""
-        from ..trace import Trace
 
         self.pump()
         n = min(self.rows, self.capacity)

@@ -100,3 +100,19 @@ def test_the_served_machine_adds_paused_to_the_status():
     served.step()                                       # holds while the PLC runtime is stopped
     assert served.status()["paused"] is True and served.status()["cycle"] == 1
     assert set(served.contexts) == {1, 2} and served.contexts[2].axis_name == "Z"
+
+
+def test_the_activity_changes_when_a_command_is_taken_or_the_state_changes_only():
+    """What the session log compares every cycle: equal while nothing it reports happens."""
+    m = _machine()
+    for _ in range(5):
+        m.step()
+    before = m.activity()
+    m.step()
+    assert m.activity() == before
+    m.hli["Z"].plc_command("ON_CONST_DIST", 1.0)
+    m.step()
+    assert m.activity() != before
+    z = m.status()["axes"]["Z"]
+    assert m.activity()[0] == m.status()["nc"]["state"]
+    assert m.activity()[4:7] == (z["consumed"], z["rejected_count"], z["state"])
