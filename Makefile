@@ -3,8 +3,9 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
-# two stamps: the demo needs only the package and its dependencies (pip install -e .: no numba, dask,
-# pyarrow, pyads, playwright, pytest); the tests need the test stack too (.[test])
+# two stamps: the demo needs the simulator, the command line and the page (pip install -e '.[sim,ui]': no
+# numba, dask, pyarrow, pyads, playwright, pytest); the tests need every extra and the test stack
+# (.[all,test])
 DEMO_STAMP := $(VENV)/.installed-demo
 STAMP      := $(VENV)/.installed
 
@@ -15,11 +16,11 @@ $(VENV)/bin/python:
 	$(PY) -m pip install -q --disable-pip-version-check --upgrade pip
 
 $(DEMO_STAMP): pyproject.toml | $(VENV)/bin/python
-	$(PY) -m pip install -q --disable-pip-version-check -e .
+	$(PY) -m pip install -q --disable-pip-version-check -e '.[sim,ui]'
 	touch $(DEMO_STAMP)
 
 $(STAMP): pyproject.toml | $(VENV)/bin/python
-	$(PY) -m pip install -q --disable-pip-version-check -e '.[test]'
+	$(PY) -m pip install -q --disable-pip-version-check -e '.[all,test]'
 	touch $(STAMP) $(DEMO_STAMP)
 
 demo: $(DEMO_STAMP)
@@ -73,6 +74,7 @@ docs: $(STAMP)
 	$(PY) -m distctrl.errors.three_d > docs/errors-3d.md
 	$(PY) tools/law_figures.py --write
 	$(PY) tools/traceability.py --write
+	$(PY) tools/layer_map.py --svg docs/architecture-layers.svg > /dev/null
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis $(NODE_DIR)/node_modules

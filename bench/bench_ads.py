@@ -44,7 +44,7 @@ sys.path.insert(0, str(ROOT))
 
 import pyads  # noqa: E402
 
-from distctrl.ads.machine import ServedMachine  # noqa: E402
+from distctrl.ads.devices import serve_over_ads  # noqa: E402
 from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))   # bench/, also when loaded by path
 from _results import merge_results  # noqa: E402
@@ -308,7 +308,7 @@ def scenario():
         base_dir=scn)
 
 
-def plc_symbol(served: ServedMachine) -> str:
+def plc_symbol(served) -> str:
     """The bench's ads-client symbol: the actual position of the first axis with distance control
     (its gpAx index as the served machine's start lines name it)."""
     for n in served.machine.axis_names:
@@ -351,7 +351,7 @@ def ads_client_rtt(port: int, symbol: str, rounds: int, per_round: int) -> dict:
     return out
 
 
-def load_test(served: ServedMachine, conn, symbol: str, seconds: float = LOAD_SECONDS) -> dict:
+def load_test(served, conn, symbol: str, seconds: float = LOAD_SECONDS) -> dict:
     """The cycle under load: pyads (a thread of this process) and ads-client (its Node process) each
     read 1000 times per second for ``seconds``, started at once; the cycles the served machine ran
     in that window, its resyncs and cycle-start lateness, and the reads each client really did."""
@@ -359,7 +359,7 @@ def load_test(served: ServedMachine, conn, symbol: str, seconds: float = LOAD_SE
     node = None
     node_out: dict = {"error": why} if cmd is None else {}
     if cmd is not None:
-        node = subprocess.Popen([*cmd, "load", str(served.server.port), symbol, str(seconds), "1"], env=env,
+        node = subprocess.Popen([*cmd, "load", str(served.services["ads"].server.port), symbol, str(seconds), "1"], env=env,
                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         ready = node.stdout.readline()                  # {"ready": true} once connected
         if '"ready"' not in ready:
@@ -470,12 +470,12 @@ def main(argv=None) -> dict:
     null.open()
     null_aio = pyads.Connection("127.0.0.3.1.1", 551, "127.0.0.3")
     null_aio.open()
-    with ServedMachine(scenario()) as served:
+    with serve_over_ads(scenario()) as served:
         symbol = plc_symbol(served)
         conn = pyads.Connection("127.0.0.1.1.1", 551, "127.0.0.1")
         conn.open()
         probes = {
-            "raw": raw_ams_reader("127.0.0.1", served.server.port),
+            "raw": raw_ams_reader("127.0.0.1", served.services["ads"].server.port),
             "aecho": lambda: echo_once(aecho),
             "ads": lambda: conn.read(0x120300, 0x13106, pyads.PLCTYPE_LREAL),
             "null": lambda: null.read(0x120300, 0x13106, pyads.PLCTYPE_LREAL),
@@ -492,7 +492,7 @@ def main(argv=None) -> dict:
         pinned = medians_us(interleaved_samples(probes, pinned_rounds, per_round)) if old else None
         unpin_threads(old)
         # 3: ads-client in its own process, interleaved inside it
-        nodes = ads_client_rtt(served.server.port, symbol, node_rounds, node_per_round)
+        nodes = ads_client_rtt(served.services["ads"].server.port, symbol, node_rounds, node_per_round)
         # 4: the cycle while pyads and ads-client each read 1000 times per second
         load = load_test(served, conn, symbol)
         conn.close()

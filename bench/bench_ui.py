@@ -36,7 +36,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
 from _results import merge_results  # noqa: E402
 
-from distctrl.ads.machine import ServedMachine  # noqa: E402
+from distctrl.ads.devices import serve_over_ads  # noqa: E402
 from distctrl.sim.scenario import load_scenario  # noqa: E402
 from distctrl.ui import UiServer  # noqa: E402
 
@@ -125,7 +125,7 @@ def main(argv=None) -> dict:
     window = args.seconds or (2.0 if args.quick else 5.0)
     rounds = 2 if args.quick else 4
     changes = 10 if args.quick else 40
-    served = ServedMachine(load_scenario(SCENARIO), port=0, discovery_port=None, rt_priority=args.rt_priority)
+    served = serve_over_ads(load_scenario(SCENARIO), port=0, discovery_port=None, rt_priority=args.rt_priority)
     ui = UiServer(served, port=0, export_dir=args.out / "ui_exports")
     served.start()
     ui.start()

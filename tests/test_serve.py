@@ -9,7 +9,7 @@ import pytest
 
 pyads = pytest.importorskip("pyads")
 
-from distctrl.ads.machine import ServedMachine  # noqa: E402
+from distctrl.ads.devices import serve_over_ads  # noqa: E402
 from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
 from tests.ads import port_free, wait_for  # noqa: E402
 
@@ -40,7 +40,7 @@ def served():
     gc.collect()
     gc.freeze()
     try:
-        with ServedMachine(sc, host=HOST, net_id=NET_ID) as s:
+        with serve_over_ads(sc, host=HOST, net_id=NET_ID) as s:
             yield s
     finally:
         gc.unfreeze()
@@ -188,7 +188,7 @@ def test_3d_objects_are_readable_on_the_cnc_port_without_network():
     import struct
 
     from distctrl.ads import AdsError
-    from distctrl.ads.machine import CncObjectDevice
+    from distctrl.ads.devices import CncObjectDevice
     from distctrl.sim.machine import Machine
     from distctrl.sim.runner import load_program
     from distctrl.sim.scenario import load_scenario
@@ -216,7 +216,7 @@ def test_3d_param_objects_read_the_pending_write_over_ads():
     (before: the ADS read showed the working value, the pending write was not passed on)."""
     import struct
 
-    from distctrl.ads.machine import CncObjectDevice
+    from distctrl.ads.devices import CncObjectDevice
     from distctrl.sim.machine import Machine
     from distctrl.sim.runner import load_program
     from distctrl.sim.scenario import load_scenario
@@ -239,7 +239,7 @@ def test_3d_objects_exist_only_with_fct_3d_dist_ctrl():
     """FCT-M3 §12.6: the channel-specific objects 'are only available if they are configured by'
     configuration.decoder.function FCT_3D_DIST_CTRL (P-CHAN-00500): an axis-only machine refuses them."""
     from distctrl.ads import AdsError
-    from distctrl.ads.machine import CncObjectDevice
+    from distctrl.ads.devices import CncObjectDevice
     from distctrl.sim.machine import Machine
     from distctrl.sim.runner import load_program
     from distctrl.sim.scenario import load_scenario

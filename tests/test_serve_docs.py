@@ -19,11 +19,11 @@ pytest.importorskip("pyads")
 
 RUNNER = textwrap.dedent('''
     import re, sys
-    from distctrl.ads.machine import ServedMachine
+    from distctrl.ads.devices import serve_over_ads
     from distctrl.sim.scenario import load_scenario
 
     code = sys.stdin.read()
-    with ServedMachine(load_scenario(sys.argv[1]), host="127.0.0.1", net_id="127.0.0.1.1.1"):
+    with serve_over_ads(load_scenario(sys.argv[1]), host="127.0.0.1", net_id="127.0.0.1.1.1"):
         env = {}
         for line in code.splitlines():
             want = re.search(r"# -> (\\S+)", line)
@@ -55,7 +55,7 @@ def test_the_pyads_example_of_docs_serve_md_runs_as_written():
 
 
 def test_the_ads_client_example_of_docs_serve_md_runs_as_written():
-    from distctrl.ads.machine import ServedMachine
+    from distctrl.ads.devices import serve_over_ads
     from distctrl.sim.scenario import load_scenario
     from tests.ads.test_ads_client import NODE_DIR, node
 
@@ -66,7 +66,7 @@ def test_the_ads_client_example_of_docs_serve_md_runs_as_written():
     assert len(blocks) == 1, "docs/serve.md should have one ads-client example"
     want = [m.group(1) for m in re.finditer(r"// -> (\S+)", blocks[0])]
     env = dict(os.environ, NODE_PATH=str(NODE_DIR / "node_modules"))
-    with ServedMachine(load_scenario(ROOT / "examples" / "scenarios" / "serve_z.toml"), host="127.0.0.1",
+    with serve_over_ads(load_scenario(ROOT / "examples" / "scenarios" / "serve_z.toml"), host="127.0.0.1",
                        net_id="127.0.0.1.1.1"):
         res = subprocess.run([exe, "-e", blocks[0]], capture_output=True, text=True, env=env, timeout=60)
     assert res.returncode == 0, res.stderr

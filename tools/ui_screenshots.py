@@ -15,7 +15,7 @@ import time
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from distctrl.ads.machine import ServedMachine  # noqa: E402
+from distctrl.ads.devices import serve_over_ads  # noqa: E402
 from distctrl.sim.scenario import load_scenario  # noqa: E402
 from distctrl.ui import UiServer  # noqa: E402
 
@@ -29,7 +29,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     from playwright.sync_api import sync_playwright
 
-    served = ServedMachine(load_scenario(ROOT / "examples" / "scenarios" / "serve_z.toml"), port=0,
+    served = serve_over_ads(load_scenario(ROOT / "examples" / "scenarios" / "serve_z.toml"), port=0,
                            discovery_port=None)
     ui = UiServer(served, port=0, export_dir="/tmp")
     ui.start()

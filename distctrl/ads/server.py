@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import ipaddress
 import logging
 import socket
 import struct
@@ -36,6 +35,7 @@ import threading
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+from ..serve.net import address_allowed, networks
 from .errors import ADSERR_DEVICE_BUSY, ERR_TARGETMACHINENOTFOUND, ERR_TARGETPORTNOTFOUND
 from .protocol import (
     AMS_HEADER,
@@ -110,18 +110,6 @@ def listening_sockets(host: str | None, port: int, backlog: int = 128) -> list[s
     return socks
 
 
-def address_allowed(ip: str, networks) -> bool:
-    """True if the peer address ``ip`` (IPv4, IPv6 with a zone, or IPv4-mapped IPv6) lies in one of
-    ``networks`` (ipaddress networks): the route check of the ADS server and the live page."""
-    try:
-        addr = ipaddress.ip_address(ip.split("%", 1)[0])
-    except ValueError:
-        return False
-    if addr.version == 6 and addr.ipv4_mapped is not None:
-        addr = addr.ipv4_mapped
-    return any(addr.version == net.version and addr in net for net in networks)
-
-
 class AdsServer(AdsServices):
     """ADS server over AMS/TCP.
 
@@ -166,9 +154,7 @@ class AdsServer(AdsServices):
         self.port = int(port)
         self.net_id = net_id
         self._net_id = parse_net_id(net_id)
-        if isinstance(allowed, str):
-            allowed = [allowed]
-        self.allowed = [ipaddress.ip_network(a, strict=False) for a in allowed]
+        self.allowed = networks(allowed)
         self.log = log if log is not None else logging.getLogger(LOGGER_NAME)
         self.max_frame = int(max_frame)
         #: held around every request's device calls; without a given lock a private one, so devices

@@ -14,7 +14,8 @@
   reason ("Not a directory", "No space left on device").
 * :class:`DistctrlGroup`: the top-level group; subcommands are imported when used (the numba, dask
   and matplotlib parts load only for the commands that need them). An ``OSError`` that reaches it (a
-  full disk, a read-only place) ends with one ``error:`` line naming the path and exit code 1.
+  full disk, a read-only place) ends with one ``error:`` line naming the path and exit code 1; so does
+  an optional dependency that is not installed, naming the extra that installs it (:mod:`.extras`).
 * :func:`check_writable`: an output path is tried before a long run, not after it.
 """
 from __future__ import annotations
@@ -27,7 +28,8 @@ from typing import Any, NoReturn
 
 import click
 
-from ..errors import ExitCode
+from ..errors import DistCtrlError, ExitCode
+from .extras import missing_dependency
 
 
 #: the state of the command line in this process: the command whose ``--json`` was given (set by
@@ -136,8 +138,6 @@ def check_writable(path: str, what: str, directory: bool = False) -> None:
 def check_plot_output(path: str | None, check_suffix) -> None:
     """A ``--plot`` file before the work: its suffix (``check_suffix`` raises a DistCtrlError) and
     that it can be written; fails with one line otherwise."""
-    from ..errors import DistCtrlError
-
     if not path:
         return
     try:
@@ -213,7 +213,14 @@ class DistctrlGroup(click.Group):
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name in self.lazy_commands and cmd_name not in self.commands:
             module, _, attr = self.lazy_commands[cmd_name].partition(":")
-            self.add_command(getattr(importlib.import_module(module), attr), cmd_name)
+            try:
+                command = getattr(importlib.import_module(module), attr)
+            except ModuleNotFoundError as exc:          # an extra not installed: one line, exit code 1
+                message = missing_dependency(exc)
+                if message is None:
+                    raise
+                fail(f"distctrl {cmd_name}: {message}")
+            self.add_command(command, cmd_name)
         return super().get_command(ctx, cmd_name)
 
     def make_context(self, info_name, args, parent=None, **extra):
@@ -236,6 +243,12 @@ class DistctrlGroup(click.Group):
             if _STATE["json_command"] is not None and not _STATE["emitted"]:
                 emit_json(error_object(exc.format_message(), ExitCode.INVALID_INPUT, _STATE["json_command"]))
             raise
+        except ModuleNotFoundError as exc:
+            # an optional dependency the command needs is not installed: name the extra (pyproject.toml)
+            message = missing_dependency(exc)
+            if message is None:
+                raise
+            fail(message)
         except KeyboardInterrupt:
             click.echo("interrupted (Ctrl-C)", err=True)
             raise click.exceptions.Exit(int(ExitCode.INTERRUPTED)) from None

@@ -13,6 +13,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import click
+
+
+from ..sim import run
+from ..sim.plates import TARGET_MIN_SHARE, compare
+from ..sim.scenario import load_scenario
+from .common import emit_json
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
 
@@ -21,7 +28,6 @@ def plain_const_dist_scenario():
     oscillates into the sheet (a limit cycle; docs/run.md "Collisions", docs/margins.md)."""
     import dataclasses
 
-    from ..sim.scenario import load_scenario
 
     sc = load_scenario(EXAMPLES / "const_dist_sheet.toml")
     z = sc.axes["Z"]
@@ -42,8 +48,6 @@ def main(out_dir: str | Path = "out/demo", plate: str | None = "plasma_plate", a
     console = Console(quiet=True) if as_json else Console()
     results, plate_res = run_demo(out_dir, plate, console, progress=not as_json)
     if as_json:
-        from .common import emit_json
-
         emit_json(figures(results, plate_res, out_dir, plate))
     return [r for _, _, r in results]
 
@@ -70,15 +74,13 @@ def run_demo(out_dir: str | Path, plate: str | None, console, progress: bool = T
     from rich.markup import escape
     from rich.table import Table
 
-    from ..sim import run
-    from ..sim.scenario import load_scenario
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cases = [("CONST_DIST 1 mm, both encoders", "sheet", load_scenario(EXAMPLES / "const_dist_sheet.toml")),
              ("CONST_DIST 1 mm, plain (WARNING EXAMPLE)", "sheet_plain", plain_const_dist_scenario()),
              ("SET_POS 30 mm (%DIST_1)", "dist_1", load_scenario(EXAMPLES / "dist_1.toml"))]
-    from ..workbench.report import write_report
+    from ..workbench.report import write_report      # jinja2: loaded only when a report is written
 
     results = []
     for label, stem, sc in cases:
@@ -126,8 +128,6 @@ def plate_table(console, plate: str = "plasma_plate") -> dict:
     from rich.markup import escape
     from rich.table import Table
 
-    from ..sim.plates import TARGET_MIN_SHARE, compare
-    from ..sim.scenario import load_scenario
 
     console.print("running the plasma plate (issue 16) with and without the cutting-process functions ...")
     sc = load_scenario(EXAMPLES / f"{plate}.toml")
@@ -162,3 +162,13 @@ def plate_table(console, plate: str = "plasma_plate") -> dict:
         "the kerfs and holes, and the warp brings the plate up to it. Simulated figures: docs/process.md, "
         "\"The two plates\"."))
     return res
+
+
+@click.command("demo")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object with the tables' figures (per run: outcome, metrics, events, files; "
+                   "the plate with and without its functions) instead of the tables.")
+def demo_cmd(as_json: bool) -> None:
+    """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, and the plasma plate with and
+    without the cutting-process functions, with summary tables. Traces, plots and reports: out/demo/."""
+    main(as_json=as_json)

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 
-from ..sim.config_errors import require_number
+from ..errors.config import require_number
 from .variables import ve_name
 
 __all__ = ["ArcVoltageLinearisation", "ARC_V0_RANGE", "ARC_K_RANGE"]

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from ..sim.config_errors import ConfigError
+from ..errors.config import ConfigError
 from .variables import ve_name
 
 __all__ = ["DistanceLinearisation", "check_table"]

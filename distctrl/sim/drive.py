@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from distctrl.sim.config_errors import ConfigError, require_int, require_number
+from distctrl.errors.config import ConfigError, require_int, require_number
 from distctrl.sim.physics import limit_velocity, quantise, resonance_coefficients, resonance_step
 
 __all__ = ["Drive"]

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from distctrl.sim.config_errors import ConfigError, require_number
+from distctrl.errors.config import ConfigError, require_number
 
 __all__ = ["AxisLimits", "Interpolator", "trapezoid_time"]
 

@@ -26,8 +26,7 @@ from __future__ import annotations
 
 import math
 
-from ..control import (Action, AxisDistanceController, Command, CycleInput, CycleOutput, HliState,
-                       SensorSource)
+from ..control import Action, AxisDistanceController, Command, CycleInput, CycleOutput, HliState, SensorSource
 from ..control.commands3d import Command3D, CompensationMode
 from ..control.controller3d import ChannelDistanceController, Cycle3DInput, Cycle3DOutput
 from ..errors import ErrorEvent, ErrorId, ParameterError
@@ -37,13 +36,17 @@ from ..kinematics.kin98 import InclinationViolation, Kinematic98Params
 from ..nc.interpreter import NcAbort, NcInterpreter
 from ..nc.parser import parse_file, parse_program
 from ..nc.program import KinematicsWord, Program, kin_param_var
+from ..objects.channel3d import Channel3DValues
 from ..objects.units import mm_to_dint_01um, round_saturate
 from ..plc.chain import chain
 from ..plc.hli import ChannelDistanceStatus, DistanceControlUnit
 from ..plc.process.channel import ChannelPathStatus
+from ..plc.process.lift import Lift
 from .drive import Drive
 from .interpolator import AxisLimits, Interpolator
+from .lift import attach_lift
 from .sensors import Fault
+from .status import EventCursor, activity, machine_status
 
 _TRACKING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST))
 _VARIABLE = SensorSource.VARIABLE
@@ -133,7 +136,7 @@ class Machine:
         self.process_program = process_plc
         #: the CNC's lift motions of the scenario's ``lift`` functions (docs/process.md "Lift"): each is
         #: stepped after the interpolator and superimposed on its axis's programmed position
-        self.lift_motions = tuple(f.cnc_lift for f in process_plc.functions if f.cnc_lift is not None) \
+        self.lift_motions = tuple(attach_lift(f) for f in process_plc.functions if isinstance(f, Lift)) \
             if process_plc is not None else ()
         #: fill every unit's state_r every cycle: needed when something reads it while running (a PLC
         #: program, the ADS server); a batch run without readers publishes once at the end
@@ -893,7 +896,6 @@ class Machine:
         (docs/objects-3d.md, docs/diag.md); None without 3D distance control."""
         if self.ch3d is None:
             return None
-        from ..objects.channel3d import Channel3DValues
 
         o3 = self.out3d
         ch = self.ch3d
@@ -931,6 +933,22 @@ class Machine:
             self.hli[name].publish(self.outputs[name])
 
     # ------------------------------------------------------------------ status
+    def status(self) -> dict:
+        """A snapshot of plain values that consumers read (per axis the HLI unit, state, offset and
+        drive position; the NC line; override; the head over the surface; the process functions):
+        :func:`distctrl.sim.status.machine_status`."""
+        return machine_status(self)
+
+    def activity(self) -> tuple:
+        """The cheap part of :meth:`status` that changes when a PLC command is taken or refused, a
+        state changes or the NC program ends (:func:`distctrl.sim.status.activity`)."""
+        return activity(self)
+
+    def event_cursor(self, *, from_now: bool = False) -> EventCursor:
+        """A cursor over :attr:`events` that takes each ``(t, ErrorEvent)`` once
+        (:class:`~distctrl.sim.status.EventCursor`); ``from_now``: skip the events there already."""
+        return EventCursor(self, len(self.events) if from_now else 0)
+
     def settled(self) -> bool:
         """At rest once the program has ended: the path stopped, no deselection still running out its
         offset, and every drive at rest. A distance control left tracking (ACTIVE, ACTIVE_CONST_DIST,

@@ -24,6 +24,9 @@ import dataclasses
 import math
 from pathlib import Path
 
+from .runner import run
+from .scenario import Scenario, load_scenario
+
 __all__ = ["PLATES", "EXAMPLES", "plate_figures", "compare", "select_functions", "CutWatch", "TARGET_MIN_SHARE",
            "TARGET_LIFT_INCREASE"]
 
@@ -130,8 +133,6 @@ def plate_figures(scenario, functions: bool = True, drop: tuple = ()) -> dict:
     """Run ``scenario`` (a path or a Scenario) with its ``[[process]]`` tables (but those whose function
     is in ``drop``), or without any, and return the figures (module docstring) plus ``completed``,
     ``errors``, ``functions`` (names) and ``lifts`` (rapids the lift function lifted)."""
-    from . import run
-    from .scenario import Scenario, load_scenario
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sc = select_functions(sc, functions, drop)
@@ -153,7 +154,6 @@ def compare(scenario) -> dict:
     """``{"with": plate_figures(sc), "without": plate_figures(sc, functions=False)}``, and with a
     ``lift`` table ``"no_lift"`` (the functions but the lift) and ``lift_path_time_increase`` (the
     path time with the lift over that without it, minus 1; issue 16's target: at most 5 %)."""
-    from .scenario import Scenario, load_scenario
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     out = {"with": plate_figures(sc), "without": plate_figures(sc, functions=False)}

@@ -15,10 +15,12 @@ import numpy as np
 
 from ..control import HliState
 from ..errors import DistCtrlError, ErrorId, ExitCode
+from ..errors.config import ConfigError
 from ..nc.parser import parse_file, parse_program
 from ..trace import TraceRecorder
-from .config_errors import ConfigError
+from ..trace.parquet import require_pyarrow, to_parquet
 from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
+from .scenario import Scenario, load_scenario
 
 #: safety cap when a scenario has no duration: one hour of machine time
 MAX_RUN_SECONDS = 3600.0
@@ -213,7 +215,6 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     ``plc_program(machine, cycle)``, if given, runs every cycle before the CNC reads the PLC
     interface: it may write ``machine.hli[axis]`` (command_w + semaphore, cyclic values) and read
     ``state_r``, as a PLC task does."""
-    from .scenario import Scenario, load_scenario
 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
@@ -224,7 +225,6 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     columns, units = trace_columns(machine, record)
     parquet_path = Path(trace) if trace is not None and str(trace).lower().endswith(".parquet") else None
     if parquet_path is not None:
-        from ..trace.parquet import require_pyarrow
         require_pyarrow()                       # fail before the run, not after it
         trace, keep_trace = None, True
         keep_at_most = None                     # the Parquet file is written from the kept rows: all of them
@@ -253,6 +253,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
     bar = _Progress(max_cycles if scenario.duration is not None else None, T) if progress else None
     interrupted = False
     settled_for = 0
+    events = machine.event_cursor()              # every error and warning of the run, for its summary
     nc = machine.nc
     append = recorder.append
     build_row = row_builder(machine, record, pack=recorder.pack)    # rows packed at once (no floats kept)
@@ -346,7 +347,7 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         interrupted = True
     finally:
         errors, warnings = [], []
-        for t, ev in machine.events:
+        for t, ev in events.take():
             item = {"id": ev.id, "line": ev.line, "t": round(t, 9), "message": ev.message}
             (warnings if ev.severity == "warning" else errors).append(item)
         warnings.extend(metrics.oscillation_warnings())
@@ -366,7 +367,6 @@ def run(scenario, *, trace: str | Path | None = None, keep_trace: bool = True, p
         if bar is not None:
             bar.close()
     if parquet_path is not None and kept is not None:
-        from ..trace.parquet import to_parquet
         to_parquet(kept, parquet_path)
         trace = parquet_path
     if out3d is not None:
@@ -395,7 +395,6 @@ CSV_BYTES_PER_VALUE = 19
 def estimate_trace(scenario, *, record=(), decimate: int = 1, max_rows: int | None = None) -> dict:
     """What the trace of ``scenario`` will hold at most: rows (the time limit's cycles, decimated, or
     the ring buffer), columns, and the CSV and in-memory bytes; the run may end sooner."""
-    from .scenario import Scenario, load_scenario
 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)

@@ -6,7 +6,7 @@ docs/scenarios.md documents every key. Paths inside a scenario are relative to t
 (for :func:`scenario_from_dict` / :func:`scenario_from_text`: to ``base_dir``).
 
 Every key is validated. A problem raises :class:`ScenarioError` (a
-:class:`~distctrl.sim.config_errors.ConfigError`) whose message names the file, the key path
+:class:`~distctrl.errors.config.ConfigError`) whose message names the file, the key path
 (``axes.Z.kv``, ``events[2].plc.transition``), the value and what is allowed; unknown keys are
 errors that list the allowed keys. Errors in a parameter list are
 :class:`~distctrl.errors.ParameterError` with the list's own ``file:line`` (the scenario key is
@@ -39,7 +39,7 @@ from distctrl.params.axis import AxisParameters
 from distctrl.params.channel import ChannelParameters, load_channel_list
 from distctrl.params.external_variables import load_external_variables
 from distctrl.params.listfile import load_list
-from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, require_int,
+from distctrl.errors.config import (MISSING, ConfigError, require_choice, require_int,
                                         require_mapping, require_number)
 from distctrl.sim.drive import Drive
 from distctrl.sim.interpolator import AxisLimits

@@ -35,7 +35,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from distctrl.sim.config_errors import MISSING, ConfigError, require_choice, require_int, require_number
+from distctrl.errors.config import MISSING, ConfigError, require_choice, require_int, require_number
 from distctrl.sim.physics import characteristic_value, distance_reading, probe_increments, round_to
 from distctrl.sim.surface import Flat, Holes, Ramp, Sine, Step, TiltedPlane
 

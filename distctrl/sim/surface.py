@@ -26,7 +26,7 @@ from typing import Iterable, Protocol, Sequence
 
 import numpy as np
 
-from distctrl.sim.config_errors import (MISSING, ConfigError, require_choice, require_mapping,
+from distctrl.errors.config import (MISSING, ConfigError, require_choice, require_mapping,
                                        require_number)
 
 __all__ = ["Feature", "Flat", "Step", "Ramp", "Sine", "TiltedPlane", "Holes", "HeightMap", "Surface",

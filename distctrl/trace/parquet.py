@@ -37,8 +37,8 @@ def _pyarrow():
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError as exc:
-        raise ParquetError("Parquet traces need pyarrow, which is not installed: pip install pyarrow "
-                           f"({exc})") from None
+        raise ParquetError("Parquet traces need pyarrow, which is not installed: pip install "
+                           f"'distctrl[parquet]' or pip install pyarrow ({exc})") from None
     return pa, pq
 
 

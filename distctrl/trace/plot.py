@@ -1,4 +1,10 @@
-"""Plot a :class:`~distctrl.trace.recorder.Trace`: stacked subplots sharing the time axis.
+"""Plot a :class:`~distctrl.trace.recorder.Trace`: stacked subplots sharing the time axis; and what a
+plot of a saved trace needs around it (``distctrl plot``, the HTML report): a time window
+(:func:`slice_trace`), signal names checked against the columns with the closest column named on a
+typo (:func:`resolve_signals`), error/warning markers read from the sidecar meta or a
+``distctrl run --json`` file (:func:`load_events`, :func:`add_event_markers`), the distance error
+recomputed from a trace (:func:`distance_error`). :func:`~distctrl.trace.plot_file.plot_trace_file`
+draws a trace file.
 
 The functions take any object with the few members of :class:`TraceLike` (a ``Trace`` has them), so
 this module does not import the recorder: ``Trace.plot`` imports it, not the other way round.
@@ -9,18 +15,24 @@ works on machines without a display.
 """
 from __future__ import annotations
 
+import difflib
+import io
+import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Iterable, Protocol
 
 import numpy as np
 
 from ..base.states import HLI_STATE_NAMES
+from ..errors import CATALOGUE, DistCtrlError
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["plot_trace", "default_groups", "state_segments", "MAX_POINTS", "MAX_STATE_SEGMENTS"]
+__all__ = ["plot_trace", "default_groups", "state_segments", "MAX_POINTS", "MAX_STATE_SEGMENTS", "PlotError",
+           "slice_trace", "resolve_signals", "closest_column", "load_events", "events_from_meta",
+           "add_event_markers", "distance_error", "figure_bytes", "OUTPUT_FORMATS"]
 
 #: above this many rows a signal is drawn as a min/max envelope of about this many points
 MAX_POINTS = 100_000
@@ -35,9 +47,14 @@ class TraceLike(Protocol):
 
     columns: list[str]
     meta: dict
+    units: dict
+    data: np.ndarray
 
     @property
     def rows(self) -> int: ...
+
+    @property
+    def t(self) -> np.ndarray: ...
 
     def unit(self, column: str) -> str: ...
 
@@ -266,3 +283,177 @@ def plot_trace(trace: TraceLike, path: str | os.PathLike | None = None, signals:
         path.parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=110)
     return fig
+
+
+# ------------------------------------------------------------------------------------------------------
+# around the drawing: windows, signal names, event markers (distctrl plot, the HTML report)
+# ------------------------------------------------------------------------------------------------------
+#: markers: colour and line style per severity
+_MARK_STYLE = {"error": ("tab:red", "-"), "warning": ("darkorange", "--")}
+#: what ``distctrl plot -o`` writes (matplotlib formats by suffix; .jpg is JPEG)
+OUTPUT_FORMATS = ("png", "svg", "pdf", "jpeg")
+
+
+class PlotError(DistCtrlError):
+    """A plot request that cannot be met (missing file, unknown signal, empty window)."""
+
+
+def closest_column(name: str, columns: Iterable[str]) -> str | None:
+    """The column most like ``name`` (difflib, case-insensitive), or None when nothing is close."""
+    cols = list(columns)
+    lower = {c.lower(): c for c in cols}
+    near = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=0.5)
+    return lower[near[0]] if near else None
+
+
+def resolve_signals(trace: TraceLike, names: Iterable[str], source: str = "the trace") -> list[str]:
+    """Check signal names against the trace's columns; :class:`PlotError` names the closest column."""
+    out: list[str] = []
+    for raw in names:
+        name = raw.strip()
+        if not name:
+            continue
+        if name not in trace:
+            near = closest_column(name, trace.columns)
+            hint = f"; closest column: {near}" if near else f"; columns: {', '.join(trace.columns)}"
+            raise PlotError(f"unknown signal {name!r} in {source}{hint}")
+        if name not in out:
+            out.append(name)
+    if not out:
+        raise PlotError("--signals names no signal")
+    return out
+
+
+def slice_trace(trace: TraceLike, t0: float | None = None, t1: float | None = None) -> TraceLike:
+    """The rows with ``t0 <= t <= t1`` as a new trace of the same type (same columns, units, meta)."""
+    if t0 is None and t1 is None:
+        return trace
+    t = trace.t
+    keep = np.ones(t.shape, dtype=bool)
+    if t0 is not None:
+        keep &= t >= t0
+    if t1 is not None:
+        keep &= t <= t1
+    return type(trace)(trace.columns, trace.data[keep], units=trace.units, meta=trace.meta)
+
+
+def _event_list(items: Any, severity: str, source: str) -> list[dict]:
+    if items is None:
+        return []
+    if not isinstance(items, list):
+        raise PlotError(f"{source}: {severity}s must be a list of {{id, t, line, message}} objects")
+    out = []
+    for n, item in enumerate(items):
+        if not isinstance(item, dict) or "t" not in item or "id" not in item:
+            raise PlotError(f"{source}: {severity}s[{n}] needs at least 'id' and 't' ({item!r})")
+        try:
+            t = float(item["t"])
+        except (TypeError, ValueError):
+            raise PlotError(f"{source}: {severity}s[{n}].t is not a number ({item['t']!r})") from None
+        sev = item.get("severity") or severity
+        out.append({"id": item["id"], "t": t, "line": item.get("line"),
+                    "message": str(item.get("message", "")), "severity": sev})
+    return out
+
+
+def events_from_meta(doc: Any, source: str = "<meta>") -> list[dict]:
+    """Errors and warnings (each with ``severity``) from a run's JSON object or a trace's meta.
+
+    Accepts ``{"errors": [...], "warnings": [...]}`` (``distctrl run --json``, or the same keys in a
+    trace sidecar's ``meta``) or a bare list of ``{id, t, ...}`` (taken as errors unless an item
+    says its ``severity``). Sorted by time.
+    """
+    if doc is None:
+        return []
+    if isinstance(doc, list):
+        events = _event_list(doc, "error", source)
+    elif isinstance(doc, dict):
+        events = _event_list(doc.get("errors"), "error", source) + _event_list(doc.get("warnings"), "warning",
+                                                                               source)
+    else:
+        raise PlotError(f"{source}: expected a JSON object with 'errors'/'warnings' or a list")
+    events.sort(key=lambda e: e["t"])
+    return events
+
+
+def load_events(trace: TraceLike, errors_path: str | os.PathLike | None = None) -> list[dict]:
+    """Events from ``errors_path`` (a ``distctrl run --json`` file) if given, else from the trace meta."""
+    if errors_path is not None:
+        p = Path(errors_path)
+        try:
+            doc = json.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise PlotError(f"{p}: no such file (--errors wants the JSON of 'distctrl run --json')") from None
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise PlotError(f"{p}: cannot read the errors JSON: {exc}") from None
+        return events_from_meta(doc, str(p))
+    return events_from_meta({k: trace.meta.get(k) for k in ("errors", "warnings")}, "trace meta")
+
+
+def severity_of(event: dict) -> str:
+    sev = event.get("severity")
+    if sev:
+        return str(sev)
+    try:
+        return CATALOGUE[int(event["id"])][0]
+    except (KeyError, TypeError, ValueError):
+        return "error"
+
+
+def add_event_markers(fig: "Figure", events: list[dict], t0: float | None = None,
+                      t1: float | None = None) -> int:
+    """Vertical lines at each event's time on every panel of ``fig`` (red: error, orange dashed:
+    warning), its ID written at the top of the first panel. Returns how many were drawn."""
+    axes = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    if not axes or not events:
+        return 0
+    n = 0
+    for ev in events:
+        t = ev["t"]
+        if (t0 is not None and t < t0) or (t1 is not None and t > t1):
+            continue
+        color, style = _MARK_STYLE.get(severity_of(ev), _MARK_STYLE["error"])
+        for ax in axes:
+            ax.axvline(t, color=color, linestyle=style, linewidth=1.3, alpha=0.9, zorder=5)
+        axes[0].text(t, 0.97, f" {ev['id']}", transform=axes[0].get_xaxis_transform(), color=color,
+                     fontsize="small", fontweight="bold", ha="left", va="top", zorder=6,
+                     bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1.0})
+        n += 1
+    return n
+
+
+def distance_error(trace: TraceLike) -> tuple[np.ndarray, str | None]:
+    """The distance error per row (NaN where distance control does not track) and its axis.
+
+    As the runner's metrics (docs/run.md): ``true.distance - <A>.dc.set_dist`` in ACTIVE_CONST_DIST
+    (state 4), ``true.distance - (<A>.prog - <A>.dc.set_pos)`` in ACTIVE (state 1), for the first
+    axis with a ``<A>.dc.state`` column. 3D traces (``dc3d.state``): ``true.distance_orth -
+    dc3d.set_dist_orth`` in CONST_DIST; the SURFACE mode's wanted height is not in the trace (NaN).
+    """
+    n = trace.rows
+    err = np.full(n, np.nan)
+    if "dc3d.state" in trace and "true.distance_orth" in trace and "dc3d.set_dist_orth" in trace:
+        st = trace["dc3d.state"]
+        m = st == 4
+        err[m] = trace["true.distance_orth"][m] - trace["dc3d.set_dist_orth"][m]
+        return err, "3D"
+    axes = [c[:-len(".dc.state")] for c in trace.columns if c.endswith(".dc.state")]
+    if not axes or "true.distance" not in trace:
+        return err, None
+    a = axes[0]
+    st = trace[f"{a}.dc.state"]
+    dist = trace["true.distance"]
+    if f"{a}.dc.set_dist" in trace:
+        m = st == 4
+        err[m] = dist[m] - trace[f"{a}.dc.set_dist"][m]
+    if f"{a}.prog" in trace and f"{a}.dc.set_pos" in trace:
+        m = st == 1
+        err[m] = dist[m] - (trace[f"{a}.prog"][m] - trace[f"{a}.dc.set_pos"][m])
+    return err, a
+
+
+def figure_bytes(fig: "Figure", fmt: str = "png", dpi: int = 100) -> bytes:
+    """The figure rendered to bytes (``png`` or ``svg``)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, dpi=dpi)
+    return buf.getvalue()

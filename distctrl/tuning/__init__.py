@@ -2,8 +2,8 @@
 
 :mod:`~distctrl.tuning.space` (grids, random samples, validation), :mod:`~distctrl.tuning.metrics`
 (vectorised quality figures), :mod:`~distctrl.tuning.runner` (chunked evaluation, local or on
-dask.distributed), :mod:`~distctrl.tuning.tune` (coarse sweep + refinement + robustness) and the
-click commands in :mod:`~distctrl.tuning.cli`.
+dask.distributed) and :mod:`~distctrl.tuning.tune` (coarse sweep + refinement + robustness); the
+click commands ``sweep`` and ``tune`` are in :mod:`distctrl.cli.tune`.
 """
 from .metrics import METRIC_NAMES, compute_metrics, cost
 from .runner import Evaluator, SweepResult, evaluate

@@ -16,15 +16,14 @@ from __future__ import annotations
 
 import asyncio
 import gc
-import ipaddress
 import logging
 import socket
 import sys
 import threading
 from pathlib import Path
 
-from ..ads.server import address_allowed
-from ..sim.realtime import sched_fifo
+from ..serve.net import address_allowed, networks
+from ..serve.realtime import sched_fifo
 from .hub import MachineHub
 
 log = logging.getLogger("distctrl.ui")
@@ -61,7 +60,7 @@ def free_port(host: str) -> int:
 class UiServer:
     """The Bokeh server of the live page over one served machine.
 
-    :param served: a started or not yet started :class:`~distctrl.ads.machine.ServedMachine`.
+    :param served: a started or not yet started :class:`~distctrl.serve.machine.ServedMachine`.
     :param host: address to listen on; ``port`` 0 picks a free port (:attr:`port` tells which).
     :param allowed: networks (CIDR) whose clients may connect, like the ADS server's ``--allow``.
     :param export_dir: where the scope's "Export CSV" writes its trace files.
@@ -72,8 +71,7 @@ class UiServer:
         self.served = served
         self.host = host
         self.port = int(port) or free_port(host)
-        self.allowed = [ipaddress.ip_network(a, strict=False) for a in ([allowed] if isinstance(allowed, str)
-                                                                         else allowed)]
+        self.allowed = networks(allowed)
         self.export_dir = Path(export_dir)
         self.hub = MachineHub(served, buffer_s=buffer_s)
         self.refused = 0
@@ -145,11 +143,17 @@ class UiServer:
         self.stop()
 
     def _run(self) -> None:
-        from bokeh.application import Application
-        from bokeh.application.handlers.function import FunctionHandler
-        from bokeh.server.server import Server
-        from tornado.ioloop import IOLoop, PeriodicCallback
-
+        try:
+            # Bokeh (the [ui] extra) loads here, in the page's thread; without it start() raises the
+            # ModuleNotFoundError, which the command line turns into one line naming the extra
+            from bokeh.application import Application
+            from bokeh.application.handlers.function import FunctionHandler
+            from bokeh.server.server import Server
+            from tornado.ioloop import IOLoop, PeriodicCallback
+        except BaseException as exc:   # noqa: BLE001 - handed to start()
+            self._error = exc
+            self._ready.set()
+            return
         asyncio.set_event_loop(asyncio.new_event_loop())
         self._set_scheduling()
         io = IOLoop.current()
@@ -199,7 +203,7 @@ class UiServer:
 
     # ------------------------------------------------------------------ one page
     def _make_document(self, doc) -> None:
-        from .page import build_page
+        from .page import build_page      # Bokeh (the [ui] extra): loaded when the first page opens
 
         self.sessions += 1
         build_page(doc, self.hub, self.export_dir, FRAME_MS)
@@ -214,7 +218,7 @@ def _template():
     if _TEMPLATE is None:
         from bokeh.core.templates import get_env
 
-        from .live import PAGE_JS
+        from .live import PAGE_JS         # Bokeh, as above
 
         # the page's own script (distctrl.ui.live) is inline, as the CSP allows; it is no template
         # text (raw), so Jinja leaves its braces alone

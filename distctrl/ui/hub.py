@@ -26,23 +26,13 @@ import numpy as np
 
 from ..base.states import HliTransition
 from ..errors import DistCtrlError
-from ..objects.channel3d import (
-    CHANNEL3D_OBJECTS,
-    Channel3DObjectContext,
-    find_spec_3d,
-    read_value_3d,
-)
-from ..objects.channel3d import write_value as write_value_3d
-from ..objects.registry import (
-    SERVED_OBJECTS,
-    ObjectAccessError,
-    ObjectValueError,
-    find_spec,
-    index_offset,
-    read_value,
-    write_value,
-)
+from ..objects.channel3d import (CHANNEL3D_OBJECTS, Channel3DObjectContext, find_spec_3d, read_value_3d,
+                                 write_value as write_value_3d)
+from ..objects.registry import (SERVED_OBJECTS, ObjectAccessError, ObjectValueError, find_spec, index_offset,
+                                read_value, write_value)
 from ..sim.runner import row_builder, trace_columns
+from ..sim.scenario import OVERRIDE_PATH_MAX, Event
+from ..trace import Trace
 from .ring import program_lines, ring_put, ring_since
 from .tables import CHANNEL, object_table, state_name  # noqa: F401 - the page's modules import them here
 
@@ -55,7 +45,8 @@ TRANSITIONS = ("ON", "ON_CONST_DIST", "DRYRUN", "CONST_DIST", "FREEZE", "REF", "
 
 
 class MachineHub:
-    """The shared state of the live pages over one :class:`~distctrl.ads.machine.ServedMachine`."""
+    """The shared state of the live pages over one :class:`~distctrl.serve.machine.ServedMachine`: reads
+    it through its status snapshot, event cursor and CNC-object contexts (:mod:`distctrl.sim.status`)."""
 
     def __init__(self, served, *, buffer_s: float = 60.0, snapshot_every: int = 10):
         m = self.machine = served.machine
@@ -67,7 +58,7 @@ class MachineHub:
         self.rows = 0                                   # rows written into the ring so far
         self._queue: collections.deque = collections.deque(maxlen=self.capacity)
         self.snapshot_every = max(1, int(snapshot_every))
-        self.contexts = served.cnc.contexts             # axis_id -> AxisObjectContext
+        self.contexts = served.contexts                 # axis_id -> AxisObjectContext
         #: the numeric CNC objects as scope signals: "<axis>.obj.<name>" -> (axis_id, spec); the channel's
         #: 3D objects (3D distance control, docs/objects-3d.md) as "ch1.obj.<name>" with axis_id 0
         self.object_signals = {f"{c.axis_name}.obj.{s.name}": (i, s) for i, c in self.contexts.items()
@@ -84,7 +75,7 @@ class MachineHub:
         self._snapshots = 0
         self._k0 = m.cycle                              # the first cycle recorded is row 0
         self.events: list[dict] = []                    # every event of the machine, as dicts
-        self._events_seen = 0
+        self._event_cursor = served.event_cursor()
         self.override = 1.0
         self.feed_hold = False
         self.exports: dict[str, Path] = {}              # file name -> path, served by the page's download route
@@ -106,7 +97,8 @@ class MachineHub:
 
     def _take_snapshot(self) -> None:
         m = self.machine
-        t = max(m.cycle - 1, 0) * m.T
+        status = self.served.status()
+        t = status["t"]
         objects = {}
         for axis_id, ctx in self.contexts.items():
             for spec in SERVED_OBJECTS:
@@ -121,33 +113,14 @@ class MachineHub:
         self._snapshots += 1
         self._obj_queue.append((self._snapshots - 1, t,
                                 [float(objects[(i, s.name)][0]) for i, s in self.object_signals.values()]))
-        units = {}
-        for n in m.axis_names:
-            u = m.hli[n]
-            s = u.state_r
-            units[n] = {"index": u.axis_index, "transition": u.command_w.transition, "position": u.command_w.position,
-                        "enable_w": u.enable_w, "semaphore": u.command_semaphore_rw, "actual_state": s.actual_state,
-                        "actual_position": s.actual_position, "actual_offset": s.actual_offset,
-                        "command_source": s.command_source, "actual_distance": s.actual_distance,
-                        "consumed": u.consumed, "rejected": [r.reason for r in u.rejected[-3:]],
-                        "dc_on": u.distance_control_on, "state": int(m.outputs[n].hli_state),
-                        "offset": m.outputs[n].offset, "act": m.drives[n].actual}
-        new_events = []
-        if len(m.events) != self._events_seen:
-            new_events = [{"t": when, "id": int(ev.id), "severity": ev.severity, "line": ev.line,
-                           "message": ev.message} for when, ev in m.events[self._events_seen:]]
-            self._events_seen = len(m.events)
-        nc = m.nc
-        proc = m.process_program
+        new_events = [{"t": when, "id": int(ev.id), "severity": ev.severity, "line": ev.line,
+                       "message": ev.message} for when, ev in self._event_cursor.take()]
+        nc = status["nc"]
         self.snapshot = {
-            "t": t, "cycle": m.cycle, "objects": objects, "units": units, "new_events": new_events,
-            "line": nc.line if nc is not None else None,
-            "nc_state": "none" if nc is None else "aborted" if nc.aborted else "ended" if nc.ended else "running",
-            "override": m.channel_override, "paused": self.served.paused,
-            "x": m.drives["X"].nozzle if "X" in m.drives else 0.0,
-            "true_surface": m.true_surface, "true_distance": m.true_distance,
-            "process": [] if proc is None else [(f.name, f.axis, f.enabled)
-                                                for f in proc.functions],
+            "t": t, "cycle": status["cycle"], "objects": objects, "units": status["axes"], "new_events": new_events,
+            "line": nc["line"], "nc_state": nc["state"], "override": status["override"], "paused": status["paused"],
+            "x": status["x"], "true_surface": status["true_surface"], "true_distance": status["true_distance"],
+            "process": status["process"],
         }
         if new_events:
             self.events.extend(new_events)
@@ -205,7 +178,6 @@ class MachineHub:
         return True, f"{axis}: {transition} {position_mm:.4f} mm written, command_semaphore_rw TRUE"
 
     def set_override(self, value: float) -> tuple[bool, str]:
-        from ..sim.scenario import OVERRIDE_PATH_MAX
 
         if not (isinstance(value, (int, float)) and 0.0 <= value <= OVERRIDE_PATH_MAX):
             return False, f"override {value!r}: allowed 0 .. {OVERRIDE_PATH_MAX:g}"
@@ -227,7 +199,6 @@ class MachineHub:
         return True, "CNC reset: the program stops, distance control is deselected"
 
     def sensor_fault(self, kind: str, value: float, duration_s: float | None) -> tuple[bool, str]:
-        from ..sim.scenario import Event
 
         if self.machine.sensor is None:
             return False, "this scenario has no [sensor]: no sensor fault to inject"
@@ -306,7 +277,6 @@ class MachineHub:
     def export_csv(self, folder: Path, signals: list[str] | None = None) -> Path:
         """The ring buffer as a trace CSV with its ``.meta.json`` (what ``distctrl plot`` reads): every
         trace column at every cycle, plus the chosen CNC objects held between their samples."""
-        from ..trace import Trace
 
         self.pump()
         n = min(self.rows, self.capacity)

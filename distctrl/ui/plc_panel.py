@@ -20,6 +20,7 @@ import re
 from bokeh.layouts import column, row
 from bokeh.models import Button, CheckboxGroup, Div, NumericInput, Slider, Toggle
 
+from ..base.states import HliTransition
 from .hub import FAULTS, TRANSITIONS, MachineHub, state_name
 from .live import STYLE, Live, span
 
@@ -208,7 +209,6 @@ class PlcPanel:
 
 
 def _transition(number: int) -> str:
-    from ..base.states import HliTransition
 
     try:
         return HliTransition(number).name

@@ -25,7 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DistCtrlError, ExitCode
-from ..sim.config_errors import ConfigError
+from ..errors.config import ConfigError
+from ..plc.linearisation import DistanceLinearisation
+from ..plc.process import process_configs
+from ..sim.machine import Machine
+from ..sim.runner import load_program
 from .identify.fit import CHAR_BIN, characteristic_points
 
 __all__ = ["CalibrationError", "CalibrationTable", "calibration_table", "run_calibration", "CalibrationRun",
@@ -39,7 +43,6 @@ _SATURATED_SLOPE = 0.2
 
 class CalibrationError(DistCtrlError, ValueError):
     """The records cannot give a table (too few, saturated, not monotonic), or the run failed."""
-
 
 @dataclass
 class CalibrationTable:
@@ -156,7 +159,6 @@ class CalibrationRun:
 def _with_calibrate(scenario, runs: int | None, speed: float | None, bottom: float | None):
     """The scenario with one calibrate function on the sensor's axis (its own table, or a new one with
     the defaults) and no other process function; runs/speed/bottom override its keys."""
-    from ..plc.process import process_configs
 
     sensor = scenario.sensor
     if sensor is None or sensor.kind != "distance":
@@ -188,8 +190,6 @@ def run_calibration(scenario, *, runs: int | None = None, speed: float | None = 
     program must select the sensor (``SENSOR_SOURCE=VARIABLE``) and leave the head above the sheet.
     ``surface`` (axis coordinates, mm): where the nozzle touches the sheet; default the scenario's
     surface under the head (a simulation knows it; on a machine, touch off)."""
-    from ..sim.machine import Machine
-    from ..sim.runner import load_program
 
     sc = _with_calibrate(scenario, runs, speed, bottom)
     pc = sc.processes[0]
@@ -232,7 +232,6 @@ def run_calibration(scenario, *, runs: int | None = None, speed: float | None = 
 def model_check_um(scenario, table: CalibrationTable, x: float = 0.0, y: float = 0.0) -> float:
     """Simulation only: the largest |table(ideal reading(d)) − d| in µm over the distances the table
     covers, with the scenario's sensor model free of noise (how well the table linearises it)."""
-    from ..plc.linearisation import DistanceLinearisation
 
     sc = scenario
     sensor = sc.sensor.make_sensor(sc.cycle_time, sc.axes[sc.sensor.axis].params, sc.surface)

@@ -28,10 +28,11 @@ import numpy as np
 from ..base.states import HLI_STATE_NAMES
 from ..params.channel import CHANNEL_LIST
 from ..params.listfile import format_list
+from ..sim.scenario import Scenario, load_scenario
 from ..trace import Trace
-from ..trace.plot import plot_trace
+from ..trace.plot import (add_event_markers, distance_error, events_from_meta, figure_bytes, plot_trace,
+                          slice_trace)
 from .pages import fmt, render
-from .plot_cli import add_event_markers, distance_error, events_from_meta, figure_bytes, slice_trace
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -401,7 +402,6 @@ def write_report(result: "RunResult", scenario: "Scenario | str | os.PathLike", 
     ``scenario`` is the :class:`~distctrl.sim.scenario.Scenario` that was run (or the path of its
     TOML file). Returns the path of the page. ``now`` fixes the date shown (default: now).
     """
-    from ..sim.scenario import Scenario, load_scenario
 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)

@@ -42,6 +42,8 @@ import numpy as np
 from ..control.controller import AxisDistanceController
 from ..errors import DistCtrlError
 from ..params.listfile import parse_list_text
+from ..sim.runner import run
+from ..sim.scenario import Scenario, load_scenario, scenario_from_dict
 from ..trace.plot import MAX_POINTS, envelope
 from .plotfiles import PLOT_SUFFIXES, check_plot_suffix  # noqa: F401  (PLOT_SUFFIXES: part of the API)
 from .tables import render_table
@@ -134,7 +136,6 @@ class StepError(DistCtrlError, ValueError):
 
 class StepSettingError(StepError):
     """A KP / I_TN / D_TV value or list that cannot be parsed or is out of its documented range."""
-
 
 # ------------------------------------------------------------------------------------------------------
 # settings
@@ -330,7 +331,6 @@ def step_scenario(base: "Scenario | str | os.PathLike | None", setting: StepSett
     cycle time and seed; its program, surface, other axes and events are not used. The list must
     enable distance control (P-AXIS-00328); KP / I_TN / D_TV come from ``setting``.
     """
-    from ..sim.scenario import Scenario, load_scenario, scenario_from_dict
 
     if not isinstance(setting, StepSetting):
         raise StepError(f"setting = {setting!r}; allowed: a StepSetting (see parse_settings)")
@@ -740,7 +740,6 @@ def auto_step(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLi
     :data:`AUTO_NOISE_FLOOR` times the sensor's noise (a step drowned in noise measures the noise).
     When the noise floor wins, the limiter may still decide the largest KPs; :func:`measure` says so.
     """
-    from ..sim.scenario import Scenario, load_scenario
 
     settings = list(settings)
     if not settings:
@@ -787,8 +786,6 @@ def run_steps(settings: Iterable[StepSetting], base: "Scenario | str | os.PathLi
     reach for the setting (``v_max``, ``a_max``, ``linear_step_mm``, see :func:`_limits`) and, with
     ``auto``, the reason for the step (``auto``).
     """
-    from ..sim.runner import run
-    from ..sim.scenario import Scenario, load_scenario
 
     settings = list(settings)
     if not settings:

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from distctrl.ads import errors as E
-from distctrl.ads.machine import ServedMachine
+from distctrl.ads.devices import serve_over_ads
 from distctrl.sim.scenario import load_scenario
 
 from . import wait_for
@@ -39,10 +39,10 @@ def node() -> str:
 def session():
     """One whole ads-client session; the steps' results, keyed by step (see node/session.js)."""
     exe = node()
-    with ServedMachine(load_scenario(SCN / "serve_z.toml"), port=0) as served:
-        proc = subprocess.run([exe, "session.js", str(served.server.port), "2"], cwd=NODE_DIR,
+    with serve_over_ads(load_scenario(SCN / "serve_z.toml"), port=0) as served:
+        proc = subprocess.run([exe, "session.js", str(served.services["ads"].server.port), "2"], cwd=NODE_DIR,
                               capture_output=True, text=True, timeout=120)
-        closed_cleanly = wait_for(lambda: served.server.connections == 0)
+        closed_cleanly = wait_for(lambda: served.services["ads"].server.connections == 0)
     assert proc.returncode == 0, proc.stderr
     steps = json.loads(proc.stdout.strip().splitlines()[-1])
     steps["_server_connections_after"] = closed_cleanly

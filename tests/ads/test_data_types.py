@@ -19,7 +19,7 @@ from distctrl.ads.datatypes import (
     decode_data_type,
     encode_data_type,
 )
-from distctrl.ads.machine import SYSTEM_SERVICE_PORT, ServedMachine
+from distctrl.ads.devices import SYSTEM_SERVICE_PORT, serve_over_ads
 from distctrl.sim.scenario import load_scenario
 
 from . import RawClient
@@ -33,13 +33,13 @@ UNIT = "gpAx[2].lr_mc_control.distance_control"
 
 @pytest.fixture(scope="module")
 def served():
-    with ServedMachine(load_scenario(SCN / "serve_z.toml"), port=0) as s:
+    with serve_over_ads(load_scenario(SCN / "serve_z.toml"), port=0) as s:
         yield s
 
 
 @pytest.fixture()
 def c(served):
-    with RawClient(served.server.port) as client:
+    with RawClient(served.services["ads"].server.port) as client:
         yield client
 
 

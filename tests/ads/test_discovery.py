@@ -19,7 +19,7 @@ from distctrl.ads import AdsServer
 from distctrl.ads import discovery as D
 from distctrl.ads import errors as E
 from distctrl.ads import protocol as P
-from distctrl.ads.machine import ServedMachine
+from distctrl.ads.devices import serve_over_ads
 from distctrl.sim.scenario import load_scenario
 
 from . import MemoryDevice, RawClient, wait_for
@@ -271,9 +271,9 @@ def test_a_port_that_cannot_be_bound_leaves_tcp_served_with_one_warning(caplog):
 def served():
     import pyads  # noqa: F401  (a test dependency: missing, this fails rather than skips)
 
-    with ServedMachine(load_scenario(SCN / "serve_z.toml"), port=0, net_id="10.20.30.40.1.1") as s:
-        if s.discovery.address is None:
-            pytest.fail(f"UDP 48899 on 127.0.0.1 cannot be bound ({s.discovery.error}): pyads' "
+    with serve_over_ads(load_scenario(SCN / "serve_z.toml"), port=0, net_id="10.20.30.40.1.1") as s:
+        if s.services["ads"].discovery.address is None:
+            pytest.fail(f"UDP 48899 on 127.0.0.1 cannot be bound ({s.services['ads'].discovery.error}): pyads' "
                         "adsGetNetIdForPLC and add_route_to_plc always send there; stop what holds it")
         yield s
 
@@ -281,17 +281,17 @@ def served():
 def test_pyads_gets_the_net_id_of_the_served_machine(served):
     from pyads.pyads_ex import adsGetNetIdForPLC
 
-    assert served.discovery.address == ("127.0.0.1", 48899)
+    assert served.services["ads"].discovery.address == ("127.0.0.1", 48899)
     assert adsGetNetIdForPLC("127.0.0.1") == "10.20.30.40.1.1"
 
 
 def test_pyads_add_route_to_plc_succeeds_and_adds_nothing(served):
     import pyads
 
-    before = list(served.server.allowed)
+    before = list(served.services["ads"].server.allowed)
     assert pyads.add_route_to_plc("127.0.0.1.1.2", "127.0.0.1", "127.0.0.1", "Administrator", "any password",
                                   route_name="distctrl-test") is True
-    assert served.server.allowed == before
+    assert served.services["ads"].server.allowed == before
 
 
 def test_pyads_add_route_to_an_address_outside_the_allowed_networks_is_not_added(served):

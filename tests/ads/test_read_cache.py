@@ -9,7 +9,7 @@ import struct
 import pytest
 
 from distctrl.ads import protocol as P
-from distctrl.ads.machine import CNC_PORT, ServedMachine
+from distctrl.ads.devices import CNC_PORT, serve_over_ads
 from distctrl.objects.registry import BY_NAME, INDEX_GROUP, SERVED_OBJECTS
 from distctrl.sim.scenario import scenario_from_dict
 
@@ -27,12 +27,12 @@ def served():
         "axes": {"Z": {"params": str(SCN / "z_probe.lis"), "start": 40.0}},
         "surface": {"base": 40.0},
         "sensor": {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0}}, base_dir=SCN)
-    sm = ServedMachine(sc, port=0, discovery_port=None)
-    sm.server.start()
+    sm = serve_over_ads(sc, port=0, discovery_port=None)
+    sm.services["ads"].server.start()
     try:
         yield sm
     finally:
-        sm.server.stop()
+        sm.services["ads"].server.stop()
 
 
 def raw_read(c: RawClient, ig: int, io: int, length: int, invoke: int, source_port: int = 32905) -> bytes:
@@ -57,7 +57,7 @@ def no_full_path(*a, **k):
 
 
 def test_every_object_answers_from_the_cache_as_the_full_path_does(served, monkeypatch):
-    srv = served.server
+    srv = served.services["ads"].server
     with RawClient(srv.port) as c:
         for cycles in (0, 5):
             step(served, cycles)
@@ -66,7 +66,7 @@ def test_every_object_answers_from_the_cache_as_the_full_path_does(served, monke
                 srv._read_cache.clear()
                 full = raw_read(c, *args, invoke=7)
                 with monkeypatch.context() as m:       # the second read: from the cache
-                    m.setattr(served.cnc, "read", no_full_path)
+                    m.setattr(served.services["ads"].cnc, "read", no_full_path)
                     cached = raw_read(c, *args, invoke=0x12345678)
                 assert struct.unpack_from("<I", cached, 28)[0] == 0x12345678, spec.name
                 assert without_invoke(cached) == without_invoke(full), spec.name
@@ -74,14 +74,14 @@ def test_every_object_answers_from_the_cache_as_the_full_path_does(served, monke
 
 
 def test_the_cache_answers_without_the_device_and_with_the_live_value(served, monkeypatch):
-    srv = served.server
+    srv = served.services["ads"].server
     v_max = BY_NAME["DIST_CTRL_PARAM[0]::v_max"]     # reads the pending value while a write waits
     args = (v_max.index_group, AXIS | v_max.low_offset, 4)          # SGN32, µm/s
     with RawClient(srv.port) as c:
         first = P.parse_response(raw_read(c, *args, invoke=1))
         assert first.result == 0
         with monkeypatch.context() as m:
-            m.setattr(served.cnc, "read", no_full_path)
+            m.setattr(served.services["ads"].cnc, "read", no_full_path)
             again = P.parse_response(raw_read(c, *args, invoke=2))
         assert again.result == 0 and again.data == first.data
         # a write over ADS: the next read, from the cache, gives the new value
@@ -91,19 +91,19 @@ def test_the_cache_answers_without_the_device_and_with_the_live_value(served, mo
                        target_port=CNC_PORT).result == 0
         step(served, 2)
         with monkeypatch.context() as m:
-            m.setattr(served.cnc, "read", no_full_path)
+            m.setattr(served.services["ads"].cnc, "read", no_full_path)
             after = P.parse_response(raw_read(c, *args, invoke=3))
         assert after.result == 0 and struct.unpack("<i", after.data)[0] == new
 
 
 def test_each_source_has_its_own_answer_head(served, monkeypatch):
-    srv = served.server
+    srv = served.services["ads"].server
     kp = BY_NAME["DIST_CTRL::kp"]
     args = (kp.index_group, AXIS | kp.low_offset, 8)
     srv._read_cache.clear()
     with RawClient(srv.port) as c:
         a1, b1 = raw_read(c, *args, invoke=1, source_port=30001), raw_read(c, *args, invoke=2, source_port=30002)
-        monkeypatch.setattr(served.cnc, "read", no_full_path)
+        monkeypatch.setattr(served.services["ads"].cnc, "read", no_full_path)
         a2, b2 = raw_read(c, *args, invoke=3, source_port=30001), raw_read(c, *args, invoke=4, source_port=30002)
     for body, port, invoke in ((a2, 30001, 3), (b2, 30002, 4)):
         hdr = P.AmsHeader.unpack(body)
@@ -112,7 +112,7 @@ def test_each_source_has_its_own_answer_head(served, monkeypatch):
 
 
 def test_errors_and_replaced_devices_go_through_the_full_path(served, monkeypatch):
-    srv = served.server
+    srv = served.services["ads"].server
     kp = BY_NAME["DIST_CTRL::kp"]
     args = (kp.index_group, AXIS | kp.low_offset, 8)
     with RawClient(srv.port) as c:
@@ -127,7 +127,7 @@ def test_errors_and_replaced_devices_go_through_the_full_path(served, monkeypatc
             from distctrl.ads.errors import AdsError
             raise AdsError(0x708, "busy")
 
-        monkeypatch.setattr(served.cnc, "read", busy)
+        monkeypatch.setattr(served.services["ads"].cnc, "read", busy)
         assert P.parse_response(raw_read(c, *args, invoke=2)).result == 0x708
         monkeypatch.undo()
         # another device at the port: the cached reader of the old one is not used
@@ -139,7 +139,7 @@ def test_errors_and_replaced_devices_go_through_the_full_path(served, monkeypatc
 
 def test_requests_the_cache_does_not_keep(served):
     """Errors, the symbol groups and the runtime state (0xF100) are never kept."""
-    srv = served.server
+    srv = served.services["ads"].server
     srv._read_cache.clear()
     with RawClient(srv.port) as c:
         assert P.parse_response(raw_read(c, INDEX_GROUP, AXIS | 0xFFFF, 8, invoke=1)).result != 0

@@ -10,7 +10,7 @@ import pytest
 
 from distctrl.ads import errors as E
 from distctrl.ads import protocol as P
-from distctrl.ads.machine import CNC_PORT, DEVICE_DATA_GROUP, SYSTEM_SERVICE_PORT, ServedMachine
+from distctrl.ads.devices import CNC_PORT, DEVICE_DATA_GROUP, SYSTEM_SERVICE_PORT, serve_over_ads
 from distctrl.sim.scenario import load_scenario
 
 from . import RawClient, wait_for
@@ -20,13 +20,13 @@ SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
 @pytest.fixture()
 def served():
-    with ServedMachine(load_scenario(SCN / "serve_z.toml"), port=0) as s:
+    with serve_over_ads(load_scenario(SCN / "serve_z.toml"), port=0) as s:
         yield s
 
 
 @pytest.fixture()
 def c(served):
-    with RawClient(served.server.port) as client:
+    with RawClient(served.services["ads"].server.port) as client:
         yield client
 
 

@@ -52,13 +52,13 @@ def test_objects_watch_reads_a_served_machine_over_ads():
     pytest.importorskip("pyads")
     if not port_free(HOST, 48898):
         pytest.skip("TCP 48898 is in use on this address")
-    from distctrl.ads.machine import ServedMachine
+    from distctrl.ads.devices import serve_over_ads
     from distctrl.sim.scenario import load_scenario
 
     gc.collect()
     gc.freeze()
     try:
-        with ServedMachine(load_scenario(SCN / "serve_z.toml"), host=HOST, net_id=NET_ID) as served:
+        with serve_over_ads(load_scenario(SCN / "serve_z.toml"), host=HOST, net_id=NET_ID) as served:
             served.machine.hli["Z"].plc_command("ON_CONST_DIST", 1.0)
             res = CliRunner().invoke(main, ["objects", str(SCN / "serve_z.toml"), "--watch", "--host", HOST,
                                             "--net-id", NET_ID, "--count", "2", "--interval", "0.3",
@@ -138,16 +138,16 @@ def test_objects_watch_follows_a_served_machine_on_another_port():
     port than 48898 (a local TwinCAT router holds it) could not be watched. pyads's router takes
     the address as host:port: --port passes it."""
     pytest.importorskip("pyads")
-    from distctrl.ads.machine import ServedMachine
+    from distctrl.ads.devices import serve_over_ads
     from distctrl.sim.scenario import load_scenario
 
     host, net_id = "127.0.0.6", "127.0.0.6.1.1"
     gc.collect()
     gc.freeze()
     try:
-        with ServedMachine(load_scenario(SCN / "serve_z.toml"), host=host, port=0, net_id=net_id,
+        with serve_over_ads(load_scenario(SCN / "serve_z.toml"), host=host, port=0, net_id=net_id,
                            discovery_port=None) as served:
-            port = served.server.port
+            port = served.services["ads"].server.port
             assert port != 48898
             res = CliRunner().invoke(main, ["objects", str(SCN / "serve_z.toml"), "--watch", "--host", host,
                                             "--port", str(port), "--net-id", net_id, "--count", "1",

@@ -114,7 +114,7 @@ def test_nc_programs_command_a_rotary_axis_in_degrees():
 
 
 def test_the_virtual_machine_refuses_a_rotary_sensor_axis(tmp_path):
-    from distctrl.sim.config_errors import ConfigError
+    from distctrl.errors.config import ConfigError
     from distctrl.sim.scenario import scenario_from_dict
 
     (tmp_path / "a.lis").write_text(ROTARY_LIST, encoding="utf-8")

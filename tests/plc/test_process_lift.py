@@ -12,15 +12,22 @@ import numpy as np
 import pytest
 
 from distctrl.control import CycleOutput, HliState
-from distctrl.plc.process import LIFT_DEFAULTS, Lift, LiftMotion, ProcessProgram
+from distctrl.plc.process import LIFT_DEFAULTS, Lift, ProcessProgram
 from distctrl.plc.process.channel import MOTION_LINEAR, MOTION_NONE, MOTION_RAPID, ChannelPathStatus
 from distctrl.sim import run
 from distctrl.sim.interpolator import AxisLimits, Interpolator
+from distctrl.sim.lift import LiftMotion, attach_lift
 from distctrl.sim.scenario import ScenarioError, load_scenario, scenario_from_text
 
 EX = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 T = 0.001
 V_Z, A_Z = 200.0, 5000.0
+
+
+def _attached(f):
+    """A lift function with its CNC part, as the machine that hosts it attaches it."""
+    attach_lift(f)
+    return f
 
 
 def _machine(state=HliState.INACTIVE):
@@ -136,13 +143,13 @@ def test_no_lift_on_g1_or_while_switched_off():
         m.interp.step()
         lm.step(m)
     assert lm.offset == 0.0 and not lm.log
-    off = Lift("Z", T, V_Z, A_Z, enabled=False)
+    off = _attached(Lift("Z", T, V_Z, A_Z, enabled=False))
     z, _ = _run_block(_machine(), off.motion, {"X": 100.0})
     assert np.all(z == 0.0) and not off.motion.log
 
 
 def test_switched_off_during_a_lift_it_keeps_the_freeze_until_the_head_has_landed():
-    f = Lift("Z", T, V_Z, A_Z)
+    f = _attached(Lift("Z", T, V_Z, A_Z))
     prog = ProcessProgram([f])
     hold = prog.holds["Z"]
     m = _machine()
@@ -175,7 +182,7 @@ def test_switched_off_during_a_lift_it_keeps_the_freeze_until_the_head_has_lande
 
 def test_set_enabled_off_then_on_during_a_lift_switches_it_back_on():
     # enabled reads true while the head is up: the program must compare with the switch itself
-    f = Lift("Z", T, V_Z, A_Z)
+    f = _attached(Lift("Z", T, V_Z, A_Z))
     prog = ProcessProgram([f])
     m = _machine()
     m.hli = {"Z": _Unit(state_r=SimpleNamespace(actual_state=0))}
@@ -211,7 +218,7 @@ class _Unit(SimpleNamespace):
 
 
 def test_the_plc_part_requests_the_hold_while_the_cnc_lift_is_active():
-    f = Lift("Z", T, V_Z, A_Z)
+    f = _attached(Lift("Z", T, V_Z, A_Z))
     prog = ProcessProgram([f])
     hold = prog.holds["Z"]
     m = SimpleNamespace(hli={"Z": _Unit(state_r=SimpleNamespace(actual_state=0))})
@@ -297,7 +304,7 @@ def test_defaults_are_the_documented_ones_and_the_axis_limits():
     pc = _scenario('function = "lift"\naxis = "Z"\n').processes[0]
     assert pc.params == {**LIFT_DEFAULTS, "v_max": 150.0, "a_max": 4000.0}
     f = pc.make(T)
-    assert isinstance(f, Lift) and f.motion.height == 5.0 and f.motion.a_max == 4000.0
+    assert isinstance(f, Lift) and attach_lift(f).height == 5.0 and f.motion.a_max == 4000.0
 
 
 @pytest.mark.parametrize("body, key, words", [
@@ -371,9 +378,9 @@ def test_example_plate_end_to_end(tmp_path):
 
 
 def test_served_machine_lifts_and_the_plc_freezes_and_re_activates():
-    from distctrl.ads.machine import ServedMachine
+    from distctrl.ads.devices import serve_over_ads
 
-    served = ServedMachine(load_scenario(EX / "process_lift.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "process_lift.toml"), port=0, discovery_port=None)
     m = served.machine
     lm = m.lift_motions[0]
     top = 0.0

@@ -10,7 +10,7 @@ from distctrl.base.states import HliState, HliTransition
 from distctrl.plc import DistanceControlUnit
 from distctrl.plc.process import (AutoSetValue, CornerLock, ProcessProgram, VoidLock)
 from distctrl.plc.process.channel import ChannelPathStatus
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 
 ACTIVE_CD = int(HliState.ACTIVE_CONST_DIST)
 FREEZE = int(HliState.FREEZE)

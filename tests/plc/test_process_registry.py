@@ -30,6 +30,6 @@ def test_a_value_outside_the_declared_range_is_refused_naming_the_key(name):
 
 
 def test_the_cnc_hooks_are_declared_attributes():
-    assert ProcessFunction.cnc_lift is None and ProcessFunction.declares == ()
+    assert ProcessFunction.declares == ()
     for cls in PROCESS_CLASSES.values():
-        assert hasattr(cls, "cnc_lift") and isinstance(cls.declares, tuple)
+        assert isinstance(cls.declares, tuple)

@@ -2,14 +2,14 @@
 scenario, so they run in every cycle it steps (no server started here: the cycles are stepped by hand)."""
 from pathlib import Path
 
-from distctrl.ads.machine import ServedMachine
+from distctrl.ads.devices import serve_over_ads
 from distctrl.sim.scenario import load_scenario
 
 EX = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
 
 def test_served_machine_runs_the_corner_lock():
-    served = ServedMachine(load_scenario(EX / "process_corner.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "process_corner.toml"), port=0, discovery_port=None)
     m = served.machine
     assert m.process_program is not None and m.publish_hli
     for _ in range(2300):                     # past the corner (2.01 .. 2.19 s)
@@ -52,7 +52,7 @@ def test_pyads_switches_a_process_function_off_and_on_while_served():
     gc.collect()
     gc.freeze()                               # as tests/test_serve.py: keep full collections short
     try:
-        with ServedMachine(_served_void_hold(), host=HOST, net_id=NET_ID, discovery_port=None) as served:
+        with serve_over_ads(_served_void_hold(), host=HOST, net_id=NET_ID, discovery_port=None) as served:
             plc = pyads.Connection(NET_ID, 851, HOST)
             plc.open()
             try:
@@ -88,15 +88,15 @@ def test_pyads_switches_a_process_function_off_and_on_while_served():
 
 
 def test_served_machine_runs_the_calibration_and_publishes_its_switch():
-    served = ServedMachine(load_scenario(EX / "calibrate_capacitive.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "calibrate_capacitive.toml"), port=0, discovery_port=None)
     m = served.machine
-    assert "Process.Z.calibrate.enabled" in served.plc.infos
+    assert "Process.Z.calibrate.enabled" in served.services["ads"].plc.infos
     f = m.process_program.function("calibrate", "Z")
     while f.phase not in ("DONE", "FAILED") and m.cycle < 30000:
         served.step()
     assert f.phase == "DONE" and set(f.completed.run) == {1, 2}
     # a client switches it off and on again: it calibrates once more (the head is at rest again)
-    spec = served.plc.specs["Process.Z.calibrate.enabled"]
+    spec = served.services["ads"].plc.specs["Process.Z.calibrate.enabled"]
     spec.set(b"\x00")
     assert spec.get() == b"\x00" and f.phase == "WAITING"
     spec.set(b"\x01")
@@ -107,7 +107,7 @@ def test_served_machine_runs_the_calibration_and_publishes_its_switch():
 
 # ------------------------------------------------------------------ touch-off and collision retract (h16-touch)
 def test_served_machine_runs_the_touch_off():
-    served = ServedMachine(load_scenario(EX / "process_touch.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "process_touch.toml"), port=0, discovery_port=None)
     m = served.machine
     f = m.process_program.function("touch_off", "Z")
     for _ in range(1000):                     # the touch-off hands back at 0.873 s
@@ -120,14 +120,14 @@ def test_served_machine_runs_the_touch_off():
 
 def test_the_touch_off_request_is_an_ads_symbol_from_the_start():
     # an HMI / external PLC can watch and write the handshake before the program first assigns it
-    served = ServedMachine(load_scenario(EX / "process_touch.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "process_touch.toml"), port=0, discovery_port=None)
     assert served.machine.variables["V.E.TOUCH_OFF"] == 0.0
-    info = served.plc.symbols()["V.E.TOUCH_OFF"]
+    info = served.services["ads"].plc.symbols()["V.E.TOUCH_OFF"]
     assert info.type_name == "LREAL" and not info.read_only
 
 
 def test_served_machine_runs_the_collision_retract():
-    served = ServedMachine(load_scenario(EX / "process_collision.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "process_collision.toml"), port=0, discovery_port=None)
     m = served.machine
     f = m.process_program.function("collision_retract", "Z")
     for _ in range(1000):                     # contact at 0.889 s, the retract takes 32 ms
@@ -140,7 +140,7 @@ def test_served_machine_runs_the_collision_retract():
 
 def test_served_machine_runs_the_laser_plate_with_every_function():
     # the plate of issue 16 under `distctrl serve` (stepped here): the same figures as `distctrl run`
-    served = ServedMachine(load_scenario(EX / "laser_sheet_short.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(EX / "laser_sheet_short.toml"), port=0, discovery_port=None)
     m = served.machine
     assert [f.name for f in m.process_program.functions] == ["touch_off", "corner_lock", "void_lock", "lift"]
     least = float("inf")

@@ -155,7 +155,7 @@ def test_the_hli_spelling_command_semaphor_rw_is_the_same_element():
 def _plc_device(unit):
     from types import SimpleNamespace
 
-    from distctrl.ads.machine import PlcDevice
+    from distctrl.ads.devices import PlcDevice
     machine = SimpleNamespace(axis_names=["Z"], hli={"Z": unit}, channel_status=ChannelDistanceStatus(),
                               process_program=None, variables={})
     return PlcDevice(machine)

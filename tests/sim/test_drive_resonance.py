@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy import integrate, signal
 
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 from distctrl.sim.drive import Drive
 from distctrl.sim.physics import limit_velocity, quantise, resonance_coefficients, resonance_step
 

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 from distctrl.sim.interpolator import AxisLimits, Interpolator, brake_velocity, trapezoid_time
 
 T = 0.001

@@ -9,7 +9,7 @@ import pytest
 from distctrl.base.states import HliTransition
 from distctrl.errors import DistCtrlError, ParameterError
 from distctrl.params.axis import AxisParameters
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 from distctrl.sim.drive import Drive
 from distctrl.sim.interpolator import AxisLimits
 from distctrl.sim.scenario import (AXIS_KEYS, EVENT_KINDS, SENSOR_KEYS, TOP_LEVEL_KEYS, AxisConfig, Event,

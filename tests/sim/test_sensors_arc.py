@@ -9,7 +9,7 @@ import pytest
 
 from distctrl.plc.arc_voltage import ArcVoltageLinearisation
 from distctrl.plc.chain import chain
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 from distctrl.sim.sensors import ArcVoltageSensor, Fault
 from distctrl.sim.surface import Step, Surface
 

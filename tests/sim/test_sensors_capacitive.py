@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 from distctrl.sim.sensors import (D_MIN, Bursts, DistanceSensor, Fault, footprint_offsets)
 from distctrl.sim.surface import Step, Surface
 

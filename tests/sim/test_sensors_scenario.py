@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from distctrl.cli import main
 from distctrl.plc.arc_voltage import ArcVoltageLinearisation
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 from distctrl.sim.runner import run
 from distctrl.sim.scenario import load_scenario, scenario_from_dict, scenario_from_text
 from distctrl.sim.sensors import ArcVoltageSensor, Bursts, DistanceSensor

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from distctrl.errors import DistCtrlError
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 from distctrl.sim.surface import (Flat, HeightMap, Ramp, Sine, Step, Surface, TiltedPlane,
                                   surface_from_config)
 

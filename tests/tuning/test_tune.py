@@ -11,7 +11,7 @@ pytest.importorskip("numba")
 
 from distctrl.nc import parse_program  # noqa: E402
 from distctrl.params import parse_list_text  # noqa: E402
-from distctrl.tuning.cli import sweep, tune_cmd  # noqa: E402
+from distctrl.cli.tune import sweep, tune_cmd  # noqa: E402
 from distctrl.tuning.tune import nc_block, plot_before_after, tune  # noqa: E402
 
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "tune_sheet.toml"

@@ -16,7 +16,7 @@ pytest.importorskip("numba")
 
 from distctrl.batch.closed_loop import prepare, run_batch  # noqa: E402
 from distctrl.params import parse_list_text  # noqa: E402
-from distctrl.tuning.cli import sweep, tune_cmd  # noqa: E402
+from distctrl.cli.tune import sweep, tune_cmd  # noqa: E402
 from distctrl.tuning.metrics import METRIC_NAMES, compute_metrics, cost, limits_from_packed, wanted_distance  # noqa: E402
 from distctrl.tuning.space import REAL_RESOLUTION, random_sample, resolution  # noqa: E402
 from distctrl.tuning.tune import tune  # noqa: E402

@@ -15,7 +15,7 @@ pytest.importorskip("numba")
 
 from distctrl.params import parse_list_text  # noqa: E402
 from distctrl.sim.scenario import load_scenario  # noqa: E402
-from distctrl.tuning.cli import tune_cmd  # noqa: E402
+from distctrl.cli.tune import tune_cmd  # noqa: E402
 from distctrl.workbench.margins import analyse, loop_model, model_from_parts  # noqa: E402
 
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "tune_sheet.toml"

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import sync_playwright
 
-from distctrl.ads.machine import ServedMachine
+from distctrl.ads.devices import serve_over_ads
 from distctrl.sim.scenario import load_scenario
 from distctrl.ui import UiServer
 
@@ -38,10 +38,10 @@ def open_page(browser, url: str):
 @contextlib.contextmanager
 def serve_with_page_server(scenario, *, machine: dict | None = None, page: dict | None = None):
     """``scenario`` (a path or a loaded scenario) served without discovery, on a free port or as
-    ``machine`` (ServedMachine's options) says, with its page server (``page``: UiServer's options
+    ``machine`` (serve_over_ads's options) says, with its page server (``page``: UiServer's options
     beside a free port): ``(served, ui)``."""
     sc = load_scenario(scenario) if isinstance(scenario, (str, Path)) else scenario
-    served = ServedMachine(sc, **(machine if machine is not None else {"port": 0}), discovery_port=None)
+    served = serve_over_ads(sc, **(machine if machine is not None else {"port": 0}), discovery_port=None)
     ui = UiServer(served, **{"port": 0, **(page or {})})
     ui.start()
     served.start()

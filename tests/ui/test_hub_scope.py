@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from distctrl.ads.machine import ServedMachine
+from distctrl.ads.devices import serve_over_ads
 from distctrl.sim.scenario import scenario_from_dict
 from distctrl.ui.hub import MachineHub
 
@@ -21,7 +21,7 @@ def hub():
         "axes": {"Z": {"params": str(SCN / "z_probe.lis"), "start": 40.0, "kv": 50.0}},
         "surface": {"base": 40.0},
         "sensor": {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0}}, base_dir=SCN)
-    served = ServedMachine(sc, port=0, discovery_port=None)
+    served = serve_over_ads(sc, port=0, discovery_port=None)
     return MachineHub(served, buffer_s=0.5)          # a ring of 500 cycles
 
 
@@ -127,7 +127,7 @@ def test_the_channel_3d_objects_are_in_the_table_and_writable():
     from distctrl.sim.scenario import load_scenario
     from distctrl.ui.hub import CHANNEL, object_table
 
-    served = ServedMachine(load_scenario(SCN / "dist3d_1.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(SCN / "dist3d_1.toml"), port=0, discovery_port=None)
     hub = MachineHub(served, buffer_s=0.5)
     run(hub, 20)
     table = object_table(hub)

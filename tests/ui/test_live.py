@@ -8,7 +8,7 @@ import pytest
 from bokeh.document import Document
 from bokeh.models import Button, ColumnDataSource, NumericInput
 
-from distctrl.ads.machine import ServedMachine
+from distctrl.ads.devices import serve_over_ads
 from distctrl.sim.scenario import load_scenario
 from distctrl.ui.hub import MachineHub
 from distctrl.ui.page import TAB_MACHINE, TAB_OBJECTS, TAB_PLC, TAB_SCOPE, build_page
@@ -45,7 +45,7 @@ class Page:
 
 @pytest.fixture()
 def hub():
-    served = ServedMachine(load_scenario(SCN / "serve_z.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(SCN / "serve_z.toml"), port=0, discovery_port=None)
     return MachineHub(served, buffer_s=5.0)
 
 
@@ -167,7 +167,7 @@ def test_the_machine_view_shows_a_z_range_where_the_distance_is_readable():
     1.5 mm distance lines were invisible."""
     from distctrl.ui.machine_view import MachineView
 
-    served = ServedMachine(load_scenario(SCN / "plasma_plate_short.toml"), port=0, discovery_port=None)
+    served = serve_over_ads(load_scenario(SCN / "plasma_plate_short.toml"), port=0, discovery_port=None)
     hub = MachineHub(served, buffer_s=1.0)
     view = MachineView(hub)
     for _ in range(50):

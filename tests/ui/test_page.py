@@ -194,7 +194,7 @@ def test_two_pages_see_the_same_machine(served, browser, page):
 
 def test_export_writes_a_trace_csv_that_distctrl_plot_reads(served, page, tmp_path):
     from distctrl.trace import Trace
-    from distctrl.workbench.plot_cli import plot_trace_file
+    from distctrl.trace.plot_file import plot_trace_file
 
     _, ui = served
     tab(page, "Scope")

@@ -18,7 +18,7 @@ from distctrl.workbench.filters import (DEFAULT_SPECS, FilterResult, FilterSpecE
                                         default_configs, find_edges, format_table, load_recording,
                                         obstacle_signal, parse_filter_spec, plot_overlay, signal_noise_rms,
                                         write_results_csv)
-from distctrl.workbench.filters_cli import filters
+from distctrl.cli.filters import filters
 
 T = 0.001
 MA = FilterType.MOVING_AVERAGE

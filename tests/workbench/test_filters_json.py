@@ -6,7 +6,7 @@ import json
 import numpy as np
 from click.testing import CliRunner
 
-from distctrl.workbench.filters_cli import filters
+from distctrl.cli.filters import filters
 
 
 def test_filters_json_is_one_object_with_the_metrics():

@@ -126,7 +126,7 @@ def test_report_metrics_with_units(ok_report):
 def test_report_zoom_is_at_the_largest_distance_error(ok_report):
     import numpy as np
 
-    from distctrl.workbench.plot_cli import distance_error
+    from distctrl.trace.plot import distance_error
 
     result, _, _, text = ok_report
     err, axis = distance_error(result.trace)

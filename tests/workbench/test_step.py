@@ -19,7 +19,7 @@ from distctrl.trace import Trace
 from distctrl.workbench.step import (DEFAULT_AXIS_LIST, StepError, StepMetrics, StepResult, StepSetting,
                                      StepSettingError, format_table, hints, measure, parse_settings,
                                      plot_steps, run_steps, step_scenario)
-from distctrl.workbench.step_cli import step as step_cmd
+from distctrl.cli.step import step as step_cmd
 
 ROOT = Path(__file__).resolve().parents[2]
 SHEET = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"

@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from distctrl.trace import Trace
 from distctrl.workbench.step import (LIMITED_SHARE, auto_step, hints, measure, parse_settings, run_steps,
                                      suggested_kp)
-from distctrl.workbench.step_cli import step as step_cmd
+from distctrl.cli.step import step as step_cmd
 
 ROOT = Path(__file__).resolve().parents[2]
 SHEET = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"

@@ -22,7 +22,7 @@ from .config import (
 )
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .hold import FreezeHold
-from .lift import LIFT_DEFAULTS, Lift, LiftMotion
+from .lift import LIFT_DEFAULTS, Lift
 from .program import ProcessProgram
 from .touch_off import TOUCH_DEFAULTS, TouchOff
 from .void_lock import VOID_DEFAULTS, VOID_THRESHOLD_MM_S, VOID_THRESHOLD_V_S, VoidLock
@@ -33,4 +33,4 @@ __all__ = ["ProcessFunction", "PROCESS_COMMON_KEYS", "CALIBRATE_DEFAULTS", "Cali
            "CORNER_DEFAULTS", "CornerLock", "FreezeHold", "ProcessProgram", "VOID_DEFAULTS",
            "VOID_THRESHOLD_MM_S", "VOID_THRESHOLD_V_S", "VoidLock",
            "TOUCH_DEFAULTS", "TouchOff", "COLLISION_DEFAULTS", "RETRACT_MARGIN", "CollisionRetract",
-           "LIFT_DEFAULTS", "Lift", "LiftMotion"]
+           "LIFT_DEFAULTS", "Lift"]

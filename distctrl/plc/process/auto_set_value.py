@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 
 from ...base.states import HliState
-from ...sim.config_errors import require_number
+from ...errors.config import require_number
 from .base import Key, ProcessFunction, ProcessTable, tracking_or_held
 
 __all__ = ["AutoSetValue", "AUTO_DEFAULTS"]

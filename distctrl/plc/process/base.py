@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from ...base.states import HliState
-from ...sim.config_errors import ConfigError, require_int, require_number
+from ...errors.config import ConfigError, require_int, require_number
 from .hold import RUNNING_TRACKING, FreezeHold
 
 __all__ = ["ProcessFunction", "Key", "ProcessTable", "tracking_or_held", "require_bool", "ve_key"]
@@ -113,8 +113,6 @@ class ProcessFunction:
     KEYS: ClassVar[dict[str, Key]] = {}
     #: the V.E. variables the machine creates (0) at the start (a handshake); an instance may set its own
     declares: tuple[str, ...] = ()
-    #: the CNC part of a function that moves the axis itself (run by the machine every GEO cycle), or None
-    cnc_lift = None
 
     @classmethod
     def from_config(cls, table: ProcessTable) -> dict:

@@ -77,7 +77,7 @@ from __future__ import annotations
 import math
 
 from ...base.states import HliState, HliTransition
-from ...sim.config_errors import ConfigError, require_number
+from ...errors.config import ConfigError, require_number
 from ..variables import ve_name
 from .base import Key, ProcessFunction, ProcessTable, ve_key
 

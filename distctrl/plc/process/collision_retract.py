@@ -71,7 +71,7 @@ import math
 
 from ...base.states import HliState, HliTransition
 from ...errors import ErrorId, make_event
-from ...sim.config_errors import require_number
+from ...errors.config import require_number
 from ..variables import ve_name
 from .base import Key, ProcessFunction, ProcessTable, signal_variable
 from .plc_io import MM_PER_UNIT, HliCommandSender, read_signal, write_object

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ...sim.config_errors import MISSING, ConfigError, require_mapping
+from ...errors.config import ConfigError, MISSING, require_mapping
 from .auto_set_value import AutoSetValue
 from .base import ProcessFunction, ProcessTable, require_bool
 from .calibrate import Calibrate

@@ -32,7 +32,7 @@ ST equivalent (one instance per axis; ``pMC`` the channel, ``dc`` the axis's con
 """
 from __future__ import annotations
 
-from ...sim.config_errors import ConfigError
+from ...errors.config import ConfigError
 from .base import Key, ProcessFunction, ProcessTable, tracking_or_held
 
 __all__ = ["CornerLock", "CORNER_DEFAULTS"]

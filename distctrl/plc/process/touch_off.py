@@ -92,7 +92,7 @@ import math
 
 from ...base.states import HliState, HliTransition
 from ...errors import ErrorId
-from ...sim.config_errors import require_number
+from ...errors.config import require_number
 from ..variables import ve_name
 from .base import Key, ProcessFunction, ProcessTable, signal_variable, ve_key
 from .plc_io import (

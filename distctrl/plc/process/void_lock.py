@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import math
 
-from ...sim.config_errors import require_number
+from ...errors.config import require_number
 from ..variables import ve_name
 from .base import Key, ProcessFunction, ProcessTable, tracking_or_held, ve_key
 

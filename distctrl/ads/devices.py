@@ -1,7 +1,6 @@
-"""``distctrl serve``: the virtual machine paced to wall-clock time, reachable over ADS.
-
-Two ADS devices over one :class:`~distctrl.sim.machine.Machine` (the server and the cycle share one
-lock, so every request sees one consistent cycle):
+"""ADS on a served machine (``distctrl serve``, docs/serve.md): :class:`AdsEndpoint` attaches an ADS
+server with the devices below to a :class:`~distctrl.serve.machine.ServedMachine` (the server and the
+cycle share the served machine's lock, so every request sees one consistent cycle):
 
 * AMS port 551 (GEO task): the CNC objects of distance control by index group 0x120300 and index
   offset ``(axis_id << 16) | 0x3xxx`` (docs/objects.md), the TF5200 manual's ``DISTCTRL::v_max`` /
@@ -20,10 +19,7 @@ from __future__ import annotations
 import functools
 import logging
 import struct
-import threading
-import time
 
-from ..base.states import HLI_STATE_NAMES
 from ..objects.channel3d import INDEX_GROUP_3D_BASE, Channel3DObjectContext, find_object_3d
 from ..objects.channel3d import read_bytes as read_bytes_3d
 from ..objects.channel3d import write_bytes as write_bytes_3d
@@ -37,9 +33,10 @@ from ..objects.registry import (
     write_bytes,
 )
 from ..plc.hli import SemaphoreBusyError
-from ..plc.symbols import STRUCT_MEMBERS, channel_status_symbols, hli_symbols, process_symbols
-from . import AdsError, AdsServer, SymbolInfo
+from ..plc.symbols import STRUCT_MEMBERS, SymbolSpec, channel_status_symbols, hli_symbols, process_symbols
+from ..serve.machine import ServedMachine
 from .datatypes import DataType, struct_type
+from .discovery import DiscoveryResponder, TargetInfo
 from .errors import (
     ADSERR_DEVICE_INVALIDACCESS,
     ADSERR_DEVICE_INVALIDDATA,
@@ -47,10 +44,12 @@ from .errors import (
     ADSERR_DEVICE_INVALIDOFFSET,
     ADSERR_DEVICE_INVALIDPARM,
     ADSERR_DEVICE_INVALIDSIZE,
+    AdsError,
 )
-from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64
+from .protocol import ADSSTATE_RUN, ADSSTATE_STOP, ADST_REAL64, SymbolInfo
+from .server import AdsServer
 
-log = logging.getLogger("distctrl.serve")
+log = logging.getLogger("distctrl.serve")      # the served session's logger (distctrl.serve.machine)
 
 CNC_PORT = 551
 PLC_PORT = 851
@@ -83,15 +82,18 @@ class CncObjectDevice:
     name = "distctrl GEO"
     version = (0, 1, 0)
 
-    def __init__(self, machine, runtime=None):
+    def __init__(self, machine, runtime=None, contexts: dict | None = None):
         self.machine = machine
         self.runtime = runtime              # the served machine's run/stop switch (None: always RUN)
         #: (index group, index offset) -> (object, axis context) of the axis objects found so far: the
         #: contexts are fixed, so a client's repeated reads skip the search (bounded by objects x axes)
         self._found: dict[tuple[int, int], tuple] = {}
-        self.contexts = {i + 1: AxisObjectContext(i + 1, n, machine.controllers[n], machine.outputs[n],
-                                                  machine.scenario.axes[n].resolution or 1e-4)
-                         for i, n in enumerate(machine.axis_names)}
+        #: axis_id -> AxisObjectContext: the served machine's (:attr:`ServedMachine.contexts
+        #: <distctrl.serve.machine.ServedMachine.contexts>`), or made here for a bare machine
+        self.contexts = contexts if contexts is not None else {
+            i + 1: AxisObjectContext(i + 1, n, machine.controllers[n], machine.outputs[n],
+                                     machine.scenario.axes[n].resolution or 1e-4)
+            for i, n in enumerate(machine.axis_names)}
 
     def _find(self, index_group: int, index_offset: int):
         if self.machine.ch3d is not None and index_group == INDEX_GROUP_3D_BASE | 1:
@@ -268,8 +270,6 @@ class SystemServiceDevice:
 
 
 def _variable_symbol(variables: dict, name: str):
-    from ..plc.symbols import SymbolSpec
-
     def get() -> bytes:
         return struct.pack("<d", float(variables.get(name, 0.0)))
 
@@ -282,131 +282,43 @@ def _variable_symbol(variables: dict, name: str):
     return SymbolSpec(name, 8, ADST_REAL64, "LREAL", get, set_, "V.E. variable (mm or as the program uses it)")
 
 
-class SessionLog:
-    """What a served session tells its console (logger ``distctrl.serve``): per axis the HLI commands
-    the CNC took from the PLC and the distance-control state changes, every error and warning with its
-    ID (e.g. 70336 for a command to an axis without distance control, P-AXIS-00328 = 0), and the end of
-    the NC program. Checked after every cycle; it costs a few comparisons unless something changed."""
+class AdsEndpoint:
+    """ADS on a served machine: the three devices (CNC objects on AMS port 551, the PLC on 851, the
+    system service on 10000) behind one :class:`~distctrl.ads.server.AdsServer` that holds the served
+    machine's lock around every request; by default it also answers route discovery and add-route on
+    UDP ``discovery_port`` of ``host`` (:mod:`distctrl.ads.discovery`; if that port cannot be bound,
+    one warning and TCP is served). Attaches itself to ``served`` as the service ``"ads"``: started
+    and stopped with it."""
 
-    def __init__(self, machine, logger: logging.Logger = log):
-        self.machine, self.log, self.names = machine, logger, HLI_STATE_NAMES
-        self.units = [(n, machine.hli[n], machine.outputs[n]) for n in machine.axis_names]
-        self.states = {n: out.hli_state for n, _, out in self.units}
-        self.consumed = {n: unit.consumed for n, unit, _ in self.units}
-        self.rejected = {n: len(unit.rejected) for n, unit, _ in self.units}
-        self.events_seen = len(machine.events)
-        self.program_ended = False
-
-    def axis_lines(self) -> list[str]:
-        """``axis 1 = X (no distance control, P-AXIS-00328 = 0)`` ...: the gpAx index of every axis."""
-        m = self.machine
-        return [f"axis {unit.axis_index} = {n} "
-                + ("(distance control)" if m.scenario.axes[n].params.enabled else
-                   "(no distance control, P-AXIS-00328 = 0: PLC commands are refused with 70336)")
-                for n, unit, _ in self.units]
-
-    def after_cycle(self) -> None:
-        m, log_ = self.machine, self.log
-        t = m.cycle * m.T
-        for n, unit, out in self.units:
-            if unit.consumed != self.consumed[n]:
-                self.consumed[n] = unit.consumed
-                c = unit.command_w
-                log_.info("t=%.3f s axis %s (gpAx[%d]): PLC command transition %d, position %.4f mm taken",
-                          t, n, unit.axis_index, c.transition, c.position * 1e-4)
-            if len(unit.rejected) != self.rejected[n]:
-                for r in unit.rejected[self.rejected[n]:]:
-                    log_.warning("t=%.3f s axis %s: PLC command refused: %s", t, n, r.reason)
-                self.rejected[n] = len(unit.rejected)
-            state = out.hli_state
-            if state != self.states[n]:
-                log_.info("t=%.3f s axis %s: distance control %s -> %s", t, n,
-                          self.names.get(int(self.states[n]), self.states[n]), self.names.get(int(state), state))
-                self.states[n] = state
-        events = m.events
-        if len(events) != self.events_seen:
-            for when, ev in events[self.events_seen:]:
-                level = logging.ERROR if ev.severity == "error" else logging.WARNING
-                line = f", NC line {ev.line}" if ev.line not in (None, -1) else ""
-                log_.log(level, "t=%.3f s %s %d%s: %s", when, ev.severity, ev.id, line, ev.message)
-            self.events_seen = len(events)
-        nc = m.nc
-        if nc is not None and not self.program_ended and (nc.ended or nc.aborted):
-            self.program_ended = True
-            log_.info("t=%.3f s NC program %s", t, "aborted" if nc.aborted else "ended (M30)")
-
-
-class ServedMachine:
-    """A machine stepped in real time in a background thread, with an ADS server over it; by default
-    it also answers route discovery and add-route on UDP ``discovery_port`` of ``host``
-    (:mod:`distctrl.ads.discovery`; if that port cannot be bound, one warning and TCP is served)."""
-
-    def __init__(self, scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
-                 net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899, rt_priority: int = 0):
-        from ..sim.machine import Machine
-        from ..sim.realtime import RealTimeLoop
-        from ..sim.runner import load_program
-
-        self.scenario = scenario
-        self.machine = Machine(scenario, load_program(scenario), publish_hli=True)
-        self.lock = threading.Lock()
-        self.paused = False
-        self.cnc = CncObjectDevice(self.machine, runtime=self)
-        self.plc = PlcDevice(self.machine, runtime=self)
+    def __init__(self, served, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
+                 net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899):
+        self.served = served
+        machine = served.machine
+        self.cnc = CncObjectDevice(machine, runtime=served, contexts=served.contexts)
+        self.plc = PlcDevice(machine, runtime=served)
         self.system = SystemServiceDevice()
         self.server = AdsServer({CNC_PORT: self.cnc, PLC_PORT: self.plc, SYSTEM_SERVICE_PORT: self.system},
-                                host=host, port=port, net_id=net_id, allowed=list(allowed), lock=self.lock)
+                                host=host, port=port, net_id=net_id, allowed=list(allowed), lock=served.lock)
         # route discovery and add-route on UDP (docs/serve.md); None: not answered
         self.discovery = None
         if discovery_port is not None:
-            from .discovery import DiscoveryResponder, TargetInfo
-
             self.discovery = DiscoveryResponder(TargetInfo(net_id, tc_version=self.system.version), discovery_port)
             self.server.attached.append(self.discovery)
-        self.session = SessionLog(self.machine)
-        #: called after every cycle in the cycle thread, under the lock (the live page's recorder,
-        #: distctrl/ui/hub.py): keep them to a few microseconds
-        self.observers: list = []
-        self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock, rt_priority=rt_priority)
-
-    def step(self) -> None:
-        """One cycle of the machine, then the session log (under the loop's lock); nothing while the
-        PLC runtime is stopped (WriteControl STOP on port 851)."""
-        if self.paused:
-            return
-        self.machine.step()
-        self.session.after_cycle()
-        for observer in self.observers:
-            observer()
-
-    def set_paused(self, paused: bool) -> None:
-        if paused != self.paused:
-            self.paused = paused
-            log.info("t=%.3f s PLC runtime %s (WriteControl)", self.machine.cycle * self.machine.T,
-                     "STOP: the machine holds" if paused else "RUN: the machine runs on")
+        served.attach("ads", self)
 
     def start(self) -> None:
         self.server.start()
-        self.loop.start()
-        log.info("serving %s on %s:%d (AMS ports %d, %d)", self.scenario.name, self.server.host, self.server.port,
-                 CNC_PORT, PLC_PORT)
-        for line in self.session.axis_lines():
-            log.info("%s", line)
-        if self.loop.rt_priority > 0:
-            deadline = time.monotonic() + 1.0
-            while self.loop.scheduling == "normal" and time.monotonic() < deadline and self.loop.running:
-                time.sleep(0.001)
-            log.log(logging.INFO if self.loop.scheduling.startswith("SCHED") else logging.WARNING,
-                    "cycle thread: %s", self.loop.scheduling)
+        log.info("serving %s on %s:%d (AMS ports %d, %d)", self.served.scenario.name, self.server.host,
+                 self.server.port, CNC_PORT, PLC_PORT)
 
-    def stop(self) -> dict:
-        self.loop.stop()
+    def stop(self) -> None:
         self.server.stop()
-        return self.loop.stats.summary()
 
-    def __enter__(self):
-        self.start()
-        return self
 
-    def __exit__(self, *exc):
-        self.stop()
+def serve_over_ads(scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
+                   net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899, rt_priority: int = 0):
+    """A :class:`~distctrl.serve.machine.ServedMachine` of ``scenario`` with ADS attached
+    (``served.services["ads"]``, an :class:`AdsEndpoint`); not started."""
+    served = ServedMachine(scenario, rt_priority=rt_priority)
+    AdsEndpoint(served, host=host, port=port, allowed=allowed, net_id=net_id, discovery_port=discovery_port)
+    return served

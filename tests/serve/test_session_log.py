@@ -5,15 +5,15 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from distctrl.ads.machine import ServedMachine
+from distctrl.serve.machine import ServedMachine
 from distctrl.sim.scenario import load_scenario
 
 SCN = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
 
 def _served():
-    # port 0: the server is built but not started; the cycle is stepped by hand
-    return ServedMachine(load_scenario(SCN / "serve_z.toml"), port=0)
+    # not started: the cycle is stepped by hand
+    return ServedMachine(load_scenario(SCN / "serve_z.toml"))
 
 
 def test_the_axis_map_names_the_axis_without_distance_control():

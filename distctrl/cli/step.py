@@ -10,16 +10,16 @@ import math
 
 import click
 
-from ..cli.common import Finite, emit_json, fail
 from ..errors import DistCtrlError
-from .step import MAX_DURATION
+from ..workbench.step import (MAX_DURATION, StepError, check_plot_path, format_table, hints, parse_settings,
+                              plot_steps, results_json, run_steps)
+from .common import Finite, check_plot_output, emit_json, fail
 
 __all__ = ["step"]
 
 
 def _step_value(text: str) -> "float | str":
     """``--step``: a number (mm) or ``auto``."""
-    from .step import StepError
 
     t = str(text).strip()
     if t.lower() == "auto":
@@ -70,8 +70,6 @@ def step(scenario: str | None, kp: str, i_tn: str, d_tv: str, step_mm: str, mode
     cycles the limiter (P-AXIS-00415/00416) shaped per setting, and hints along the documents'
     method; a response the limiter decided is said so and never suggested.
     """
-    from ..cli.common import check_plot_output
-    from .step import check_plot_path, format_table, hints, parse_settings, plot_steps, results_json, run_steps
 
     for name, value in (("--set-dist", set_dist), ("--ramp", ramp), ("--t-step", t_step), ("--duration", duration)):
         if not math.isfinite(value):

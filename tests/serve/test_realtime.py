@@ -4,7 +4,7 @@ from __future__ import annotations
 import threading
 import time
 
-from distctrl.sim.realtime import RealTimeLoop
+from distctrl.serve.realtime import RealTimeLoop
 from tests.ads import wait_for
 
 
@@ -52,7 +52,7 @@ def test_the_cycle_thread_asks_for_sched_fifo_and_says_what_it_got():
     import os
     import time as _time
 
-    from distctrl.sim.realtime import RealTimeLoop
+    from distctrl.serve.realtime import RealTimeLoop
 
     policies = {}
     loop = RealTimeLoop(lambda: policies.setdefault("policy", os.sched_getscheduler(0)), 0.001, rt_priority=10)

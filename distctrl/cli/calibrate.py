@@ -9,8 +9,11 @@ import sys
 
 import click
 
-from ..cli.common import COORDINATE, Finite
 from ..errors import DistCtrlError, ExitCode
+from ..sim.scenario import load_scenario
+from ..workbench.calibrate import (REPEATABILITY_TOLERANCE_UM, CalibrationError, calibration_table,
+                                   default_out, model_check_um, run_calibration, table_toml)
+from .common import COORDINATE, Finite, check_writable, emit_json, fail, output_error_text
 
 
 @click.command("calibrate")
@@ -48,17 +51,6 @@ def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, b
     the head touched the sheet, the records give no monotonic table); 3 it did not end in time;
     4 the runs differ by more than the tolerance (no table written).
     """
-    from ..cli.common import check_writable, emit_json, fail, output_error_text
-    from ..sim.scenario import load_scenario
-    from .calibrate import (
-        REPEATABILITY_TOLERANCE_UM,
-        CalibrationError,
-        calibration_table,
-        default_out,
-        model_check_um,
-        run_calibration,
-        table_toml,
-    )
 
     tol = REPEATABILITY_TOLERANCE_UM if tolerance is None else tolerance
     try:

@@ -10,12 +10,16 @@ from pathlib import Path
 
 import click
 
-from ..cli.common import SEED, Finite, emit_json, fail
 from ..errors import DistCtrlError
+from ..tuning.metrics import METRIC_NAMES
+from ..tuning.runner import DEFAULT_CHUNK, Evaluator, plot_sweep
+from ..tuning.space import build_sets, drop_inert_d_tv, grid_points, parse_grid, random_sample
+from ..tuning.tune import plot_before_after, tune
+from .common import SEED, Finite, check_writable, emit_json, fail
 
 
 def _errors() -> tuple:
-    from ..batch.closed_loop import ClosedLoopError
+    from ..batch.closed_loop import ClosedLoopError     # numba: loaded only when the kernel runs
 
     return (DistCtrlError, ClosedLoopError)
 
@@ -73,10 +77,7 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
           local, workers, chunk, top, as_json):
     """Evaluate a grid (--grid) or a random sample (--random N) of filter/PID settings on SCENARIO.toml
     with the closed-loop batch kernel; write the metrics table and optionally a plot."""
-    from ..batch.closed_loop import prepare
-    from .metrics import METRIC_NAMES
-    from .runner import DEFAULT_CHUNK, Evaluator, plot_sweep
-    from .space import build_sets, drop_inert_d_tv, grid_points, parse_grid, random_sample
+    from ..batch.closed_loop import prepare     # numba ([batch] extra): loaded only when a sweep runs
 
     if (grid is None) == (n_random is None):
         raise click.UsageError("give exactly one of --grid and --random N")
@@ -157,8 +158,6 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, ch
              scheduler, local, workers, as_json):
     """Find good filter/PID settings for SCENARIO.toml: a coarse sweep, a local refinement, the rounded set
     run again, a robustness check; print them as an axis parameter list and an NC DIST_CTRL block."""
-    from ..cli.common import check_writable
-    from .tune import plot_before_after, tune
 
     opts = _mode(local, scheduler)
     weights = _weights(sat_weight, chatter_weight)

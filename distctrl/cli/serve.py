@@ -1,13 +1,19 @@
-"""``distctrl ui SCENARIO``: serve the scenario (as ``distctrl serve --ui``) and open the live page in
-the browser; and :func:`serve_session`, the session loop both commands share."""
+"""``distctrl serve SCENARIO`` (ADS, and the live page with ``--ui``) and ``distctrl ui SCENARIO`` (the
+same with the page, opened in the browser); :func:`serve_session`, the session loop both commands share
+(docs/serve.md)."""
 from __future__ import annotations
 
+import logging
 import sys
 
 import click
 
-from ..cli.common import PORT, Finite
+from ..ads.devices import AdsEndpoint
 from ..errors import DistCtrlError
+from ..serve.machine import ServedMachine
+from ..serve.session import catch_sigterm, restore_sigterm, run_until
+from ..sim.scenario import load_scenario
+from .common import PORT, Finite, emit_json, fail
 
 
 def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ...], net_id: str,
@@ -16,23 +22,17 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
     """Serve SCENARIO over ADS (and the live page with ``ui``) until ``duration``, Ctrl-C or SIGTERM;
     print the cycle's lateness at the end (and what stopped the session). All three are a normal end:
     exit code 0 (docs/serve.md)."""
-    import logging
-    import time
-
-    from ..ads.machine import ServedMachine
-    from ..cli.common import emit_json, fail
-    from ..sim.scenario import load_scenario
-
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     logging.getLogger("bokeh").setLevel(logging.WARNING)
     logging.getLogger("tornado.access").setLevel(logging.WARNING)
     page = None
-    previous_handler = _catch_sigterm()
+    previous_handler = catch_sigterm()
     try:
-        served = ServedMachine(load_scenario(scenario), host=host, port=port, allowed=allowed, net_id=net_id,
-                               discovery_port=None if no_discovery else 48899, rt_priority=rt_priority)
+        served = ServedMachine(load_scenario(scenario), rt_priority=rt_priority)
+        ads = AdsEndpoint(served, host=host, port=port, allowed=allowed, net_id=net_id,
+                          discovery_port=None if no_discovery else 48899)
         if ui:
-            from .app import UiServer
+            from ..ui.app import UiServer     # Bokeh, the [ui] extra: loaded only for the page
 
             # the page's server starts before the cycle does: importing and setting up Bokeh is heavy
             page = UiServer(served, host=host, port=ui_port, allowed=allowed, export_dir=export_dir)
@@ -51,13 +51,13 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
                      "--host another address of this machine)")
             raise
     except (DistCtrlError, OSError, ValueError) as exc:
-        _restore_sigterm(previous_handler)
+        restore_sigterm(previous_handler)
         fail(str(exc))
     except BaseException:
-        _restore_sigterm(previous_handler)
+        restore_sigterm(previous_handler)
         raise
     if not as_json:
-        click.echo(f"serving {served.scenario.name}: ADS {net_id} on {host}:{served.server.port}, "
+        click.echo(f"serving {served.scenario.name}: ADS {net_id} on {host}:{ads.server.port}, "
                    f"allowed {', '.join(allowed)}; Ctrl-C or SIGTERM stops")
     if page is not None:
         if not as_json:
@@ -67,25 +67,15 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
 
             if not webbrowser.open(page.url) and not as_json:
                 click.echo(f"no browser could be started here: open {page.url} yourself", err=True)
-    stopped_by = "duration"
     try:
-        t_end = None if duration is None else time.monotonic() + duration
-        while t_end is None or time.monotonic() < t_end:
-            time.sleep(0.2)
-            if served.loop.error is not None:
-                raise served.loop.error
-            if _TERMINATED["by"] is not None:
-                stopped_by = _TERMINATED["by"]
-                break
-    except KeyboardInterrupt:
-        stopped_by = "SIGINT"
+        stopped_by = run_until(served, duration)
     finally:
-        _restore_sigterm(previous_handler)
+        restore_sigterm(previous_handler)
     if page is not None:
         page.stop()
     stats = served.stop()
     if as_json:
-        emit_json({"scenario": scenario, "ads": f"{host}:{served.server.port}", "net_id": net_id,
+        emit_json({"scenario": scenario, "ads": f"{host}:{ads.server.port}", "net_id": net_id,
                    "cycle_thread": served.loop.scheduling,
                    "ui_url": page.url if page is not None else None,
                    "ui_sessions": page.sessions if page is not None else 0, "stopped_by": stopped_by,
@@ -97,32 +87,39 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
                                            for k, v in stats.items()))
 
 
-#: set by the SIGTERM handler of a running session (``systemctl stop``, ``docker stop``, ``kill``)
-_TERMINATED: dict = {"by": None}
-
-
-def _on_sigterm(signum, frame) -> None:          # noqa: ARG001 (the signal module's signature)
-    _TERMINATED["by"] = "SIGTERM"
-
-
-def _catch_sigterm():
-    """SIGTERM ends the session as Ctrl-C does (the report, the JSON, the servers stopped, exit 0)
-    instead of killing the process; returns the previous handler (None where none can be set: only
-    the main thread may)."""
-    import signal
-    import threading
-
-    _TERMINATED["by"] = None
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, _on_sigterm)
-
-
-def _restore_sigterm(previous) -> None:
-    import signal
-
-    if previous is not None:
-        signal.signal(signal.SIGTERM, previous)
+@click.command("serve")
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (ADS and the --ui page).")
+@click.option("--port", default=48898, show_default=True, type=PORT, help="AMS/TCP port (0: a free port).")
+@click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
+              help="Client address or network allowed to connect (like an ADS route; also to the --ui page); "
+                   "repeat for more.")
+@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
+@click.option("--duration", type=Finite(0.0, min_open=True), default=None,
+              help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
+@click.option("--no-discovery", is_flag=True,
+              help="Do not answer route discovery and add-route on UDP 48899 (answered by default, "
+                   "to the --allow networks).")
+@click.option("--ui", "with_ui", is_flag=True,
+              help="Also serve the live page (scope, object browser, PLC panel, machine view; docs/ui.md).")
+@click.option("--ui-port", default=8050, show_default=True, type=click.IntRange(0, 65535),
+              help="--ui: HTTP port of the live page (0: a free port).")
+@click.option("--export-dir", default=".", show_default=True, type=click.Path(file_okay=False),
+              help="--ui: folder the scope's Export CSV writes its trace files to.")
+@click.option("--rt-priority", default=10, show_default=True, type=click.IntRange(0, 99),
+              help="Run the 1 ms cycle thread with the real-time policy SCHED_FIFO at this priority where the "
+                   "OS allows it (root, CAP_SYS_NICE or an rtprio limit; otherwise one warning and normal "
+                   "priority); 0: normal priority.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object at the end (addresses, page sessions, cycle lateness in µs).")
+def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id: str, duration: float | None,
+          no_discovery: bool, with_ui: bool, ui_port: int, export_dir: str, rt_priority: int, as_json: bool) -> None:
+    """Run SCENARIO.toml in real time and serve it over ADS (CNC objects on AMS port 551, the PLC
+    interface and V.E. variables by symbol name on port 851; route discovery and add-route on UDP
+    48899); with --ui also the live page. Reports the cycle jitter at the end."""
+    serve_session(scenario, host=host, port=port, allowed=allowed, net_id=net_id, duration=duration,
+                  no_discovery=no_discovery, ui=with_ui, ui_port=ui_port, export_dir=export_dir, as_json=as_json,
+                  rt_priority=rt_priority)
 
 
 RT_OPTION = click.option(

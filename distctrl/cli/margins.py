@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import click
 
-from ..cli.common import Finite
 from ..errors import DistCtrlError
+from ..workbench.margins import analyse, check_plot_path, loop_model
+from .common import Finite, check_plot_output, emit_json, fail
 
 __all__ = ["margins"]
 
@@ -38,8 +39,6 @@ def margins(scenario: str, axis: str | None, kp: float | None, plot_path: str | 
     crossover frequencies (Hz), the KP at the stability limit and the oscillation frequency there.
     A loop it calls unstable grows until the slope limiter decides a limit cycle (docs/margins.md).
     """
-    from ..cli.common import check_plot_output, emit_json, fail
-    from .margins import analyse, check_plot_path, loop_model
 
     check_plot_output(plot_path, check_plot_path)
     try:

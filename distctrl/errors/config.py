@@ -1,4 +1,4 @@
-"""Configuration errors of the simulation models.
+"""Configuration errors: of the simulation models, the PLC process functions and the CLI options.
 
 Every invalid key, type or value in a simulation configuration (a plain dict loaded from TOML/JSON,
 or a constructor argument) raises :class:`ConfigError`. The message always names
@@ -11,7 +11,7 @@ so a user can fix the file without reading the source.
 """
 from __future__ import annotations
 
-from distctrl.errors import DistCtrlError
+from . import DistCtrlError
 
 
 class _Missing:

@@ -10,8 +10,12 @@ import warnings
 
 import click
 
-from ..cli.common import SEED, Finite
 from ..errors import DistCtrlError
+from ..workbench.filters import (DEFAULT_SPECS, WorkbenchError, check_plot_path, compare, default_configs,
+                                 find_edges, format_table, load_recording, obstacle_signal,
+                                 parse_filter_specs, plot_overlay, results_dicts, signal_noise_rms,
+                                 write_results_csv)
+from .common import SEED, Finite, check_writable, emit_json, fail, output_error_text
 
 
 def _edges_option(values: tuple[str, ...]) -> list[float] | str | None:
@@ -24,7 +28,6 @@ def _edges_option(values: tuple[str, ...]) -> list[float] | str | None:
         try:
             out.append(float(v))
         except ValueError:
-            from .filters import WorkbenchError
             raise WorkbenchError(f"--edge {v!r}: not a number; allowed: a time in s (repeat for the second "
                                  "edge) or 'auto'") from None
     return out
@@ -73,10 +76,6 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
     Gaussian noise. Prints noise RMS, delay (50 %), dead time (10 %) and overshoot per
     configuration. Exit code 1 with a message for invalid input.
     """
-    from ..cli.common import check_writable, emit_json, output_error_text
-    from .filters import (DEFAULT_SPECS, WorkbenchError, check_plot_path, compare, find_edges, format_table, load_recording,
-                          obstacle_signal, parse_filter_specs, plot_overlay, results_dicts, signal_noise_rms,
-                          write_results_csv)
 
     caught: list[warnings.WarningMessage] = []
     try:
@@ -152,7 +151,6 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
 
 def _default_set_text() -> str:
     """The help's "Without SPEC" sentence, made from DEFAULT_SPECS (what the command runs)."""
-    from .filters import DEFAULT_SPECS, default_configs
 
     return (f"the {len(default_configs(0.001))} configurations of " + "; ".join(DEFAULT_SPECS))
 
@@ -161,8 +159,6 @@ filters.help = (filters.help or "").replace("{default_set}", _default_set_text()
 
 
 def _fail(message: str, caught) -> None:
-    from ..cli.common import fail
-
     for w in caught or []:
         click.echo(f"warning: {w.message}", err=True)
     fail(message)

@@ -1,4 +1,4 @@
-"""`distctrl plot TRACE.csv` (distctrl.workbench.plot_cli): output files, signal selection, time
+"""`distctrl plot TRACE.csv` (distctrl.cli.plot, distctrl.trace.plot): output files, signal selection, time
 window, error markers and the exit-1 messages."""
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ from click.testing import CliRunner
 
 from distctrl.sim.runner import run
 from distctrl.trace import Trace
-from distctrl.workbench.plot_cli import (
+from distctrl.cli.plot import plot
+from distctrl.trace.plot import (
     PlotError,
     add_event_markers,
     closest_column,
     events_from_meta,
     load_events,
-    plot,
     resolve_signals,
     slice_trace,
 )

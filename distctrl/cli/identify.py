@@ -8,8 +8,10 @@ import warnings
 
 import click
 
-from ..cli.common import COORDINATE, Finite
 from ..errors import DistCtrlError
+from ..workbench.identify import (IdentifyError, format_summary, identify, load_signals, result_json,
+                                  write_report, write_scenario)
+from .common import COORDINATE, Finite, emit_json, fail, output_error_text
 
 
 @click.command("identify")
@@ -74,9 +76,6 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     Exit code 1 with a message for missing files or columns, too short recordings, too poor
     excitation or a non-uniform time base.
     """
-    from ..cli.common import emit_json, fail, output_error_text
-    from .identify import IdentifyError, format_summary, identify, load_signals, result_json, write_report, \
-        write_scenario
 
     try:
         if surface is not None and calibrated_at is not None:
