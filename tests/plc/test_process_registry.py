@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from distctrl.plc.process import PROCESS_CLASSES, PROCESS_KEYS, ProcessFunction
-from distctrl.sim.config_errors import ConfigError
+from distctrl.errors.config import ConfigError
 
 
 def test_the_registry_names_each_class_by_its_name_and_the_keys_are_the_declared_ones():
