@@ -342,7 +342,8 @@ class ServedMachine:
     (:mod:`distctrl.ads.discovery`; if that port cannot be bound, one warning and TCP is served)."""
 
     def __init__(self, scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
-                 net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899, rt_priority: int = 0):
+                 net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899, rt_priority: int = 0,
+                 speed: float = 1.0):
         from ..sim.machine import Machine
         from ..sim.realtime import RealTimeLoop
         from ..sim.runner import load_program
@@ -364,10 +365,20 @@ class ServedMachine:
             self.discovery = DiscoveryResponder(TargetInfo(net_id, tc_version=self.system.version), discovery_port)
             self.server.attached.append(self.discovery)
         self.session = SessionLog(self.machine)
+        # cyclic notifications on the CNC and PLC ports are sampled by the cycle (every sample of every
+        # cycle, stamped with the cycle's time: the start's wall-clock time + cycle x T)
+        self.server.cycle_time = scenario.cycle_time
+        self.server.cycle_ports = frozenset({CNC_PORT, PLC_PORT})
+        self.start_filetime = 0
         #: called after every cycle in the cycle thread, under the lock (the live page's recorder,
         #: distctrl/ui/hub.py): keep them to a few microseconds
         self.observers: list = []
-        self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock, rt_priority=rt_priority)
+        #: machine seconds per wall-clock second (1: real time; more: faster, as far as the CPU allows)
+        self.speed = float(speed)
+        if not (self.speed > 0 and self.speed < float("inf")):
+            raise ValueError(f"speed = {speed!r}; allowed: a finite value > 0")
+        self.loop = RealTimeLoop(self.step, scenario.cycle_time / self.speed, lock=self.lock,
+                                 rt_priority=rt_priority)
 
     def step(self) -> None:
         """One cycle of the machine, then the session log (under the loop's lock); nothing while the
@@ -376,6 +387,7 @@ class ServedMachine:
             return
         self.machine.step()
         self.session.after_cycle()
+        self.server.sample_cycle(self.start_filetime + int(round(self.machine.cycle * self.machine.T * 1e7)))
         for observer in self.observers:
             observer()
 
@@ -386,6 +398,7 @@ class ServedMachine:
                      "STOP: the machine holds" if paused else "RUN: the machine runs on")
 
     def start(self) -> None:
+        self.start_filetime = int((time.time() + 11644473600) * 10_000_000)
         self.server.start()
         self.loop.start()
         log.info("serving %s on %s:%d (AMS ports %d, %d)", self.scenario.name, self.server.host, self.server.port,
