@@ -14,7 +14,9 @@ from .common import PORT, DistctrlGroup, Finite
 LAZY_COMMANDS = {
     "calibrate": "distctrl.workbench.calibrate_cli:calibrate_cmd",
     "filters": "distctrl.workbench.filters_cli:filters",
+    "excite": "distctrl.cli.excite:excite",
     "identify": "distctrl.workbench.identify_cli:identify_cmd",
+    "machine": "distctrl.cli.machine:machine",
     "margins": "distctrl.workbench.margins_cli:margins",
     "plot": "distctrl.workbench.plot_cli:plot",
     "step": "distctrl.workbench.step_cli:step",
