@@ -55,7 +55,9 @@ class MachineError(DistCtrlError):
     def __init__(self, message: str, code: int | None = None, exit_code: ExitCode = ExitCode.INVALID_INPUT):
         self.code = code
         self.exit_code = exit_code
-        if code is not None:
+        if code is not None and code < 0:
+            message = f"the ADS library failed (code {code}; the connection is broken): {message}"
+        elif code is not None:
             message = f"ADS error 0x{code:X} ({describe(code)}): {message}"
         super().__init__(message)
 

@@ -239,9 +239,15 @@ def _rollback(target: Target, unit: Unit, done: list[Change], old_values: dict, 
     """Write the backup's values of ``done`` back and verify them: True, or why not."""
     if not done:
         return True
+    return _restore(target, unit, done, old_values, reconnect)
+
+
+def _restore(target: Target, unit: Unit, done: list[Change], old_values: dict, reconnect) -> bool | str:
+    original = target
     for attempt in range(2):
         try:
             if attempt and reconnect is not None:
+                target.close()            # the broken connection and its route go first
                 target = reconnect()
             for c in reversed(done):
                 write_object(target, unit, unit.spec(PARAMETERS[c.field]), old_values[c.field])
@@ -264,4 +270,7 @@ def _rollback(target: Target, unit: Unit, done: list[Change], old_values: dict, 
             why = str(exc)
             if reconnect is None:
                 return why
+        finally:
+            if target is not original:
+                target.close()
     return why
