@@ -41,6 +41,11 @@ _NOTIFY_FRAME_DATA = 60000                     # bytes of samples per notificati
 _NOTIFY_STAMP_HEAD = struct.Struct("<QI")      # timestamp, samples (one per stamp of a stream)
 #: cycles of samples kept per connection for a client that does not read (then the oldest are dropped)
 SYNC_BACKLOG = 20000
+#: the cycle's own sampling is bounded, over all connections: notifications and bytes per cycle
+#: (beyond them a cyclic notification is sampled by its connection's thread, at most every
+#: ``min_notification_cycle``), so clients cannot slow the cycle down
+MAX_SYNC_NOTIFICATIONS = 256
+MAX_SYNC_BYTES = 64 * 1024
 
 
 
@@ -80,7 +85,8 @@ class NotificationService:
                            f"at most {self.max_notifications} notifications per connection")
         self._read(conn, hdr.target_port, dev, ig, io, length)  # must be readable now
         now = time.monotonic()
-        sync = (mode in _TRANS_CYCLE and self.cycle_time is not None and hdr.target_port in self.cycle_ports)
+        sync = (mode in _TRANS_CYCLE and self.cycle_time is not None and hdr.target_port in self.cycle_ports
+                and self._sync_room(length))
         n = Notification(
             handle=conn.new_notification_handle(), ams_port=hdr.target_port, index_group=ig,
             index_offset=io, length=length, on_change=mode in _TRANS_ON_CHANGE,
@@ -103,6 +109,17 @@ class NotificationService:
             conn.notifier.start()
         conn.wake.set()
         return n.handle
+
+    def _sync_room(self, length: int) -> bool:
+        """True while one more cycle-synchronous notification of ``length`` bytes stays within
+        :data:`MAX_SYNC_NOTIFICATIONS` and :data:`MAX_SYNC_BYTES` (called under the lock)."""
+        count, size = 1, length
+        for conn in self._sync_conns():
+            for n in list(conn.notifications.values()):
+                if n.every:
+                    count += 1
+                    size += n.length
+        return count <= MAX_SYNC_NOTIFICATIONS and size <= MAX_SYNC_BYTES
 
     def _sync_conns(self) -> dict:
         conns = self.__dict__.get("_sync_connections")

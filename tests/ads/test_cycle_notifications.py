@@ -83,3 +83,18 @@ def test_without_cycle_owner_still_thread_sampled():
     with srv, RawClient(srv.port) as c:
         h = add(c, T, 0.0)
         assert c.recv_notification()[1][0][1] == h     # the thread samples at min_notification_cycle
+
+
+def test_the_cycles_own_sampling_is_bounded(server, monkeypatch):
+    """Beyond the bound a cyclic notification is sampled by the thread (every 10 ms), so clients
+    cannot make the cycle read more than MAX_SYNC_NOTIFICATIONS objects."""
+    from distctrl.ads import notifications as N
+
+    monkeypatch.setattr(N, "MAX_SYNC_NOTIFICATIONS", 2)
+    with RawClient(server.port) as c:
+        handles = [add(c, T, 0.0) for _ in range(3)]
+        synced = [n for conn in server._sync_conns() for n in conn.notifications.values() if n.every]
+        assert len(synced) == 2
+        cycles(server, 1, 5)
+        got, _ = collect(c, 10)
+        assert {s[1] for s in got} <= set(handles)
