@@ -84,7 +84,7 @@ def main() -> int:
         sigs = [make_signal(n, 1e-4) for n in DEFAULT_SIGNALS]
         load0 = os.getloadavg()
         c0, t0 = cpu(), time.monotonic()
-        rec = record(target, Unit("axis", 1, "Z"), sigs, args.seconds)
+        rec = record(target, Unit("axis", 2, "Z"), sigs, args.seconds)
         c1, t1 = cpu(), time.monotonic()
         with tempfile.TemporaryDirectory() as tmp:
             write_trace(rec, pathlib.Path(tmp) / "rec.csv", {"bench": "bench_record"})

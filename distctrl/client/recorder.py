@@ -87,6 +87,10 @@ class Recording:
 
 
 _DATA_OFFSET = None
+#: the C callbacks of deleted notifications, kept alive (see :meth:`Recorder.stop`); a few hundred
+#: bytes each, the last thousand kept
+_KEEP_ALIVE: list = []
+_KEEP_ALIVE_MAX = 1000
 
 
 def _data_offset(pyads) -> int:
@@ -134,12 +138,22 @@ class Recorder:
             self.by_handle[handles[0]] = i
 
     def stop(self) -> None:
+        import pyads
+
         conn = self.target.conn
+        store = getattr(pyads.pyads_ex, "callback_store", {})
         for h in self.handles:
+            # pyads drops its reference to the C callback right after the delete, while AdsLib's
+            # dispatcher thread may still be calling it with a sample that was already queued: keep
+            # the callback alive (a segmentation fault otherwise, seen under load)
+            thunk = store.get((getattr(conn, "_adr", None), h[0]))
+            if thunk is not None:
+                _KEEP_ALIVE.append(thunk)
             try:
                 conn.del_device_notification(*h)
             except Exception:        # noqa: BLE001 - a broken connection: the samples so far are kept
                 pass
+        del _KEEP_ALIVE[:-_KEEP_ALIVE_MAX]
         self.handles = []
 
     def result(self) -> Recording:

@@ -67,7 +67,7 @@ def test_ctrl_c_keeps_what_was_recorded(tmp_path):
     try:
         out = tmp_path / "rec.csv"
         proc = subprocess.Popen([sys.executable, "-m", "distctrl", "machine", "record", "--ads", sm.net_id,
-                                 "--ip", sm.host, "--axis", "Z=1", "--seconds", "300", "--out", str(out), "--json"],
+                                 "--ip", sm.host, "--axis", "Z=2", "--seconds", "300", "--out", str(out), "--json"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                 env=dict(os.environ, PYTHONPATH=str(ROOT)))
         try:
