@@ -130,3 +130,26 @@ def test_unknown_axis_and_out_of_range_value(idle, tmp_path):
 def test_unreachable_target(tmp_path):
     r, err = run("machine", "show", "--ads", "127.255.255.253.1.1", "--timeout", 0.5, "--json")
     assert r.exit_code == 1 and "not reachable" in err["error"]
+
+
+def test_3d_channel_shown_and_written(tmp_path):
+    """A channel with 3D distance control (FCT-M3 §12.6 objects, index group 0x121301): shown under
+    ``channels`` and written with --channel and a channel list."""
+    from distctrl.sim.scenario import load_scenario
+
+    sm = serve(load_scenario(SCN / "dist3d_1.toml"))
+    try:
+        r, j = run("machine", "show", *ads(sm), "--json")
+        assert r.exit_code == 0, r.output
+        [ch] = j["channels"]
+        assert ch["kind"] == "channel" and ch["index"] == 1
+        assert ch["parameters"]["v_max"] == 10000 and ch["details"]["kp"]["key"] == "dist_ctrl[0].kp"
+        lis = tmp_path / "ch.lis"
+        lis.write_text("configuration.decoder.function FCT_3D_DIST_CTRL\ndist_ctrl[0].v_max 12000\n")
+        r, done = run("machine", "write", *ads(sm), "--channel", 1, lis, "--yes", "--pending", "--json")
+        assert r.exit_code == 0, r.output
+        assert [(c["parameter"], c["old"], c["new"], c["status"]) for c in done["changes"]] == \
+            [("v_max", 10000, 12000, "verified")]
+        assert "--channel 1" in Path(done["backup"]).read_text()
+    finally:
+        sm.stop()
