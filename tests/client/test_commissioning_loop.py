@@ -56,6 +56,18 @@ def distctrl(*args, check=True):
     return r
 
 
+def distctrl_child(*args):
+    """The command in a child process with one BLAS thread: identify's least squares wait on OpenBLAS's
+    spinning threads on a loaded 2-core machine (105 s instead of 9 s measured at a load average of 25)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
+               MKL_NUM_THREADS="1")
+    r = subprocess.run([sys.executable, "-m", "distctrl", *map(str, args)], capture_output=True, text=True,
+                       env=env, timeout=900)
+    assert r.returncode == 0, (args, r.returncode, r.stdout[-2000:], r.stderr[-2000:])
+    mark(" ".join(str(a) for a in args[:2]))
+    return r
+
+
 def loop_program(excite_nc: str) -> str:
     body = [ln for ln in excite_nc.splitlines() if ln and not ln.startswith("%") and ln.split()[-1] != "M30"]
     parts = ["%LOOP", "G90 G0 X0 Y0 Z40"]
@@ -71,14 +83,20 @@ class Plc:
     def __init__(self, sm):
         self.conn = pyads.Connection(sm.net_id, 851, sm.host)
         self.conn.open()
-        self.conn.set_timeout(2000)
+        self.conn.set_timeout(5000)
 
     def go(self, n: int) -> None:
         self.conn.write_by_name("V.E.GO", float(n), pyads.PLCTYPE_LREAL)
 
-    def wait_done(self, n: int, timeout: float = 120.0) -> None:
+    def done(self) -> float | None:
+        try:
+            return self.conn.read_by_name("V.E.DONE", pyads.PLCTYPE_LREAL)
+        except pyads.ADSError:            # a busy machine: a late answer is asked again
+            return None
+
+    def wait_done(self, n: int, timeout: float = 300.0) -> None:
         deadline = time.monotonic() + timeout
-        while self.conn.read_by_name("V.E.DONE", pyads.PLCTYPE_LREAL) != n:
+        while self.done() != n:
             assert time.monotonic() < deadline, f"the served program did not reach DONE = {n}"
             time.sleep(0.05)
 
@@ -125,9 +143,9 @@ def test_whole_commissioning_loop(tmp_path):
     for f in ("plant.toml", "plant.lis"):
         (tmp_path / f).write_text((HERE / f).read_text())
     sm = serve(load_scenario(tmp_path / "plant.toml"), speed=SPEED)
-    ads = ["--ads", sm.net_id, "--ip", sm.host]
+    ads = ["--ads", sm.net_id, "--ip", sm.host, "--timeout", "5"]
     try:
-        target = Target(sm.net_id, 551, sm.host).open()
+        target = Target(sm.net_id, 551, sm.host, timeout=5.0).open()
         plc = Plc(sm)
         z = Unit("axis", 3, "Z")
         old = read_parameters(target, z)
@@ -156,13 +174,17 @@ def test_whole_commissioning_loop(tmp_path):
         mark('machine record')
         recorded = json.loads(out)
         assert recorded["interrupted"] and recorded["lost_total"] == 0 and recorded["late"] == 0, recorded
-        assert recorded["seconds"] > 10.0, recorded
+        assert recorded["seconds"] > 5.0, recorded
 
+        if os.environ.get("DISTCTRL_LOOP_KEEP"):          # keep the recording for a look at it
+            import shutil
+            for f in (rec_csv, rec_csv.with_name(rec_csv.name + ".meta.json")):
+                shutil.copy(f, os.environ["DISTCTRL_LOOP_KEEP"])
         # 4. identify the plant from the recording, with the reference as the template
         for f in ("reference.toml", "reference.nc"):
             (tmp_path / f).write_text((HERE / f).read_text())
         fitted = tmp_path / "fitted"
-        r = distctrl("identify", rec_csv, "--command", "Z.command", "--actual", "Z.actual", "--sensor", "Z.sensor",
+        r = distctrl_child("identify", rec_csv, "--command", "Z.command", "--actual", "Z.actual", "--sensor", "Z.sensor",
                      "--actual-sampled", "start", "--surface", 30.0, "--template", tmp_path / "reference.toml",
                      "--out", fitted, "--json")
         ident = json.loads(r.stdout)
@@ -172,7 +194,7 @@ def test_whole_commissioning_loop(tmp_path):
 
         # 5. tune on the fitted twin
         tuned = tmp_path / "tuned"
-        distctrl("tune", fitted / "fitted.toml", "--budget", 40, "--local", "--no-robustness", "--out", tuned)
+        distctrl_child("tune", fitted / "fitted.toml", "--budget", 40, "--local", "--no-robustness", "--out", tuned)
 
         # 6. machine write: the plan, then --yes
         plan = json.loads(distctrl("machine", "write", *ads, "--axis", "Z=3", tuned / "tuned.lis", "--json").stdout)
