@@ -111,6 +111,7 @@ def test_record_writes_a_trace_without_gaps(idle, tmp_path):
 @pytest.mark.parametrize("args, code, text", [
     (["--ads", "1.2.3"], 1, "six numbers"),
     (["--ads", "{net}:999"], 1, "ADS error 0x6 (target port not found"),
+    (["--ads", "9.9.9.9.1.1"], 1, "ADS error 0x7 (target machine not found - missing ADS route)"),
 ])
 def test_errors_are_one_line_with_the_code(idle, args, code, text):
     args = [a.replace("{net}", idle.net_id) for a in args]
