@@ -39,8 +39,33 @@ def _parse_axis(text: str):
     return Unit("axis", int(ident), name or ident)
 
 
+def _quiet_adslib() -> None:
+    """pyads' AdsLib logs on the process's stderr (``Info: connection closed by remote``, ``Error: write
+    frame failed``); our own one-line message says what happened. In a real process (stderr is file
+    descriptor 2) Python's stderr moves to a copy of it and descriptor 2 to /dev/null, unless
+    DISTCTRL_ADS_LOG=1 asks for the library's lines."""
+    import os
+    import sys
+
+    if os.environ.get("DISTCTRL_ADS_LOG") == "1" or getattr(_quiet_adslib, "done", False):
+        return
+    try:
+        if sys.stderr.fileno() != 2:
+            return
+        sys.stderr.flush()
+        saved = os.dup(2)
+        sys.stderr = os.fdopen(saved, "w", buffering=1, encoding=sys.stderr.encoding, errors="backslashreplace")
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 2)
+        os.close(null)
+    except (AttributeError, OSError, ValueError):
+        return
+    _quiet_adslib.done = True
+
+
 def _open(ads: str, ip: str | None, timeout: float):
     from ..client.target import Target, parse_target
+    _quiet_adslib()
     net_id, port, host = parse_target(ads, ip)
     return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0)).open()
 
