@@ -128,3 +128,23 @@ def test_complete_write_verifies(rig, tmp_path):
     assert done["written"] == ["v_max", "d_tv", "i_tn", "kp"]
     text = Path(done["backup"]).read_text()
     assert "kenngr.distc.kp                    0.5" in text
+
+
+def test_cli_error_is_exactly_one_line_on_stderr(rig, tmp_path):
+    """In a real process pyads' AdsLib log lines stay off the terminal: stderr is our one line."""
+    import os
+    import subprocess
+    import sys
+
+    cnc, line, host = rig
+    line.mode = "garbage"
+    lis = tmp_path / "tuned.lis"
+    lis.write_text(NEW)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    env.pop("DISTCTRL_ADS_LOG", None)
+    r = subprocess.run([sys.executable, "-m", "distctrl", "machine", "write", "--ads", f"{host}.1.1",
+                        "--axis", "Z=3", str(lis), "--yes", "--timeout", "1"],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 1
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("error: ADS error 0x745"), r.stderr
+    assert old_set(cnc) == {k: v for k, v in INITIAL.items()}
