@@ -101,6 +101,12 @@ class Plc:
             time.sleep(0.05)
 
 
+def sync_notifications(sm) -> int:
+    """The cycle-synchronous notifications the served machine runs now (all connections)."""
+    with sm.lock:
+        return sum(1 for conn in sm.server._sync_conns() for n in list(conn.notifications.values()) if n.every)
+
+
 def reference_run(target, plc, n: int) -> dict:
     """One reference run recorded over ADS: tracking error (target_deviation) while ACTIVE."""
     from distctrl.client.axes import Unit
@@ -161,7 +167,11 @@ def test_whole_commissioning_loop(tmp_path):
                                  "--seconds", "600", "--signals", "command,actual,sensor", "--out", str(rec_csv),
                                  "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
         try:
-            time.sleep(3.0)            # the notifications are set up (a fresh interpreter imports pyads)
+            deadline = time.monotonic() + 120     # until its 3 notifications run (a busy machine: seconds)
+            while sync_notifications(sm) < 3:
+                assert time.monotonic() < deadline and proc.poll() is None, proc.communicate()
+                time.sleep(0.1)
+            time.sleep(0.2)
             plc.go(2)
             plc.wait_done(2, timeout=300)
             time.sleep(0.3)
