@@ -60,6 +60,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_identify.py
 	$(PY) bench/bench_process.py
 	$(PY) bench/bench_ui.py
+	$(PY) bench/bench_record.py
 
 # reliability suites (issue 8) at full length; figures go to bench/reliability.json and bench/soak.json
 stress: $(STAMP)

@@ -335,9 +335,17 @@ def test_every_command_has_json():
     import click
 
     ctx = click.Context(main)
-    missing = [name for name in main.list_commands(ctx)
-               if not any("--json" in getattr(p, "opts", ()) for p in main.get_command(ctx, name).params)]
+    commands = []
+    for name in main.list_commands(ctx):
+        cmd = main.get_command(ctx, name)
+        if isinstance(cmd, click.Group):      # a group (machine): each of its commands
+            sub = click.Context(cmd)
+            commands += [(f"{name} {s}", cmd.get_command(sub, s)) for s in cmd.list_commands(sub)]
+        else:
+            commands.append((name, cmd))
+    missing = [name for name, cmd in commands if not any("--json" in getattr(p, "opts", ()) for p in cmd.params)]
     assert missing == []
+    assert any(name == "machine write" for name, _ in commands)
 
 
 def test_plot_json_says_what_it_wrote(tmp_path):

@@ -304,7 +304,16 @@ class AdsEndpoint:
         if discovery_port is not None:
             self.discovery = DiscoveryResponder(TargetInfo(net_id, tc_version=self.system.version), discovery_port)
             self.server.attached.append(self.discovery)
+        # cyclic notifications on the CNC and PLC ports are sampled by the cycle (every sample of every
+        # cycle, stamped with the cycle's time: the start's wall-clock time + cycle x T)
+        self.server.cycle_time = served.scenario.cycle_time
+        self.server.cycle_ports = frozenset({CNC_PORT, PLC_PORT})
+        served.observers.insert(0, self.sample_cycle)
         served.attach("ads", self)
+
+    def sample_cycle(self) -> None:
+        """After every cycle, in the cycle thread under the lock: the cycle-synchronous notifications."""
+        self.server.sample_cycle(self.served.cycle_filetime())
 
     def start(self) -> None:
         self.server.start()
@@ -316,9 +325,11 @@ class AdsEndpoint:
 
 
 def serve_over_ads(scenario, *, host: str = "127.0.0.1", port: int = 48898, allowed=("127.0.0.0/8",),
-                   net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899, rt_priority: int = 0):
+                   net_id: str = "127.0.0.1.1.1", discovery_port: int | None = 48899, rt_priority: int = 0,
+                   speed: float = 1.0):
     """A :class:`~distctrl.serve.machine.ServedMachine` of ``scenario`` with ADS attached
-    (``served.services["ads"]``, an :class:`AdsEndpoint`); not started."""
-    served = ServedMachine(scenario, rt_priority=rt_priority)
+    (``served.services["ads"]``, an :class:`AdsEndpoint`); not started. ``speed``: machine seconds per
+    wall-clock second (:class:`~distctrl.serve.machine.ServedMachine`)."""
+    served = ServedMachine(scenario, rt_priority=rt_priority, speed=speed)
     AdsEndpoint(served, host=host, port=port, allowed=allowed, net_id=net_id, discovery_port=discovery_port)
     return served

@@ -38,6 +38,14 @@ _FILETIME_EPOCH = 11644473600
 _NOTIFY_STREAM_HEAD = struct.Struct("<IIQI")   # length, stamps, timestamp, samples
 _NOTIFY_SAMPLE_HEAD = struct.Struct("<II")     # notification handle, size
 _NOTIFY_FRAME_DATA = 60000                     # bytes of samples per notification frame (before splitting)
+_NOTIFY_STAMP_HEAD = struct.Struct("<QI")      # timestamp, samples (one per stamp of a stream)
+#: cycles of samples kept per connection for a client that does not read (then the oldest are dropped)
+SYNC_BACKLOG = 20000
+#: the cycle's own sampling is bounded, over all connections: notifications and bytes per cycle
+#: (beyond them a cyclic notification is sampled by its connection's thread, at most every
+#: ``min_notification_cycle``), so clients cannot slow the cycle down
+MAX_SYNC_NOTIFICATIONS = 256
+MAX_SYNC_BYTES = 64 * 1024
 
 
 
@@ -45,7 +53,20 @@ _NOTIFY_FRAME_DATA = 60000                     # bytes of samples per notificati
 class NotificationService:
     """The notification part of :class:`~distctrl.ads.server.AdsServer` (a mixin: it uses the server's
     ``devices``, ``lock``, ``lock_timeout``, ``log``, ``max_frame``, ``max_notifications``,
-    ``min_notification_cycle`` and ``_read``)."""
+    ``min_notification_cycle`` and ``_read``).
+
+    Cycle-synchronous notifications: when the owner of a cycle (the served machine) sets
+    :attr:`cycle_time` and calls :meth:`sample_cycle` after every cycle, a cyclic notification
+    (ADSTRANS_SERVERCYCLE) on an AMS port in :attr:`cycle_ports` is sampled by the cycle itself, every
+    ``round(cycle / cycle_time)``-th cycle (at least every cycle), stamped with the cycle's time, and the
+    samples are kept for the notification's max delay and sent together, one stamp per cycle in one
+    frame, as TwinCAT does for a notification of a cyclic task (no sample lost or repeated however the
+    threads are scheduled)."""
+
+    #: the cycle time (s) of the owner calling :meth:`sample_cycle`; None: no cycle-synchronous sampling
+    cycle_time: float | None = None
+    #: the AMS ports whose cyclic notifications are sampled by the cycle
+    cycle_ports: frozenset = frozenset()
 
     # device notifications
     # ------------------------------------------------------------------------------------------
@@ -64,6 +85,8 @@ class NotificationService:
                            f"at most {self.max_notifications} notifications per connection")
         self._read(conn, hdr.target_port, dev, ig, io, length)  # must be readable now
         now = time.monotonic()
+        sync = (mode in _TRANS_CYCLE and self.cycle_time is not None and hdr.target_port in self.cycle_ports
+                and self._sync_room(length))
         n = Notification(
             handle=conn.new_notification_handle(), ams_port=hdr.target_port, index_group=ig,
             index_offset=io, length=length, on_change=mode in _TRANS_ON_CHANGE,
@@ -73,6 +96,12 @@ class NotificationService:
             # registered the handle before the first sample arrives
             due=now + 0.05,
         )
+        if sync:    # sampled by the cycle (under the lock, as this request is): never by the thread
+            n.every = max(1, round(cycle * 1e-7 / self.cycle_time))
+            n.max_delay = min(max(_max_delay * 1e-7, 0.0), 1.0)
+            n.due = float("inf")
+            n.count = n.every - 1          # the next cycle is sampled
+            self._sync_conns()[conn] = None
         conn.notifications[n.handle] = n
         if conn.notifier is None:
             conn.notifier = threading.Thread(target=self._notify_loop, args=(conn,), daemon=True,
@@ -80,6 +109,95 @@ class NotificationService:
             conn.notifier.start()
         conn.wake.set()
         return n.handle
+
+    def _sync_room(self, length: int) -> bool:
+        """True while one more cycle-synchronous notification of ``length`` bytes stays within
+        :data:`MAX_SYNC_NOTIFICATIONS` and :data:`MAX_SYNC_BYTES` (called under the lock)."""
+        count, size = 1, length
+        for conn in self._sync_conns():
+            for n in list(conn.notifications.values()):
+                if n.every:
+                    count += 1
+                    size += n.length
+        return count <= MAX_SYNC_NOTIFICATIONS and size <= MAX_SYNC_BYTES
+
+    def _sync_conns(self) -> dict:
+        conns = self.__dict__.get("_sync_connections")
+        if conns is None:
+            conns = self.__dict__.setdefault("_sync_connections", {})
+        return conns
+
+    def sample_cycle(self, stamp: int) -> None:
+        """Sample the cycle-synchronous notifications of every connection (call after every cycle, under
+        :attr:`lock`); ``stamp``: the cycle's time as FILETIME (100 ns since 1601-01-01 UTC)."""
+        conns = self.__dict__.get("_sync_connections")
+        if not conns:
+            return
+        now = time.monotonic()
+        for conn in list(conns):
+            writer = conn.writer
+            items = []
+            wait = 1.0
+            for n in list(conn.notifications.values()):
+                if not n.every:
+                    continue
+                n.count += 1
+                if n.count < n.every:
+                    continue
+                n.count = 0
+                dev = self.devices.get(n.ams_port)
+                err, data = self._sub(conn, self._read, conn, n.ams_port, dev, n.index_group, n.index_offset,
+                                      n.length) if dev is not None else (1, None)
+                if not err:
+                    items.append((n.handle, data.ljust(n.length, b"\0")))
+                    wait = min(wait, n.max_delay)
+            if writer is None or writer.closing or not any(n.every for n in conn.notifications.values()):
+                del conns[conn]
+                continue
+            if not items:
+                continue
+            sync = conn.sync
+            if len(sync) >= SYNC_BACKLOG:            # a client that does not read: drop the oldest
+                sync.popleft()
+                conn.sync_dropped += 1
+            first = not sync
+            if first:
+                conn.sync_flush_due = now + wait
+            sync.append((stamp, items))
+            if first or now >= conn.sync_flush_due:     # the thread waits until the batch is due
+                conn.wake.set()
+
+    def _sync_frames(self, conn: Connection) -> list[bytes]:
+        """The DeviceNotification frames of the kept cycle-synchronous samples (one stamp per cycle)."""
+        sync = conn.sync
+        by_route: dict[tuple, list] = {}
+        routes = {h: n.route for h, n in list(conn.notifications.items())}
+        while sync:
+            stamp, items = sync.popleft()
+            for handle, data in items:
+                route = routes.get(handle)
+                if route is None:                    # deleted meanwhile
+                    continue
+                stamps = by_route.setdefault(route, [])
+                if not stamps or stamps[-1][0] != stamp:
+                    stamps.append((stamp, []))
+                stamps[-1][1].append((handle, data))
+        frames = []
+        for route, stamps in by_route.items():
+            parts, size, count = [], 0, 0
+            for i, (stamp, items) in enumerate(stamps):
+                body = b"".join(_NOTIFY_SAMPLE_HEAD.pack(h, len(d)) + d for h, d in items)
+                parts.append(_NOTIFY_STAMP_HEAD.pack(stamp, len(items)) + body)
+                size += len(parts[-1])
+                count += 1
+                if size >= _NOTIFY_FRAME_DATA or i == len(stamps) - 1:
+                    payload = b"".join(parts)
+                    data = struct.pack("<II", len(payload) + 4, count) + payload
+                    hdr = AmsHeader(route[0], route[1], route[2], route[3], CMD_DEVICE_NOTIFICATION,
+                                    SF_ADS_COMMAND, len(data), 0, 0)
+                    frames.append(frame(hdr, data))
+                    parts, size, count = [], 0, 0
+        return frames
 
     def _notify_loop(self, conn: Connection) -> None:
         """The notification thread of one connection: send the due samples until the connection ends."""
@@ -89,6 +207,11 @@ class NotificationService:
                 now = time.monotonic()
                 pending = list(conn.notifications.values())    # a copy: the link's thread adds/deletes
                 due = [n for n in pending if n.due <= now]
+                if conn.sync and now >= conn.sync_flush_due:
+                    with writer.send_lock:
+                        for chunk in self._sync_frames(conn):
+                            writer.send_locked(chunk)
+                            conn.notification_frames += 1
                 if due:
                     # sampled and sent under the send lock: a DeleteDeviceNotification answered meanwhile
                     # is answered after these samples, and one answered before is not sampled
@@ -100,7 +223,10 @@ class NotificationService:
                 pending = list(conn.notifications.values())
                 if writer.closing:
                     break
-                conn.wake.wait(min(n.due for n in pending) - time.monotonic() if pending else None)
+                wake = min((n.due for n in pending), default=float("inf"))
+                if conn.sync:
+                    wake = min(wake, conn.sync_flush_due)
+                conn.wake.wait(None if wake == float("inf") else max(0.0, wake - time.monotonic()))
         except Exception:  # pragma: no cover - defensive
             self.log.exception("%s: notification thread failed", conn.peer)
 

@@ -23,6 +23,8 @@ close.
 """
 from __future__ import annotations
 
+import collections
+
 import logging
 import socket
 import threading
@@ -69,13 +71,19 @@ class Notification:
     route: tuple[bytes, int, bytes, int]   # client NetId, client port, our NetId, device port
     due: float = 0.0
     last: bytes | None = None
+    #: cycle-synchronous (sampled by the machine's cycle, :meth:`NotificationService.sample_cycle`):
+    #: every ``every``-th cycle, the samples kept until ``max_delay`` s and sent together
+    every: int = 0
+    max_delay: float = 0.0
+    count: int = 0
 
 
 class Connection:
     """Per-connection state: symbol handles and device notifications (both bounded)."""
 
     __slots__ = ("_next_handle", "_next_notification", "frames", "handles", "max_handles",
-                 "notification_frames", "notifications", "notifier", "peer", "wake", "writer")
+                 "notification_frames", "notifications", "notifier", "peer", "sync", "sync_dropped",
+                 "sync_flush_due", "wake", "writer")
 
     def __init__(self, peer: str, max_handles: int, writer: ClientLink | None = None) -> None:
         self.peer = peer
@@ -89,6 +97,10 @@ class Connection:
         self._next_notification = 1
         self.notifier: threading.Thread | None = None   # sends the samples (started by the first one)
         self.wake = threading.Event()                     # a notification was added, or the link closes
+        #: cycle-synchronous samples not sent yet: (FILETIME stamp, [(handle, data), ...]) per cycle
+        self.sync: collections.deque = collections.deque()
+        self.sync_dropped = 0                             # cycles' samples dropped (client not reading)
+        self.sync_flush_due = 0.0                         # monotonic time the kept samples are due
 
     def new_notification_handle(self) -> int:
         h = self._next_notification

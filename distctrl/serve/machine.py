@@ -94,7 +94,7 @@ class ServedMachine:
     ``with`` block). Services that serve it (ADS) :meth:`attach` to it and are started and stopped with
     it; observers (the live page's recorder) run after every cycle, under the lock."""
 
-    def __init__(self, scenario, *, rt_priority: int = 0):
+    def __init__(self, scenario, *, rt_priority: int = 0, speed: float = 1.0):
         self.scenario = scenario
         self.machine = Machine(scenario, load_program(scenario), publish_hli=True)
         #: held by the cycle and by every reader and writer (ADS requests, the page's actions)
@@ -110,7 +110,15 @@ class ServedMachine:
         self.observers: list = []
         #: name -> an attached service (``start()``, ``stop()``), e.g. ``"ads"``
         self.services: dict = {}
-        self.loop = RealTimeLoop(self.step, scenario.cycle_time, lock=self.lock, rt_priority=rt_priority)
+        #: machine seconds per wall-clock second (1: real time; more: faster, as far as the CPU allows)
+        self.speed = float(speed)
+        if not (self.speed > 0 and self.speed < float("inf")):
+            raise ValueError(f"speed = {speed!r}; allowed: a finite value > 0")
+        #: the wall-clock time of the start as a Windows FILETIME (100 ns since 1601): the stamps of
+        #: cycle-synchronous notifications are this + cycle x T (machine time)
+        self.start_filetime = 0
+        self.loop = RealTimeLoop(self.step, scenario.cycle_time / self.speed, lock=self.lock,
+                                 rt_priority=rt_priority)
 
     def attach(self, name: str, service):
         """Serve the machine with ``service`` too (started before the cycle, stopped after it)."""
@@ -144,7 +152,12 @@ class ServedMachine:
             log.info("t=%.3f s PLC runtime %s (WriteControl)", self.machine.cycle * self.machine.T,
                      "STOP: the machine holds" if paused else "RUN: the machine runs on")
 
+    def cycle_filetime(self) -> int:
+        """The time stamp of the machine's current cycle (FILETIME, 100 ns): start + cycle x T."""
+        return self.start_filetime + int(round(self.machine.cycle * self.machine.T * 1e7))
+
     def start(self) -> None:
+        self.start_filetime = int((time.time() + 11644473600) * 10_000_000)
         started = []
         try:
             for service in self.services.values():

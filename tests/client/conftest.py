@@ -1,0 +1,37 @@
+"""Served machines for the ADS client tests: ``distctrl serve``'s ServedMachine on a loopback address
+of its own (pyads' AdsLib always connects to TCP 48898, so each test server takes a free
+127.x.y.z:48898 instead of a free port)."""
+from __future__ import annotations
+
+import random
+import socket
+
+import pytest
+
+pyads = pytest.importorskip("pyads")
+
+
+def free_loopback(port: int = 48898) -> str:
+    """A 127.x.y.z address whose ``port`` can be bound (other tests and engineers use others)."""
+    rng = random.Random()
+    for _ in range(200):
+        host = f"127.{rng.randint(1, 254)}.{rng.randint(0, 254)}.{rng.randint(1, 254)}"
+        with socket.socket() as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                s.bind((host, port))
+            except OSError:
+                continue
+        return host
+    pytest.skip(f"no free loopback address for TCP {port}")
+
+
+def serve(scenario, speed: float = 1.0):
+    """A started ServedMachine of ``scenario`` on a free loopback address; its NetId is the address + .1.1."""
+    from distctrl.ads.devices import serve_over_ads
+
+    host = free_loopback()
+    sm = serve_over_ads(scenario, host=host, port=48898, net_id=f"{host}.1.1", discovery_port=None, speed=speed)
+    sm.start()
+    sm.net_id, sm.host, sm.server = f"{host}.1.1", host, sm.services["ads"].server
+    return sm
