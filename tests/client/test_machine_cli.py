@@ -48,6 +48,22 @@ def ads(sm):
     return ["--ads", sm.net_id, "--ip", sm.host]
 
 
+def pending_after_next_cycles(sm, name: str, timeout_s: float = 20.0):
+    """The controller's pending value of ``name`` once the served machine has run two more cycles: a
+    CNC-object write is queued into the next cycle's commands (on a busy machine the cycle thread may
+    not have run it when the client returns)."""
+    import time
+    with sm.lock:
+        target = sm.machine.cycle + 2
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        with sm.lock:
+            if sm.machine.cycle >= target:
+                return sm.machine.controllers["Z"].state.pending.get(name)
+        time.sleep(0.01)
+    raise AssertionError(f"the served machine ran no cycle in {timeout_s} s")
+
+
 def test_show_lists_axes_with_state_and_parameters_in_list_units(idle, tmp_path):
     r, j = run("machine", "show", *ads(idle), "--json", "--out", tmp_path / "machine.lis")
     assert r.exit_code == 0, r.output
@@ -80,7 +96,7 @@ def test_write_shows_the_plan_writes_with_yes_and_restores_from_the_backup(idle,
     r, again = run("machine", "write", *ads(idle), "--axis", "Z=2", backup, "--yes", "--json")
     assert r.exit_code == 0, r.output
     assert {c["parameter"]: c["new"] for c in again["changes"]} == {"v_max": 200000}   # kp never changed
-    assert idle.machine.controllers["Z"].state.pending.get("v_max") == 200.0
+    assert pending_after_next_cycles(idle, "v_max") == 200.0
 
 
 def test_write_refused_while_active_unless_pending(active, tmp_path):
@@ -92,7 +108,7 @@ def test_write_refused_while_active_unless_pending(active, tmp_path):
     r, done = run("machine", "write", *ads(active), "--axis", "Z=2", lis, "--yes", "--pending")
     assert r.exit_code == 0, r.output
     assert "pending until the next activation" in r.output and "kp" in r.output
-    assert active.machine.controllers["Z"].state.pending.get("kp") == 0.6
+    assert pending_after_next_cycles(active, "kp") == 0.6
 
 
 def test_record_writes_a_trace_without_gaps(idle, tmp_path):
