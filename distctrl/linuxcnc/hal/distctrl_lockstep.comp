@@ -7,14 +7,15 @@ function *wait* (first in the thread) holds the period until the plant has writt
 inputs (*ack* equals *seq*), the function *post* (last in the thread) counts the period (*seq* + 1),
 which tells the plant that the components' outputs of this period are ready. Every period of the
 components thus sees the plant's answer to the period before, in virtual time, and the run is
-repeatable. What the wall clock did is counted, never hidden: *late* counts the periods the thread
-had to wait longer than one period for the plant (a real-time machine would have missed them), and
+repeatable. What the wall clock did is counted, never hidden: *late* counts the periods that began
+before the plant had answered (the thread waited; a real-time machine would have run them on stale
+inputs), and
 *missed* the periods the wait gave up after *timeout* seconds (the components then ran on stale
 inputs; a bench run with missed > 0 is not lock-step).
 """;
 pin in u32 ack "the period whose inputs the plant has written (equal to seq: go)";
 pin out u32 seq "periods completed";
-pin out u32 late "periods the plant answered later than one period after the period began";
+pin out u32 late "periods that began before the plant had answered the period before (the thread waited)";
 pin out u32 missed "periods the wait gave up (timeout): the components ran on stale inputs";
 pin out float wait-max "longest wait for the plant (s)";
 pin in bit enable "1: lock-step; 0: the thread runs free (seq still counts)";
@@ -54,8 +55,7 @@ FUNCTION(wait) {
     waited = now_s() - t0;
     if (waited > wait_max)
         wait_max = waited;
-    if (waited > fperiod)
-        late = late + 1;
+    late = late + 1;
 }
 
 FUNCTION(post) {
