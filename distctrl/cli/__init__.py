@@ -15,6 +15,7 @@ LAZY_COMMANDS = {
     "calibrate": "distctrl.workbench.calibrate_cli:calibrate_cmd",
     "filters": "distctrl.workbench.filters_cli:filters",
     "identify": "distctrl.workbench.identify_cli:identify_cmd",
+    "linuxcnc": "distctrl.cli.linuxcnc:linuxcnc",
     "margins": "distctrl.workbench.margins_cli:margins",
     "plot": "distctrl.workbench.plot_cli:plot",
     "step": "distctrl.workbench.step_cli:step",
