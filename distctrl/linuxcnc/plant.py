@@ -149,16 +149,15 @@ class OffsetFollower:
     def step(self, target: float) -> float:
         T, a = self.cycle_time, self.a_max
         err = target - self.value
-        if err == 0.0 and self.v == 0.0:
-            return self.value
-        want = math.copysign(min(self.v_max, math.sqrt(2.0 * a * abs(err))), err)
         dv = a * T
-        v = min(max(want, self.v - dv), self.v + dv)
-        nxt = self.value + v * T
-        if (target - nxt) * err <= 0.0 and abs(v) <= dv + 1e-12 + math.sqrt(2.0 * a * abs(err)):
-            self.value, self.v = target, 0.0          # arrived (plasmac compares the offset to its target)
-        else:
-            self.value, self.v = nxt, v
+        if abs(err) <= 1e-12 and abs(self.v) <= dv:
+            self.value, self.v = target, 0.0           # arrived (plasmac compares the offset to its target)
+            return self.value
+        # braking curve, and never past the target within one period
+        want = math.copysign(min(self.v_max, math.sqrt(2.0 * a * abs(err)), abs(err) / T), err)
+        self.v = min(max(want, self.v - dv), self.v + dv)
+        nxt = self.value + self.v * T
+        self.value = target if (target - nxt) * err <= 0.0 else nxt
         return self.value
 
 
