@@ -8,34 +8,12 @@ from pathlib import Path
 
 import click
 
+from .common import Finite
+
 __all__ = ["linuxcnc", "format_text", "write_html"]
 
 
-@click.group()
-def linuxcnc() -> None:
-    """LinuxCNC (Debian's linuxcnc-uspace, halrun): plasmac on distctrl's plate, side by side with distctrl."""
-
-
-def _parse_set(values: tuple) -> dict:
-    from .common import fail
-
-    out = {}
-    for item in values:
-        key, sep, raw = item.partition("=")
-        if not sep or not key.strip():
-            fail(f"--set {item!r}: expected PIN=VALUE (a plasmac input, e.g. --set pid-p-gain=5)")
-        try:
-            value = float(raw)
-        except ValueError:
-            fail(f"--set {item!r}: the value {raw!r} is not a number")
-        out[key.strip()] = int(value) if value.is_integer() and "." not in raw else value
-    return out
-
-
-@linuxcnc.command()
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object: the installed modules.")
-def build(as_json: bool) -> None:
-    """Build the bench's HAL components (halcompile) and install them into LinuxCNC's module directory."""
+def _build(as_json: bool) -> None:
     from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, install_component
     from .common import emit_json, fail
 
@@ -50,22 +28,39 @@ def build(as_json: bool) -> None:
             click.echo(f"installed {p}")
 
 
-@linuxcnc.command()
-@click.argument("plate", type=click.Path(dir_okay=False, exists=True))
+@click.command()
+@click.argument("action", type=click.Choice(["bench", "build"]))
+@click.argument("plate", required=False, type=click.Path(dir_okay=False, exists=True))
 @click.option("--repeat", default=1, show_default=True, type=click.IntRange(1, 50),
               help="Run every contestant N times and report the spread.")
 @click.option("--set", "settings", multiple=True, metavar="PIN=VALUE",
               help="Override one of plasmac's settings (its input pin without 'plasmac.'), e.g. pid-p-gain=5.")
-@click.option("--max-time", type=click.FloatRange(0.1, 3600.0), default=None,
+@click.option("--max-time", type=Finite(0.1, 3600.0), default=None,
               help="Stop a plasmac run after this many seconds of machine time (default: the plate's duration).")
 @click.option("--html", "html_dir", type=click.Path(file_okay=False), default=None,
               help="Write an HTML report with plots into this directory (index.html).")
 @click.option("--json", "as_json", is_flag=True,
-              help="Print one JSON object: plate, runs [{controller, functions, min_distance_mm, ...}].")
-def bench(plate: str, repeat: int, settings: tuple, max_time: float | None, html_dir: str | None,
-          as_json: bool) -> None:
-    """plasmac (LinuxCNC, in halrun) in closed loop on PLATE (a plate scenario), with corner lock and void
-    lock on and off, side by side with distctrl's controller and process functions on the same plate."""
+              help="Print one JSON object (bench: plate, runs [{controller, functions, min_distance_mm, ...}]).")
+def linuxcnc(action: str, plate: str | None, repeat: int, settings: tuple, max_time: float | None,
+             html_dir: str | None, as_json: bool) -> None:
+    """LinuxCNC's plasmac (halrun) in closed loop on distctrl's PLATE, side by side with distctrl.
+
+    \b
+    distctrl linuxcnc bench PLATE.toml   plasmac with corner/void lock on and off, and distctrl
+    distctrl linuxcnc build              build and install the bench's HAL component (halcompile)
+    """
+    from .common import fail
+
+    if action == "build":
+        _build(as_json)
+        return
+    if plate is None:
+        fail("linuxcnc bench needs a PLATE (a plate scenario, e.g. examples/scenarios/plasma_plate_short.toml)")
+    _bench(plate, repeat, settings, max_time, html_dir, as_json)
+
+
+def _bench(plate: str, repeat: int, settings: tuple, max_time: float | None, html_dir: str | None,
+           as_json: bool) -> None:
     from rich.console import Console
 
     from ..errors import DistCtrlError
@@ -82,14 +77,12 @@ def bench(plate: str, repeat: int, settings: tuple, max_time: float | None, html
         fail(str(exc))
     if html_dir is not None:
         doc["html"] = str(write_html(doc, html_dir))
-    traces = [r.pop("trace", None) for r in doc["runs"]]
+    for r in doc["runs"]:
+        r.pop("trace", None)
     if as_json:
         emit_json(doc)
     else:
         click.echo(format_text(doc))
-    for r, t in zip(doc["runs"], traces):
-        if t is not None:
-            r["trace"] = t
 
 
 def _fmt(v, digits=2) -> str:
