@@ -98,13 +98,13 @@ def _rows(doc: dict) -> list[list[str]]:
         rows.append([r["controller"], ", ".join(r["functions"]) or "-",
                      _fmt(r["min_distance_mm"]) + (f" ±{md['spread'] / 2:.2f}" if md.get("spread") else ""),
                      _fmt(r["time_below_half_s"], 3), str(r["collisions"]),
-                     f"{d['corner']}/{d['hole_kerf']}/{d['other']}", str(r["late_periods"]),
-                     str(r["missed_periods"])])
+                     f"{d['corner']}/{d['hole_kerf']}/{d['other']}", "yes" if r.get("completed") else "no",
+                     str(r["late_periods"]), str(r["missed_periods"])])
     return rows
 
 
 _HEAD = ["controller", "functions", "min distance on metal (mm)", "time below half (s)", "collisions",
-         "dives corner/hole-kerf/other", "late periods", "missed periods"]
+         "dives corner/hole-kerf/other", "completed", "late periods", "missed periods"]
 
 
 def format_text(doc: dict) -> str:
