@@ -13,6 +13,25 @@ from .common import Finite
 __all__ = ["linuxcnc", "format_text", "write_html"]
 
 
+def _parse_set(values: tuple) -> dict:
+    """``--set PIN=VALUE`` options as {pin: number} (an int when written without a point)."""
+    from .common import fail
+
+    out = {}
+    for item in values:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            fail(f"--set {item!r}: expected PIN=VALUE (a plasmac input, e.g. --set pid-p-gain=5)")
+        try:
+            value = float(raw)
+        except ValueError:
+            fail(f"--set {item!r}: the value {raw!r} is not a number")
+        if value != value or value in (float("inf"), float("-inf")):
+            fail(f"--set {item!r}: the value must be finite")
+        out[key.strip()] = int(value) if value.is_integer() and "." not in raw and "e" not in raw.lower() else value
+    return out
+
+
 def _build(as_json: bool) -> None:
     from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, install_component
     from .common import emit_json, fail

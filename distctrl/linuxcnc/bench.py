@@ -146,6 +146,22 @@ class PlateJob:
         return cls(sc, moves, cut_height, 2.0 * cut_height, max(m.feed for m in cuts), z.start)
 
 
+#: further plasmac inputs ``--set`` may set (besides :data:`PLASMAC_DEFAULTS` and the plate's own)
+_MORE_SETTINGS = ("max-offset", "lowpass-frequency", "voidlock-on-cycles", "voidlock-off-cycles", "ok-sample-counts",
+                  "ok-sample-threshold", "puddle-jump-height", "puddle-jump-delay", "cornerlock-enable",
+                  "voidlock-enable")
+_PLATE_SETTINGS = ("cut-height", "pierce-height", "cut-feed-rate", "thc-feed-rate", "setup-feed-rate")
+
+
+def check_overrides(overrides: dict, settings: dict | None = None) -> None:
+    """Raise :class:`LinuxCNCError` for a ``--set`` key that is not a plasmac setting the bench allows."""
+    allowed = set(settings or PLASMAC_DEFAULTS) | set(_MORE_SETTINGS) | set(_PLATE_SETTINGS)
+    allowed -= {"cornerlock-enable", "voidlock-enable"}        # the bench switches these itself
+    for key in overrides:
+        if key not in allowed:
+            raise LinuxCNCError(f"--set {key}: not a plasmac setting the bench allows ({', '.join(sorted(allowed))})")
+
+
 def run_plasmac(job: PlateJob, cornerlock: bool, voidlock: bool, overrides: dict | None = None,
                 max_time: float | None = None, hal: HalSession | None = None) -> dict:
     """One closed-loop run of plasmac on the plate (module docstring); returns its figures."""
@@ -181,13 +197,8 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
     settings.update({"cut-height": job.cut_height, "pierce-height": job.pierce_height,
                      "cut-feed-rate": job.cut_feed * 60.0, "thc-feed-rate": thc_feed,
                      "setup-feed-rate": 0.8 * thc_feed})
-    for key, value in overrides.items():
-        if key not in settings and key not in ("kerf-width", "max-offset", "lowpass-frequency",
-                                               "voidlock-on-cycles", "voidlock-off-cycles", "ok-sample-counts",
-                                               "ok-sample-threshold", "puddle-jump-height", "puddle-jump-delay"):
-            raise LinuxCNCError(f"--set {key}: not a plasmac setting the bench sets or allows "
-                                f"({', '.join(sorted(settings))})")
-        settings[key] = value
+    check_overrides(overrides, settings)
+    settings.update(overrides)
     surface = sc.surface
     z_min, z_max = surface.base - 20.0, job.z_prog + 30.0
     limits = {"z-min": z_min, "z-max": z_max, "x-min": -1000.0, "x-max": 5000.0, "y-min": -1000.0,
@@ -411,6 +422,7 @@ def bench(plate: str | Path, repeat: int = 1, overrides: dict | None = None, max
     distctrl with its functions and without corner/void lock; each run ``repeat`` times."""
     if repeat < 1:
         raise LinuxCNCError(f"--repeat {repeat}: at least 1")
+    check_overrides(overrides or {})
     job = PlateJob.load(plate)
     cases = [("plasmac", True), ("plasmac", False), ("distctrl", True), ("distctrl", False)]
     runs = []

@@ -112,3 +112,13 @@ def test_bench_text_table_names_every_contestant():
                      "missed_periods": 0, "spread": {}}]}
     text = format_text(doc)
     assert "plasmac" in text and "0/1/0" in text and "late periods" in text
+
+
+@pytest.mark.parametrize("setting, words", [("foo=1", "not a plasmac setting"), ("pid-p-gain=x", "not a number"),
+                                            ("pid-p-gain=nan", "finite"), ("cornerlock-enable=1", "not a plasmac")])
+def test_bench_refuses_a_bad_setting_with_exit_1_before_running(setting, words):
+    p = subprocess.run([sys.executable, "-m", "distctrl", "linuxcnc", "bench", str(PLATE), "--set", setting, "--json"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert p.returncode == 1
+    doc = json.loads(p.stdout)
+    assert doc["outcome"] == "error" and words in doc["error"] and "Traceback" not in p.stderr
