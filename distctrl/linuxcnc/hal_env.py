@@ -25,7 +25,7 @@ __all__ = ["LinuxCNCError", "HalSession", "hal_environment", "require_linuxcnc",
 
 HAL_DIR = Path(__file__).resolve().parent / "hal"
 #: the components distctrl builds with halcompile (hal/<name>.comp)
-COMPONENTS = ("distctrl_lockstep",)
+COMPONENTS = ("distctrl_lockstep", "distctrl_thc")
 MODULE_DIR = Path("/usr/lib/linuxcnc/modules")
 _RUN_DIR = Path(tempfile.gettempdir()) / "distctrl-linuxcnc"
 _DIST_PACKAGES = "/usr/lib/python3/dist-packages"
