@@ -53,7 +53,10 @@ class ThcConfig:
     resolution: float = 0.001
     cornerlock_threshold: float = 90.0
     voidlock_slope: float = 500.0
-    voidlock_off_cycles: int = 10
+    voidlock_window: float = 0.02
+    voidlock_on_cycles: int = 3
+    voidlock_off_cycles: int = 20
+    voidlock_release_band: float = 5.0
 
     def check(self, cycle_time: float) -> None:
         """Raise :class:`LinuxCNCError` naming the parameter and its range unless every value is allowed."""
@@ -69,7 +72,10 @@ class ThcConfig:
         _check("resolution", self.resolution, 0.0, 1.0, lo_open=True, pid="mm per count")
         _check("cornerlock-threshold", self.cornerlock_threshold, 0.0, 100.0, pid="%")
         _check("voidlock-slope", self.voidlock_slope, 0.0, 1e6, lo_open=True, pid="V/s")
+        _check("voidlock-window", self.voidlock_window, cycle_time, 100 * cycle_time, pid="s, 1..100 periods")
+        _check("voidlock-on-cycles", self.voidlock_on_cycles, 0, 1e6, pid="periods")
         _check("voidlock-off-cycles", self.voidlock_off_cycles, 0, 1e6, pid="periods")
+        _check("voidlock-release-band", self.voidlock_release_band, 0.0, 1e4, pid="V")
         try:
             self.filter.check(cycle_time)
         except ParameterError as exc:
@@ -86,7 +92,9 @@ class ThcConfig:
                 "max-deviation": self.max_deviation, "set-dist": self.set_dist, "arc-v0": self.arc_v0,
                 "arc-k": self.arc_k, "resolution": self.resolution,
                 "cornerlock-threshold": self.cornerlock_threshold, "voidlock-slope": self.voidlock_slope,
-                "voidlock-off-cycles": int(self.voidlock_off_cycles)}
+                "voidlock-window": self.voidlock_window, "voidlock-on-cycles": int(self.voidlock_on_cycles),
+                "voidlock-off-cycles": int(self.voidlock_off_cycles),
+                "voidlock-release-band": self.voidlock_release_band}
         lines = [f"setp {name}.{k} {v!r}" for k, v in pins.items()]
         lines += [f"setp {name}.fc-{i:03d} {float(c)!r}" for i, c in enumerate(fc)]
         return lines
@@ -102,27 +110,66 @@ class ThcReference:
         self.fs = [0.0] * law.FS_LEN
         self.buf = [0.0] * law.MAX_N
         self.integral = self.m_prev = self.v_prev = self.o = 0.0
-        self.v_last_arc = 0.0
-        self.have_arc = False
         self.was_active = False
-        self.void_quiet = 0
+        self.vbuf = [0.0] * 100
+        self.vmean = [0.0] * 100
+        self.vsum = self.vlevel = 0.0
+        self.vi = self.nfill = self.nmfill = self.non = self.noff = 0
         self.cornerlock = self.voidlock = False
+
+    def _void_lock(self, x: float, on: bool) -> None:
+        """distctrl's void_lock (its ST, distctrl/plc/process/void_lock.py) as the component runs it."""
+        c, T = self.c, self.T
+        if not on:
+            self.nfill = self.nmfill = self.non = self.noff = 0
+            self.vsum = 0.0
+            self.voidlock = False
+            return
+        N = min(100, max(1, lround(c.voidlock_window / T)))
+        if self.vi >= N:
+            self.vi = 0
+        vi = self.vi
+        old = self.vbuf[vi]
+        full = self.nfill >= N
+        mean_old = self.vmean[vi]
+        mfull = self.nmfill >= N
+        self.vbuf[vi] = x
+        self.vsum = self.vsum + x - (old if full else 0.0)
+        if not full:
+            self.nfill += 1
+        mean = 0.0
+        if self.nfill >= N:
+            mean = self.vsum / N
+            self.vmean[vi] = mean
+            if self.nmfill < N:
+                self.nmfill += 1
+        self.vi = (vi + 1) % N
+        if not full:
+            self.voidlock = False
+            self.non = self.noff = 0
+            return
+        rate = (x - old) / (N * T)
+        if not self.voidlock:
+            self.non = self.non + 1 if abs(rate) > c.voidlock_slope else 0
+            if self.non >= c.voidlock_on_cycles:
+                self.voidlock = True
+                self.vlevel = mean_old if mfull else old
+                self.noff = 0
+        else:
+            if abs(rate) <= c.voidlock_slope and mean - self.vlevel <= c.voidlock_release_band:
+                self.noff += 1
+            else:
+                self.noff = 0
+            if self.noff >= c.voidlock_off_cycles:
+                self.voidlock = False
+                self.non = 0
 
     def step(self, arc_voltage: float, enable: bool, cornerlock_enable: bool = False, current_velocity: float = 0.0,
              requested_velocity: float = 0.0, voidlock_enable: bool = False) -> dict:
         c, T = self.c, self.T
         d = (arc_voltage - c.arc_v0) * (1.0 / c.arc_k)
         self.cornerlock = bool(cornerlock_enable and current_velocity < requested_velocity * c.cornerlock_threshold * 0.01)
-        if voidlock_enable and self.have_arc and abs(arc_voltage - self.v_last_arc) > c.voidlock_slope * T:
-            self.voidlock, self.void_quiet = True, 0
-        elif voidlock_enable and self.voidlock:
-            self.void_quiet += 1
-            if self.void_quiet >= c.voidlock_off_cycles:
-                self.voidlock = False
-        elif not voidlock_enable:
-            self.voidlock = False
-        self.v_last_arc = arc_voltage
-        self.have_arc = True
+        self._void_lock(arc_voltage, bool(voidlock_enable and enable))
         out = {"distance": d, "cornerlock_is_locked": self.cornerlock, "voidlock_is_locked": self.voidlock}
         if not enable:
             self.was_active = False

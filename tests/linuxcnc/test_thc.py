@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -27,8 +26,6 @@ CONFIGS = {
     "KALMAN_EXPO": ThcConfig(kp=0.5, filter=FilterConfig(FilterType.KALMAN_EXPO, n_cycles=30, smoothing_factor=0.2,
                                                          kalman_sigma=4.0)),
 }
-# a void slope above the input's 50 Hz ripple and noise (about 630 V/s + 400 V/s), below the hole's 9000 V/s
-CONFIGS = {name: replace(c, voidlock_slope=2000.0) for name, c in CONFIGS.items()}
 N = 900
 
 

@@ -9,9 +9,11 @@ it in halrun for every filter type). The arc voltage is linearised into the dist
 States (state-out): 0 idle (thc-enable off: the law does not run, the offset stays), 1 active, 2 locked
 (corner lock or void lock: the wanted step is 0, the offset brakes within the acceleration limit and
 stays, the integrator holds). Entering active seeds the filter with the current distance (no jump).
-Corner lock: current-velocity below cornerlock-threshold percent of requested-velocity. Void lock: the
-arc voltage changed faster than voidlock-slope V/s in a period; it opens after voidlock-off-cycles
-periods without such a change.
+Corner lock: current-velocity below cornerlock-threshold percent of requested-velocity. Void lock:
+distctrl's void_lock function (distctrl/plc/process/void_lock.py, its ST): the arc voltage's rate over a
+window of voidlock-window s above voidlock-slope for voidlock-on-cycles periods closes it; steady for
+voidlock-off-cycles periods with the window's mean at most voidlock-release-band above the level before
+the void opens it; the window starts afresh whenever thc-enable comes on.
 
 The filter coefficients fc-000..fc-134 are the law's coefficient buffer (distctrl.control.filters.
 design_coefficients; the low-pass is designed with scipy there): `distctrl linuxcnc thc-config` prints
@@ -26,8 +28,11 @@ pin in float cornerlock_threshold = 90.0 "corner lock below this percentage of r
 pin in float current_velocity "current path velocity (units/s), motion.current-vel";
 pin in float requested_velocity "requested path velocity (units/s)";
 pin in bit voidlock_enable "enable void lock";
-pin in float voidlock_slope = 500.0 "void lock above this arc-voltage slope (V/s)";
-pin in s32 voidlock_off_cycles = 10 "periods without a fast change until the void lock opens";
+pin in float voidlock_slope = 500.0 "void lock above this arc-voltage rate over the window (V/s)";
+pin in float voidlock_window = 0.02 "the rate's window (s; 20 ms spans a 50 Hz ripple period; at most 100 periods)";
+pin in s32 voidlock_on_cycles = 3 "periods in a row above the rate until the void lock closes";
+pin in s32 voidlock_off_cycles = 20 "steady periods in a row until the void lock opens";
+pin in float voidlock_release_band = 5.0 "the window's mean may be this much (V) above the level before the void to open";
 pin in float set_dist = 1.5 "SET_DIST: the cut height (mm)";
 pin in float kp = 0.5 "KP, P-AXIS-00759 (0 < kp <= 2)";
 pin in float i_tn "I_TN, P-AXIS-00764 (s; 0 = no I part)";
@@ -54,10 +59,16 @@ variable double integral;
 variable double m_prev;
 variable double v_prev;
 variable double o;
-variable double v_last_arc;
 variable int was_active;
-variable int void_quiet;
-variable int have_arc;
+variable double vbuf[100];
+variable double vmean[100];
+variable double vsum;
+variable double vlevel;
+variable int vi;
+variable int nfill;
+variable int nmfill;
+variable int non;
+variable int noff;
 function _ fp "one period of the law";
 license "GPL";
 author "distctrl";
@@ -344,18 +355,65 @@ FUNCTION(_) {
         cornerlock_is_locked = current_velocity < requested_velocity * cornerlock_threshold * 0.01;
     else
         cornerlock_is_locked = 0;
-    if (voidlock_enable && have_arc && fabs(arc_voltage_in - v_last_arc) > voidlock_slope * T) {
-        voidlock_is_locked = 1;
-        void_quiet = 0;
-    } else if (voidlock_enable && voidlock_is_locked) {
-        void_quiet += 1;
-        if (void_quiet >= voidlock_off_cycles)
-            voidlock_is_locked = 0;
-    } else if (!voidlock_enable) {
+    if (!voidlock_enable || !thc_enable) {
+        nfill = 0;
+        nmfill = 0;
+        vsum = 0.0;
         voidlock_is_locked = 0;
+        non = 0;
+        noff = 0;
+    } else {
+        int N = (int)lround(voidlock_window / T), full, mfull;
+        double x = arc_voltage_in, old, mean_old, mean = 0.0, rate;
+        if (N < 1)
+            N = 1;
+        if (N > 100)
+            N = 100;
+        if (vi >= N)
+            vi = 0;
+        old = vbuf[vi];
+        full = nfill >= N;
+        mean_old = vmean[vi];
+        mfull = nmfill >= N;
+        vbuf[vi] = x;
+        vsum = vsum + x - (full ? old : 0.0);
+        if (!full)
+            nfill += 1;
+        if (nfill >= N) {
+            mean = vsum / N;
+            vmean[vi] = mean;
+            if (nmfill < N)
+                nmfill += 1;
+        }
+        vi = (vi + 1) % N;
+        if (!full) {
+            voidlock_is_locked = 0;
+            non = 0;
+            noff = 0;
+        } else {
+            rate = (x - old) / (N * T);
+            if (!voidlock_is_locked) {
+                if (fabs(rate) > voidlock_slope)
+                    non += 1;
+                else
+                    non = 0;
+                if (non >= voidlock_on_cycles) {
+                    voidlock_is_locked = 1;
+                    vlevel = mfull ? mean_old : old;
+                    noff = 0;
+                }
+            } else {
+                if (fabs(rate) <= voidlock_slope && mean - vlevel <= voidlock_release_band)
+                    noff += 1;
+                else
+                    noff = 0;
+                if (noff >= voidlock_off_cycles) {
+                    voidlock_is_locked = 0;
+                    non = 0;
+                }
+            }
+        }
     }
-    v_last_arc = arc_voltage_in;
-    have_arc = 1;
     if (!thc_enable) {
         was_active = 0;
         state_out = 0;
