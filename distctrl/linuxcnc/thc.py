@@ -43,6 +43,7 @@ class ThcConfig:
     kp: float = 0.5
     i_tn: float = 0.0
     d_tv: float = 0.0
+    use_both_encoders: bool = False
     filter: FilterConfig = field(default_factory=FilterConfig)
     v_max: float = 100.0
     a_max: float = 2000.0
@@ -88,7 +89,7 @@ class ThcConfig:
     def setp_lines(self, cycle_time: float, name: str = "distctrl-thc.0") -> list[str]:
         """halcmd ``setp`` lines for the component instance ``name`` (exact: repr of each double)."""
         fc = self.coefficients(cycle_time)
-        pins = {"kp": self.kp, "i-tn": self.i_tn, "d-tv": self.d_tv, "v-max": self.v_max, "a-max": self.a_max,
+        pins = {"use-both-encoders": int(self.use_both_encoders), "kp": self.kp, "i-tn": self.i_tn, "d-tv": self.d_tv, "v-max": self.v_max, "a-max": self.a_max,
                 "max-deviation": self.max_deviation, "set-dist": self.set_dist, "arc-v0": self.arc_v0,
                 "arc-k": self.arc_k, "resolution": self.resolution,
                 "cornerlock-threshold": self.cornerlock_threshold, "voidlock-slope": self.voidlock_slope,
@@ -165,7 +166,8 @@ class ThcReference:
                 self.non = 0
 
     def step(self, arc_voltage: float, enable: bool, cornerlock_enable: bool = False, current_velocity: float = 0.0,
-             requested_velocity: float = 0.0, voidlock_enable: bool = False) -> dict:
+             requested_velocity: float = 0.0, voidlock_enable: bool = False, z_command: float = 0.0,
+             z_actual: float = 0.0) -> dict:
         c, T = self.c, self.T
         d = (arc_voltage - c.arc_v0) * (1.0 / c.arc_k)
         self.cornerlock = bool(cornerlock_enable and current_velocity < requested_velocity * c.cornerlock_threshold * 0.01)
@@ -175,13 +177,14 @@ class ThcReference:
             self.was_active = False
             self.v_prev = 0.0
             return {**out, "state": 0, "offset": self.o, "velocity": 0.0, "counts": None, "filtered": None}
+        fb = law.feedback_value(True, c.use_both_encoders, d, z_actual, z_command)
         if not self.was_active:
-            law.filter_seed(self.fc, self.fs, self.buf, d)
+            law.filter_seed(self.fc, self.fs, self.buf, fb)
             self.integral = 0.0
-            self.m_prev = -d
+            self.m_prev = -fb
             self.was_active = True
         locked = self.cornerlock or self.voidlock
-        y = law.filter_step(self.fc, self.fs, self.buf, d)
+        y = law.filter_step(self.fc, self.fs, self.buf, fb)
         _, e, m = law.mode_error(True, y, c.set_dist, self.o)
         if locked:
             u, e, ic = 0.0, 0.0, self.integral

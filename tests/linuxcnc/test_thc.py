@@ -18,11 +18,11 @@ from distctrl.base.kinds import FilterType
 CONFIGS = {
     "PASS (n 1)": ThcConfig(kp=0.6, filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=1)),
     "DEFAULT": ThcConfig(kp=0.5, i_tn=0.05, filter=FilterConfig(FilterType.DEFAULT)),
-    "MOVING_AVERAGE": ThcConfig(kp=0.4, d_tv=0.01, filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=7)),
+    "MOVING_AVERAGE": ThcConfig(kp=0.4, d_tv=0.01, use_both_encoders=True, filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=7)),
     "EXPO_MEAN": ThcConfig(kp=0.5, i_tn=0.1, d_tv=0.005, filter=FilterConfig(FilterType.EXPO_MEAN, n_cycles=9,
                                                                              smoothing_factor=0.3)),
     "LOWPASS": ThcConfig(kp=0.3, filter=FilterConfig(FilterType.LOWPASS, order=5, fg_f0=40.0)),
-    "KALMAN_MA": ThcConfig(kp=0.5, filter=FilterConfig(FilterType.KALMAN_MA, n_cycles=20, kalman_sigma=1000.0)),
+    "KALMAN_MA": ThcConfig(kp=0.5, use_both_encoders=True, filter=FilterConfig(FilterType.KALMAN_MA, n_cycles=20, kalman_sigma=1000.0)),
     "KALMAN_EXPO": ThcConfig(kp=0.5, filter=FilterConfig(FilterType.KALMAN_EXPO, n_cycles=30, smoothing_factor=0.2,
                                                          kalman_sigma=4.0)),
 }
@@ -41,7 +41,9 @@ def _inputs():
             v += 45.0 * min(1.0, (k - 300) / 5.0)      # a hole: fast rise, then high
         enable = not (20 > k or 600 <= k < 640)      # idle, active, ..., idle, active
         vel = 83.3 if not (450 <= k < 520) else 83.3 * (1.0 - min(1.0, (k - 450) / 20.0)) + 5.0
-        rows.append((float(v), enable, True, float(vel), 83.3, True))
+        zc = 40.0 - 0.01 * k + 0.5 * math.sin(2 * math.pi * 7 * t)       # commanded and actual Z (both encoders)
+        za = zc - 0.2 * math.cos(2 * math.pi * 7 * t) - 0.001 * rng.standard_normal()
+        rows.append((float(v), enable, True, float(vel), 83.3, True, zc, za))
     return rows
 
 
@@ -59,7 +61,7 @@ def streamed():
                *[line for i, n in enumerate(names) for line in CONFIGS[n].setp_lines(0.001, f"distctrl-thc.{i}")])
         comp = hal.component("thc-stream")
         ins = {"arc": hal.HAL_FLOAT, "enable": hal.HAL_BIT, "cl-enable": hal.HAL_BIT, "vel": hal.HAL_FLOAT,
-               "req-vel": hal.HAL_FLOAT, "vl-enable": hal.HAL_BIT}
+               "req-vel": hal.HAL_FLOAT, "vl-enable": hal.HAL_BIT, "zc": hal.HAL_FLOAT, "za": hal.HAL_FLOAT}
         for p, t in ins.items():
             comp.newpin(p, t, hal.HAL_OUT)
         outs = {"offset": hal.HAL_FLOAT, "filtered": hal.HAL_FLOAT, "velocity": hal.HAL_FLOAT, "distance": hal.HAL_FLOAT,
@@ -72,7 +74,8 @@ def streamed():
         comp.ready()
         try:
             target = {"arc": "arc-voltage-in", "enable": "thc-enable", "cl-enable": "cornerlock-enable",
-                      "vel": "current-velocity", "req-vel": "requested-velocity", "vl-enable": "voidlock-enable"}
+                      "vel": "current-velocity", "req-vel": "requested-velocity", "vl-enable": "voidlock-enable",
+                      "zc": "axis-z-command", "za": "axis-z-position"}
             src = {"offset": "offset", "filtered": "filtered", "velocity": "velocity", "distance": "distance",
                    "counts": "z-offset-counts", "state": "state-out", "cl": "cornerlock-is-locked",
                    "vl": "voidlock-is-locked"}
@@ -96,9 +99,10 @@ def streamed():
                 k = s
                 got.append([{p: comp[f"{i}-{p}"] for p in outs} for i in range(len(names))])
                 if k - 1 < N:
-                    v, en, cl, vel, req, vl = rows[k - 1]
+                    v, en, cl, vel, req, vl, zc, za = rows[k - 1]
                     comp["arc"], comp["enable"], comp["cl-enable"] = v, en, cl
                     comp["vel"], comp["req-vel"], comp["vl-enable"] = vel, req, vl
+                    comp["zc"], comp["za"] = zc, za
                 comp["ack"] = k
             missed = int(hs.getp("distctrl-lockstep.0.missed"), 0)
         finally:
@@ -122,8 +126,8 @@ def test_the_component_equals_the_python_law_bit_for_bit(streamed, name):
     ref = ThcReference(CONFIGS[name])
     ref.step(0.0, False)                     # period 1: the pins' start values (its outputs are skipped)
     states = []
-    for k, (v, en, cl, vel, req, vl) in enumerate(rows):
-        r = ref.step(v, en, cl, vel, req, vl)
+    for k, (v, en, cl, vel, req, vl, zc, za) in enumerate(rows):
+        r = ref.step(v, en, cl, vel, req, vl, zc, za)
         g = got[k][i]
         states.append(g["state"])
         assert g["distance"] == r["distance"], (k, "distance")

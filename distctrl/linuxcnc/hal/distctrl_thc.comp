@@ -23,6 +23,9 @@ pin in float arc_voltage_in "arc voltage (V)";
 pin in float arc_v0 = 95.0 "linearisation: voltage at zero height (V)";
 pin in float arc_k = 6.0 "linearisation: V per mm";
 pin in bit thc_enable "run the law (active)";
+pin in bit use_both_encoders "P-AXIS-00500: feedback d + c - a (FCT-M3 §7.1) instead of d";
+pin in float axis_z_position "a: the Z joint's actual position (joint.N.pos-fb)";
+pin in float axis_z_command "c: the Z joint's commanded position (joint.N.motor-pos-cmd)";
 pin in bit cornerlock_enable "enable corner lock";
 pin in float cornerlock_threshold = 90.0 "corner lock below this percentage of requested-velocity";
 pin in float current_velocity "current path velocity (units/s), motion.current-vel";
@@ -342,7 +345,7 @@ static double advance_offset(double o_, double v, double T, double lo, double hi
 }
 
 FUNCTION(_) {
-    double T = fperiod, d, y, e, m, u, ic, v, t_over_tn, dg, clipped;
+    double T = fperiod, d, fb, y, e, m, u, ic, v, t_over_tn, dg, clipped;
     int i, lower, locked;
     for (i = 0; i < 135; i++)
         cf[i] = fc(i);
@@ -421,14 +424,15 @@ FUNCTION(_) {
         v_prev = 0.0;
         return;
     }
+    fb = use_both_encoders ? d + axis_z_command - axis_z_position : d;    /* law.feedback_value */
     if (!was_active) {                 /* activation: the filter starts from this sample, no jump */
-        filter_seed(cf, fs, buf, d);
+        filter_seed(cf, fs, buf, fb);
         integral = 0.0;
-        m_prev = -d;
+        m_prev = -fb;
         was_active = 1;
     }
     locked = cornerlock_is_locked || voidlock_is_locked;
-    y = filter_step(cf, fs, buf, d);
+    y = filter_step(cf, fs, buf, fb);
     filtered = y;
     e = set_dist - y;
     m = -y;
