@@ -62,11 +62,11 @@ def _build(as_json: bool) -> None:
               help="Print one JSON object (bench: plate, runs [{controller, functions, min_distance_mm, ...}]).")
 def linuxcnc(action: str, plate: str | None, repeat: int, settings: tuple, max_time: float | None,
              html_dir: str | None, as_json: bool) -> None:
-    """LinuxCNC's plasmac (halrun) in closed loop on distctrl's PLATE, side by side with distctrl.
+    """LinuxCNC's plasmac (halrun) in closed loop on distctrl's PLATE, side by side with distctrl and its HAL component.
 
     \b
-    distctrl linuxcnc bench PLATE.toml   plasmac with corner/void lock on and off, and distctrl
-    distctrl linuxcnc build              build and install the bench's HAL component (halcompile)
+    distctrl linuxcnc bench PLATE.toml   plasmac, distctrl_thc in halrun and distctrl, locks on and off
+    distctrl linuxcnc build              build and install the HAL components (halcompile)
     """
     from .common import fail
 
@@ -145,7 +145,7 @@ def format_text(doc: dict) -> str:
 
 
 def write_html(doc: dict, out_dir: str | Path) -> Path:
-    """index.html: the table and, per plasmac run, the nozzle's height over the surface and the arc voltage."""
+    """index.html: the table and, per run in halrun (plasmac, distctrl-hal), the nozzle's height over the surface and the arc voltage."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -172,14 +172,14 @@ def write_html(doc: dict, out_dir: str | Path) -> Path:
         a2.plot(cols["t"], [60 * v for v in cols["voidlock_is_locked"]], lw=0.6, label="void lock (60 = locked)")
         a2.set_xlabel("t (s)")
         a2.legend(loc="upper right", fontsize=7)
-        fig.suptitle(f"plasmac, {', '.join(r['functions']) or 'no corner/void lock'}", fontsize=9)
+        fig.suptitle(f"{r['controller']}, {', '.join(r['functions']) or 'no corner/void lock'}", fontsize=9)
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=90)
         plt.close(fig)
         imgs.append(base64.b64encode(buf.getvalue()).decode())
     head = "".join(f"<th>{html.escape(h)}</th>" for h in _HEAD)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in _rows(doc))
-    pics = "".join(f'<p><img alt="plasmac run" src="data:image/png;base64,{b}"></p>' for b in imgs)
+    pics = "".join(f'<p><img alt="run in halrun" src="data:image/png;base64,{b}"></p>' for b in imgs)
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>distctrl linuxcnc bench</title></head><body>"
             f"<h1>{html.escape(doc['scenario'])}</h1><p>plasmac (LinuxCNC, halrun, lock-step at "
             f"{doc['servo_period_s'] * 1000:g} ms) and distctrl on the same plate; {doc['repeat']} run(s) each.</p>"

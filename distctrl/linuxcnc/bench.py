@@ -163,15 +163,20 @@ def check_overrides(overrides: dict, settings: dict | None = None) -> None:
 
 
 def run_plasmac(job: PlateJob, cornerlock: bool, voidlock: bool, overrides: dict | None = None,
-                max_time: float | None = None, hal: HalSession | None = None) -> dict:
-    """One closed-loop run of plasmac on the plate (module docstring); returns its figures."""
+                max_time: float | None = None, hal: HalSession | None = None, thc=None) -> dict:
+    """One closed-loop run of plasmac on the plate (module docstring); returns its figures. With ``thc`` (a
+    :class:`distctrl.linuxcnc.thc.ThcConfig`) the height control of the cut is distctrl's component
+    (hal/distctrl_thc.comp): plasmac sequences the cut (probe, pierce, cut height, end) with its THC off
+    (thc-enable 0), distctrl_thc runs in the same thread after it, its offset added to plasmac's."""
     install_component("distctrl_lockstep")
+    if thc is not None:
+        install_component("distctrl_thc")
     own = hal is None
     hs = HalSession() if own else hal
     if own:
         hs.__enter__()
     try:
-        return _run_plasmac(hs, job, cornerlock, voidlock, overrides or {}, max_time)
+        return _run_plasmac(hs, job, cornerlock, voidlock, overrides or {}, max_time, thc)
     finally:
         if own:
             hs.__exit__(None, None, None)
@@ -184,7 +189,7 @@ def _pin_type(hal, value):
 
 
 def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool, overrides: dict,
-                 max_time: float | None) -> dict:
+                 max_time: float | None, thc=None) -> dict:
     hal = import_hal()
     sc = job.scenario
     T = SERVO_PERIOD
@@ -199,14 +204,17 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
                      "setup-feed-rate": 0.8 * thc_feed})
     check_overrides(overrides, settings)
     settings.update(overrides)
+    if thc is not None:
+        settings["thc-enable"] = 0                 # plasmac holds its cut height; distctrl_thc controls it
     surface = sc.surface
     z_min, z_max = surface.base - 20.0, job.z_prog + 30.0
     limits = {"z-min": z_min, "z-max": z_max, "x-min": -1000.0, "x-max": 5000.0, "y-min": -1000.0,
               "y-max": 5000.0}
     # plasmac and the gate in the servo thread; every setting by setp
+    dthc = ["loadrt distctrl_thc", "addf distctrl-thc.0 servo-thread", *thc.setp_lines(T)] if thc is not None else []
     hs.cmd(f"loadrt threads name1=servo-thread period1={int(round(T * 1e9))}", "loadrt plasmac",
            "loadrt distctrl_lockstep", "addf distctrl-lockstep.0.wait servo-thread", "addf plasmac servo-thread",
-           "addf distctrl-lockstep.0.post servo-thread", "setp distctrl-lockstep.0.enable 1",
+           *dthc, "addf distctrl-lockstep.0.post servo-thread", "setp distctrl-lockstep.0.enable 1",
            *[f"setp plasmac.{k} {v}" for k, v in settings.items() if f"{k}" not in
              ("cut-height", "pierce-height", "cut-feed-rate", "thc-feed-rate", "setup-feed-rate")])
     comp = hal.component("distctrl-plant")
@@ -222,14 +230,35 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
         comp.newpin(name, t, hal.HAL_IN)
     comp.newpin("seq", hal.HAL_U32, hal.HAL_IN)
     comp.newpin("ack", hal.HAL_U32, hal.HAL_OUT)
+    if thc is not None:
+        for name, t in (("dthc-enable", hal.HAL_BIT), ("dthc-reset", hal.HAL_BIT), ("z-cmd", hal.HAL_FLOAT),
+                        ("req-vel", hal.HAL_FLOAT)):
+            comp.newpin(name, t, hal.HAL_OUT)
+        for name, t in (("dthc-counts", hal.HAL_S32), ("dthc-scale", hal.HAL_FLOAT), ("dthc-state", hal.HAL_S32),
+                        ("dthc-cl", hal.HAL_BIT), ("dthc-vl", hal.HAL_BIT)):
+            comp.newpin(name, t, hal.HAL_IN)
     comp.ready()
     try:
         nets = [f"net dp-{p} distctrl-plant.{p} => plasmac.{q}" for p, q in _IN_PINS.items()]
         nets += [f"net dp-o-{q} plasmac.{p} => distctrl-plant.{q}" for p, q in _OUT_PINS.items()]
         nets += ["net dp-seq distctrl-lockstep.0.seq => distctrl-plant.seq",
                  "net dp-ack distctrl-plant.ack => distctrl-lockstep.0.ack"]
+        if thc is not None:       # distctrl_thc's pins are plasmac's names: the same signals feed it
+            t0 = "distctrl-thc.0"
+            nets += [f"net dp-arc-voltage {t0}.arc-voltage-in", f"net dp-current-vel {t0}.current-velocity",
+                     f"net dp-z-pos {t0}.axis-z-position", f"net dp-cornerlock-enable {t0}.cornerlock-enable",
+                     f"net dp-voidlock-enable {t0}.voidlock-enable",
+                     f"net dt-enable distctrl-plant.dthc-enable => {t0}.thc-enable",
+                     f"net dt-reset distctrl-plant.dthc-reset => {t0}.offset-reset",
+                     f"net dt-zc distctrl-plant.z-cmd => {t0}.axis-z-command",
+                     f"net dt-req distctrl-plant.req-vel => {t0}.requested-velocity",
+                     f"net dt-counts {t0}.z-offset-counts => distctrl-plant.dthc-counts",
+                     f"net dt-scale {t0}.offset-scale => distctrl-plant.dthc-scale",
+                     f"net dt-state {t0}.state-out => distctrl-plant.dthc-state",
+                     f"net dt-cl {t0}.cornerlock-is-locked => distctrl-plant.dthc-cl",
+                     f"net dt-vl {t0}.voidlock-is-locked => distctrl-plant.dthc-vl"]
         hs.cmd(*nets)
-        return _loop(hs, comp, job, settings, limits, cornerlock, voidlock, max_time)
+        return _loop(hs, comp, job, settings, limits, cornerlock, voidlock, max_time, thc)
     finally:
         try:
             hs.cmd("stop")
@@ -239,7 +268,7 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
 
 
 def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: bool, voidlock: bool,
-          max_time: float | None) -> dict:
+          max_time: float | None, thc=None) -> dict:
     sc = job.scenario
     T = SERVO_PERIOD
     zc = sc.axes["Z"]
@@ -266,6 +295,11 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
     comp["z-pos"] = drive.actual
     comp["x-pos"], comp["y-pos"] = path.x, path.y
     comp["feed-upm"] = job.cut_feed * 60.0
+    if thc is not None:
+        comp["req-vel"] = job.cut_feed
+        comp["dthc-reset"] = True
+    thc_delay = int(round(float(settings["thc-delay"]) / T))     # plasmac's THC delay, for distctrl_thc too
+    in_cut = 0
     hs.cmd("start")
     phase = "move"               # move | wait-idle (after a cut, until plasmac is idle again) | done
     k = 0
@@ -308,8 +342,18 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
             comp["is-running"] = False
             comp["is-idle"] = True
         target = counts * scale if comp["z-enable"] else offset.value
+        if thc is not None:
+            # distctrl_thc on from plasmac's THC delay into its CUT state (11) with the torch on; its offset
+            # back to 0 when the cut ends (offset-reset while idle)
+            in_cut = in_cut + 1 if (comp["state"] == 11 and torch) else 0
+            on = in_cut > thc_delay
+            comp["dthc-enable"] = on
+            comp["dthc-reset"] = not on
+            target = target + comp["dthc-counts"] * comp["dthc-scale"]
         eo = offset.step(target)
         z_cmd = job.z_prog + eo
+        if thc is not None:
+            comp["z-cmd"] = z_cmd
         drive.step(z_cmd)
         nozzle = drive.nozzle
         x, y = path.x, path.y
@@ -341,8 +385,9 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
         comp["eoffset-active"] = eo != 0.0
         comp["ack"] = k
         if k % 10 == 0:
+            locks = (comp["dthc-cl"], comp["dthc-vl"]) if thc is not None else (comp["cl-locked"], comp["vl-locked"])
             trace.append((k * T, x, y, nozzle, h, volts, int(torch), int(hold), comp["state"], eo,
-                          int(comp["cl-locked"]), int(comp["vl-locked"])))
+                          int(locks[0]), int(locks[1])))
         if comp["pause"] and phase != "done":
             plasmac_errors.append(f"plasmac paused the program at {k * T:.3f} s (state {comp['state']}, "
                                   f"x {x:.1f}, y {y:.1f})")
@@ -352,7 +397,7 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
     wall = time.perf_counter() - wall0
     gate = {name: hs.getp(f"distctrl-lockstep.0.{name}") for name in ("late", "missed", "wait-max", "seq")}
     fig = dives.figures()
-    return {"controller": "plasmac",
+    return {"controller": "plasmac" if thc is None else "distctrl-hal",
             "functions": [f for f, on in (("corner_lock", cornerlock), ("void_lock", voidlock)) if on],
             **fig, "collisions": collisions, "periods": k,
             "late_periods": int(gate["late"], 0), "missed_periods": int(gate["missed"], 0),
@@ -416,6 +461,35 @@ def _spread(values: list) -> dict:
     return {"mean": statistics.fmean(vals), "min": min(vals), "max": max(vals), "spread": max(vals) - min(vals)}
 
 
+def thc_config(job: PlateJob):
+    """distctrl_thc's settings from the plate: its Z axis list's KP, I_TN, D_TV, filter, v_max and a_max
+    (at most the external offset's: OFFSET_AV_RATIO of the Z axis's), max_deviation and both encoders (P-AXIS-00500), the cut height as SET_DIST, the PLC's arc-voltage
+    linearisation (the sensor's plc_v0/plc_k, else its arc's v0/k; the plasma plate's for a plate without
+    an arc-voltage sensor), the void lock at distctrl's defaults for a voltage (500 V/s over 20 ms)."""
+    from ..control.filters import FilterConfig
+    from .plant import arc_sensor
+    from .thc import ThcConfig
+
+    sc = job.scenario
+    p = sc.axes["Z"].params
+    sensor, _ = arc_sensor(sc, sc.cycle_time)
+    s = sc.sensor if (sc.sensor is not None and sc.sensor.kind == "arc_voltage") else None
+    v0 = s.plc_v0 if s is not None and s.plc_v0 is not None else sensor.v0
+    k = s.plc_k if s is not None and s.plc_k is not None else sensor.k
+    a_max = p.a_max if p.a_max > 0 else p.axis_a_max
+    # motion's external offset follows within OFFSET_AV_RATIO of the Z axis's limits: a law allowed more
+    # would see the offset planner's lag as dead time in its loop (it oscillated after corners: measured)
+    zc = sc.axes["Z"]
+    cfg = ThcConfig(kp=p.kp, i_tn=p.i_tn, d_tv=p.d_tv, use_both_encoders=bool(p.use_both_encoders),
+                    filter=FilterConfig(p.filter_type, p.n_cycles, p.smoothing_factor, p.kalman_sigma,
+                                        p.low_pass_filter_order, p.low_pass_filter_fg_f0),
+                    v_max=min(p.v_max, zc.v_max * OFFSET_AV_RATIO), a_max=min(a_max, zc.a_max * OFFSET_AV_RATIO),
+                    max_deviation=p.max_deviation, set_dist=job.cut_height,
+                    arc_v0=v0, arc_k=k)
+    cfg.check(sc.cycle_time)
+    return cfg
+
+
 def bench(plate: str | Path, repeat: int = 1, overrides: dict | None = None, max_time: float | None = None,
           progress=None) -> dict:
     """The side-by-side comparison (module docstring): plasmac with corner lock and void lock on and off,
@@ -424,7 +498,9 @@ def bench(plate: str | Path, repeat: int = 1, overrides: dict | None = None, max
         raise LinuxCNCError(f"--repeat {repeat}: at least 1")
     check_overrides(overrides or {})
     job = PlateJob.load(plate)
-    cases = [("plasmac", True), ("plasmac", False), ("distctrl", True), ("distctrl", False)]
+    cases = [("plasmac", True), ("plasmac", False), ("distctrl-hal", True), ("distctrl-hal", False),
+             ("distctrl", True), ("distctrl", False)]
+    thc = thc_config(job)
     runs = []
     install_component("distctrl_lockstep")
     with HalSession() as hs:
@@ -435,6 +511,9 @@ def bench(plate: str | Path, repeat: int = 1, overrides: dict | None = None, max
                     progress(f"{controller} ({'with' if on else 'without'} corner/void lock) run {i + 1}/{repeat}")
                 if controller == "plasmac":
                     reps.append(run_plasmac(job, on, on, overrides, max_time, hal=hs))
+                    hs._unload()
+                elif controller == "distctrl-hal":
+                    reps.append(run_plasmac(job, on, on, overrides, max_time, hal=hs, thc=thc))
                     hs._unload()
                 else:
                     reps.append(run_distctrl(job, on))

@@ -167,7 +167,7 @@ class ThcReference:
 
     def step(self, arc_voltage: float, enable: bool, cornerlock_enable: bool = False, current_velocity: float = 0.0,
              requested_velocity: float = 0.0, voidlock_enable: bool = False, z_command: float = 0.0,
-             z_actual: float = 0.0) -> dict:
+             z_actual: float = 0.0, reset: bool = False) -> dict:
         c, T = self.c, self.T
         d = (arc_voltage - c.arc_v0) * (1.0 / c.arc_k)
         self.cornerlock = bool(cornerlock_enable and current_velocity < requested_velocity * c.cornerlock_threshold * 0.01)
@@ -176,7 +176,10 @@ class ThcReference:
         if not enable:
             self.was_active = False
             self.v_prev = 0.0
-            return {**out, "state": 0, "offset": self.o, "velocity": 0.0, "counts": None, "filtered": None}
+            if reset:
+                self.o = 0.0
+            return {**out, "state": 0, "offset": self.o, "velocity": 0.0, "counts": lround(self.o / c.resolution),
+                    "filtered": None}
         fb = law.feedback_value(True, c.use_both_encoders, d, z_actual, z_command)
         if not self.was_active:
             law.filter_seed(self.fc, self.fs, self.buf, fb)

@@ -69,19 +69,21 @@ def _run(doc, controller, functions_on):
 def test_bench_json_has_the_issues_keys_for_plasmac_and_distctrl(bench_doc):
     assert bench_doc["plate"] == str(PLATE)
     assert {(r["controller"], "corner_lock" in r["functions"]) for r in bench_doc["runs"]} == {
-        ("plasmac", True), ("plasmac", False), ("distctrl", True), ("distctrl", False)}
+        ("plasmac", True), ("plasmac", False), ("distctrl-hal", True), ("distctrl-hal", False), ("distctrl", True),
+        ("distctrl", False)}
     for r in bench_doc["runs"]:
         for key in ("controller", "functions", "min_distance_mm", "time_below_half_s", "collisions",
                     "late_periods", "missed_periods", "dives", "spread", "repeats"):
             assert key in r, key
         assert len(r["repeats"]) == 2
     html = (bench_doc["_out"] / "index.html").read_text()
-    assert html.count("data:image/png;base64,") == 2        # one plot per plasmac run
+    assert html.count("data:image/png;base64,") == 4        # one plot per run in halrun
 
 
-def test_plasmac_cuts_the_plate_in_lock_step_and_reproducibly(bench_doc):
+@pytest.mark.parametrize("controller", ["plasmac", "distctrl-hal"])
+def test_plasmac_cuts_the_plate_in_lock_step_and_reproducibly(bench_doc, controller):
     for on in (True, False):
-        r = _run(bench_doc, "plasmac", on)
+        r = _run(bench_doc, controller, on)
         assert r["completed"] and r["cut_started"], r["warnings"]
         assert r["missed_periods"] == 0               # lock-step: no period ran on stale inputs
         assert isinstance(r["late_periods"], int)     # counted (the wall clock's misses), not hidden
@@ -101,6 +103,12 @@ def test_plasmac_with_its_locks_does_not_dive_where_distctrl_does_not(bench_doc)
     assert plasmac["collisions"] == 0 and dc["collisions"] == 0
     assert plasmac["time_below_half_s"] <= dc["time_below_half_s"] + 1e-9 or dc["time_below_half_s"] == 0
     assert math.isfinite(plasmac["min_distance_mm"])
+
+
+def test_distctrl_hal_keeps_the_torch_off_the_plate_in_halrun(bench_doc):
+    """distctrl's law as the HAL component, in plasmac's cut sequence: no collision on the tiny plate."""
+    r = _run(bench_doc, "distctrl-hal", True)
+    assert r["collisions"] == 0 and r["min_distance_mm"] > 0.0
 
 
 def test_bench_text_table_names_every_contestant():

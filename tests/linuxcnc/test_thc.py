@@ -43,7 +43,8 @@ def _inputs():
         vel = 83.3 if not (450 <= k < 520) else 83.3 * (1.0 - min(1.0, (k - 450) / 20.0)) + 5.0
         zc = 40.0 - 0.01 * k + 0.5 * math.sin(2 * math.pi * 7 * t)       # commanded and actual Z (both encoders)
         za = zc - 0.2 * math.cos(2 * math.pi * 7 * t) - 0.001 * rng.standard_normal()
-        rows.append((float(v), enable, True, float(vel), 83.3, True, zc, za))
+        reset = 620 <= k < 625                          # while idle: the offset back to 0
+        rows.append((float(v), enable, True, float(vel), 83.3, True, zc, za, reset))
     return rows
 
 
@@ -61,7 +62,8 @@ def streamed():
                *[line for i, n in enumerate(names) for line in CONFIGS[n].setp_lines(0.001, f"distctrl-thc.{i}")])
         comp = hal.component("thc-stream")
         ins = {"arc": hal.HAL_FLOAT, "enable": hal.HAL_BIT, "cl-enable": hal.HAL_BIT, "vel": hal.HAL_FLOAT,
-               "req-vel": hal.HAL_FLOAT, "vl-enable": hal.HAL_BIT, "zc": hal.HAL_FLOAT, "za": hal.HAL_FLOAT}
+               "req-vel": hal.HAL_FLOAT, "vl-enable": hal.HAL_BIT, "zc": hal.HAL_FLOAT, "za": hal.HAL_FLOAT,
+               "reset": hal.HAL_BIT}
         for p, t in ins.items():
             comp.newpin(p, t, hal.HAL_OUT)
         outs = {"offset": hal.HAL_FLOAT, "filtered": hal.HAL_FLOAT, "velocity": hal.HAL_FLOAT, "distance": hal.HAL_FLOAT,
@@ -75,7 +77,7 @@ def streamed():
         try:
             target = {"arc": "arc-voltage-in", "enable": "thc-enable", "cl-enable": "cornerlock-enable",
                       "vel": "current-velocity", "req-vel": "requested-velocity", "vl-enable": "voidlock-enable",
-                      "zc": "axis-z-command", "za": "axis-z-position"}
+                      "zc": "axis-z-command", "za": "axis-z-position", "reset": "offset-reset"}
             src = {"offset": "offset", "filtered": "filtered", "velocity": "velocity", "distance": "distance",
                    "counts": "z-offset-counts", "state": "state-out", "cl": "cornerlock-is-locked",
                    "vl": "voidlock-is-locked"}
@@ -99,7 +101,8 @@ def streamed():
                 k = s
                 got.append([{p: comp[f"{i}-{p}"] for p in outs} for i in range(len(names))])
                 if k - 1 < N:
-                    v, en, cl, vel, req, vl, zc, za = rows[k - 1]
+                    v, en, cl, vel, req, vl, zc, za, reset = rows[k - 1]
+                    comp["reset"] = reset
                     comp["arc"], comp["enable"], comp["cl-enable"] = v, en, cl
                     comp["vel"], comp["req-vel"], comp["vl-enable"] = vel, req, vl
                     comp["zc"], comp["za"] = zc, za
@@ -126,8 +129,8 @@ def test_the_component_equals_the_python_law_bit_for_bit(streamed, name):
     ref = ThcReference(CONFIGS[name])
     ref.step(0.0, False)                     # period 1: the pins' start values (its outputs are skipped)
     states = []
-    for k, (v, en, cl, vel, req, vl, zc, za) in enumerate(rows):
-        r = ref.step(v, en, cl, vel, req, vl, zc, za)
+    for k, (v, en, cl, vel, req, vl, zc, za, reset) in enumerate(rows):
+        r = ref.step(v, en, cl, vel, req, vl, zc, za, reset)
         g = got[k][i]
         states.append(g["state"])
         assert g["distance"] == r["distance"], (k, "distance")
@@ -135,13 +138,14 @@ def test_the_component_equals_the_python_law_bit_for_bit(streamed, name):
         assert g["offset"] == r["offset"], (k, "offset", g["offset"], r["offset"])
         assert g["velocity"] == r["velocity"], (k, "velocity")
         assert bool(g["cl"]) == r["cornerlock_is_locked"] and bool(g["vl"]) == r["voidlock_is_locked"], k
+        assert g["counts"] == r["counts"], (k, "counts")
         if r["state"]:
             assert g["filtered"] == r["filtered"], (k, "filtered")
-            assert g["counts"] == r["counts"], (k, "counts")
     # the transitions happened: idle -> active -> locked -> active -> idle -> active
     seq = [s for n, s in enumerate(states) if n == 0 or s != states[n - 1]]
     assert seq[:3] == [0, 1, 2] and 0 in seq[3:] and seq[-1] == 1
     assert any(s == 2 for s in states[300:340]) and any(s == 2 for s in states[460:520])
+    assert got[630][i]["offset"] == 0.0 and got[590][i]["offset"] != 0.0     # the reset while idle
 
 
 def test_thc_config_refuses_values_outside_the_documents_ranges():

@@ -6,7 +6,8 @@ operation into C so that its outputs equal the Python law's bit for bit (tests/l
 it in halrun for every filter type). The arc voltage is linearised into the distance as distctrl's PLC does
 (distance = (arc-voltage-in - arc-v0) / arc-k). Pins are named like plasmac's where they mean the same.
 
-States (state-out): 0 idle (thc-enable off: the law does not run, the offset stays), 1 active, 2 locked
+States (state-out): 0 idle (thc-enable off: the law does not run, the offset stays, or returns to 0 with
+offset-reset), 1 active, 2 locked
 (corner lock or void lock: the wanted step is 0, the offset brakes within the acceleration limit and
 stays, the integrator holds). Entering active seeds the filter with the current distance (no jump).
 Corner lock: current-velocity below cornerlock-threshold percent of requested-velocity. Void lock:
@@ -23,6 +24,7 @@ pin in float arc_voltage_in "arc voltage (V)";
 pin in float arc_v0 = 95.0 "linearisation: voltage at zero height (V)";
 pin in float arc_k = 6.0 "linearisation: V per mm";
 pin in bit thc_enable "run the law (active)";
+pin in bit offset_reset "while idle: the offset returns to 0 (motion's external-offset planner smooths the step; e.g. at the cut's end)";
 pin in bit use_both_encoders "P-AXIS-00500: feedback d + c - a (FCT-M3 §7.1) instead of d";
 pin in float axis_z_position "a: the Z joint's actual position (joint.N.pos-fb)";
 pin in float axis_z_command "c: the Z joint's commanded position (joint.N.motor-pos-cmd)";
@@ -422,6 +424,10 @@ FUNCTION(_) {
         state_out = 0;
         velocity = 0.0;
         v_prev = 0.0;
+        if (offset_reset)
+            o = 0.0;
+        offset = o;
+        z_offset_counts = (int)lround(o / resolution);
         return;
     }
     fb = use_both_encoders ? d + axis_z_command - axis_z_position : d;    /* law.feedback_value */
