@@ -32,6 +32,27 @@ def _parse_set(values: tuple) -> dict:
     return out
 
 
+def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: float, as_json: bool) -> None:
+    from ..errors import DistCtrlError
+    from ..linuxcnc.hal_env import LinuxCNCError
+    from ..linuxcnc.thc import ThcConfig
+    from ..params import load_list
+    from .common import emit_json, fail
+
+    if list_file is None:
+        fail("linuxcnc thc-setp needs an axis parameter LIST (kernel format, e.g. examples/scenarios/z_plasma_plate.lis)")
+    try:
+        cfg = ThcConfig.from_params(load_list(list_file).params, set_dist=set_dist, arc_v0=arc_v0, arc_k=arc_k)
+        lines = ["loadrt distctrl_thc", *cfg.setp_lines(0.001)]
+    except (LinuxCNCError, DistCtrlError) as exc:
+        fail(str(exc))
+    if as_json:
+        emit_json({"command": "linuxcnc thc-setp", "list": list_file, "lines": lines})
+    else:
+        click.echo(f"# distctrl_thc from {list_file} (distctrl linuxcnc thc-setp; servo period 1 ms)")
+        click.echo("\n".join(lines))
+
+
 def _build(as_json: bool) -> None:
     from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, install_component
     from .common import emit_json, fail
@@ -48,8 +69,14 @@ def _build(as_json: bool) -> None:
 
 
 @click.command()
-@click.argument("action", type=click.Choice(["bench", "build"]))
+@click.argument("action", type=click.Choice(["bench", "build", "thc-setp"]))
 @click.argument("plate", required=False, type=click.Path(dir_okay=False, exists=True))
+@click.option("--set-dist", type=Finite(0.001, 100.0), default=1.5, show_default=True,
+              help="thc-setp: SET_DIST, the cut height (mm).")
+@click.option("--arc-v0", type=Finite(0.0, 400.0), default=95.0, show_default=True,
+              help="thc-setp: the arc voltage's linearisation, V at zero height.")
+@click.option("--arc-k", type=Finite(0.5, 50.0), default=6.0, show_default=True,
+              help="thc-setp: the arc voltage's linearisation, V per mm.")
 @click.option("--repeat", default=1, show_default=True, type=click.IntRange(1, 50),
               help="Run every contestant N times and report the spread.")
 @click.option("--set", "settings", multiple=True, metavar="PIN=VALUE",
@@ -60,18 +87,22 @@ def _build(as_json: bool) -> None:
               help="Write an HTML report with plots into this directory (index.html).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (bench: plate, runs [{controller, functions, min_distance_mm, ...}]).")
-def linuxcnc(action: str, plate: str | None, repeat: int, settings: tuple, max_time: float | None,
-             html_dir: str | None, as_json: bool) -> None:
+def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc_k: float, repeat: int,
+             settings: tuple, max_time: float | None, html_dir: str | None, as_json: bool) -> None:
     """LinuxCNC's plasmac (halrun) in closed loop on distctrl's PLATE, side by side with distctrl and its HAL component.
 
     \b
     distctrl linuxcnc bench PLATE.toml   plasmac, distctrl_thc in halrun and distctrl, locks on and off
     distctrl linuxcnc build              build and install the HAL components (halcompile)
+    distctrl linuxcnc thc-setp LIST.lis  distctrl_thc's setp lines from an axis parameter list
     """
     from .common import fail
 
     if action == "build":
         _build(as_json)
+        return
+    if action == "thc-setp":
+        _thc_setp(plate, set_dist, arc_v0, arc_k, as_json)
         return
     if plate is None:
         fail("linuxcnc bench needs a PLATE (a plate scenario, e.g. examples/scenarios/plasma_plate_short.toml)")

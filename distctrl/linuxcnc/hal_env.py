@@ -138,13 +138,14 @@ class HalSession:
     def _unload(self) -> None:
         self._run(["halrun", "-U"], timeout=60.0)
 
-    def cmd(self, *lines: str) -> str:
-        """Run halcmd lines (one halcmd process, -k: all lines are tried); raise on any failure."""
+    def cmd(self, *lines: str, ini: str | None = None) -> str:
+        """Run halcmd lines (one halcmd process, -k: all lines are tried; ``ini``: an INI file for
+        ``[SECTION]KEY`` substitutions, as halrun -i); raise on any failure."""
         with tempfile.NamedTemporaryFile("w", suffix=".hal", delete=False) as f:
             f.write("\n".join(lines) + "\n")
             path = f.name
         try:
-            rc, text = self._run(["halcmd", "-k", "-f", path])
+            rc, text = self._run(["halcmd", *(["-i", ini] if ini else []), "-k", "-f", path])
         finally:
             os.unlink(path)
         self.log.extend(lines)

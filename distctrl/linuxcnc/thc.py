@@ -86,6 +86,18 @@ class ThcConfig:
         self.check(cycle_time)
         return design_coefficients(self.filter, cycle_time)
 
+    @classmethod
+    def from_params(cls, p, **kw) -> "ThcConfig":
+        """From an axis parameter list (:class:`distctrl.params.AxisParameters`): KP, I_TN, D_TV, both
+        encoders, the filter, v_max, a_max (0: the axis's), max_deviation; ``kw`` sets the rest."""
+        fields = dict(kp=p.kp, i_tn=p.i_tn, d_tv=p.d_tv, use_both_encoders=bool(p.use_both_encoders),
+                      filter=FilterConfig(p.filter_type, p.n_cycles, p.smoothing_factor, p.kalman_sigma,
+                                          p.low_pass_filter_order, p.low_pass_filter_fg_f0),
+                      v_max=p.v_max, a_max=p.a_max if p.a_max > 0 else p.axis_a_max,
+                      max_deviation=p.max_deviation)
+        fields.update(kw)
+        return cls(**fields)
+
     def setp_lines(self, cycle_time: float, name: str = "distctrl-thc.0") -> list[str]:
         """halcmd ``setp`` lines for the component instance ``name`` (exact: repr of each double)."""
         fc = self.coefficients(cycle_time)
@@ -117,6 +129,10 @@ class ThcReference:
         self.vsum = self.vlevel = 0.0
         self.vi = self.nfill = self.nmfill = self.non = self.noff = 0
         self.cornerlock = self.voidlock = False
+
+    def _counts(self) -> int:
+        r = self.c.resolution
+        return lround(self.o / r) if r > 0.0 else 0
 
     def _void_lock(self, x: float, on: bool) -> None:
         """distctrl's void_lock (its ST, distctrl/plc/process/void_lock.py) as the component runs it."""
@@ -178,7 +194,7 @@ class ThcReference:
             self.v_prev = 0.0
             if reset:
                 self.o = 0.0
-            return {**out, "state": 0, "offset": self.o, "velocity": 0.0, "counts": lround(self.o / c.resolution),
+            return {**out, "state": 0, "offset": self.o, "velocity": 0.0, "counts": self._counts(),
                     "filtered": None}
         fb = law.feedback_value(True, c.use_both_encoders, d, z_actual, z_command)
         if not self.was_active:
@@ -204,4 +220,4 @@ class ThcReference:
         self.m_prev = m
         self.v_prev = v
         return {**out, "state": 2 if locked else 1, "offset": self.o, "velocity": v,
-                "counts": lround(self.o / c.resolution), "filtered": y}
+                "counts": self._counts(), "filtered": y}

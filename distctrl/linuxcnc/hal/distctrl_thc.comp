@@ -45,7 +45,7 @@ pin in float d_tv "D_TV, P-AXIS-00765 (s; 0 = no D part)";
 pin in float v_max = 100.0 "velocity limit of the offset (mm/s), P-AXIS-00415 in mm/s";
 pin in float a_max = 2000.0 "acceleration limit of the offset (mm/s^2), P-AXIS-00416";
 pin in float max_deviation = 20.0 "bound of the offset (mm), P-AXIS-00414";
-pin in float resolution = 0.001 "mm per offset count";
+pin in float resolution = 0.001 "mm per offset count (wire plasmac.offset-scale to it; 0: no counts)";
 pin in float fc-###[135] "the law's filter coefficients (design_coefficients)";
 pin out s32 z_offset_counts "offset in counts, connect to axis.z.eoffset-counts";
 pin out float offset_scale "mm per count, connect to axis.z.eoffset-scale";
@@ -427,7 +427,7 @@ FUNCTION(_) {
         if (offset_reset)
             o = 0.0;
         offset = o;
-        z_offset_counts = (int)lround(o / resolution);
+        z_offset_counts = resolution > 0.0 ? (int)lround(o / resolution) : 0;
         return;
     }
     fb = use_both_encoders ? d + axis_z_command - axis_z_position : d;    /* law.feedback_value */
@@ -466,6 +466,6 @@ FUNCTION(_) {
     v_prev = v;
     velocity = v;
     offset = o;
-    z_offset_counts = (int)lround(o / resolution);
+    z_offset_counts = resolution > 0.0 ? (int)lround(o / resolution) : 0;
     state_out = locked ? 2 : 1;
 }
