@@ -129,8 +129,12 @@ class HalSession:
     def _run(self, argv: list[str], timeout: float = 60.0) -> tuple[int, str]:
         # rtapi_app, which the first loadrt starts, inherits halcmd's stdout: a pipe would never close
         with tempfile.TemporaryFile("w+") as out:
-            p = subprocess.run(argv, env=self.env, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-                               timeout=timeout)
+            try:
+                p = subprocess.run(argv, env=self.env, stdin=subprocess.DEVNULL, stdout=out,
+                                   stderr=subprocess.STDOUT, timeout=timeout)
+            except subprocess.TimeoutExpired:
+                raise LinuxCNCError(f"{' '.join(argv)} did not finish within {timeout:g} s (a HAL session that a "
+                                    "killed process left behind? run `halrun -U` as root and try again)") from None
             out.seek(0)
             text = "".join(line for line in out if "fallback_uid" not in line and "POSIX non-realtime" not in line)
         return p.returncode, text
