@@ -182,6 +182,16 @@ def run_plasmac(job: PlateJob, cornerlock: bool, voidlock: bool, overrides: dict
             hs.__exit__(None, None, None)
 
 
+def release_gate(name: str = "distctrl-lockstep.0") -> None:
+    """Switch the lock-step gate off at once (shared memory, no halcmd): when the plant stops answering,
+    the servo thread must not wait in the gate, where it holds uspace's thread lock and starves halcmd."""
+    hal = import_hal()
+    try:
+        hal.set_p(f"{name}.enable", "0")
+    except Exception:           # noqa: BLE001 - not loaded (yet): nothing waits
+        pass
+
+
 def _pin_type(hal, value):
     if isinstance(value, bool):
         return hal.HAL_BIT
@@ -260,6 +270,7 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
         hs.cmd(*nets)
         return _loop(hs, comp, job, settings, limits, cornerlock, voidlock, max_time, thc)
     finally:
+        release_gate()
         try:
             hs.cmd("stop")
         except LinuxCNCError:
@@ -395,6 +406,7 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
         if phase == "done" and comp["state"] == 0 and offset.value == target:
             break
     wall = time.perf_counter() - wall0
+    release_gate()
     gate = {name: hs.getp(f"distctrl-lockstep.0.{name}") for name in ("late", "missed", "wait-max", "seq")}
     fig = dives.figures()
     return {"controller": "plasmac" if thc is None else "distctrl-hal",

@@ -74,7 +74,8 @@ def import_hal():
 
 def install_component(name: str, force: bool = False) -> Path:
     """Build ``hal/<name>.comp`` with halcompile and install it into LinuxCNC's module directory (rtapi_app
-    loads modules only from there). Skipped when the installed module is newer than the source."""
+    loads modules only from there; the new file is renamed over the old one, so a running session keeps
+    the module it loaded). Skipped when the installed module is newer than the source."""
     require_linuxcnc(dev=True)
     src = HAL_DIR / f"{name}.comp"
     target = MODULE_DIR / f"{name}.so"
@@ -82,11 +83,18 @@ def install_component(name: str, force: bool = False) -> Path:
         return target
     with tempfile.TemporaryDirectory(prefix="distctrl-halcompile-") as tmp:
         shutil.copy(src, tmp)
-        p = subprocess.run(["halcompile", "--install", f"{name}.comp"], cwd=tmp, stdin=subprocess.DEVNULL,
+        p = subprocess.run(["halcompile", "--compile", f"{name}.comp"], cwd=tmp, stdin=subprocess.DEVNULL,
                            capture_output=True, text=True)
         if p.returncode != 0:
-            raise LinuxCNCError(f"halcompile --install {src} failed (exit {p.returncode}; root is needed to "
-                                f"install into {MODULE_DIR}):\n{p.stdout}{p.stderr}")
+            raise LinuxCNCError(f"halcompile --compile {src} failed (exit {p.returncode}):\n{p.stdout}{p.stderr}")
+        # a new file renamed over the old one: a running rtapi_app keeps the module it has mapped
+        try:
+            partial = MODULE_DIR / f".{name}.so.{os.getpid()}"
+            shutil.copy(Path(tmp) / f"{name}.so", partial)
+            os.replace(partial, target)
+        except OSError as exc:
+            raise LinuxCNCError(f"cannot install {target} ({exc.strerror}; root is needed to write "
+                                f"{MODULE_DIR})") from None
     return target
 
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from distctrl.control.filters import FilterConfig
+from distctrl.linuxcnc.bench import release_gate
 from distctrl.linuxcnc.hal_env import HalSession, LinuxCNCError, import_hal, install_component
 from distctrl.linuxcnc.thc import ThcConfig, ThcReference
 from distctrl.base.kinds import FilterType
@@ -107,8 +108,10 @@ def streamed():
                     comp["vel"], comp["req-vel"], comp["vl-enable"] = vel, req, vl
                     comp["zc"], comp["za"] = zc, za
                 comp["ack"] = k
+            release_gate()
             missed = int(hs.getp("distctrl-lockstep.0.missed"), 0)
         finally:
+            release_gate()
             try:
                 hs.cmd("stop")
             except LinuxCNCError:

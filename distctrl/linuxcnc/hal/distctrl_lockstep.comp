@@ -42,7 +42,7 @@ FUNCTION(wait) {
     if (!enable || ack == seq)
         return;
     t0 = now_s();
-    while (ack != seq) {
+    while (ack != seq && enable) {          /* enable off (the plant is done) releases the wait at once */
         if (++spins < 200)
             sched_yield();
         else
