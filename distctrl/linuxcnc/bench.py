@@ -364,7 +364,10 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
         eo = offset.step(target)
         z_cmd = job.z_prog + eo
         if thc is not None:
-            comp["z-cmd"] = z_cmd
+            # c for both encoders (d + c - a): the programmed Z plus the offsets as commanded (counts x
+            # scale), before motion's external-offset planner, whose lag, like the drive's, is then out of
+            # the loop as P-AXIS-00500 intends (with the planner's output the loop oscillated: measured)
+            comp["z-cmd"] = job.z_prog + target
         drive.step(z_cmd)
         nozzle = drive.nozzle
         x, y = path.x, path.y
