@@ -9,7 +9,7 @@ PY     := $(VENV)/bin/python
 DEMO_STAMP := $(VENV)/.installed-demo
 STAMP      := $(VENV)/.installed
 
-.PHONY: demo test bench stress clean docs chromium node
+.PHONY: demo test bench stress clean docs chromium node linuxcnc
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -49,7 +49,17 @@ $(NODE_STAMP): $(NODE_DIR)/package.json $(NODE_DIR)/package-lock.json
 
 node: $(NODE_STAMP)
 
-test: $(STAMP) chromium $(NODE_STAMP)
+# LinuxCNC (issue 29, docs/linuxcnc.md): tests/linuxcnc run Debian's plasmac in halrun and build the bench's
+# HAL component with halcompile (linuxcnc-uspace, linuxcnc-uspace-dev); they never skip, so make test stops
+# here if the packages cannot be installed
+linuxcnc:
+	@(command -v halrun >/dev/null 2>&1 && command -v halcompile >/dev/null 2>&1) \
+		|| (apt-get update -qq && apt-get install -y -qq linuxcnc-uspace linuxcnc-uspace-dev >/dev/null) \
+		|| (echo "make: Debian's linuxcnc-uspace and linuxcnc-uspace-dev are needed for tests/linuxcnc and could not be installed (apt-get install linuxcnc-uspace linuxcnc-uspace-dev)" >&2; exit 1)
+	@command -v halrun >/dev/null 2>&1 && command -v halcompile >/dev/null 2>&1 \
+		|| (echo "make: halrun/halcompile are still not on PATH after apt-get install linuxcnc-uspace linuxcnc-uspace-dev" >&2; exit 1)
+
+test: $(STAMP) chromium $(NODE_STAMP) linuxcnc
 	$(PY) -m pytest -q -p no:cacheprovider
 
 bench: $(STAMP)

@@ -15,6 +15,7 @@ LAZY_COMMANDS = {
     "excite": "distctrl.cli.excite:excite",
     "filters": "distctrl.cli.filters:filters",
     "identify": "distctrl.cli.identify:identify_cmd",
+    "linuxcnc": "distctrl.cli.linuxcnc:linuxcnc",
     "machine": "distctrl.cli.machine:machine",
     "margins": "distctrl.cli.margins:margins",
     "objects": "distctrl.cli.objects:objects",
