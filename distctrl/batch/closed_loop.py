@@ -71,7 +71,7 @@ from ..base.kinds import SensorSource
 from ..base.states import CommandSource
 from ..control import law
 from ..control.commands import Action, Command
-from ..control.controller import _MAX_I_GAIN
+from ..control.controller import _MAX_I_GAIN, AxisDistanceController
 from ..control.cycle_io import CycleOutput
 from ..params.axis import AxisParameters
 from ..sim import physics
@@ -232,7 +232,9 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     axis = sensor.axis
     if not sc.axes[axis].params.enabled:
         raise ClosedLoopError(f"distance control is not enabled on the sensor axis {axis}")
-    machine = Machine(sc, load_program(sc))
+    rec = _Recorder()
+    machine = Machine(sc, load_program(sc), controller_factory=lambda name, params, cycle_time:
+                      rec if name == axis else AxisDistanceController(params, cycle_time))
     if machine.kinematic_path:
         raise ClosedLoopError("3D distance control / head kinematics (CA) are not modelled by the "
                               "closed-loop "
@@ -247,9 +249,6 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
             raise ClosedLoopError(f"cycles = {cycles} beyond the scenario's duration ({max_cycles} cycles)")
         max_cycles = int(cycles)
 
-    rec = _Recorder()
-    machine.controllers[axis] = rec
-    machine._axes = [(n, i, o, rec if n == axis else c, d, dc, u) for (n, i, o, c, d, dc, u) in machine._axes]
 
     def no_wait(ax, action):
         raise ClosedLoopError(f"DIST_CTRL ... WAIT (line {machine.nc.line}) is not replayable: when the "
