@@ -71,7 +71,7 @@ from ..base.kinds import SensorSource
 from ..base.states import CommandSource
 from ..control import law
 from ..control.commands import Action, Command
-from ..control.controller import AxisDistanceController
+from ..control.controller import _MAX_I_GAIN, AxisDistanceController
 from ..control.cycle_io import CycleOutput
 from ..params.axis import AxisParameters
 from ..sim import physics
@@ -82,6 +82,7 @@ from ..sim.scenario import Scenario, load_scenario
 from ..sim.sensors import NOISE_BLOCK
 from . import kernel as _kernel  # registers law.* with numba; the law-constant columns
 from . import soa
+from .design import check_cycle_time, filter_coefficients, filter_config
 from .jitcache import cached
 from .layout import (Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_W_A, Q_A_FLOOR, Q_ADAPTIVE,
                      Q_A_MIN, Q_DEV_A_MIN, Q_DEV_A_MAX, Q_OPTIMIZED, Q_BOTH, Q_MAX_DEV, Q_CHECK_SW, Q_SW_MIN,
@@ -231,7 +232,9 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
     axis = sensor.axis
     if not sc.axes[axis].params.enabled:
         raise ClosedLoopError(f"distance control is not enabled on the sensor axis {axis}")
-    machine = Machine(sc, load_program(sc))
+    rec = _Recorder()
+    machine = Machine(sc, load_program(sc), controller_factory=lambda name, params, cycle_time:
+                      rec if name == axis else AxisDistanceController(params, cycle_time))
     if machine.kinematic_path:
         raise ClosedLoopError("3D distance control / head kinematics (CA) are not modelled by the "
                               "closed-loop "
@@ -246,9 +249,6 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
             raise ClosedLoopError(f"cycles = {cycles} beyond the scenario's duration ({max_cycles} cycles)")
         max_cycles = int(cycles)
 
-    rec = _Recorder()
-    machine.controllers[axis] = rec
-    machine._axes = [(n, i, o, rec if n == axis else c, d, dc, u) for (n, i, o, c, d, dc, u) in machine._axes]
 
     def no_wait(ax, action):
         raise ClosedLoopError(f"DIST_CTRL ... WAIT (line {machine.nc.line}) is not replayable: when the "
@@ -379,51 +379,114 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
 def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
     """``(n_sets, PACKED_LEN)`` rows ``[fc | prm]`` for a list of :class:`AxisParameters`.
 
-    The law's constants come from an :class:`AxisDistanceController` built with each set (so kernel
-    and cycle core cannot disagree); the probe from ``inputs.scenario``'s sensor with the set's
-    encoder resolution, sign reversal and reference offset (as the machine builds it). Columns of
+    The law's constants are those of :meth:`AxisDistanceController._derive
+    <distctrl.control.controller.AxisDistanceController>` and ``law_constants()``, computed for all
+    sets at once with the same operations (so kernel and cycle core cannot disagree; no controller
+    object per set: tests/batch/test_pack.py checks the rows bit for bit against the controller's);
+    the filter's coefficients come from :func:`distctrl.batch.design.filter_coefficients`, designed
+    once per distinct filter; the probe from ``inputs.scenario``'s sensor with the set's encoder
+    resolution and sign reversal (as the machine builds it), once per distinct pair. Columns of
     ``prm`` (offset ``law.FC_LEN``) that are plain numbers (``Q_KP``, ``Q_I_GAIN`` = T/i_tn,
-    ``Q_D_GAIN`` = law.derivative_gain(kp, d_tv, T): edit it with Q_KP, ``Q_V_MAX``, ``Q_A_BASE`` ...) may be edited in the array for a sweep; the
-    filter (``fc``) only through this function.
+    ``Q_D_GAIN`` = law.derivative_gain(kp, d_tv, T): edit it with Q_KP, ``Q_V_MAX``, ``Q_A_BASE`` ...)
+    may be edited in the array for a sweep; the filter (``fc``) only through this function.
     """
     T = inputs.cycle_time
-    rows = np.zeros((len(param_sets), PACKED_LEN))
-    for i, p in enumerate(param_sets):
+    sets = list(param_sets)
+    n = len(sets)
+    for i, p in enumerate(sets):
         if not isinstance(p, AxisParameters):
             raise ClosedLoopError(f"param_sets[{i}]: an AxisParameters, not {type(p).__name__}")
         if not p.enabled:
             raise ClosedLoopError(f"param_sets[{i}]: distance control not enabled (P-AXIS-00328)")
-        ctrl = AxisDistanceController(p, T)            # validates, designs the filter
-        c = ctrl.law_constants()
-        probe = inputs.scenario.sensor.make_sensor(T, p) if inputs.plant[PL_SENSOR] == SENSOR_PROBE else None
-        fc = np.asarray(c["fc"], dtype=np.float64)
-        q = np.zeros(Q_LEN)
-        _kernel.put_law_constants(q, c)
-        q[Q_ADAPTIVE] = 1.0 if p.use_adaptive_acceleration else 0.0
-        q[Q_A_MIN] = p.a_min
-        q[Q_DEV_A_MIN] = p.dist_error_a_min
-        q[Q_DEV_A_MAX] = p.dist_error_a_max
-        q[Q_OPTIMIZED] = 1.0 if p.optimized_scheduling else 0.0
-        q[Q_BOTH] = 1.0 if p.use_both_encoders else 0.0
-        q[Q_MAX_DEV] = p.max_deviation
-        q[Q_CHECK_SW] = 1.0 if p.check_sw_limit_switch else 0.0
-        q[Q_SW_MIN] = p.sw_limit_min
-        q[Q_SW_MAX] = p.sw_limit_max
-        q[Q_JUMP] = ctrl._jump_limit
-        q[Q_S_HI] = ctrl._s_hi
-        q[Q_S_LO] = ctrl._s_lo
-        q[Q_MM_PER_INCR] = ctrl._mm_per_incr
-        q[Q_SIGN_REV] = 1.0 if p.sensor_sign_reversal else 0.0
-        q[Q_REF_OFF] = p.ref_offset + ctrl.state.ref_shift
-        q[Q_MODULO] = 1.0 if ctrl._modulo else 0.0
-        q[Q_MIN_POS] = p.min_pos
-        q[Q_MAX_POS] = p.max_pos
-        if probe is not None:                          # (the distance sensor delivers mm)
-            q[Q_PROBE_IPM] = probe.increments_per_mm
-            q[Q_PROBE_REF] = probe.ref_offset
-        rows[i, :law.FC_LEN] = fc
-        rows[i, law.FC_LEN:] = q
+    rows = np.zeros((n, PACKED_LEN))
+    if not n:
+        return rows
+    check_cycle_time(T)
+    # the filter: one design per distinct configuration (it raises what the controller raised)
+    fc_of: dict = {}
+    fc_rows = np.empty(n, dtype=np.int64)
+    tables = []
+    for i, p in enumerate(sets):
+        cfg = filter_config(p)
+        j = fc_of.get(cfg)
+        if j is None or tables[j][0] != _types(cfg):
+            tables.append((_types(cfg), filter_coefficients(cfg, T)))
+            j = fc_of[cfg] = len(tables) - 1
+        fc_rows[i] = j
+    rows[:, :law.FC_LEN] = np.stack([t[1] for t in tables])[fc_rows]
+
+    def col(name, dtype=np.float64):
+        return np.fromiter((getattr(p, name) for p in sets), dtype=dtype, count=n)
+
+    def flag(name):
+        return np.fromiter((bool(getattr(p, name)) for p in sets), dtype=bool, count=n)
+
+    q = rows[:, law.FC_LEN:]
+    kp, i_tn, d_tv = col("kp"), col("i_tn"), col("d_tv")
+    a_max, axis_a_max = col("a_max"), col("axis_a_max")
+    adaptive = flag("use_adaptive_acceleration")
+    a_min = col("a_min")
+    # AxisDistanceController._derive, operation for operation (IEEE results do not depend on numpy vs Python)
+    a_base = np.where(a_max > 0, a_max, axis_a_max)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        i_gain = np.where(i_tn > 0, np.minimum(T / np.where(i_tn > 0, i_tn, 1.0), _MAX_I_GAIN), 0.0)
+    gains: dict = {}
+    d_gain = np.empty(n)
+    for i, p in enumerate(sets):                # law.derivative_gain itself, once per distinct (kp, d_tv)
+        key = (p.kp, p.d_tv)
+        g = gains.get(key)
+        if g is None:
+            g = gains[key] = law.derivative_gain(p.kp, p.d_tv, T)
+        d_gain[i] = g
+    v_wd, a_wd = col("v_weight_down"), col("a_weight_down")
+    w_v = np.where(v_wd > 0, v_wd, 1.0)
+    w_a = np.where(a_wd > 0, a_wd, 1.0)
+    a_floor = np.where(adaptive, np.minimum(a_base, a_min), a_base) * np.minimum(1.0, w_a)
+    q[:, Q_T] = T
+    q[:, Q_KP] = kp
+    q[:, Q_I_GAIN] = i_gain
+    q[:, Q_D_GAIN] = d_gain
+    q[:, Q_V_MAX] = col("v_max")
+    q[:, Q_A_BASE] = a_base
+    q[:, Q_W_V] = w_v
+    q[:, Q_W_A] = w_a
+    q[:, Q_A_FLOOR] = a_floor
+    q[:, Q_ADAPTIVE] = adaptive
+    q[:, Q_A_MIN] = a_min
+    q[:, Q_DEV_A_MIN] = col("dist_error_a_min")
+    q[:, Q_DEV_A_MAX] = col("dist_error_a_max")
+    q[:, Q_OPTIMIZED] = flag("optimized_scheduling")
+    q[:, Q_BOTH] = flag("use_both_encoders")
+    q[:, Q_MAX_DEV] = col("max_deviation")
+    q[:, Q_CHECK_SW] = flag("check_sw_limit_switch")
+    q[:, Q_SW_MIN] = col("sw_limit_min")
+    q[:, Q_SW_MAX] = col("sw_limit_max")
+    min_pos, max_pos, tol = col("min_pos"), col("max_pos"), col("tolerance")
+    q[:, Q_JUMP] = col("max_act_value_change") * T
+    q[:, Q_S_HI] = max_pos - tol
+    q[:, Q_S_LO] = min_pos + tol
+    q[:, Q_MM_PER_INCR] = col("sensor_mm_per_increment")
+    q[:, Q_SIGN_REV] = flag("sensor_sign_reversal")
+    q[:, Q_REF_OFF] = col("ref_offset") + 0.0            # + the state's ref_shift, 0 before any REF
+    q[:, Q_MODULO] = flag("sensor_modulo")
+    q[:, Q_MIN_POS] = min_pos
+    q[:, Q_MAX_POS] = max_pos
+    if inputs.plant[PL_SENSOR] == SENSOR_PROBE:          # (the distance sensor delivers mm)
+        probes: dict = {}
+        for i, p in enumerate(sets):
+            key = (p.encoder_resolution_num, p.encoder_resolution_denom, p.sensor_sign_reversal)
+            pr = probes.get(key)
+            if pr is None:
+                probe = inputs.scenario.sensor.make_sensor(T, p)
+                pr = probes[key] = (probe.increments_per_mm, probe.ref_offset)
+            q[i, Q_PROBE_IPM], q[i, Q_PROBE_REF] = pr
     return rows
+
+
+def _types(cfg) -> tuple:
+    """The types of a filter configuration's values (4 == 4.0, but the design refuses a float n)."""
+    return tuple(type(getattr(cfg, f)) for f in ("filter_type", "n_cycles", "smoothing_factor", "kalman_sigma",
+                                                 "order", "fg_f0"))
 
 
 # ----------------------------------------------------------------------------- kernel

@@ -106,7 +106,10 @@ def _wait_done(out: CycleOutput, action: Action) -> bool:
 class Machine:
     """A simulated channel built from a :class:`~distctrl.sim.scenario.Scenario`."""
 
-    def __init__(self, scenario, program: Program | None = None, plc_program=None, publish_hli: bool | None = None):
+    def __init__(self, scenario, program: Program | None = None, plc_program=None, publish_hli: bool | None = None,
+                 controller_factory=None):
+        """``controller_factory(name, params, cycle_time)``: builds each axis's controller (default
+        :class:`AxisDistanceController`; the closed-loop batch kernel's recorder stands in with it)."""
         self.scenario = scenario
         T = self.T = scenario.cycle_time
         axes = scenario.axes
@@ -117,7 +120,8 @@ class Machine:
                                 resolution=a.resolution, initial_position=a.start,
                                 velocity_feedforward=a.feedforward, resonance_hz=a.resonance_hz,
                                 damping=a.damping) for n, a in axes.items()}
-        self.controllers = {n: AxisDistanceController(a.params, T) for n, a in axes.items()}
+        make = controller_factory or (lambda name, params, cycle_time: AxisDistanceController(params, cycle_time))
+        self.controllers = {n: make(n, a.params, T) for n, a in axes.items()}
         self.inputs = {n: CycleInput(programmed_position=a.start, actual_position=self.drives[n].actual)
                        for n, a in axes.items()}
         self.outputs = {n: CycleOutput() for n in axes}

@@ -363,12 +363,90 @@ def to_params(base: AxisParameters, point: dict, cycle_time: float | None = None
 
 def build_sets(base: AxisParameters, points: list[dict], cycle_time: float | None = None
                ) -> tuple[list[AxisParameters], list[dict], list[tuple[dict, str]]]:
-    """Valid sets, their points, and the rejected ``(point, message)`` pairs."""
+    """Valid sets, their points, and the rejected ``(point, message)`` pairs.
+
+    What :func:`to_params` does per point, for all points at once (issue 27): the values of every
+    swept field are checked against the parameter table (:func:`distctrl.params.axis.check_internal`'s
+    rule, vectorised), the filters are designed once per distinct configuration
+    (:func:`distctrl.batch.design.filter_coefficients`), and a set is ``base`` with the point's values,
+    without a controller per set. A point the vectorised check does not pass (or a field it does not
+    cover: the sensor window, software limits, axis type, values of other types) goes through
+    :func:`to_params`, so the sets and the messages are those of :func:`to_params`."""
+    from ..batch.design import check_cycle_time, filter_coefficients, filter_config
+
+    points = list(points)
+    fast = _fast_ok(base, points)
+    if cycle_time is not None:
+        try:
+            check_cycle_time(cycle_time)
+        except (ParameterError, ValueError, TypeError):
+            fast[:] = False
     sets, kept, rejected = [], [], []
-    for pt in points:
+    for pt, ok in zip(points, fast):
+        if ok:
+            p = object.__new__(AxisParameters)          # base's (valid) values and the point's (checked)
+            p.__dict__.update(base.__dict__)
+            p.__dict__.update(pt)
+            if cycle_time is not None:
+                try:
+                    filter_coefficients(filter_config(p), cycle_time)
+                except (ParameterError, ValueError, TypeError) as exc:
+                    rejected.append((pt, f"parameter set {point_label(pt)} is not valid: {exc}"))
+                    continue
+            sets.append(p)
+            kept.append(pt)
+            continue
         try:
             sets.append(to_params(base, pt, cycle_time))
             kept.append(pt)
         except SpaceError as exc:
             rejected.append((pt, str(exc)))
     return sets, kept, rejected
+
+
+#: fields whose checks involve other fields (AxisParameters.__post_init__) or convert values: per point
+_CROSS_FIELDS = frozenset({"min_pos", "max_pos", "tolerance", "sw_limit_min", "sw_limit_max", "axis_type"})
+
+
+def _fast_ok(base: AxisParameters, points: list[dict]) -> np.ndarray:
+    """Per point: every value passes check_internal's rule for its field (vectorised over the points)."""
+    import dataclasses
+
+    n = len(points)
+    ok = np.ones(n, dtype=bool)
+    names = {f.name for f in dataclasses.fields(AxisParameters) if f.init}
+    fields: dict[str, list] = {}
+    for i, pt in enumerate(points):
+        for f, v in pt.items():
+            fields.setdefault(f, []).append((i, v))
+    rotary = base.rotary
+    for f, items in fields.items():
+        idx = np.fromiter((i for i, _ in items), dtype=np.int64, count=len(items))
+        spec = BY_FIELD.get(f)
+        if f not in names or spec is None or f in _CROSS_FIELDS or (spec.type == "STRING" and f != "filter_type"):
+            ok[idx] = False
+            continue
+        if f == "filter_type":
+            good = np.fromiter((isinstance(v, FilterType) and v != FilterType.PASS for _, v in items), dtype=bool,
+                               count=len(items))
+            ok[idx[~good]] = False
+            continue
+        allowed = (int, float, bool) if spec.type == "BOOLEAN" else (int, float)
+        typed = np.fromiter((type(v) in allowed for _, v in items), dtype=bool, count=len(items))
+        x = np.fromiter((float(v) if t else np.nan for (_, v), t in zip(items, typed)), dtype=np.float64,
+                        count=len(items))
+        good = typed & np.isfinite(x)
+        with np.errstate(invalid="ignore"):
+            iv = x / spec.scale_for(rotary)
+            slack = 1e-9 * np.maximum(1.0, np.abs(iv))
+            if spec.type == "BOOLEAN":
+                good &= (iv == 0.0) | (iv == 1.0)
+            elif spec.choices:
+                good &= np.isin(iv, np.asarray(spec.choices, dtype=np.float64))
+            else:
+                if spec.lo is not None:
+                    good &= (iv > spec.lo) if spec.lo_open else (iv >= spec.lo - slack)
+                if spec.hi is not None:
+                    good &= (iv < spec.hi) if spec.hi_open else (iv <= spec.hi + slack)
+        ok[idx[~good]] = False
+    return ok

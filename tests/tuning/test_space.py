@@ -80,3 +80,48 @@ def test_a_grid_range_finer_than_the_resolution_keeps_its_values_without_artefac
 
 def test_grid_lists_keep_the_values_typed():
     assert parse_grid("d_tv=0.00015,0.0035")["d_tv"] == [0.00015, 0.0035]
+
+
+def _mixed_points():
+    pts = random_sample(300, seed=7, cycle_time=0.001)
+    bad = [{"kp": 0.0}, {"kp": -1.0}, {"kp": float("nan")}, {"kp": True}, {"kp": "0.5"},
+           {"n_cycles": 100}, {"n_cycles": 4.5}, {"i_tn": -0.1}, {"d_tv": 1e9},
+           {"filter_type": FilterType.LOWPASS, "low_pass_filter_fg_f0": 600.0},
+           {"filter_type": FilterType.LOWPASS, "low_pass_filter_order": 7},
+           {"filter_type": "LOWPASS", "low_pass_filter_fg_f0": 40.0},
+           {"filter_type": FilterType.PASS}, {"smoothing_factor": 0.0}, {"kalman_sigma": 0.5},
+           {"v_max": 0.0}, {"optimized_scheduling": False}, {"a_max": 1e12}]
+    out = []
+    for i, p in enumerate(pts):
+        out.append(p)
+        if i % 17 == 0:
+            out.append(bad[(i // 17) % len(bad)])
+    return out + bad
+
+
+def test_build_sets_builds_no_controller_per_set_and_gives_what_to_params_gives(monkeypatch):
+    """issue 27: the sets are checked against the parameter table for all points at once; what
+    to_params (one controller per set) accepts and the messages of what it rejects stay the same."""
+    from distctrl.control import controller as ctl
+
+    base = AxisParameters(enabled=True)
+    pts = _mixed_points()
+    want_sets, want_rejected = [], []
+    for pt in pts:
+        try:
+            want_sets.append(to_params(base, pt, 0.001))
+        except SpaceError as exc:
+            want_rejected.append((pt, str(exc)))
+    built = []
+    init = ctl.AxisDistanceController.__init__
+
+    def counting_init(self, *a, **k):
+        built.append(1)
+        init(self, *a, **k)
+
+    monkeypatch.setattr(ctl.AxisDistanceController, "__init__", counting_init)
+    sets, kept, rejected = build_sets(base, pts, 0.001)
+    assert sets == want_sets
+    assert rejected == want_rejected
+    assert len(kept) == len(sets) and all(k in pts for k in kept)
+    assert len(built) <= len(want_rejected)       # only the refused points take the per-set path

@@ -1,0 +1,200 @@
+"""Benchmark: what a user's `distctrl sweep` costs beside what its kernel costs (issue 27).
+
+End to end: fresh ``python -m distctrl sweep examples/scenarios/tune_sheet.toml --random N --local``
+processes (the kernels loaded from numba's cache, compiled beforehand by ``make``'s warm-up), wall
+time of N = 10 (the warm fixed cost: imports, the scenario's recording, writing the table) and of
+N = 10 000; the marginal cost of a set-cycle is (t(10 000) - t(10)) / (9 990 sets x cycles).
+
+The kernel's cost in the same run: the same 10 000 sets, packed, through
+:func:`distctrl.batch.closed_loop.run_batch` in this process (numba's default threads, as the sweep
+runs), best of 3; and the steps of a sweep timed one by one in this process (sampling, checking the
+sets, packing, the kernel, the metrics) so the table says where the rest goes.
+
+Dask: the same sweep's evaluation (:class:`distctrl.tuning.runner.Evaluator`) over an embedded
+LocalCluster of 1 and of 2 single-threaded workers, ``--dask-sets`` sets (default 100 000; the
+issue's 10^6 with ``--dask-sets 1000000``), scaling and the share of the time outside the kernels
+(1 - kernel time / (workers x wall time)).
+
+Targets (issue 27): marginal cost within 2x the kernel's; warm fixed cost <= 2 s; dask 2 workers
+>= 1.8x 1 worker with <= 10 % outside the kernels. The machine's load (``uptime``) is recorded:
+the bench machine is shared. Results: bench/results.json (keys ``sweep_*``), bench/RESULTS.md.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+
+import numpy as np  # noqa: E402
+from _results import merge_results  # noqa: E402
+
+SCENARIO = ROOT / "examples" / "scenarios" / "tune_sheet.toml"
+TARGET_MARGINAL_RATIO = 2.0
+TARGET_FIXED_S = 2.0
+TARGET_DASK_SCALING = 1.8
+TARGET_DASK_OUTSIDE = 0.10
+
+
+def load() -> str:
+    try:
+        return subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
+    except OSError:
+        return "(uptime not available)"
+
+
+def cli_sweep(n: int, tmp: pathlib.Path) -> tuple[float, dict]:
+    """Wall time of a fresh `distctrl sweep --random n --local --json` process, and its JSON."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    cmd = [sys.executable, "-m", "distctrl", "sweep", str(SCENARIO), "--random", str(n), "--local",
+           "--out", str(tmp / f"sweep_{n}.csv"), "--json"]
+    t0 = time.perf_counter()
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT, check=False)
+    dt = time.perf_counter() - t0
+    if res.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr[-2000:]}")
+    return dt, json.loads(res.stdout)
+
+
+def steps(n: int, repeats: int = 3) -> dict:
+    """The steps of a sweep of n random sets, timed one by one in this process (best of ``repeats``)."""
+    from distctrl.batch import closed_loop as CL
+    from distctrl.batch import design
+    from distctrl.tuning.metrics import compute_metrics, limits_from_packed, wanted_distance
+    from distctrl.tuning.space import build_sets, drop_inert_d_tv, random_sample
+
+    t0 = time.perf_counter()
+    inputs = CL.prepare(SCENARIO)
+    out = {"prepare_s": time.perf_counter() - t0}
+    T = inputs.cycle_time
+    t0 = time.perf_counter()
+    points, _ = drop_inert_d_tv(random_sample(n, 0, cycle_time=T))
+    out["sample_s"] = time.perf_counter() - t0
+    design.clear_cache()                     # the designs are part of a fresh process's cost
+    t0 = time.perf_counter()
+    sets, points, _ = build_sets(inputs.params, points, T)
+    out["build_sets_s"] = time.perf_counter() - t0
+    out["filter_designs"] = design.cache_info()["designs"]
+    t0 = time.perf_counter()
+    packed = CL.pack_sets(inputs, sets)
+    out["pack_s"] = time.perf_counter() - t0
+    CL.run_batch(inputs, packed[:64])         # loaded from the cache
+    offset = np.empty((len(packed), inputs.n_cycles))
+    distance = np.empty_like(offset)
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        CL.run_batch(inputs, packed, out=(offset, distance))
+        best = min(best, time.perf_counter() - t0)
+    out["kernel_s"] = best
+    chunk = 256
+    t0 = time.perf_counter()
+    wanted = wanted_distance(inputs, inputs.n_cycles)
+    for a in range(0, len(packed), chunk):
+        compute_metrics(offset[a:a + chunk], distance[a:a + chunk], wanted, T, inputs.k_on,
+                        limits_from_packed(packed[a:a + chunk]))
+    out["metrics_s"] = time.perf_counter() - t0
+    out["sets"] = len(sets)
+    out["cycles"] = inputs.n_cycles
+    out["kernel_ns_per_set_cycle"] = best / (len(sets) * inputs.n_cycles) * 1e9
+    return out
+
+
+def dask_scaling(n_sets: int, chunk: int = 2048) -> dict:
+    """Evaluator over LocalClusters of 1 and 2 workers: wall time, scaling, share outside the kernels."""
+    from distctrl.batch import closed_loop as CL
+    from distctrl.tuning.runner import Evaluator
+    from distctrl.tuning.space import build_sets, drop_inert_d_tv, random_sample
+
+    inputs = CL.prepare(SCENARIO)
+    T = inputs.cycle_time
+    points, _ = drop_inert_d_tv(random_sample(min(n_sets, 20_000), 0, cycle_time=T))
+    base_sets, _, _ = build_sets(inputs.params, points, T)
+    sets = [base_sets[i % len(base_sets)] for i in range(n_sets)]
+    packed = CL.pack_sets(inputs, sets[:4096])
+    offset = np.empty((len(packed), inputs.n_cycles))
+    distance = np.empty_like(offset)
+    CL.run_batch(inputs, packed, threads=1, out=(offset, distance))
+    t0 = time.perf_counter()
+    CL.run_batch(inputs, packed, threads=1, out=(offset, distance))
+    kernel_per_set = (time.perf_counter() - t0) / len(packed)      # 1 thread, as a worker runs
+    out = {"sets": n_sets, "cycles": inputs.n_cycles, "kernel_s_per_set_1_thread": kernel_per_set}
+    for workers in (1, 2):
+        with Evaluator(inputs, mode="cluster", n_workers=workers, chunk_size=chunk, progress=False) as ev:
+            ev.evaluate(sets[:workers * chunk])                    # workers up, kernels loaded
+            t0 = time.perf_counter()
+            ev.evaluate(sets)
+            wall = time.perf_counter() - t0
+        outside = 1.0 - kernel_per_set * n_sets / (workers * wall)
+        out[f"wall_s_{workers}"] = wall
+        out[f"outside_share_{workers}"] = outside
+    out["scaling"] = out["wall_s_1"] / out["wall_s_2"]
+    return out
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=str(ROOT / "bench"), help="directory of results.json / RESULTS.md")
+    ap.add_argument("--sets", type=int, default=10_000)
+    ap.add_argument("--small", type=int, default=10)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--dask-sets", type=int, default=100_000, help="0: no dask measurement")
+    ap.add_argument("--quick", action="store_true", help="small sizes, a smoke test")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.sets, args.repeats, args.dask_sets = 300, 1, 0
+    load_before = load()
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = pathlib.Path(tmp)
+        cli_sweep(args.small, tmp)                        # kernels loaded once from the cache (not timed)
+        small = min(cli_sweep(args.small, tmp)[0] for _ in range(args.repeats))
+        big, js = min((cli_sweep(args.sets, tmp) for _ in range(max(1, args.repeats - 1))), key=lambda r: r[0])
+    cycles = js["cycles"]
+    n_big = js["sets"]
+    marginal_ns = (big - small) / ((n_big - args.small) * cycles) * 1e9
+    st = steps(args.sets, args.repeats)
+    ratio = marginal_ns / st["kernel_ns_per_set_cycle"]
+    res = {"sweep_fixed_s": small, "sweep_big_s": big, "sweep_big_sets": n_big, "sweep_cycles": cycles,
+           "sweep_marginal_ns_per_set_cycle": marginal_ns, "sweep_kernel_ns_per_set_cycle": st["kernel_ns_per_set_cycle"],
+           "sweep_marginal_over_kernel": ratio, "sweep_steps": st, "sweep_load_before": load_before}
+    dk = None
+    if args.dask_sets:
+        dk = dask_scaling(args.dask_sets)
+        res["sweep_dask"] = dk
+    res["sweep_load_after"] = load()
+    ok = lambda b: "met" if b else "**missed**"  # noqa: E731
+    lines = ["", "## Sweep end to end vs its kernel (bench/bench_sweep.py)", "",
+             f"Load before: `{load_before}`; after: `{res['sweep_load_after']}`.", "",
+             "| figure | value | target |", "|---|---|---|",
+             f"| warm fixed cost, `sweep --random {args.small} --local` wall (best of {args.repeats}) | {small:.2f} s | "
+             f"≤ {TARGET_FIXED_S:g} s ({ok(small <= TARGET_FIXED_S)}) |",
+             f"| `sweep --random {args.sets} --local` wall ({n_big} sets × {cycles} cycles) | {big:.2f} s | – |",
+             f"| marginal cost per set-cycle end to end | {marginal_ns:.1f} ns | ≤ 2 × kernel |",
+             f"| kernel `run_batch` on the same sets, default threads, best of {args.repeats} | "
+             f"{st['kernel_ns_per_set_cycle']:.2f} ns ({1e3 / st['kernel_ns_per_set_cycle']:.0f} M set-cycles/s) | – |",
+             f"| marginal / kernel | {ratio:.1f}× | ≤ {TARGET_MARGINAL_RATIO:g}× ({ok(ratio <= TARGET_MARGINAL_RATIO)}) |",
+             "", f"Steps of a {st['sets']}-set sweep in one process: recording the scenario {st['prepare_s']:.2f} s, "
+             f"sampling {st['sample_s']:.2f} s, checking the sets {st['build_sets_s']:.2f} s "
+             f"({st['filter_designs']} distinct filter designs), packing {st['pack_s']:.2f} s, kernel "
+             f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s.", ""]
+    if dk:
+        lines += [f"Dask, {dk['sets']} sets × {dk['cycles']} cycles, embedded LocalCluster: 1 worker "
+                  f"{dk['wall_s_1']:.1f} s ({dk['outside_share_1']:.0%} outside the kernel), 2 workers "
+                  f"{dk['wall_s_2']:.1f} s ({dk['outside_share_2']:.0%} outside); scaling {dk['scaling']:.2f}× "
+                  f"(target ≥ {TARGET_DASK_SCALING:g}×: {ok(dk['scaling'] >= TARGET_DASK_SCALING)}; outside ≤ "
+                  f"{TARGET_DASK_OUTSIDE:.0%}: {ok(dk['outside_share_2'] <= TARGET_DASK_OUTSIDE)}).", ""]
+    merge_results(pathlib.Path(args.out), res, lines)
+    print("\n".join(lines))
+    return res
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""Filter coefficients designed once per distinct filter configuration, and shared (issue 27).
+
+A sweep of 10 000 sets has a few hundred distinct filters at most (the tuner and ``--random``
+round every value to what the parameter list accepts, a grid repeats them); designing each set's
+Butterworth low-pass with scipy (about 1 ms) was most of a sweep's time. :func:`filter_coefficients`
+calls :func:`distctrl.control.filters.design_coefficients` once per distinct ``(filter type, n,
+alpha, sigma, order, fg_f0)`` and cycle time, and hands out the same read-only buffer afterwards; a
+configuration that the design refuses (the low-pass cut-off above Nyquist, ...) raises the same
+:class:`~distctrl.errors.ParameterError` every time.
+
+Importing this module imports neither numba nor scipy (the low-pass design imports scipy when it runs).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..control.filters import FilterConfig, design_coefficients
+
+__all__ = ["filter_coefficients", "filter_config", "check_cycle_time", "clear_cache", "cache_info"]
+
+#: at most this many designs are kept (a tuner's long run with continuous values cannot grow it without bound)
+MAX_ENTRIES = 1 << 16
+_FIELDS = tuple(f.name for f in dataclasses.fields(FilterConfig))
+_CACHE: dict = {}
+_STATS = {"designs": 0, "hits": 0}
+
+
+def filter_config(p) -> FilterConfig:
+    """The filter configuration of an :class:`~distctrl.params.AxisParameters` set (as the controller's
+    ``Tuning.from_params`` builds it)."""
+    return FilterConfig(p.filter_type, p.n_cycles, p.smoothing_factor, p.kalman_sigma,
+                        p.low_pass_filter_order, p.low_pass_filter_fg_f0)
+
+
+def _key(config: FilterConfig, cycle_time: float):
+    # the types are part of the key: 4 == 4.0, but a float n_cycles is refused by the design
+    values = tuple(getattr(config, f) for f in _FIELDS)
+    return values, tuple(type(v) for v in values), cycle_time, type(cycle_time)
+
+
+def filter_coefficients(config: FilterConfig, cycle_time: float) -> np.ndarray:
+    """The law's coefficient buffer ``fc`` of ``config`` at ``cycle_time`` (read-only float64 array),
+    designed by :func:`~distctrl.control.filters.design_coefficients` on the first request; raises what
+    the design raises (every time)."""
+    key = _key(config, cycle_time)
+    try:
+        hit = _CACHE[key]
+    except (KeyError, TypeError):          # TypeError: an unhashable value (designed, not kept)
+        hit = None
+    if hit is not None:
+        _STATS["hits"] += 1
+        if isinstance(hit, BaseException):
+            raise hit.with_traceback(None)
+        return hit
+    _STATS["designs"] += 1
+    try:
+        fc = np.asarray(design_coefficients(config, cycle_time), dtype=np.float64)
+    except Exception as exc:                # noqa: BLE001 - kept and raised again for the same configuration
+        _store(key, exc)
+        raise
+    fc.flags.writeable = False
+    _store(key, fc)
+    return fc
+
+
+def _store(key, value) -> None:
+    if len(_CACHE) >= MAX_ENTRIES:
+        _CACHE.clear()
+    try:
+        _CACHE[key] = value
+    except TypeError:                       # unhashable
+        pass
+
+
+def clear_cache() -> None:
+    _CACHE.clear()
+    _STATS.update(designs=0, hits=0)
+
+
+def cache_info() -> dict:
+    """``{"designs": n, "hits": n, "entries": n}`` since the last :func:`clear_cache`."""
+    return {**_STATS, "entries": len(_CACHE)}
+
+
+def check_cycle_time(cycle_time) -> None:
+    """Raise what :class:`~distctrl.control.controller.AxisDistanceController` raises for a cycle time
+    out of its range (the sets' checks that do not build a controller per set start with it)."""
+    import math
+
+    if isinstance(cycle_time, (int, float)) and math.isfinite(cycle_time) and 1e-5 <= cycle_time <= 1.0:
+        return
+    from ..control.controller import AxisDistanceController
+    from ..params.axis import AxisParameters
+
+    AxisDistanceController(AxisParameters(), cycle_time)       # raises the controller's own ParameterError
+    raise AssertionError("the controller accepted a cycle time this check refuses")  # pragma: no cover
