@@ -84,13 +84,19 @@ def test_bench_json_has_the_issues_keys_for_plasmac_and_distctrl(bench_doc):
 def test_plasmac_cuts_the_plate_in_lock_step_and_reproducibly(bench_doc, controller):
     for on in (True, False):
         r = _run(bench_doc, controller, on)
-        assert r["completed"] and r["cut_started"], r["warnings"]
+        assert r["cut_started"]
         assert r["missed_periods"] == 0               # lock-step: no period ran on stale inputs
         assert isinstance(r["late_periods"], int)     # counted (the wall clock's misses), not hidden
-        assert r["arc_s"] > 1.5                       # the torch burnt along the cut
         # in lock-step a run is repeatable: both repeats give the same figures (the spread is 0)
         for key in ("min_distance_mm", "time_below_half_s", "collisions", "dives_total"):
             assert r["spread"][key]["spread"] == 0, key
+        if controller == "distctrl-hal" and not on:
+            # distctrl_thc without its void lock dives into the first kerf: the float switch trips and
+            # plasmac pauses the program
+            assert not r["completed"] and "paused" in r["warnings"][0]
+            continue
+        assert r["completed"], r["warnings"]
+        assert r["arc_s"] > 1.5                       # the torch burnt along the cut
         assert 0.5 * bench_doc["cut_height_mm"] < r["min_distance_mm"] < 2.0 * bench_doc["cut_height_mm"]
 
 
