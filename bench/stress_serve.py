@@ -584,14 +584,18 @@ def rfill(r: random.Random) -> bytes:
     return r.choice(HTTP_FILLERS) if r.random() < 0.7 else bytes(r.getrandbits(8) for _ in range(r.randint(0, 120)))
 
 
-def http_exchange(port: int, data: bytes, source: str | None = None) -> bytes:
-    """Send, half-close, read until the server closes (or ``TIMEOUT``: an escape)."""
+def http_exchange(port: int, data: bytes, source: str | None = None, half_close: bool = True) -> bytes:
+    """Send, half-close (a request that may be incomplete ends there), read until the server closes
+    (or ``TIMEOUT``: an escape). Tornado closes a connection whose client half-closed, also while a
+    slow answer (a new page: ~0.3 s) is still being built, so a complete request is sent with
+    ``Connection: close`` and no half-close."""
     s = connect(port, source)
     buf = bytearray()
     try:
         try:
             s.sendall(data)
-            s.shutdown(socket.SHUT_WR)
+            if half_close:
+                s.shutdown(socket.SHUT_WR)
         except OSError:
             pass
         while True:
@@ -623,8 +627,13 @@ def check_http_answer(data: bytes, answer: bytes) -> int | None:
     return code
 
 
+def get_root(port: int, source: str | None = None) -> bytes:
+    return http_exchange(port, f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n".encode(),
+                         source, half_close=False)
+
+
 def page_token(port: int) -> str:
-    body = http_exchange(port, f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+    body = get_root(port)
     m = re.search(rb'"token":"([^"]+)"', body)
     if not body.startswith(b"HTTP/1.1 200") or not m:
         raise Escape("health", f"GET / did not give a page with a session token: {body[:120]!r}")
@@ -708,9 +717,12 @@ class PageCampaign:
             data = t.replace(b"%s", rfill(r)) if b"%s" in t else t
             if r.random() < 0.1:
                 data = data[:r.randint(0, len(data))]
-            code = check_http_answer(data, http_exchange(port, data))
-            if data == f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode() and code != 200:
-                raise Escape("http", f"GET / answered {code}")
+            if data == f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode():
+                code = check_http_answer(data, get_root(port))      # the page itself: 200
+                if code != 200:
+                    raise Escape("http", f"GET / answered {code}")
+            else:
+                code = check_http_answer(data, http_exchange(port, data))
             return {"http": 1, f"http_{code or 'closed'}": 1}
         if k < 0.60:                               # a hostile websocket upgrade
             s, answer = ws_handshake(port, r, self.token, hostile=True)
@@ -760,8 +772,7 @@ class PageCampaign:
             rst_close(s) if r.random() < 0.3 else s.close()
             return {"ws_sessions": 1, "ws_frames": len(frames)}
         # from outside --allow: closed at once, no answer
-        data = f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode()
-        answer = http_exchange(port, data, OUTSIDE)
+        answer = get_root(port, OUTSIDE)
         if answer:
             raise Escape("allow", f"a client from {OUTSIDE} got an answer: {answer[:60]!r}")
         return {"outside_refused": 1}
@@ -922,7 +933,7 @@ def many_pages(n: int, seconds: float) -> dict:
             t_open = time.monotonic() - started
             time.sleep(max(0.0, seconds - t_open))
             updating = sum(browser.updating(p, 20.0) for p in browser.pages)
-            code = check_http_answer(b"GET /", http_exchange(served.ui_port, f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{served.ui_port}\r\n\r\n".encode()))
+            code = check_http_answer(b"GET /", get_root(served.ui_port))
             health_ads(served.ads_port)
         finally:
             browser.close()
