@@ -204,15 +204,21 @@ def state_dir(arg: str | None) -> Path:
     return Path(arg or os.environ.get("DISTCTRL_STRESS_DIR") or ROOT / "out" / "stress")
 
 
-def load_state(path: Path, suite: str, seed: int) -> dict:
+def load_state(path: Path, suite: str, seed: int, start: int = 0) -> dict:
     if path.exists():
         st = json.loads(path.read_text())
         if st["seed"] != seed:
             raise SystemExit(f"{path}: a campaign with seed {st['seed']} is under way; remove the file to start "
                              f"one with seed {seed}")
         return st
-    return {"suite": suite, "seed": seed, "next": 0, "counts": {}, "escapes": {}, "escape_inputs": 0,
-            "wall_s": 0.0, "segments": 0, "slow": 0, "max_input_s": 0.0}
+    return {"suite": suite, "seed": seed, "start": start, "next": start, "counts": {}, "escapes": {},
+            "escape_inputs": 0, "wall_s": 0.0, "segments": 0, "slow": 0, "max_input_s": 0.0}
+
+
+def state_path(sdir: Path, suite: str, start: int) -> Path:
+    """``<suite>.json`` for the inputs from 0, ``<suite>@<start>.json`` for a share from ``start`` (a
+    second process on the same suite: ``run nc --start 500000``, the first with ``--target 500000``)."""
+    return sdir / (f"{suite}.json" if start == 0 else f"{suite}@{start}.json")
 
 
 def save_state(path: Path, st: dict) -> None:
@@ -230,11 +236,11 @@ def escape_signature(exc: BaseException) -> str:
 
 
 def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, seed: int = SEED,
-                 log=print) -> dict:
+                 log=print, start: int = 0) -> dict:
     sdir.mkdir(parents=True, exist_ok=True)
     (sdir / "escapes").mkdir(exist_ok=True)
-    path = sdir / f"{suite}.json"
-    st = load_state(path, suite, seed)
+    path = state_path(sdir, suite, start)
+    st = load_state(path, suite, seed, start)
     st["target"] = target
     st["segments"] += 1
     stop = {"why": None}
@@ -300,26 +306,51 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
 
 
 def figures(st: dict) -> dict:
-    rate = st["next"] / st["wall_s"] if st["wall_s"] else None
-    return {"inputs": st["next"], "target": st.get("target", TARGET), "complete": st["next"] >= st.get("target", TARGET),
+    start = st.get("start", 0)
+    done = st["next"] - start
+    rate = done / st["wall_s"] if st["wall_s"] else None
+    target = st.get("target", TARGET)
+    return {"inputs": done, "range": [start, target], "complete": st["next"] >= target,
             "escapes": st["escape_inputs"], "escape_kinds": {k: v["count"] for k, v in st["escapes"].items()},
             "outcomes": st["counts"], "wall_s": round(st["wall_s"], 1),
             "inputs_per_s": round(rate, 1) if rate else None,
-            "projected_total_s": round(st.get("target", TARGET) / rate) if rate else None,
+            "projected_total_s": round((target - start) / rate) if rate else None,
             "segments": st["segments"], "slow_inputs": st["slow"], "max_input_s": round(st["max_input_s"], 3),
             "seed": st["seed"]}
+
+
+def merge(shares: list[dict]) -> dict:
+    """One suite's figures from its shares (processes over disjoint input ranges)."""
+    if len(shares) == 1:
+        return shares[0]
+    out = {"inputs": sum(f["inputs"] for f in shares), "ranges": [f["range"] for f in shares],
+           "complete": all(f["complete"] for f in shares), "escapes": sum(f["escapes"] for f in shares),
+           "escape_kinds": {}, "outcomes": {}, "process_s": round(sum(f["wall_s"] for f in shares), 1),
+           "wall_s": round(max(f["wall_s"] for f in shares), 1), "processes": len(shares),
+           "slow_inputs": sum(f["slow_inputs"] for f in shares),
+           "max_input_s": max(f["max_input_s"] for f in shares), "seed": shares[0]["seed"]}
+    for f in shares:
+        for k, v in f["escape_kinds"].items():
+            out["escape_kinds"][k] = out["escape_kinds"].get(k, 0) + v
+        for k, v in f["outcomes"].items():
+            out["outcomes"][k] = out["outcomes"].get(k, 0) + v
+    out["inputs_per_process_s"] = round(out["inputs"] / out["process_s"], 1) if out["process_s"] else None
+    return out
 
 
 def write_figures(sdir: Path, out: Path) -> dict:
     """bench/reliability.json's "stress" section from every campaign state under ``sdir``."""
     data = json.loads(out.read_text()) if out.exists() else {}
     section = data.setdefault("stress", {})
+    shares: dict[str, list[dict]] = {}
     for p in sorted(sdir.glob("*.json")):
         st = json.loads(p.read_text())
         if st.get("suite") in TEXT_SUITES:
-            section[st["suite"]] = figures(st)
-        elif "figures" in st:                      # the serve campaigns (bench/stress_serve.py)
+            shares.setdefault(st["suite"], []).append(figures(st))
+        elif "figures" in st:                      # the serve campaigns (bench/stress_serve.py), soak
             section[p.stem] = st["figures"]
+    for suite, fs in shares.items():
+        section[suite] = merge(fs)
     out.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
     return section
 
@@ -329,7 +360,8 @@ def main(argv=None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="run (or continue) a campaign")
     r.add_argument("suite", choices=TEXT_SUITES)
-    r.add_argument("--target", type=int, default=TARGET)
+    r.add_argument("--target", type=int, default=TARGET, help="run up to this input index (exclusive)")
+    r.add_argument("--start", type=int, default=0, help="a share of the inputs from this index (own state file)")
     r.add_argument("--budget", type=float, default=float(os.environ["DISTCTRL_STRESS_BUDGET"])
                    if os.environ.get("DISTCTRL_STRESS_BUDGET") else None)
     r.add_argument("--state", default=None)
@@ -359,7 +391,7 @@ def main(argv=None) -> int:
             write_figures(sdir, Path(args.figures))
         return 0
     parse_program("")                              # build the parser outside the first input's time
-    st = run_campaign(args.suite, args.target, args.budget, sdir, args.seed)
+    st = run_campaign(args.suite, args.target, args.budget, sdir, args.seed, start=args.start)
     f = figures(st)
     print(json.dumps(f, indent=1))
     if args.figures:
