@@ -821,7 +821,9 @@ def summarize(st: dict) -> dict:
             "seed": st["seed"]}
 
 
-def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, seed: int = SEED, log=print) -> dict:
+def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, seed: int = SEED, log=print,
+                 page_open: bool = True) -> dict:
+    """``page_open`` False: no browser (the short test in make test saves its ~10 s start)."""
     sdir.mkdir(parents=True, exist_ok=True)
     (sdir / "escapes").mkdir(exist_ok=True)
     path = sdir / f"{suite}.json"
@@ -841,7 +843,7 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
     served = Served()
     browser = None
     try:
-        browser = Browser(served.ui_url)
+        browser = Browser(served.ui_url) if page_open else None
         health_ads(served.ads_port)
         time.sleep(1.0)
         seg["threads_baseline"] = proc_stats(served.pid)["threads"]
@@ -878,7 +880,7 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
                     health_ads(served.ads_port)
                     if suite == "page":
                         page_token(served.ui_port)
-                    if not browser.updating(browser.pages[0]):
+                    if browser is not None and not browser.updating(browser.pages[0]):
                         raise Escape("page", "the open live page stopped updating")
                     st["health_ok"] += 1
                 except (Escape, OSError) as exc:
