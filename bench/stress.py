@@ -28,6 +28,7 @@ import json
 import math
 import os
 import random
+import re
 import signal
 import sys
 import time
@@ -272,6 +273,7 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
                 st["escape_inputs"] += 1
                 seen = st["escapes"].setdefault(sig, {"count": 0, "first_input": i})
                 seen["count"] += 1
+                seen.setdefault("inputs", []).append(i) if len(seen.get("inputs", [])) < 1000 else None
                 if seen["count"] <= 3:
                     (sdir / "escapes" / f"{suite}-{i}.txt").write_text(
                         f"suite {suite} seed {seed} input {i}\n{sig}\n\n--- input (repr)\n{item!r}\n\n--- traceback\n"
@@ -305,6 +307,42 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
     return st
 
 
+def recheck(sdir: Path, seed: int = SEED, log=print) -> dict:
+    """Replay every recorded escape with the current code; the escapes of a kind whose every input now
+    passes move from ``escapes`` to ``fixed`` (the campaign's record of what it found and what was
+    fixed); the others stay."""
+    out = {}
+    for path in sorted(sdir.glob("*.json")):
+        st = json.loads(path.read_text())
+        if st.get("suite") not in TEXT_SUITES:
+            continue
+        suite = st["suite"]
+        for sig, seen in list(st["escapes"].items()):
+            inputs = seen.get("inputs") or sorted(
+                int(m.group(1)) for f in (sdir / "escapes").glob(f"{suite}-*.txt")
+                if (m := re.match(r"suite \S+ seed \d+ input (\d+)\n(.*)\n", f.read_text())) and m.group(2) == sig
+                and st.get("start", 0) <= int(m.group(1)) < st.get("target", TARGET))
+            if len(inputs) != seen["count"]:
+                log(f"{path.name}: {sig}: {seen['count']} escapes, {len(inputs)} inputs known: not rechecked")
+                continue
+            still = []
+            for i in inputs:
+                try:
+                    check(suite, make_input(suite, i, st["seed"]))
+                except Exception as exc:  # noqa: BLE001
+                    still.append((i, escape_signature(exc)))
+            if still:
+                log(f"{path.name}: {sig}: {len(still)} of {len(inputs)} still escape, e.g. input {still[0]}")
+                continue
+            st.setdefault("fixed", {})[sig] = {"count": seen["count"], "inputs": inputs}
+            del st["escapes"][sig]
+            st["escape_inputs"] -= seen["count"]
+            log(f"{path.name}: {sig}: all {len(inputs)} inputs pass now")
+        save_state(path, st)
+        out[path.stem] = {"escapes": st["escape_inputs"], "fixed": st.get("fixed", {})}
+    return out
+
+
 def figures(st: dict) -> dict:
     start = st.get("start", 0)
     done = st["next"] - start
@@ -316,7 +354,7 @@ def figures(st: dict) -> dict:
             "inputs_per_s": round(rate, 1) if rate else None,
             "projected_total_s": round((target - start) / rate) if rate else None,
             "segments": st["segments"], "slow_inputs": st["slow"], "max_input_s": round(st["max_input_s"], 3),
-            "seed": st["seed"]}
+            "seed": st["seed"], "fixed": {k: v["count"] for k, v in st.get("fixed", {}).items()}}
 
 
 def merge(shares: list[dict]) -> dict:
@@ -328,12 +366,14 @@ def merge(shares: list[dict]) -> dict:
            "escape_kinds": {}, "outcomes": {}, "process_s": round(sum(f["wall_s"] for f in shares), 1),
            "wall_s": round(max(f["wall_s"] for f in shares), 1), "processes": len(shares),
            "slow_inputs": sum(f["slow_inputs"] for f in shares),
-           "max_input_s": max(f["max_input_s"] for f in shares), "seed": shares[0]["seed"]}
+           "max_input_s": max(f["max_input_s"] for f in shares), "seed": shares[0]["seed"], "fixed": {}}
     for f in shares:
         for k, v in f["escape_kinds"].items():
             out["escape_kinds"][k] = out["escape_kinds"].get(k, 0) + v
         for k, v in f["outcomes"].items():
             out["outcomes"][k] = out["outcomes"].get(k, 0) + v
+        for k, v in f.get("fixed", {}).items():
+            out["fixed"][k] = out["fixed"].get(k, 0) + v
     out["inputs_per_process_s"] = round(out["inputs"] / out["process_s"], 1) if out["process_s"] else None
     return out
 
@@ -371,6 +411,8 @@ def main(argv=None) -> int:
     s = sub.add_parser("status", help="figures of every campaign under the state directory")
     s.add_argument("--state", default=None)
     s.add_argument("--figures", default="")
+    c = sub.add_parser("recheck", help="replay the recorded escapes; those that pass now count as fixed")
+    c.add_argument("--state", default=None)
     w = sub.add_parser("show", help="print input I of a suite")
     w.add_argument("suite", choices=TEXT_SUITES)
     w.add_argument("i", type=int)
@@ -380,6 +422,11 @@ def main(argv=None) -> int:
         print(repr(make_input(args.suite, args.i, args.seed)))
         return 0
     sdir = state_dir(args.state)
+    if args.cmd == "recheck":
+        parse_program("")
+        res = recheck(sdir)
+        print(json.dumps(res, indent=1))
+        return EXIT_ESCAPES if any(v["escapes"] for v in res.values()) else 0
     if args.cmd == "status":
         for p in sorted(sdir.glob("*.json")):
             st = json.loads(p.read_text())
