@@ -391,6 +391,10 @@ def write_figures(sdir: Path, out: Path) -> dict:
             section[p.stem] = st["figures"]
     for suite, fs in shares.items():
         section[suite] = merge(fs)
+    soak = ROOT / "bench" / "soak_long.json"             # bench/soak.py --state (the resumable soak)
+    if soak.exists():
+        section["soak"] = {k.removeprefix("soak_"): v for k, v in json.loads(soak.read_text()).items()
+                           if k not in ("soak_rss_segments_mb", "soak_trace")}
     out.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
     return section
 
