@@ -56,10 +56,13 @@ def fuzz(suite: str, sdir: Path, libfuzzer_args: list[str]) -> None:
     seen: dict[str, int] = {}
 
     def one(data: bytes) -> None:
-        if suite == "params":
-            item = (data[1:].decode("utf-8", errors="replace"), bool(data[:1]) and data[0] & 1 == 1)
-        else:
-            item = data.decode("utf-8", errors="replace")
+        text = data.decode("utf-8", errors="replace")
+        # a parameter list is read as an axis list and as a channel list (a byte choosing one let
+        # every axis seed starting with '#' be read as a channel list and rejected on its first line)
+        for item in ([(text, False), (text, True)] if suite == "params" else [text]):
+            check_one(item)
+
+    def check_one(item) -> None:
         try:
             stress.check(suite, item)
         except Exception as exc:  # noqa: BLE001 - the finding; recorded, the fuzzer goes on
