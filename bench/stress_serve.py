@@ -102,10 +102,10 @@ def proc_stats(pid: int) -> dict:
 class Served:
     """``distctrl serve SCN --ui`` in a subprocess; ``ads_port``, ``ui_url``, ``pid``."""
 
-    def __init__(self, *extra: str, duration: float | None = None):
+    def __init__(self, *extra: str, duration: float | None = None, rt_priority: int = 0):
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         args = [sys.executable, "-m", "distctrl", "serve", str(SCN), "--port", "0", "--no-discovery",
-                "--rt-priority", "0", "--ui", "--ui-port", "0", "--allow", "127.0.0.1/32", "--json", *extra]
+                "--rt-priority", str(rt_priority), "--ui", "--ui-port", "0", "--allow", "127.0.0.1/32", "--json", *extra]
         if duration is not None:
             args += ["--duration", str(duration)]
         self.proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -924,26 +924,48 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
     return st
 
 
-def many_pages(n: int, seconds: float) -> dict:
-    """Serve sessions with 1 and with ``n`` pages: all draw and update; cycle lateness of both."""
+def many_pages(n: int, seconds: float, draw_timeout: float = 300.0, rt_priority: int = 10) -> dict:
+    """Serve sessions with 1 and with ``n`` pages opened at once: how many draw their scope (within
+    ``draw_timeout``) and keep updating, the page server's answer, the ADS health, and the cycle
+    lateness of both sessions (serve's --json)."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
     out = {}
     for pages in (1, n):
-        served = Served(duration=seconds + 60)
-        started = time.monotonic()
-        browser = Browser(served.ui_url, pages)
+        served = Served(rt_priority=rt_priority)
+        browser = None
+        row = {"pages": pages}
         try:
-            t_open = time.monotonic() - started
-            time.sleep(max(0.0, seconds - t_open))
-            updating = sum(browser.updating(p, 20.0) for p in browser.pages)
-            code = check_http_answer(b"GET /", get_root(served.ui_port))
+            browser = Browser(served.ui_url, 0)
+            started = time.monotonic()
+            tabs = [browser.browser.new_page(viewport={"width": 1300, "height": 900}) for _ in range(pages)]
+            for tab in tabs:
+                tab.goto(served.ui_url, wait_until="commit", timeout=draw_timeout * 1000)
+            drawn = []
+            for tab in tabs:
+                left = draw_timeout - (time.monotonic() - started)
+                try:
+                    tab.locator(".scope-plot").first.wait_for(timeout=max(1.0, left) * 1000)
+                    drawn.append(tab)
+                except PlaywrightTimeout:
+                    pass
+            row["drawn"] = len(drawn)
+            row["all_drawn_after_s"] = round(time.monotonic() - started, 1) if len(drawn) == pages else None
+            time.sleep(max(0.0, seconds - (time.monotonic() - started)))
+            row["updating"] = sum(browser.updating(tab, 30.0) for tab in drawn)
+            row["get_root"] = check_http_answer(b"GET /", get_root(served.ui_port))
             health_ads(served.ads_port)
+            row["ads_health"] = True
+        except (Escape, OSError) as exc:
+            row["failure"] = str(exc)[:300]
         finally:
-            browser.close()
-        res = served.stop()
+            if browser is not None:
+                browser.close()
+            res = served.stop()
         doc = res.get("json") or {}
-        out[f"pages_{pages}"] = {"pages": pages, "updating": updating, "get_root": code, "open_s": round(t_open, 1),
-                                 "sessions": doc.get("ui_sessions"), "returncode": res["returncode"],
-                                 "traceback": res["traceback"], "cycle_lateness": doc.get("cycle_lateness")}
+        row.update({"cycle_thread": doc.get("cycle_thread"), "sessions": doc.get("ui_sessions"), "returncode": res["returncode"], "traceback": res["traceback"],
+                    "cycle_lateness": doc.get("cycle_lateness")})
+        out[f"pages_{pages}"] = row
     return out
 
 
@@ -956,16 +978,18 @@ def main(argv=None) -> int:
     ap.add_argument("--state", default=None)
     ap.add_argument("--seed", type=int, default=SEED)
     ap.add_argument("--pages", type=int, default=8)
-    ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--rt-priority", type=int, default=10,
+                    help="pages: serve's --rt-priority (10, its default: the cycle on SCHED_FIFO where allowed)")
     args = ap.parse_args(argv)
     sdir = state_dir(args.state)
     if args.suite == "pages":
-        res = many_pages(args.pages, args.seconds)
+        res = many_pages(args.pages, args.seconds, rt_priority=args.rt_priority)
         sdir.mkdir(parents=True, exist_ok=True)
         save(sdir / "pages.json", {"figures": res})
         print(json.dumps(res, indent=1))
-        ok = all(v["updating"] == v["pages"] and v["get_root"] == 200 and v["returncode"] == 0 and not v["traceback"]
-                 for v in res.values())
+        ok = all(v.get("updating") == v["pages"] and v.get("get_root") == 200 and v["returncode"] == 0
+                 and not v["traceback"] for v in res.values())
         return 0 if ok else EXIT_ESCAPES
     target = args.target or (TARGET if args.suite == "ads" else 100_000)
     st = run_campaign(args.suite, target, args.budget, sdir, args.seed)
