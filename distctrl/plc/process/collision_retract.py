@@ -94,6 +94,12 @@ _T_FREEZE, _T_ON_CD = int(HliTransition.FREEZE), int(HliTransition.ON_CONST_DIST
 WATCH, FREEZING, RETRACTING, STOPPING = "WATCH", "FREEZING", "RETRACTING", "STOPPING"
 
 
+#: the retract's speed (mm/s) and acceleration (mm/s²) at most; a scenario's defaults (the axis's
+#: v_max / a_max) are capped to these
+MAX_RETRACT_SPEED = 2_000_000.0
+MAX_RETRACT_ACCEL = 2_000_000_000.0
+
+
 class CollisionRetract(HliCommandSender, ProcessFunction):
     """Contact detection and retract on ``axis`` (module docstring). ``retract_speed`` (mm/s) and
     ``retract_accel`` (mm/s²) are the retract's limits (the axis's v_max / a_max in a scenario);
@@ -108,8 +114,8 @@ class CollisionRetract(HliCommandSender, ProcessFunction):
         super().__init__(axis)
         n = "collision_retract."
         self.cycle_time = require_number(cycle_time, n + "cycle_time", lo=0.0, lo_open=True)
-        self.retract_speed = require_number(retract_speed, n + "retract_speed", lo=0.001, hi=2_000_000.0)
-        self.retract_accel = require_number(retract_accel, n + "retract_accel", lo=1.0, hi=2_000_000_000.0)
+        self.retract_speed = require_number(retract_speed, n + "retract_speed", lo=0.001, hi=MAX_RETRACT_SPEED)
+        self.retract_accel = require_number(retract_accel, n + "retract_accel", lo=1.0, hi=MAX_RETRACT_ACCEL)
         self.threshold = require_number(threshold, n + "threshold", lo=0.0, hi=100.0)
         self.confirm_cycles = require_int(confirm_cycles, n + "confirm_cycles", lo=1, hi=1000)
         self.retract = require_number(retract, n + "retract", lo=0.0, hi=1000.0, lo_open=True)

@@ -8,7 +8,7 @@ from ...sim.config_errors import MISSING, ConfigError, require_int, require_mapp
 from .auto_set_value import AUTO_DEFAULTS, AutoSetValue
 from .base import require_bool
 from .calibrate import CALIBRATE_DEFAULTS, Calibrate
-from .collision_retract import COLLISION_DEFAULTS, CollisionRetract
+from .collision_retract import COLLISION_DEFAULTS, MAX_RETRACT_ACCEL, MAX_RETRACT_SPEED, CollisionRetract
 from .corner_lock import CORNER_DEFAULTS, CornerLock
 from .lift import LIFT_DEFAULTS, Lift
 from .program import ProcessProgram
@@ -226,11 +226,12 @@ def _collision_retract(cfg: dict, k: str, axis_cfg, sensor) -> dict:
                                           lo=1, hi=1000),
             "retract": require_number(cfg.get("retract", d["retract"]), k + "retract", lo=0.0, hi=1000.0,
                                       lo_open=True),
-            # the retract runs at the axis's limits unless slower ones are given
-            "retract_speed": require_number(cfg.get("retract_speed", axis_cfg.v_max), k + "retract_speed", lo=0.001,
-                                            hi=axis_cfg.v_max),
-            "retract_accel": require_number(cfg.get("retract_accel", axis_cfg.a_max), k + "retract_accel", lo=1.0,
-                                            hi=axis_cfg.a_max)}
+            # the retract runs at the axis's limits unless slower ones are given (and never beyond the
+            # function's own bounds: an axis may be configured faster than any retract)
+            "retract_speed": require_number(cfg.get("retract_speed", min(axis_cfg.v_max, MAX_RETRACT_SPEED)),
+                                            k + "retract_speed", lo=0.001, hi=min(axis_cfg.v_max, MAX_RETRACT_SPEED)),
+            "retract_accel": require_number(cfg.get("retract_accel", min(axis_cfg.a_max, MAX_RETRACT_ACCEL)),
+                                            k + "retract_accel", lo=1.0, hi=min(axis_cfg.a_max, MAX_RETRACT_ACCEL))}
 
 
 def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: bool = False
@@ -247,6 +248,14 @@ def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: 
                               f"each function once per axis (process[{other}] has {pc.function} on {pc.axis})",
                               "given twice:")
         seen[(pc.function, pc.axis)] = pc.index
+    for pc in out:
+        # built once here, so that a value the function itself refuses is the scenario's error (with
+        # its file and process[i] key) at load, not an error at the run's start (issue 30)
+        try:
+            pc.make(cycle_time)
+        except ConfigError as exc:
+            param = exc.key.split(".", 1)[-1]
+            raise ConfigError(f"process[{pc.index}].{param}", exc.value, exc.allowed, exc.problem) from None
     return tuple(out)
 
 
