@@ -407,7 +407,12 @@ def _file(value: object, key: str, base_dir: Path, what: str) -> Path:
     text = _string(value, key, f"a path to {what} (relative to {str(base_dir)!r})")
     path = Path(text)
     full = path if path.is_absolute() else base_dir / path
-    if not full.is_file():
+    try:
+        found = full.is_file()
+    except OSError as exc:          # e.g. a name too long for the OS (ENAMETOOLONG): no such file either
+        raise ConfigError(key, text, f"an existing {what} (relative paths: to {str(base_dir)!r})",
+                          f"file not readable ({exc.strerror}):") from None
+    if not found:
         raise ConfigError(key, text, f"an existing {what} (relative paths: to {str(base_dir)!r})",
                           f"file not found ({full}):")
     return full

@@ -470,3 +470,16 @@ def test_delay_lines_up_to_the_bound_run():
     sc = scenario_from_dict({"program_text": "M30\n", "duration": 0.01, "axes": {"Z": {"bus_delay_cycles": 100_000}},
                              "sensor": {"axis": "Z", "kind": "encoder", "delay_cycles": 100_000}})
     assert run(sc, keep_trace=False).cycles > 0
+
+
+# issue 30 (bench/stress_atheris.py scenario, not found by the generated campaign): a referenced file
+# whose name is too long for the OS made Path.is_file raise OSError (ENAMETOOLONG) out of the loader
+@pytest.mark.parametrize("key, data", [
+    ("axes.Z.params", {"axes": {"Z": {"params": "z_l" + "\ufffd" * 300 + "aser.lis"}}}),
+    ("program", {"program": "p" * 5000 + ".nc", "axes": {"Z": {}}}),
+])
+def test_a_file_name_too_long_is_the_scenarios_error(key, data):
+    data = {"program_text": "M30\n", **data} if "program" not in data else data
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_dict(data, source="s.toml")
+    assert info.value.key == key and "s.toml" in str(info.value), str(info.value)
