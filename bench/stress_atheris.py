@@ -84,6 +84,7 @@ def run(suite: str, budget: float, sdir: Path) -> dict:
     seeds = sdir / "atheris" / f"{suite}-seeds"
     corpus.mkdir(parents=True, exist_ok=True)
     seeds.mkdir(parents=True, exist_ok=True)
+    (sdir / "atheris" / "artifacts").mkdir(exist_ok=True)     # libFuzzer's slow units, crashes
     (sdir / "escapes").mkdir(exist_ok=True)
     for pattern in SEEDS[suite]:
         for p in sorted(ROOT.glob(pattern)):
@@ -97,7 +98,7 @@ def run(suite: str, budget: float, sdir: Path) -> dict:
                                                                     os.environ.get("PYTHONPATH", "")]))}
     args = [sys.executable, __file__, "_fuzz", suite, "--state", str(sdir), "--", str(corpus), str(seeds),
             f"-max_total_time={int(budget)}", "-print_final_stats=1", "-timeout=60", "-rss_limit_mb=4096",
-            "-max_len=4096", "-close_fd_mask=1"]
+            "-max_len=4096", "-close_fd_mask=1", f"-artifact_prefix={sdir / 'atheris' / 'artifacts'}/{suite}-"]
     t0 = time.perf_counter()
     log = sdir / f"atheris-{suite}.log"
     with open(log, "a") as f:
