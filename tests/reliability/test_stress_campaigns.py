@@ -71,7 +71,7 @@ def test_an_escape_is_recorded_with_its_input_and_the_campaign_goes_on(tmp_path,
     st = stress.run_campaign("params", 10, None, tmp_path, log=lambda *_: None)
     assert st["next"] == 10 and st["escape_inputs"] == 1
     (sig, seen), = st["escapes"].items()
-    assert sig.startswith("KeyError at ") and seen == {"count": 1, "first_input": 3}
+    assert sig.startswith("KeyError at ") and seen == {"count": 1, "first_input": 3, "inputs": [3]}
     text = (tmp_path / "escapes" / "params-3.txt").read_text()
     assert "KeyError: 'boom'" in text and repr(stress.make_input("params", 3)) in text
 
