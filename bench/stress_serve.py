@@ -836,7 +836,7 @@ def summarize(st: dict) -> dict:
             "serve_stops": [{k: s.get("stop", {}).get(k) for k in ("returncode", "traceback", "refused_logged")}
                             for s in segs if s.get("stop")],
             "cycle_lateness": [s.get("stop", {}).get("lateness") for s in segs if s.get("stop")],
-            "seed": st["seed"]}
+            "seed": st["seed"], "rechecked": {k: v["count"] for k, v in st.get("rechecked", {}).items()}}
 
 
 def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, seed: int = SEED, log=print,
@@ -876,6 +876,8 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
             seen = st["escapes"].setdefault(sig.split(":")[0] + ":" + sig.split(":")[1][:40] if ":" in sig else sig,
                                             {"count": 0, "first_input": i})
             seen["count"] += 1
+            if len(seen.setdefault("inputs", [])) < 1000:
+                seen["inputs"].append(i)
             if seen["count"] <= 3:
                 (sdir / "escapes" / f"{suite}-{i}.txt").write_text(
                     f"suite {suite} seed {seed} input {i}\n{sig}\n\n" + "".join(traceback.format_exception(exc)))
@@ -944,6 +946,42 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
     return st
 
 
+def recheck(suite: str, sdir: Path, log=print) -> dict:
+    """Replay the recorded escapes of a serve campaign against a fresh serve (no browser); a kind
+    whose every input passes now (and the server stays healthy) moves to ``rechecked``."""
+    path = sdir / f"{suite}.json"
+    st = json.loads(path.read_text())
+    served = Served()
+    try:
+        campaign = (AdsCampaign if suite == "ads" else PageCampaign)(served, st["seed"])
+        for sig, seen in list(st["escapes"].items()):
+            kind = sig.split(":")[0]
+            inputs = seen.get("inputs") or sorted(
+                int(m.group(1)) for f in (sdir / "escapes").glob(f"{suite}-*.txt")
+                if (m := re.match(r"suite \S+ seed \d+ input (\d+)\n([^:\n]*)", f.read_text()))
+                and m.group(2) == kind)
+            if len(inputs) != seen["count"] or sig.startswith("stop"):
+                log(f"{suite}: {sig}: {seen['count']} escapes, {len(inputs)} inputs known: not rechecked")
+                continue
+            try:
+                for i in inputs:
+                    campaign.play(i)
+                campaign.close_pool()
+                health_ads(served.ads_port)
+            except (Escape, OSError) as exc:
+                log(f"{suite}: {sig}: still escapes: {exc}")
+                continue
+            st.setdefault("rechecked", {})[sig] = {"count": seen["count"], "inputs": inputs}
+            del st["escapes"][sig]
+            st["escape_inputs"] -= seen["count"]
+            log(f"{suite}: {sig}: all {len(inputs)} inputs pass now")
+    finally:
+        served.stop()
+    st["figures"] = summarize(st)
+    save(path, st)
+    return st["figures"]
+
+
 def many_pages(n: int, seconds: float, draw_timeout: float = 300.0, rt_priority: int = 10) -> dict:
     """Serve sessions with 1 and with ``n`` pages opened at once: how many draw their scope (within
     ``draw_timeout``) and keep updating, the page server's answer, the ADS health, and the cycle
@@ -991,7 +1029,7 @@ def many_pages(n: int, seconds: float, draw_timeout: float = 300.0, rt_priority:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("suite", choices=("ads", "page", "pages"))
+    ap.add_argument("suite", choices=("ads", "page", "pages", "recheck-ads", "recheck-page"))
     ap.add_argument("--target", type=int, default=None)
     ap.add_argument("--budget", type=float, default=float(os.environ["DISTCTRL_STRESS_BUDGET"])
                     if os.environ.get("DISTCTRL_STRESS_BUDGET") else None)
@@ -1003,6 +1041,9 @@ def main(argv=None) -> int:
                     help="pages: serve's --rt-priority (10, its default: the cycle on SCHED_FIFO where allowed)")
     args = ap.parse_args(argv)
     sdir = state_dir(args.state)
+    if args.suite.startswith("recheck-"):
+        fig = recheck(args.suite.removeprefix("recheck-"), sdir)
+        return EXIT_ESCAPES if fig["escapes"] else 0
     if args.suite == "pages":
         res = many_pages(args.pages, args.seconds, rt_priority=args.rt_priority)
         sdir.mkdir(parents=True, exist_ok=True)
