@@ -829,6 +829,8 @@ def summarize(st: dict) -> dict:
             "health_checks": st["health_ok"], "segments": len(segs), "slow_waits": st.get("slow_waits", 0),
             "rss_mb_per_segment": [[round(s["rss"][0] / 1e6, 1), round(max(s["rss"]) / 1e6, 1),
                                     round(s["rss"][-1] / 1e6, 1)] for s in segs if s.get("rss")],
+            "rss_growth_second_half_mb": [round((s["rss"][-1] - s["rss"][len(s["rss"]) // 2]) / 1e6, 2)
+                                          for s in segs if s.get("rss")],
             "rss_flat": all(max(s["rss"]) <= RSS_GROWTH_LIMIT * s["rss"][0] for s in segs if s.get("rss")),
             "threads_baseline_end": [[s.get("threads_baseline"), s.get("threads_end")] for s in segs],
             "threads_left": max([0] + [s["threads_end"] - s["threads_baseline"] for s in segs
