@@ -142,11 +142,12 @@ class Served:
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGTERM)
         try:
+            rc = self.proc.wait(timeout=HANG_S)         # its JSON (a few hundred bytes) fits the pipe
             out = self.proc.stdout.read() if self.proc.stdout else ""
-            rc = self.proc.wait(timeout=60)
         except subprocess.TimeoutExpired:
             self.proc.kill()
-            return {"returncode": None, "hang_on_stop": True, "json": None, "traceback": True}
+            return {"returncode": None, "hang_on_stop": True, "json": None, "traceback": True,
+                    "stderr_tail": "".join(self.err_lines)[-1500:]}
         self._t.join(5)
         err = "".join(self.err_lines)
         try:
