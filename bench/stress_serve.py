@@ -132,7 +132,7 @@ class Served:
             ready.set()
         self._t = threading.Thread(target=read_err, daemon=True)
         self._t.start()
-        if not ready.wait(120) or self.ads_port is None or self.ui_url is None:
+        if not ready.wait(HANG_S) or self.ads_port is None or self.ui_url is None:
             self.proc.kill()
             raise RuntimeError("serve did not start: " + "".join(self.err_lines[-20:]))
         self.ui_port = int(self.ui_url.rstrip("/").rsplit(":", 1)[1])
