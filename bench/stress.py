@@ -213,7 +213,7 @@ def load_state(path: Path, suite: str, seed: int, start: int = 0) -> dict:
     if path.exists():
         st = json.loads(path.read_text())
         if "fixed" in st:                           # the first name of "rechecked"
-            st["rechecked"] = st.pop("fixed")
+            st["rechecked"] = {**st.pop("fixed"), **st.get("rechecked", {})}
         if st["seed"] != seed:
             raise SystemExit(f"{path}: a campaign with seed {st['seed']} is under way; remove the file to start "
                              f"one with seed {seed}")
@@ -412,6 +412,35 @@ def write_figures(sdir: Path, out: Path) -> dict:
     return section
 
 
+def markdown(sdir: Path) -> str:
+    """The campaigns' figures as the table of docs/reliability.md."""
+    rows = ["| campaign | done | rate on this machine | escapes (rechecked) |", "| --- | --- | --- | --- |"]
+    shares: dict[str, list[dict]] = {}
+    other = {}
+    for p in sorted(sdir.glob("*.json")):
+        st = json.loads(p.read_text())
+        if st.get("suite") in TEXT_SUITES:
+            shares.setdefault(st["suite"], []).append(figures(st))
+        elif "figures" in st:
+            other[p.stem] = st["figures"]
+    for suite, fs in shares.items():
+        f = merge(fs)
+        rate = f.get("inputs_per_process_s") or f.get("inputs_per_s")
+        rows.append(f"| {suite} | {f['inputs']:,} inputs{' (complete)' if f['complete'] else ''}; "
+                    + ", ".join(f"{k} {v:,}" for k, v in sorted(f["outcomes"].items()) if k != "inputs")
+                    + f" | {rate} inputs/s per process, {f.get('process_s', f['wall_s'])} process-s |"
+                    f" {f['escapes']} ({', '.join(f'{k} x{v}' for k, v in f['rechecked'].items()) or '-'}) |")
+    for name, f in sorted(other.items()):
+        if name.startswith("atheris"):
+            rows.append(f"| {name} | {f['inputs']:,} inputs, {f['coverage_edges']} edges, {f['corpus_files']} corpus files"
+                        f" | {f['inputs_per_s']} inputs/s, {f['wall_s']} s | {f['escapes']} |")
+        elif "target_counts" in f:
+            rows.append(f"| {name} | {f['inputs']:,} inputs, {f['counts'].get('frames', 0):,} frames; "
+                        f"{f['health_checks']} health checks | {f['inputs_per_s']} inputs/s, {f.get('frames_per_s')} frames/s,"
+                        f" {f['wall_s']} s | {f['escapes']} ({', '.join(f'{k} x{v}' for k, v in f.get('rechecked', {}).items()) or '-'}) |")
+    return "\n".join(rows)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -428,6 +457,7 @@ def main(argv=None) -> int:
     s = sub.add_parser("status", help="figures of every campaign under the state directory")
     s.add_argument("--state", default=None)
     s.add_argument("--figures", default="")
+    s.add_argument("--markdown", action="store_true", help="a table of the figures for docs/reliability.md")
     c = sub.add_parser("recheck", help="replay the recorded escapes; those that pass now move to 'rechecked'")
     c.add_argument("--state", default=None)
     w = sub.add_parser("show", help="print input I of a suite")
@@ -444,6 +474,9 @@ def main(argv=None) -> int:
         res = recheck(sdir)
         print(json.dumps(res, indent=1))
         return EXIT_ESCAPES if any(v["escapes"] for v in res.values()) else 0
+    if args.cmd == "status" and args.markdown:
+        print(markdown(sdir))
+        return 0
     if args.cmd == "status":
         for p in sorted(sdir.glob("*.json")):
             st = json.loads(p.read_text())
