@@ -87,9 +87,35 @@ bench: $(STAMP) $(WARM_STAMP)
 	$(PY) bench/bench_record.py
 
 # reliability suites (issue 8) at full length; figures go to bench/reliability.json and bench/soak.json
-stress: $(STAMP)
+# make stress (issue 30): the long suites, then the resumable campaigns; state in $(STRESS_DIR), so a
+# second `make stress` continues where the first stopped (docs/reliability.md "Resuming").
+# DISTCTRL_STRESS_BUDGET=S gives each campaign call at most S seconds (exit 3 = not complete yet, the
+# next call goes on); STRESS_TARGET sets the inputs per text suite, ADS_FRAMES the hostile ADS frames.
+STRESS_DIR    ?= out/stress
+STRESS_TARGET ?= 1000000
+ADS_FRAMES    ?= 1000000
+PAGE_INPUTS   ?= 100000
+SOAK_CYCLES   ?= 100000000
+ATHERIS_S     ?= 1800
+STRESS_STAMP  := $(VENV)/.installed-stress
+
+$(STRESS_STAMP): $(STAMP)
+	$(PY) -m pip install -q --disable-pip-version-check -e '.[test,stress]'
+	touch $@
+
+stress: $(STRESS_STAMP) chromium $(NODE_STAMP)
 	DISTCTRL_STRESS=1 DISTCTRL_FIGURES=bench $(PY) -m pytest -q -s -p no:cacheprovider tests/reliability
 	$(PY) bench/soak.py --cycles 10000000
+	$(PY) bench/soak.py --state $(STRESS_DIR) --cycles $(SOAK_CYCLES) --window 1000000; test $$? -ne 1
+	for s in params nc scenario; do \
+		$(PY) bench/stress.py run $$s --target $(STRESS_TARGET) --state $(STRESS_DIR) --figures ''; \
+		test $$? -ne 1 || exit 1; done
+	for s in params nc scenario; do \
+		$(PY) bench/stress_atheris.py run $$s --budget $(ATHERIS_S) --state $(STRESS_DIR) || exit 1; done
+	$(PY) bench/stress_serve.py ads --target $(ADS_FRAMES) --state $(STRESS_DIR); test $$? -ne 1
+	$(PY) bench/stress_serve.py page --target $(PAGE_INPUTS) --state $(STRESS_DIR); test $$? -ne 1
+	$(PY) bench/stress_serve.py pages --state $(STRESS_DIR)
+	$(PY) bench/stress.py status --state $(STRESS_DIR) --figures bench/reliability.json
 
 docs: $(STAMP)
 	$(PY) -m distctrl.params.docgen > docs/parameters.md

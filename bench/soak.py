@@ -13,8 +13,19 @@ Part 2 - interruption: ``distctrl run ... --trace`` in a subprocess, SIGINT at a
 the trace that is left must load with :meth:`Trace.from_csv`, have consecutive cycle times and
 a sidecar. Repeated ``--interrupts`` times.
 
-Results: bench/soak.json (and printed). ``make stress`` runs it with 10^7 cycles;
-tests/reliability/test_soak.py runs a short version of both parts in ``make test``.
+Results: bench/soak.json (and printed). tests/reliability/test_soak.py runs a short version of both
+parts in ``make test``.
+
+Resumable (issue 30, ``--state DIR``): part 1 steps the simulated machine itself (no CSV trace: 10^8
+rows would be ~10 GB; the trace's streaming is what the 10^7-cycle run without ``--state`` checks)
+and pickles the whole machine, the samples and the counters to ``DIR/soak.pkl`` every
+``--checkpoint`` cycles and when it stops. Started again with the same ``--state`` it continues from
+that cycle; the machine is the same object graph (noise generator included), so the resumed run is
+the run that was never stopped. ``--budget S`` stops it after about S seconds (exit 3, the time
+limit's code; SIGTERM / SIGINT stop it the same way at the next window), the next call goes on.
+Memory is judged per process (segment): the resident memory at every window within
+``RSS_GROWTH_LIMIT`` of the segment's first window, and each segment's first window within that of
+the first segment's. ``make stress`` runs it with 10^8 cycles.
 """
 from __future__ import annotations
 
@@ -28,6 +39,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import pickle
 
 import numpy as np
 
@@ -45,6 +57,7 @@ SCENARIO = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"
 DRIFT_LIMIT_MM = 0.005
 #: resident memory may grow by at most this factor after the first window (allocator noise)
 RSS_GROWTH_LIMIT = 1.10
+DEFAULT_OUT = str(ROOT / "bench" / "soak.json")
 
 
 def soak_scenario(cycles: int):
@@ -119,6 +132,115 @@ def soak(cycles: int, window: int, trace_dir: str | None) -> dict:
     return res
 
 
+def soak_resumable(cycles: int, window: int, state_dir: pathlib.Path, budget_s: float | None,
+                   checkpoint: int = 1_000_000) -> dict:
+    """Part 1 without a trace, checkpointed to ``state_dir/soak.pkl`` (module docstring)."""
+    from distctrl.sim.machine import Machine
+    from distctrl.sim.runner import load_program
+
+    state_dir.mkdir(parents=True, exist_ok=True)
+    ckpt = state_dir / "soak.pkl"
+    state = None
+    if ckpt.exists():
+        state = pickle.loads(ckpt.read_bytes())
+        if state["target"] != cycles or state["window"] != window:
+            raise SystemExit(f"{ckpt}: a soak of {state['target']} cycles (window {state['window']}) is under "
+                             f"way; remove the file to start one of {cycles}")
+    if state is None:
+        sc = soak_scenario(cycles)
+        state = {"target": cycles, "window": window, "machine": Machine(sc, load_program(sc)), "cycle": 0,
+                 "samples": [], "err": 0.0, "off": 0.0, "n": 0, "segments": [], "nonfinite": 0}
+    stop = {"why": None}
+
+    def on_signal(signum, frame):  # noqa: ARG001
+        stop["why"] = signal.Signals(signum).name
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
+
+    def save():
+        tmp = ckpt.with_suffix(".tmp")
+        tmp.write_bytes(pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
+        os.replace(tmp, ckpt)
+
+    m = state["machine"]
+    step = m.step
+    out = m.outputs["Z"]
+    seg = {"from_cycle": state["cycle"], "rss": [], "wall_s": 0.0}
+    state["segments"].append(seg)
+    t0 = time.perf_counter()
+    isfinite = np.isfinite
+    try:
+        while state["cycle"] < cycles:
+            n = min(window - state["cycle"] % window, cycles - state["cycle"])
+            err = off = 0.0
+            got = 0
+            for _ in range(n):
+                step()
+                if out.hli_state == 4:
+                    err += m.true_distance - out.set_distance
+                    off += out.offset
+                    got += 1
+            state["cycle"] += n
+            state["err"] += err
+            state["off"] += off
+            state["n"] += got
+            if not (isfinite(err) and isfinite(off)):
+                state["nonfinite"] += 1
+            if state["cycle"] % window == 0 or state["cycle"] == cycles:
+                if state["n"]:
+                    state["samples"].append((state["cycle"], state["err"] / state["n"], state["off"] / state["n"]))
+                state.update(err=0.0, off=0.0, n=0)
+                seg["rss"].append(rss_bytes())
+            seg["wall_s"] = time.perf_counter() - t0
+            seg["to_cycle"] = state["cycle"]
+            over = budget_s is not None and seg["wall_s"] >= budget_s
+            if state["cycle"] % checkpoint == 0 or state["cycle"] == cycles or over or stop["why"]:
+                save()
+            if over or stop["why"]:
+                break
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    return soak_figures(state, stop["why"] or ("budget" if state["cycle"] < cycles else None))
+
+
+def soak_figures(state: dict, stopped: str | None) -> dict:
+    """The figures of a (possibly partial) resumable soak."""
+    m = state["machine"]
+    samples = state["samples"]
+    errors = np.array([s[1] for s in samples])
+    offsets = np.array([s[2] for s in samples])
+    segs = [s for s in state["segments"] if s["rss"]]
+    wall = sum(s["wall_s"] for s in state["segments"])
+    done = sum(s.get("to_cycle", s["from_cycle"]) - s["from_cycle"] for s in state["segments"])
+    first = segs[0]["rss"][0] if segs else None
+    flat_in = all(max(s["rss"]) <= RSS_GROWTH_LIMIT * s["rss"][0] for s in segs)
+    flat_across = all(s["rss"][0] <= RSS_GROWTH_LIMIT * first for s in segs) if segs else False
+    drift = float(abs(offsets[-1] - offsets[0])) if len(offsets) > 1 else 0.0
+    ev = [{"id": int(e.id), "t": t, "message": e.message} for t, e in m.events if e.severity != "warning"]
+    res = {
+        "soak_resumable": True, "soak_target_cycles": state["target"], "soak_cycles": state["cycle"],
+        "soak_complete": state["cycle"] >= state["target"], "soak_stopped_by": stopped,
+        "soak_wall_s": wall, "soak_cycles_per_s": done / wall if wall else None,
+        "soak_projected_total_s": state["target"] / (done / wall) if wall and done else None,
+        "soak_segments": len(state["segments"]), "soak_windows": len(samples),
+        "soak_window_cycles": state["window"],
+        "soak_max_abs_window_mean_error_mm": float(np.max(np.abs(errors))) if len(errors) else None,
+        "soak_offset_drift_first_to_last_window_mm": drift,
+        "soak_nonfinite_windows": state["nonfinite"],
+        "soak_rss_first_window_mb": first / 1e6 if first else None,
+        "soak_rss_max_mb": max(max(s["rss"]) for s in segs) / 1e6 if segs else None,
+        "soak_rss_segments_mb": [[round(s["rss"][0] / 1e6, 2), round(max(s["rss"]) / 1e6, 2),
+                                  round(s["rss"][-1] / 1e6, 2)] for s in segs],
+        "soak_rss_flat": bool(segs) and flat_in and flat_across,
+        "soak_errors": ev, "soak_final_state": int(m.outputs["Z"].hli_state),
+        "soak_trace": "none (resumable soak; the streamed trace is checked by the 10^7-cycle run)",
+    }
+    res["soak_pass"] = bool(
+        not ev and state["nonfinite"] == 0 and len(samples) > 0 and res["soak_rss_flat"]
+        and res["soak_max_abs_window_mean_error_mm"] <= DRIFT_LIMIT_MM and drift <= DRIFT_LIMIT_MM)
+    return res
+
+
 def _has_data_row(trace: pathlib.Path) -> bool:
     """True once the streamed CSV holds a header and at least one row (reads its first 64 KiB)."""
     try:
@@ -176,10 +298,23 @@ def main(argv=None) -> dict:
     ap.add_argument("--interrupts", type=int, default=3)
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--interrupts-only", action="store_true", help="only part 2, added to --out's part 1")
-    ap.add_argument("--out", default=str(ROOT / "bench" / "soak.json"))
+    ap.add_argument("--out", default=DEFAULT_OUT, help="figures (bench/soak_long.json with --state)")
+    ap.add_argument("--state", default=None,
+                    help="resumable soak without a trace, checkpointed in this directory (e.g. out/stress)")
+    ap.add_argument("--budget", type=float, default=None,
+                    help="with --state: stop after about this many seconds (exit 3); the next call continues")
+    ap.add_argument("--checkpoint", type=int, default=1_000_000, help="with --state: cycles between checkpoints")
     args = ap.parse_args(argv)
     rng = random.Random(args.seed)
-    if args.interrupts_only:                   # part 2 alone, added to an earlier part 1
+    if args.state is not None:                 # the resumable soak: part 1 only, its own figures file
+        res = soak_resumable(args.cycles, args.window, pathlib.Path(args.state), args.budget, args.checkpoint)
+        out = pathlib.Path(args.out if args.out != DEFAULT_OUT else ROOT / "bench" / "soak_long.json")
+        out.write_text(json.dumps(res, indent=2) + "\n")
+        for k, v in res.items():
+            print(f"{k:<45} {v}")
+        res["interrupts_pass"] = True
+        return res
+    elif args.interrupts_only:                   # part 2 alone, added to an earlier part 1
         res = json.loads(pathlib.Path(args.out).read_text())
     else:
         res = soak(args.cycles, args.window, None)
@@ -205,4 +340,6 @@ def main(argv=None) -> dict:
 
 if __name__ == "__main__":
     result = main()
-    sys.exit(0 if result["soak_pass"] and result["interrupts_pass"] else 1)
+    if not (result["soak_pass"] and result["interrupts_pass"]):
+        sys.exit(1)
+    sys.exit(3 if result.get("soak_complete") is False else 0)

@@ -70,6 +70,12 @@ def require_number(value: object, key: str, *, lo: float | None = None, hi: floa
     return x
 
 
+#: longest dead time of a simulated delay line (a drive's fieldbus, a sensor): 100 s at 1 ms. Each
+#: delay cycle holds one value in memory; 2**63 cycles, which an integer >= 0 allowed, ended the run
+#: in MemoryError or OverflowError (issue 30)
+MAX_DELAY_CYCLES = 100_000
+
+
 def require_int(value: object, key: str, *, lo: int | None = None, hi: int | None = None) -> int:
     """Return ``value`` as an int inside ``[lo, hi]`` (integral floats such as ``3.0`` accepted)."""
     allowed = f"integer in {_range_text(lo, hi, False, False)}"

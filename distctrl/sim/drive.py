@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from distctrl.errors.config import ConfigError, require_int, require_number
+from distctrl.errors.config import MAX_DELAY_CYCLES, ConfigError, require_int, require_number
 from distctrl.sim.physics import limit_velocity, quantise, resonance_coefficients, resonance_step
 
 __all__ = ["Drive"]
@@ -71,7 +71,8 @@ class Drive:
                                  lo_open=True, hi_open=True)
         self.v_max = require_number(v_max, f"{name}.v_max", lo=0.0, lo_open=True)
         self.a_max = require_number(a_max, f"{name}.a_max", lo=0.0, lo_open=True)
-        self.bus_delay_cycles = require_int(bus_delay_cycles, f"{name}.bus_delay_cycles", lo=0)
+        self.bus_delay_cycles = require_int(bus_delay_cycles, f"{name}.bus_delay_cycles", lo=0,
+                                            hi=MAX_DELAY_CYCLES)
         self.resolution = require_number(resolution, f"{name}.resolution", lo=0.0)
         self.velocity_feedforward = require_number(velocity_feedforward, f"{name}.velocity_feedforward",
                                                    lo=0.0, hi=1.0)

@@ -39,7 +39,7 @@ from distctrl.params.axis import AxisParameters
 from distctrl.params.channel import ChannelParameters, load_channel_list
 from distctrl.params.external_variables import load_external_variables
 from distctrl.params.listfile import load_list
-from distctrl.errors.config import (MISSING, ConfigError, require_choice, require_int,
+from distctrl.errors.config import (MAX_DELAY_CYCLES, MISSING, ConfigError, require_choice, require_int,
                                         require_mapping, require_number)
 from distctrl.sim.drive import Drive
 from distctrl.sim.interpolator import AxisLimits
@@ -407,7 +407,12 @@ def _file(value: object, key: str, base_dir: Path, what: str) -> Path:
     text = _string(value, key, f"a path to {what} (relative to {str(base_dir)!r})")
     path = Path(text)
     full = path if path.is_absolute() else base_dir / path
-    if not full.is_file():
+    try:
+        found = full.is_file()
+    except OSError as exc:          # e.g. a name too long for the OS (ENAMETOOLONG): no such file either
+        raise ConfigError(key, text, f"an existing {what} (relative paths: to {str(base_dir)!r})",
+                          f"file not readable ({exc.strerror}):") from None
+    if not found:
         raise ConfigError(key, text, f"an existing {what} (relative paths: to {str(base_dir)!r})",
                           f"file not found ({full}):")
     return full
@@ -458,7 +463,8 @@ def _axis_config(name: str, cfg: object, base_dir: Path, cycle_time: float) -> A
     a_max = require_number(cfg.get("a_max", 10000.0), f"{key}.a_max", lo=0.0, lo_open=True)
     v_rapid = require_number(cfg.get("v_rapid", v_max), f"{key}.v_rapid", lo=0.0, lo_open=True)
     a_rapid = require_number(cfg.get("a_rapid", a_max), f"{key}.a_rapid", lo=0.0, lo_open=True)
-    bus = require_int(cfg.get("bus_delay_cycles", 1), f"{key}.bus_delay_cycles", lo=0)
+    bus = require_int(cfg.get("bus_delay_cycles", 1), f"{key}.bus_delay_cycles", lo=0,
+                      hi=MAX_DELAY_CYCLES)
     resolution = require_number(cfg.get("resolution", 1e-4), f"{key}.resolution", lo=0.0)
     feedforward = require_number(cfg.get("feedforward", 0.0), f"{key}.feedforward", lo=0.0, hi=1.0)
     resonance_hz, damping = _resonance(cfg, key, cycle_time)
@@ -535,7 +541,7 @@ def _sensor_config(cfg: object, axes: dict[str, AxisConfig], seed: int, cycle_ti
                           "sensor value is the PLC's idealised orthogonal distance, FCT-M3 §12.3)",
                           "not allowed in mode 'orthogonal_clamping_point':")
     noise_std = require_number(cfg.get("noise_std", 0.0), f"{key}.noise_std", lo=0.0)
-    delay = require_int(cfg.get("delay_cycles", 0), f"{key}.delay_cycles", lo=0)
+    delay = require_int(cfg.get("delay_cycles", 0), f"{key}.delay_cycles", lo=0, hi=MAX_DELAY_CYCLES)
     sensor_seed = require_int(cfg.get("seed", seed), f"{key}.seed", lo=0)
     variable = None
     range_min: float | None = None

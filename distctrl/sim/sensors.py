@@ -35,7 +35,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from distctrl.errors.config import MISSING, ConfigError, require_choice, require_int, require_number
+from distctrl.errors.config import (MAX_DELAY_CYCLES, MISSING, ConfigError, require_choice, require_int,
+                                    require_number)
 from distctrl.sim.physics import characteristic_value, distance_reading, probe_increments, round_to
 from distctrl.sim.surface import Flat, Holes, Ramp, Sine, Step, TiltedPlane
 
@@ -299,7 +300,7 @@ class SensorBase:
                  faults: Iterable[Fault], name: str):
         self.cycle_time = require_number(cycle_time, f"{name}.cycle_time", lo=0.0, lo_open=True)
         self.noise_std = require_number(noise_std, f"{name}.noise_std", lo=0.0)
-        self.delay_cycles = require_int(delay_cycles, f"{name}.delay_cycles", lo=0)
+        self.delay_cycles = require_int(delay_cycles, f"{name}.delay_cycles", lo=0, hi=MAX_DELAY_CYCLES)
         self.seed = seed
         # Two independent streams: a noise burst must not shift the normal noise sequence.
         noise_seq, burst_seq = np.random.SeedSequence(seed).spawn(2)

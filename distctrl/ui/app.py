@@ -20,6 +20,7 @@ import logging
 import socket
 import sys
 import threading
+import time
 from pathlib import Path
 
 from ..serve.net import address_allowed, networks
@@ -168,6 +169,7 @@ class UiServer:
                             extra_patterns=[(r"/export/([^/]+)", _export_handler(), {"hub": self.hub})],
                             check_unused_sessions_milliseconds=2000, unused_session_lifetime_milliseconds=5000)
             self._guard(server)
+            _harden(server._tornado)
             server.start()
         except BaseException as exc:   # noqa: BLE001 - handed to start()
             self._error = exc
@@ -208,6 +210,88 @@ class UiServer:
         self.sessions += 1
         build_page(doc, self.hub, self.export_dir, FRAME_MS)
         doc.template = _template()
+
+
+def _client_error(exc: BaseException | None) -> bool:
+    """An exception Bokeh raises for a request it cannot use (a malformed session id or token, a
+    websocket without the "bokeh, <token>" subprotocol): the client's fault, not the server's."""
+    from bokeh.protocol.exceptions import ProtocolError
+
+    return isinstance(exc, (ValueError, ProtocolError))
+
+
+def _ws_problem(header: str, app) -> str | None:
+    """What is wrong with a websocket upgrade's subprotocol header for Bokeh (None: nothing). Bokeh's
+    own checks (in its handler's open, after the 101 answer) raise for each of these, which Tornado
+    logs with a traceback; here they are answered 400 before the upgrade."""
+    from bokeh.util.token import check_token_signature, get_token_payload
+
+    parts = [p.strip() for p in header.split(",")] if header else []
+    if len(parts) != 2 or parts[0] != "bokeh" or not parts[1]:
+        return "subprotocol is not 'bokeh, <token>'"
+    token = parts[1]
+    try:                                       # untrusted text: any failure to decode it is a bad token
+        signed = check_token_signature(token, signed=app.sign_sessions, secret_key=app.secret_key)
+        payload = get_token_payload(token)
+    except Exception:  # noqa: BLE001
+        return "malformed token"
+    if not signed:
+        return "token with an invalid signature"
+    expiry = payload.get("session_expiry") if isinstance(payload, dict) else None
+    if not isinstance(expiry, (int, float)) or time.time() >= expiry:
+        return "token without a valid expiry"
+    return None
+
+
+def _harden(app) -> None:
+    """Every handler of the Bokeh application (page, websocket, static files, export) answers a
+    malformed request with 400 and one console line (``refused a malformed request from <ip>``)
+    instead of a traceback and 500 (found by bench/stress_serve.py, issue 30). Other exceptions keep
+    Tornado's handling: a real fault still shows its traceback."""
+    from tornado.web import RequestHandler
+    from tornado.websocket import WebSocketHandler
+
+    class Hardened:
+        def log_exception(self, typ, value, tb):
+            if _client_error(value):
+                log.warning("refused a malformed request from %s (UI): %s %s: %s", self.request.remote_ip,
+                            self.request.method, self.request.uri[:120], value)
+                return
+            super().log_exception(typ, value, tb)
+
+        def send_error(self, status_code: int = 500, **kwargs):
+            exc = kwargs.get("exc_info")
+            if status_code == 500 and exc is not None and _client_error(exc[1]):
+                status_code = 400
+            super().send_error(status_code, **kwargs)
+
+    class HardenedWs(Hardened):
+        async def get(self, *args, **kwargs):
+            problem = _ws_problem(self.request.headers.get("Sec-WebSocket-Protocol", ""), self.application)
+            if problem is not None:
+                log.warning("refused a malformed request from %s (UI): websocket %s: %s", self.request.remote_ip,
+                            self.request.uri[:120], problem)
+                self.set_status(400)
+                self.finish(problem)
+                return
+            await super().get(*args, **kwargs)
+
+        async def on_message(self, fragment):
+            # Bokeh sets up the session's receiver in a callback after the upgrade; a page waits for
+            # its ACK before it sends, a client that does not is closed (Bokeh's own reaction to a
+            # message it cannot take, without its traceback)
+            if getattr(self, "receiver", None) is None:
+                log.warning("refused a malformed request from %s (UI): websocket message before the session "
+                            "opened", self.request.remote_ip)
+                self.close()
+                return None
+            return await super().on_message(fragment)
+
+    for rule in app.wildcard_router.rules:
+        target = rule.target
+        if isinstance(target, type) and issubclass(target, RequestHandler):
+            mixin = HardenedWs if issubclass(target, WebSocketHandler) else Hardened
+            rule.target = type(f"Hardened{target.__name__}", (mixin, target), {})
 
 
 _TEMPLATE = None

@@ -231,3 +231,35 @@ def test_switched_off_it_does_not_watch():
     text = (EX / "process_collision.toml").read_text() + "enabled = false\n"
     result = run(scenario_from_text(text, base_dir=EX), keep_trace=False)
     assert result.outcome == "completed" and result.metrics["collisions"] == 1 and result.errors == []
+
+
+# issue 30 (bench/stress.py scenario campaign): an axis v_max of 5.5e11 mm/s passed the scenario's
+# validation, and so did collision_retract's default retract_speed (the axis's v_max); the function
+# itself allows at most 2e6 mm/s and raised at run start, a ConfigError without the scenario's file.
+# The defaults now stay inside the function's bounds, and every [[process]] function is built once
+# at load, so any other disagreement is the scenario's error with its file and process[i] key.
+def _collision_scenario(z_extra: dict, process_extra: dict | None = None):
+    from distctrl.sim.scenario import scenario_from_dict
+
+    return scenario_from_dict({
+        "program_text": "M30\n", "duration": 0.05,
+        "axes": {"Z": {"params": "z_laser.lis", "start": 31.0, **z_extra}},
+        "surface": {"base": 30.0},
+        "sensor": {"axis": "Z", "kind": "distance", "variable": "SENSOR", "range_max": 10.0},
+        "process": [{"function": "collision_retract", "axis": "Z", **(process_extra or {})}],
+    }, base_dir=Path(__file__).resolve().parents[2] / "examples" / "scenarios", source="c.toml")
+
+
+def test_collision_retract_defaults_stay_inside_its_bounds_for_a_very_fast_axis():
+    from distctrl.sim.runner import run
+
+    sc = _collision_scenario({"v_max": 546909396781.6607, "a_max": 5e12})
+    assert run(sc, keep_trace=False).cycles > 0
+
+
+def test_a_process_value_the_function_refuses_is_the_scenarios_error_at_load():
+    from distctrl.sim.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError) as info:
+        _collision_scenario({"v_max": 5e6}, {"retract_speed": 3e6})
+    assert info.value.file == "c.toml" and info.value.key == "process[0].retract_speed", str(info.value)

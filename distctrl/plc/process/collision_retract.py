@@ -94,6 +94,12 @@ _T_FREEZE, _T_ON_CD = int(HliTransition.FREEZE), int(HliTransition.ON_CONST_DIST
 WATCH, FREEZING, RETRACTING, STOPPING = "WATCH", "FREEZING", "RETRACTING", "STOPPING"
 
 
+#: the retract's speed (mm/s) and acceleration (mm/s²) at most; a scenario's defaults (the axis's
+#: v_max / a_max) are capped to these
+MAX_RETRACT_SPEED = 2_000_000.0
+MAX_RETRACT_ACCEL = 2_000_000_000.0
+
+
 class CollisionRetract(HliCommandSender, ProcessFunction):
     """Contact detection and retract on ``axis`` (module docstring). ``retract_speed`` (mm/s) and
     ``retract_accel`` (mm/s²) are the retract's limits (the axis's v_max / a_max in a scenario);
@@ -110,8 +116,8 @@ class CollisionRetract(HliCommandSender, ProcessFunction):
         "confirm_cycles": Key(COLLISION_DEFAULTS["confirm_cycles"], "cycles a contact must last", kind="int",
                               lo=1, hi=1000),
         "retract": Key(COLLISION_DEFAULTS["retract"], "mm the head retracts", lo=0.0, hi=1000.0, lo_open=True),
-        "retract_speed": Key(None, "mm/s; default and upper bound the axis's v_max", lo=0.001, hi=2_000_000.0),
-        "retract_accel": Key(None, "mm/s²; default and upper bound the axis's a_max", lo=1.0, hi=2_000_000_000.0),
+        "retract_speed": Key(None, "mm/s; default and upper bound the axis's v_max", lo=0.001, hi=MAX_RETRACT_SPEED),
+        "retract_accel": Key(None, "mm/s²; default and upper bound the axis's a_max", lo=1.0, hi=MAX_RETRACT_ACCEL),
     }
 
     @classmethod
@@ -122,8 +128,12 @@ class CollisionRetract(HliCommandSender, ProcessFunction):
                 "short_circuit": None if sc is None else require_number(sc, k + "short_circuit"),
                 "confirm_cycles": table.read(cls, "confirm_cycles"), "retract": table.read(cls, "retract"),
                 # the retract runs at the axis's limits unless slower ones are given
-                "retract_speed": table.read(cls, "retract_speed", axis_cfg.v_max, hi=axis_cfg.v_max),
-                "retract_accel": table.read(cls, "retract_accel", axis_cfg.a_max, hi=axis_cfg.a_max)}
+                # the retract runs at the axis's limits unless slower ones are given (and never beyond the
+                # function's own bounds: an axis may be configured faster than any retract)
+                "retract_speed": table.read(cls, "retract_speed", min(axis_cfg.v_max, MAX_RETRACT_SPEED),
+                                            hi=min(axis_cfg.v_max, MAX_RETRACT_SPEED)),
+                "retract_accel": table.read(cls, "retract_accel", min(axis_cfg.a_max, MAX_RETRACT_ACCEL),
+                                            hi=min(axis_cfg.a_max, MAX_RETRACT_ACCEL))}
 
     def __init__(self, axis: str, cycle_time: float, retract_speed: float, retract_accel: float, *,
                  variable: str | None = None, threshold: float = COLLISION_DEFAULTS["threshold"],

@@ -94,6 +94,14 @@ def process_configs(raw: object, axes: dict, sensor, cycle_time: float, has_3d: 
                               f"each function once per axis (process[{other}] has {pc.function} on {pc.axis})",
                               "given twice:")
         seen[(pc.function, pc.axis)] = pc.index
+    for pc in out:
+        # built once here, so that a value the function itself refuses is the scenario's error (with
+        # its file and process[i] key) at load, not an error at the run's start (issue 30)
+        try:
+            pc.make(cycle_time)
+        except ConfigError as exc:
+            param = exc.key.split(".", 1)[-1]
+            raise ConfigError(f"process[{pc.index}].{param}", exc.value, exc.allowed, exc.problem) from None
     return tuple(out)
 
 
