@@ -16,6 +16,10 @@ an existing one, or in-process):
    each the cost, the degradation against the nominal run and the margin = the share of the
    improvement over the scenario's own set that is left under the perturbation.
 
+Only sets that meet the **margin constraint** (:mod:`distctrl.tuning.robust`: gain and phase margin at
+every crossing, on the plant and its variants within identify's tolerances) are chosen; random points
+that miss it get the largest KP that meets it.
+
 Output: :class:`TuneResult` with the chosen :class:`~distctrl.params.axis.AxisParameters`,
 its kernel parameter list (:func:`~distctrl.params.format_list`, changed values only), an NC
 block ``Z[DIST_CTRL KP=.. I_TN=.. D_TV=.. FILTER_TYPE=.. N_CYCLES=..]`` and a before/after plot
