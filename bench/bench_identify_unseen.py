@@ -1,12 +1,20 @@
 """Pass rates of ``distctrl identify`` on random plants it was not designed around (issue 26).
 
     python bench/bench_identify_unseen.py [--n 30] [--first-seed 0] [--out bench/identify_unseen.json]
+    python bench/bench_identify_unseen.py --tune [--budget 40] [--n 30] [--out bench/tune_unseen.json]
 
 Per seed: a random plant and its three recordings (steps, chirp 1-150 Hz 0.05 mm, slow ramp; 10-20 s
 each) from tests/workbench/unseen_plants.py (its own integration, not distctrl.sim), written as CSV,
 loaded and identified with ``--surface``; every quantity is scored against the tolerances of issue
 26. Writes the per-quantity pass rates, the time per identification and every plant's truth and
 estimate to bench/identify_unseen.json.
+
+``--tune`` (issue 26, "tuning stays safe on the fitted plant"): per seed ``distctrl identify --out`` writes
+the fitted twin, ``distctrl tune`` (``--budget``, local, no robustness re-runs) tunes it, and the tuned
+list goes into the TRUE plant (the fitted scenario with the generator's own figures,
+``unseen_plants.true_scenario_text``), whose margins ``distctrl margins`` computes (``analyse``). Passes
+when the true plant's loop is stable with gain margin > 1 and phase margin > 0 (``-`` where a margin
+does not exist counts as met). Writes the pass rate and every plant's margins.
 """
 from __future__ import annotations
 
@@ -22,7 +30,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from distctrl.workbench.identify import identify, load_signals  # noqa: E402
-from tests.workbench.unseen_plants import TOL, random_plant, score, write_recordings  # noqa: E402
+from tests.workbench.unseen_plants import (TOL, random_plant, score, true_scenario_text,  # noqa: E402
+                                            write_recordings)
 
 QUANTITIES = ("kv", "dead_time", "resonance_hz", "damping", "delay", "noise_std", "characteristic")
 
@@ -46,12 +55,84 @@ def run_one(seed: int, tmp: pathlib.Path) -> dict:
             "uncertainty": getattr(res, "uncertainty", None), "warnings": list(res.warnings)}
 
 
+def margins_ok(m: dict) -> bool:
+    """Stable, gain margin > 1 and phase margin > 0 (a margin that does not exist is met)."""
+    return bool(m.get("stable")) and (m.get("gain_margin") is None or m["gain_margin"] > 1.0) \
+        and (m.get("phase_margin_deg") is None or m["phase_margin_deg"] > 0.0)
+
+
+def tune_one(seed: int, tmp: pathlib.Path, budget: int) -> dict:
+    """identify -> fitted twin -> tune -> the tuned list's margins on the true plant."""
+    import shutil
+    import tomllib
+
+    from click.testing import CliRunner
+
+    from distctrl.cli import main as cli_main
+    from distctrl.tuning.tune import tune
+    from distctrl.workbench.margins import analyse, loop_model
+
+    plant = random_plant(seed)
+    folder = tmp / f"t{seed}"
+    folder.mkdir()
+    files = write_recordings(plant, seed, folder)
+    fitted = folder / "fitted"
+    r = CliRunner().invoke(cli_main, ["identify", *map(str, files), "--command", "set_pos", "--actual", "act_pos",
+                                      "--sensor", "sensor", "--surface", str(plant.surface), "--out", str(fitted)])
+    if r.exit_code != 0:
+        return {"seed": seed, "pass": False, "error": r.output[-400:]}
+    scenario = fitted / "fitted.toml"
+    doc = tomllib.loads(scenario.read_text())
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = tune(str(scenario), budget=budget, mode="local", robustness=False)
+    seconds = time.perf_counter() - t0
+    (fitted / doc["axes"]["Z"]["params"]).write_text(res.param_list)
+    true = fitted / "true.toml"
+    true.write_text(true_scenario_text(plant, scenario.read_text()))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = analyse(loop_model(str(true))).to_dict()
+    keep = ("stable", "gain_margin", "phase_margin_deg", "gain_crossover_hz", "phase_crossover_hz", "kp_limit")
+    shutil.rmtree(folder, ignore_errors=True)
+    return {"seed": seed, "pass": margins_ok(m), "true_plant": {k: m.get(k) for k in keep},
+            "twin": {k: res.stability.get(k) for k in keep}, "tuned": res.tuned_values(),
+            "tuned_cost": float(res.best_metrics["cost"]), "tuned_rms": float(res.best_metrics["rms_error"]),
+            "tune_seconds": round(seconds, 2), "binding": getattr(res, "binding", None),
+            "plant": {k: getattr(plant, k) for k in ("resonance_hz", "damping", "kv", "dead_cycles", "delay")}}
+
+
+def main_tune(args) -> dict:
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for seed in range(args.first_seed, args.first_seed + args.n):
+            r = tune_one(seed, pathlib.Path(d), args.budget)
+            rows.append(r)
+            tp = r.get("true_plant") or {}
+            print(f"seed {seed:3d}: {'ok  ' if r['pass'] else 'FAIL'} true plant gm {tp.get('gain_margin')} "
+                  f"pm {tp.get('phase_margin_deg')} tuned {r.get('tuned')}", flush=True)
+    out = {"plants": len(rows), "seeds": [args.first_seed, args.first_seed + args.n - 1], "budget": args.budget,
+           "pass_rate": round(sum(r["pass"] for r in rows) / len(rows), 3),
+           "failed_seeds": [r["seed"] for r in rows if not r["pass"]], "per_plant": rows}
+    pathlib.Path(args.out).write_text(json.dumps(out, indent=1, default=str) + "\n", encoding="utf-8")
+    print(f"tuned on the fitted twin, margins positive on the true plant: {100 * out['pass_rate']:.0f} % of "
+          f"{len(rows)} plants (failed: {out['failed_seeds']})")
+    return out
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser()
     ap.add_argument("--n", type=int, default=30)
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--out", default=str(ROOT / "bench" / "identify_unseen.json"))
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--tune", action="store_true", help="the tune stage instead of the identification scores")
+    ap.add_argument("--budget", type=int, default=40)
     args = ap.parse_args(argv)
+    if args.tune:
+        args.out = args.out or str(ROOT / "bench" / "tune_unseen.json")
+        return main_tune(args)
+    args.out = args.out or str(ROOT / "bench" / "identify_unseen.json")
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for seed in range(args.first_seed, args.first_seed + args.n):

@@ -148,6 +148,12 @@ def _rate_text(rate: float) -> str:
 @click.option("--sat-weight", type=Finite(0.0, 1e6), default=None, help=_SAT_HELP)
 @click.option("--chatter-weight", type=Finite(0.0, 1e6), default=None, help=_CHATTER_HELP)
 @click.option("--no-robustness", is_flag=True, help="Skip the re-check on perturbed scenarios.")
+@click.option("--min-gain-margin", default=2.0, show_default=True, type=Finite(1.0, 1e6),
+              help="Margin constraint: the gain margin (factor) every chosen set has on the plant and its variants.")
+@click.option("--min-phase-margin", default=30.0, show_default=True, type=Finite(0.0, 90.0),
+              help="Margin constraint: the phase margin (deg) every chosen set has on the plant and its variants.")
+@click.option("--no-margin-constraint", is_flag=True,
+              help="Choose by cost alone, without the margin constraint (the margins are still reported).")
 @click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
 @click.option("--local", is_flag=True, help="Run in this process without dask.")
 @click.option("--workers", type=click.IntRange(1, 1024), help="Workers of the embedded LocalCluster (default: all cores).")
@@ -155,7 +161,7 @@ def _rate_text(rate: float) -> str:
               help="Print one JSON object (metrics with units before/after, tuned values, list, NC block, files) "
                    "instead of the report.")
 def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, chatter_weight, no_robustness,
-             scheduler, local, workers, as_json):
+             min_gain_margin, min_phase_margin, no_margin_constraint, scheduler, local, workers, as_json):
     """Find good filter/PID settings for SCENARIO.toml: a coarse sweep, a local refinement, the rounded set
     run again, a robustness check; print them as an axis parameter list and an NC DIST_CTRL block."""
 
@@ -167,6 +173,8 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, ch
     try:
         res = tune(scenario, budget=budget, seed=seed, cycles=cycles, osc_weight=osc_weight,
                    robustness=not no_robustness, n_workers=workers, log=_say,
+                   margin_constraint=not no_margin_constraint, min_gain_margin=min_gain_margin,
+                   min_phase_margin=min_phase_margin,
                    progress=False if as_json else None, **weights, **opts)
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)

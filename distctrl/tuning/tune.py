@@ -16,6 +16,10 @@ an existing one, or in-process):
    each the cost, the degradation against the nominal run and the margin = the share of the
    improvement over the scenario's own set that is left under the perturbation.
 
+Only sets that meet the **margin constraint** (:mod:`distctrl.tuning.robust`: gain and phase margin at
+every crossing, on the plant and its variants within identify's tolerances) are chosen; random points
+that miss it get the largest KP that meets it.
+
 Output: :class:`TuneResult` with the chosen :class:`~distctrl.params.axis.AxisParameters`,
 its kernel parameter list (:func:`~distctrl.params.format_list`, changed values only), an NC
 block ``Z[DIST_CTRL KP=.. I_TN=.. D_TV=.. FILTER_TYPE=.. N_CYCLES=..]`` and a before/after plot
@@ -36,6 +40,7 @@ from ..params.axis import AxisParameters
 from ..sim.surface import Surface
 from ..workbench.tables import render_table
 from .metrics import CHATTER_WEIGHT, METRIC_NAMES, METRIC_UNITS, SAT_WEIGHT, wanted_distance
+from .robust import DEFAULT_ALLOWANCE, KP_FLOOR, MIN_GAIN_MARGIN, MIN_PHASE_MARGIN_DEG, MarginConstraint, PlantAllowance
 from .runner import Evaluator, SweepResult
 from .space import (D_TV_NOTE, DEFAULT_SPACE, NC_WORDS, Dim, SpaceError, build_sets, d_tv_applies, drop_inert_d_tv,
                     filter_fields, random_sample, resolution, round_point, round_value, to_params)
@@ -135,6 +140,15 @@ def _neighbours(point: dict, dims: list[Dim], scale: float) -> list[dict]:
         if v is None or (d.field == "d_tv" and not d_tv_applies(point.get("kp", 0.0))):
             continue                   # no D part at kp >= 1: d_tv is no dimension to spend budget on
         cands = []
+        if d.field == "kp" and v < d.lo:
+            # a KP the margin constraint lowered below the space (robust.MarginConstraint.fit_kp): steps by a
+            # factor, down to the floor
+            f = 2.0 ** scale
+            for c in (max(v / f, KP_FLOOR), min(v * f, d.hi)):
+                c = round_value(d.field, c)
+                if c != v:
+                    out.append(dict(point, kp=c))
+            continue
         if d.kind == "float":
             step = scale * 0.15 * (d.hi - d.lo)
             cands = [v - step, v + step]
@@ -198,6 +212,9 @@ class TuneResult:
     #: the linearised loop's margins on the plant tuned on (:func:`stability`), tuned and scenario's set
     stability: dict = field(default_factory=dict)
     base_stability: dict = field(default_factory=dict)
+    #: the margin constraint (:mod:`distctrl.tuning.robust`): what was required, on which plants, the worst
+    #: margins of the tuned and the scenario's set, how many sets it changed or dropped; {} when off
+    margin_constraint: dict = field(default_factory=dict)
 
     @property
     def param_list(self) -> str:
@@ -246,7 +263,7 @@ class TuneResult:
                           "unrounded_metrics": metrics(self.unrounded_metrics)},
                 "robustness": [{k: _plain(v) for k, v in r.items()} for r in self.robustness],
                 "margin": _plain(self.margin), "param_list": self.param_list, "nc_block": self.nc_block,
-                "notes": self.notes}
+                "margin_constraint": dict(self.margin_constraint) or None, "notes": self.notes}
 
     def report(self, plain: bool = True) -> str:
         names = ["cost"] + list(METRIC_NAMES)
@@ -261,6 +278,7 @@ class TuneResult:
                        f"again: the table shows that run (cost before rounding "
                        f"{_num(self.unrounded_metrics.get('cost'))} mm)")
         out.extend(_stability_lines(self.stability, self.base_stability))
+        out.extend(_constraint_lines(self.margin_constraint))
         sat = self.best_metrics.get("sat_share")
         if sat is not None and math.isfinite(float(sat)) and float(sat) > 0.1:
             out.append(f"warning: the tuned set runs at the limiter (P-AXIS-00415/00416) {float(sat):.0%} of the "
@@ -324,6 +342,24 @@ def _stability_lines(tuned: dict, base: dict) -> list[str]:
             f"  tuned:           {one(tuned)}", f"  scenario params: {one(base)}"]
 
 
+def _constraint_lines(mc: dict) -> list[str]:
+    """The report's lines on the margin constraint (:mod:`distctrl.tuning.robust`)."""
+    if not mc:
+        return []
+    if "error" in mc:
+        return [f"margin constraint: not applied ({mc['error']})"]
+    out = [f"margin constraint: {mc['description']}:",
+           f"  tuned:           {mc['tuned_text']}", f"  scenario params: {mc['scenario_params_text']}"]
+    if mc["kp_lowered"] or mc["dropped"]:
+        out.append(f"  {mc['kp_lowered']} random sets had their KP lowered to meet it, {mc['dropped']} could not "
+                   f"meet it even at KP {KP_FLOOR:g} (dropped), {mc['neighbours_dropped']} refinement steps "
+                   "left it (not run)")
+    if not mc["met"]:
+        out.append("warning: no evaluated set met the margin constraint; the tuned set is the best by cost and "
+                   "its margins are above. Do not use it on the machine without checking it (distctrl margins)")
+    return out
+
+
 def _hz_text(f) -> str:
     return f"{f:.3g} Hz" if f is not None else "- Hz"
 
@@ -360,12 +396,17 @@ def _row(res: SweepResult, i: int) -> dict:
 def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = None, coarse_share: float = 0.6,
          top: int = 3, osc_weight: float = 1.0, space: tuple[Dim, ...] = DEFAULT_SPACE,
          robustness: bool = True, evaluator: Evaluator | None = None, log=None, sat_weight: float | None = None,
-         chatter_weight: float | None = None, **evaluator_options) -> TuneResult:
+         chatter_weight: float | None = None, margin_constraint: bool = True,
+         min_gain_margin: float = MIN_GAIN_MARGIN, min_phase_margin: float = MIN_PHASE_MARGIN_DEG,
+         allowance: PlantAllowance = DEFAULT_ALLOWANCE, **evaluator_options) -> TuneResult:
     """Tune the scenario's distance-controlled axis (module docstring). ``budget``: parameter sets to
     evaluate in the search (the re-run of the rounded set and the robustness runs come on top: 1, and 2
     per perturbation). ``sat_weight`` / ``chatter_weight``: the chatter terms of
     :func:`~distctrl.tuning.metrics.cost` (default :data:`~distctrl.tuning.metrics.SAT_WEIGHT`,
-    :data:`~distctrl.tuning.metrics.CHATTER_WEIGHT`). ``evaluator_options``
+    :data:`~distctrl.tuning.metrics.CHATTER_WEIGHT`). ``margin_constraint``: only sets with at least
+    ``min_gain_margin`` and ``min_phase_margin`` (deg) on the scenario's plant and its variants within
+    ``allowance`` are chosen (:mod:`distctrl.tuning.robust`; random points get their KP lowered to meet it).
+    ``evaluator_options``
     go to :class:`Evaluator` (``mode``, ``scheduler``, ``n_workers``, ``progress`` ...)."""
     import time
 
@@ -379,6 +420,39 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     inputs = prepare(scenario, cycles)
     T = inputs.cycle_time
     base = inputs.params
+    constraint, mc = None, {}
+    if margin_constraint:
+        from ..errors import DistCtrlError
+        from ..workbench.margins import loop_model
+
+        try:
+            constraint = MarginConstraint(loop_model(scenario), min_gain_margin=min_gain_margin,
+                                          min_phase_margin_deg=min_phase_margin, allowance=allowance)
+        except DistCtrlError as exc:
+            mc = {"error": str(exc)}
+    counts = {"kp_lowered": 0, "dropped": 0, "neighbours_dropped": 0}
+
+    def meet(sets_in: list, pts_in: list, lower: bool) -> tuple[list, list]:
+        """The sets that meet the constraint; with ``lower`` a set that misses it gets the largest KP that
+        meets it (dropped if even the floor does not)."""
+        if constraint is None:
+            return sets_in, pts_in
+        out_s, out_p = [], []
+        for st, pt in zip(sets_in, pts_in):
+            if lower:
+                q = constraint.fit_kp(st)
+                if q is None:
+                    counts["dropped"] += 1
+                    continue
+                if q.kp != st.kp:
+                    counts["kp_lowered"] += 1
+                    st, pt = q, dict(pt, kp=q.kp)
+            elif not constraint.ok(st):
+                counts["neighbours_dropped"] += 1
+                continue
+            out_s.append(st)
+            out_p.append(pt)
+        return out_s, out_p
     own = evaluator is None
     ev = evaluator or Evaluator(inputs, cycles=cycles, osc_weight=osc_weight, log=log, **evaluator_options)
     ev.osc_weight = osc_weight
@@ -392,12 +466,19 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
         n_coarse = max(1, int(budget * coarse_share))
         pts = random_sample(n_coarse, seed, space, cycle_time=T)
         sets, pts, rejected = build_sets(base, pts, T)
+        sets, pts = meet(sets, pts, lower=True)
+        dedup = {}
+        for st, pt in zip(sets, pts):                       # lowering KP can make two points one
+            dedup.setdefault(_key(pt), (st, pt))
+        sets, pts = [v[0] for v in dedup.values()], [v[1] for v in dedup.values()]
+        base_ok = constraint is None or constraint.ok(base)
         sets = [base] + sets
         pts = [_point_of(base)] + pts
         say(f"coarse sweep: {len(sets)} sets ({len(rejected)} rejected)")
         res = ev.evaluate(sets, pts, description="coarse")
         seen = {_key(p) for p in pts}
         all_pts = list(pts)
+        feasible = [base_ok] + [True] * (len(sets) - 1)    # every other set meets the constraint
         used = len(sets)
         # 2. refine: pattern search around the best distinct points
         order = res.order("cost")
@@ -405,6 +486,8 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
         for i in order:
             if not math.isfinite(res["cost"][i]):
                 break
+            if not feasible[i]:
+                continue
             p = all_pts[i]
             starts.append([p, float(res["cost"][i]), 1.0])
             starts_ft.append(p["filter_type"])
@@ -429,6 +512,7 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
             room = budget - used
             cand, owner = cand[:room], owner[:room]
             sets_r, kept, rej = build_sets(base, cand, T)
+            sets_r, kept = meet(sets_r, kept, lower=False)
             ok = {_key(q) for q in kept}
             owner = [o for q, o in zip(cand, owner) if _key(q) in ok]
             if not sets_r:
@@ -440,6 +524,7 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
             used += len(cand)
             res = res.concat(r)
             all_pts += kept
+            feasible += [True] * len(kept)
             costs = np.asarray(r["cost"], dtype=float)
             for j, s in enumerate(starts):
                 mine = [i for i, o in enumerate(owner) if o == j]
@@ -453,7 +538,10 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
                     s[2] /= 2
             rounds += 1
             say(f"refine round {rounds}: best cost {min(s[1] for s in starts):.5g} mm ({used}/{budget} sets)")
-        ib = res.best("cost")
+        costs_all = np.asarray(res["cost"], dtype=float)
+        allowed = np.where(np.asarray(feasible, dtype=bool), costs_all, np.inf)
+        met = bool(np.isfinite(allowed).any())
+        ib = int(np.argmin(allowed)) if met else res.best("cost")
         unrounded = res.params[ib]
         unrounded_metrics = _row(res, ib)
         base_metrics = _row(res, 0)
@@ -463,6 +551,8 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
             best = to_params(unrounded, drop_inert_d_tv([round_point(_point_of(unrounded))])[0][0], T)
         except SpaceError:            # pragma: no cover - rounding left the valid range: keep the values
             pass
+        if constraint is not None and met and not constraint.ok(best):
+            best = constraint.fit_kp(best) or best        # rounding KP up left the constraint: lower it again
         vr = ev.evaluate([best], [_point_of(best)], description="verify rounded")
         best_metrics = _row(vr, 0)
         if not math.isfinite(float(best_metrics["cost"])) and math.isfinite(float(unrounded_metrics["cost"])):
@@ -496,10 +586,19 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
 
     weights = {"osc_weight": osc_weight, "sat_weight": SAT_WEIGHT, "chatter_weight": CHATTER_WEIGHT,
                **getattr(ev, "cost_weights", {})}
+    if constraint is not None:
+        ct, cb = constraint.check(best), constraint.check(base)
+        mc = {"description": constraint.describe(), "min_gain_margin": constraint.min_gain_margin,
+              "min_phase_margin_deg": constraint.min_phase_margin_deg, "allowance": constraint.allowance.to_dict(),
+              "plants": len(constraint.plants), "met": bool(met and ct.ok),
+              "tuned": {k: _plain(v) for k, v in ct.to_dict().items()},
+              "scenario_params": {k: _plain(v) for k, v in cb.to_dict().items()},
+              "tuned_text": constraint.check_text(ct), "scenario_params_text": constraint.check_text(cb),
+              "binding": ct.binding, **counts}
     return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
                       time.perf_counter() - t0, stats, unrounded=unrounded, unrounded_metrics=unrounded_metrics,
                       cost_weights=weights, stability=stability(scenario, best),
-                      base_stability=stability(scenario, base))
+                      base_stability=stability(scenario, base), margin_constraint=mc)
 
 
 # ----------------------------------------------------------------------------- plot

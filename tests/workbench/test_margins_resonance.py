@@ -103,3 +103,34 @@ def test_model_from_parts_takes_the_resonance_and_describes_it():
     assert "resonance 40 Hz (damping 0.05)" in analyse(m).format_text()
     rigid = model_from_parts(p, T)
     assert rigid.describe()["drive_damping"] is None and "resonance" not in rigid.blocks()
+
+
+def test_every_crossing_at_a_lightly_damped_peak_is_found():
+    """A low, lightly damped mode whose peak rises above 0 dB crosses it twice (13.5 Hz, zeta 0.018, the
+    fitted twin of unseen plant 11, KP 0.02, MOVING_AVERAGE 1, dead time 4 + 3 + 1 cycles): the loop is
+    stable (its Nyquist curve circles back), but both crossings at the peak have a negative phase margin.
+    python-control's stability_margins missed them and margins reported only the crossing at 2.85 Hz
+    (+53 deg). Checked against the frequency response itself on a dense grid."""
+    model = _lightly_damped_model()
+    r = analyse(model)
+    loop = model.loop()
+    f = np.linspace(0.5, 30.0, 30001)
+    z = np.exp(2j * math.pi * f * T)
+    mag = np.abs(np.asarray(loop(z), dtype=complex))
+    expected = f[:-1][np.signbit(np.log(mag[:-1])) != np.signbit(np.log(mag[1:]))]
+    assert len(expected) == 3                                     # ~2.9 Hz and both flanks of the peak
+    found = sorted(fq for _, fq in r.phase_margins)
+    assert len(found) == 3, r.phase_margins
+    np.testing.assert_allclose(found, expected, atol=0.01)
+    assert r.stable
+    assert r.phase_margin_deg < 0.0                               # the smallest |phase margin| is at the peak
+    assert 12.5 < r.gain_crossover_hz < 14.5
+
+
+def _lightly_damped_model():
+    from distctrl.params.axis import AxisParameters
+
+    params = AxisParameters().replace(kp=0.02, i_tn=0.0, d_tv=0.0, filter_type=FilterType.MOVING_AVERAGE,
+                                      n_cycles=1, use_both_encoders=False)
+    return model_from_parts(params, T, kv=32.56, bus_delay_cycles=4, sensor_delay_cycles=3, sensor_gain=0.97121,
+                            resonance_hz=13.5312, damping=0.017831)

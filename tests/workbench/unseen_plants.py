@@ -24,6 +24,7 @@ bench/bench_identify_unseen.py.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass
 
 from pathlib import Path
@@ -214,6 +215,38 @@ def write_recordings(plant: UnseenPlant, seed: int, folder, prefix: str = "") ->
         write_csv(path, *rows)
         paths.append(path)
     return paths
+
+
+# ---------------------------------------------------------------- the true plant as a scenario
+
+def _set_key(text: str, section: str, key: str, value: str) -> str:
+    """Replace ``key = ...`` inside ``[section]`` (up to the next table header); add it if it is not there."""
+    head = text.index(f"[{section}]")
+    end = text.find("\n[", head + 1)
+    end = len(text) if end < 0 else end
+    body, n = re.subn(rf"(?m)^{re.escape(key)} = .*$", f"{key} = {value}", text[head:end], count=1)
+    if n != 1:
+        line = text.index("\n", head)
+        return text[:line + 1] + f"{key} = {value}\n" + text[line + 1:]
+    return text[:head] + body + text[end:]
+
+
+def true_scenario_text(plant: UnseenPlant, fitted: str) -> str:
+    """The scenario ``distctrl identify --out`` wrote (``fitted``, its text) with the generator's own figures
+    put in: kv (the same pole per cycle), dead time, v_max, a_max, the mode, the sensor delay (whole
+    cycles), noise and characteristic. The true plant, as far as the simulator can represent it."""
+    text = fitted
+    z = {"kv": repr(-math.expm1(-plant.kv * T) / T), "bus_delay_cycles": str(plant.dead_cycles),
+         "v_max": repr(plant.v_max), "a_max": repr(plant.a_max), "resonance_hz": repr(plant.resonance_hz),
+         "damping": repr(plant.damping)}
+    for k, v in z.items():
+        text = _set_key(text, "axes.Z", k, v)
+    d = np.round(np.arange(0.0, 10.0001, 0.1), 6)
+    table = "[" + ", ".join(f"[{a:.6g}, {b:.6f}]" for a, b in zip(d, plant.characteristic(d))) + "]"
+    for k, v in {"delay_cycles": str(int(round(plant.delay / T))), "noise_std": repr(plant.noise_std),
+                 "characteristic": table}.items():
+        text = _set_key(text, "sensor", k, v)
+    return text
 
 
 # ---------------------------------------------------------------- scoring
