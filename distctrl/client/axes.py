@@ -115,15 +115,12 @@ def describe_unit(target: Target, unit: Unit) -> dict:
             "state_code": state, "active": state in ACTIVE_STATES, "parameters": params, "details": details}
 
 
-def probe_axes(target: Target, names: dict[int, str] | None = None, max_axes: int = 32) -> list[Unit]:
-    """The axes whose DIST_CTRL::state answers, axis_id 1, 2, ... until the first that does not
-    (0x703 invalid index offset: no such axis) or ``max_axes``; ``names``: axis_id -> name."""
-    names = names or {}
-    if names:
-        return [Unit("axis", i, n) for i, n in sorted(names.items())]
+def _probe(target: Target, kind: str, count: int) -> list[Unit]:
+    """The units of ``kind`` whose state object answers, 1, 2, ... until the first that does not (0x702
+    / 0x703 / 0x70C: no such unit) or ``count``."""
     found = []
-    for axis_id in range(1, max_axes + 1):
-        unit = Unit("axis", axis_id, str(axis_id))
+    for index in range(1, count + 1):
+        unit = Unit(kind, index, str(index))
         try:
             read_state(target, unit)
         except MachineError as exc:
@@ -132,21 +129,19 @@ def probe_axes(target: Target, names: dict[int, str] | None = None, max_axes: in
             raise
         found.append(unit)
     return found
+
+
+def probe_axes(target: Target, names: dict[int, str] | None = None, max_axes: int = 32) -> list[Unit]:
+    """The axes whose DIST_CTRL::state answers, axis_id 1, 2, ... until the first that does not
+    (0x703 invalid index offset: no such axis) or ``max_axes``; ``names``: axis_id -> name."""
+    if names:
+        return [Unit("axis", i, n) for i, n in sorted(names.items())]
+    return _probe(target, "axis", max_axes)
 
 
 def probe_channels(target: Target, max_channels: int = 4) -> list[Unit]:
     """The channels with 3D distance control objects (0x121300 | channel answers DIST_CTRL[0]::state)."""
-    found = []
-    for ch in range(1, max_channels + 1):
-        unit = Unit("channel", ch, str(ch))
-        try:
-            read_state(target, unit)
-        except MachineError as exc:
-            if exc.code in (0x702, 0x703, 0x70C):
-                break
-            raise
-        found.append(unit)
-    return found
+    return _probe(target, "channel", max_channels)
 
 
 def format_list_text(unit: Unit, values: dict, header: str = "") -> str:
