@@ -35,15 +35,20 @@ async function until(fn, timeoutMs = 3000) {
 }
 
 // hand a command to the CNC as a PLC program does: command_w, enable_w, then the semaphore; the CNC
-// clears the semaphore in the cycle it takes the command
-async function command(client, transition, position) {
+// clears the semaphore in the cycle it takes the command; then the state it leads to (`expect`), read
+// until it is reached (bounded: the cycle thread may run late on a busy machine)
+async function command(client, transition, position, expect) {
   await client.writeValue(`${unit}.command_w`, { transition, position });
   await client.writeValue(`${unit}.enable_w`, true);
   await client.writeValue(`${unit}.command_semaphore_rw`, true);
   const taken = await until(async () => !(await client.readValue(`${unit}.command_semaphore_rw`)).value);
   if (!taken) throw new Error('the CNC did not take the command within 3 s');
-  await sleep(20);
-  return (await client.readValue(`${unit}.state_r`)).value;
+  let state;
+  await until(async () => {
+    state = (await client.readValue(`${unit}.state_r`)).value;
+    return state.actual_state === expect;
+  });
+  return state;
 }
 
 (async () => {
@@ -84,7 +89,7 @@ async function command(client, transition, position) {
       await client.deleteVariableHandle(h);
       return { size: h.size, dataType: h.dataType, bytes: raw.length };
     });
-    await step('on', async () => command(client, 1, 400000));        // ON, SET_POS 40 mm
+    await step('on', async () => command(client, 1, 400000, 1));        // ON, SET_POS 40 mm
     const seen = [];
     await step('subscribe', async () => {
       const sub = await client.subscribeValue(`${unit}.state_r.actual_offset`,
@@ -96,7 +101,7 @@ async function command(client, transition, position) {
     await step('subscribe_struct', async () => {
       const got = [];
       const sub = await client.subscribeValue(`${unit}.state_r`, (data) => got.push(data.value), 10);
-      await sleep(100);
+      await until(async () => got.length >= 1);     // at least one sample (bounded, 3 s)
       await sub.unsubscribe();
       return { count: got.length, fields: got.length ? Object.keys(got[0]) : [] };
     });
@@ -113,7 +118,7 @@ async function command(client, transition, position) {
       await client.deleteVariableHandleMulti(ok);
       return res.map((r) => (r.success ? 0 : r.errorCode));
     });
-    await step('off', async () => command(client, 0, 0));              // OFF
+    await step('off', async () => command(client, 0, 0, 0));              // OFF
     await step('unknown_symbol', async () => client.readValue('gpAx[99].nope'));
     await step('read_only', async () => client.writeValue(`${unit}.state_r.actual_state`, 3));
     await step('unknown_type', async () => client.getDataType('NO_SUCH_TYPE'));
