@@ -4,11 +4,22 @@ of its own (pyads' AdsLib always connects to TCP 48898, so each test server take
 from __future__ import annotations
 
 import random
+import signal
 import socket
 
 import pytest
 
 pyads = pytest.importorskip("pyads")
+
+
+def _sigint_default() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+#: Popen keywords for a child that a test stops with SIGINT (Ctrl-C): the child gets SIGINT's default
+#: disposition, as from a terminal; a test run started as a background job of a non-interactive shell
+#: (``make test &``) ignores SIGINT, and a child would inherit that and never see the signal
+CTRL_C_ABLE = {"preexec_fn": _sigint_default}
 
 
 def free_loopback(port: int = 48898) -> str:

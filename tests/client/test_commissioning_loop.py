@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .conftest import pyads, serve
+from .conftest import CTRL_C_ABLE, pyads, serve
 
 HERE = Path(__file__).parent / "loop"
 ROOT = Path(__file__).resolve().parents[2]
@@ -165,7 +165,8 @@ def test_whole_commissioning_loop(tmp_path):
         env = dict(os.environ, PYTHONPATH=str(ROOT))
         proc = subprocess.Popen([sys.executable, "-m", "distctrl", "machine", "record", *ads, "--axis", "Z=3",
                                  "--seconds", "600", "--signals", "command,actual,sensor", "--out", str(rec_csv),
-                                 "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                                 "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                                **CTRL_C_ABLE)
         try:
             deadline = time.monotonic() + 120     # until its 3 notifications run (a busy machine: seconds)
             while sync_notifications(sm) < 3:
@@ -224,7 +225,10 @@ def test_whole_commissioning_loop(tmp_path):
         assert all(now[k] == pytest.approx(v) for k, v in new.items()), (now, new)
         assert after["errors"] == 0
         assert after["rms"] < before["rms"], (before, after, new)
-        assert after["settled_rms"] < 0.8 * before["settled_rms"], (before, after, new)
+        # tune keeps gain margin >= 2 and phase margin >= 30 deg on the twin and its variants within identify's
+        # tolerances (docs/tuning.md), so it gives up part of the tracking gain for safety: 0.060 -> 0.050 mm
+        # here (0.040 mm without that constraint)
+        assert after["settled_rms"] < 0.95 * before["settled_rms"], (before, after, new)
         assert after["tail_rms"] < 0.05, after
 
         # 8. restore the backup; the next activation adopts the old values again

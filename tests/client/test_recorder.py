@@ -60,7 +60,7 @@ def test_only_the_rows_where_every_signal_runs():
 
 def test_ctrl_c_keeps_what_was_recorded(tmp_path):
     """machine record ended by SIGINT: exit code 130, the trace written (a served machine in a child)."""
-    from .conftest import serve
+    from .conftest import CTRL_C_ABLE, serve
     from distctrl.sim.scenario import load_scenario
 
     sm = serve(load_scenario(ROOT / "examples" / "scenarios" / "serve_z.toml"))
@@ -69,7 +69,7 @@ def test_ctrl_c_keeps_what_was_recorded(tmp_path):
         proc = subprocess.Popen([sys.executable, "-m", "distctrl", "machine", "record", "--ads", sm.net_id,
                                  "--ip", sm.host, "--axis", "Z=2", "--seconds", "300", "--out", str(out), "--json"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                                env=dict(os.environ, PYTHONPATH=str(ROOT)), **CTRL_C_ABLE)
         try:
             deadline = time.monotonic() + 120
             while sm.server.connections == 0 or not any(c for c in sm.server._sync_conns()):
