@@ -47,10 +47,11 @@ from distctrl.params import parse_list_text  # noqa: E402
 from distctrl.params.channel import CHANNEL_LIST  # noqa: E402
 from distctrl.sim.runner import run  # noqa: E402
 from distctrl.sim.scenario import ScenarioError, scenario_from_dict, scenario_from_text  # noqa: E402
+from tests.reliability import test_input_fuzz as fuzz_suite  # noqa: E402
 
 TARGET = 1_000_000
 SEED = 30
-RUN_SECONDS = 0.15
+RUN_SECONDS = fuzz_suite.RUN_SECONDS
 #: a hang: no result after this much CPU time of the campaign's process (ITIMER_PROF); a wall-clock
 #: bound made inputs of a process starved on a loaded machine (nice 19, load 25 on 2 cores) look like
 #: hangs (replayed: 0.1-1.7 s). A process blocked without using CPU is caught by HANG_WALL_S.
@@ -117,18 +118,9 @@ def checked_run(scenario) -> str:
 
 # ------------------------------------------------------------------ the suites' checks
 
-AXIS_SCENARIO = {"name": "fuzz", "duration": RUN_SECONDS, "settle_time": 0.0,
-                 "variables": {"SENSOR": 1.0, "HEIGHT": 2.0},
-                 "axes": {"X": {"v_max": 300.0, "a_max": 3000.0}, "Y": {},
-                          "Z": {"params": "z_probe.lis", "start": 30.0, "kv": 50.0}},
-                 "surface": {"base": 29.7},
-                 "sensor": {"axis": "Z", "kind": "encoder", "range_min": -20.0, "range_max": 20.0}}
-SCENARIO_3D = {"name": "fuzz3d", "duration": RUN_SECONDS, "settle_time": 0.0,
-               "channel": {"params": "../channel_3d_12_8_3.lis", "kinematics": "none"},
-               "axes": {"X": {}, "Y": {}, "Z": {"start": 10.0, "kv": 50.0, "feedforward": 1.0}},
-               "surface": {"base": 8.8},
-               "sensor": {"kind": "distance", "mode": "orthogonal_clamping_point", "variable": "SENSOR",
-                          "range_max": 150.0}}
+# the scenario templates the NC inputs run in are the fuzz suite's (tests/reliability), so the
+# campaign checks what make test checks, at volume
+AXIS_SCENARIO, SCENARIO_3D = fuzz_suite.AXIS_SCENARIO, fuzz_suite.SCENARIO_3D
 
 
 def check_nc(text: str) -> list[str]:
