@@ -50,32 +50,6 @@ from .status import EventCursor, activity, machine_status
 
 _TRACKING = (int(HliState.ACTIVE), int(HliState.ACTIVE_CONST_DIST))
 _VARIABLE = SensorSource.VARIABLE
-DC_COLUMNS = ("dc.state", "dc.offset", "dc.sensor", "dc.feedback", "dc.filtered", "dc.target_deviation",
-              "dc.pre_limiter", "dc.sloped_delta", "dc.set_pos", "dc.set_dist")
-#: trace columns of the channel's 3D distance control: column -> (unit, expression on the machine ``m``
-#: and its 3D output ``q``); used by the runner's row builder
-DC3D_COLUMNS: dict[str, tuple[str, str]] = {
-    "dc3d.state": ("-", "q.core.hli_state"),
-    "dc3d.offset": ("mm", "q.core.offset"),
-    "dc3d.mode": ("-", "q.mode"),
-    "dc3d.delta": ("mm", "q.delta"),
-    "dc3d.comp_x": ("mm", "q.compensation[0]"),
-    "dc3d.comp_y": ("mm", "q.compensation[1]"),
-    "dc3d.comp_z": ("mm", "q.compensation[2]"),
-    "dc3d.inclination": ("deg", "m.inclination_deg"),
-    "dc3d.virt_tool_length": ("mm", "m.virt_tool_length"),
-    "dc3d.set_dist_orth": ("mm", "q.orthogonal_set_distance"),
-    "dc3d.sensor": ("mm", "q.core.sensor_value"),
-    "dc3d.filtered": ("mm", "q.core.filtered_feedback"),
-    "dc3d.set_pos": ("mm", "q.core.set_pos"),
-    "true.clamp_x": ("mm", "m.true_clamp[0]"),
-    "true.clamp_y": ("mm", "m.true_clamp[1]"),
-    "true.clamp_z": ("mm", "m.true_clamp[2]"),
-    "true.distance_orth": ("mm", "m.true_distance_orth"),
-    "tcp.x": ("mm", "m.tcp_cmd[0]"),
-    "tcp.y": ("mm", "m.tcp_cmd[1]"),
-    "tcp.z": ("mm", "m.tcp_cmd[2]"),
-}
 _DEG = math.pi / 180.0
 _Z = (0.0, 0.0, 1.0)
 #: the kinematic ID of the CA head (FCT-M3 §12.4.2.1: "#TRAFO [9, 98]" on the CA kinematic)

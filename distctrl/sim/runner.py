@@ -15,12 +15,14 @@ import numpy as np
 
 from ..control import HliState
 from ..errors import DistCtrlError, ErrorId, ExitCode
-from ..errors.config import ConfigError
 from ..nc.parser import parse_file, parse_program
 from ..trace import TraceRecorder
 from ..trace.parquet import require_pyarrow, to_parquet
-from .machine import DC3D_COLUMNS, DC_COLUMNS, Machine
+from .machine import Machine
 from .scenario import Scenario, load_scenario
+# the trace's columns live in signals.py; RECORDABLE, check_record, trace_columns, row_builder and
+# PLOT_3D stay importable from here
+from .signals import PLOT_3D, RECORDABLE, check_record, row_builder, trace_columns  # noqa: F401
 
 #: safety cap when a scenario has no duration: one hour of machine time
 MAX_RUN_SECONDS = 3600.0
@@ -44,8 +46,6 @@ PERIODIC_SECONDS = 3
 PERIODIC_PERIODS = 4
 SETTLE_BAND_MM = 0.01           # settle_time: |distance error| within this band ...
 SETTLE_HOLD_S = 0.1             # ... for this long
-#: default plot signals of a 3D run (one panel per unit)
-PLOT_3D = ("dc3d.offset", "dc3d.delta", "dc3d.comp_x", "dc3d.comp_y", "dc3d.comp_z", "dc3d.inclination")
 
 
 @dataclass
@@ -101,91 +101,6 @@ class RunResult:
         if signals is None and "dc3d.offset" in self.trace.columns:
             signals = list(PLOT_3D)          # 3D: offset and compensation (mm), inclination (deg)
         return self.trace.plot(path, signals=signals, title=self.name)
-
-
-#: the values behind the CNC objects (CycleOutput fields) that ``record=`` may add, with their units
-RECORDABLE = {"m_actual_offset": "mm", "delta_offset": "mm", "offset_velocity": "mm/s", "v_max_int": "mm/s",
-              "a_max_int": "mm/s²", "v_max_param": "mm/s", "a_max_param": "mm/s²", "kp": "-", "i_tn": "s",
-              "d_tv": "s", "smoothing_fact": "-", "kalman_sigma": "-", "n_cycles": "-", "state": "-",
-              "surface_position": "mm", "measured_distance": "mm", "command_source": "-", "absorbed_offset": "mm",
-              "target_reached": "-", "sensor_valid": "-"}
-
-
-def check_record(record) -> tuple[str, ...]:
-    """The extra per-cycle values asked for (``distctrl run --record``), validated."""
-    fields = tuple(f.strip() for f in record if f.strip())
-    for f in fields:
-        if f not in RECORDABLE:
-            raise ConfigError("record", f, "one of " + ", ".join(sorted(RECORDABLE)),
-                              "not a recordable distance-control value")
-    return fields
-
-
-def trace_columns(machine: Machine, record: tuple[str, ...] = ()) -> tuple[list[str], dict[str, str]]:
-    cols, units = ["t", "line"], {"t": "s", "line": "-"}
-    for n in machine.axis_names:
-        for c in ("prog", "cmd", "act") + _nozzle(machine, n):
-            cols.append(f"{n}.{c}")
-            units[f"{n}.{c}"] = "mm"
-    for n in machine.dc_axes:
-        for c in DC_COLUMNS:
-            cols.append(f"{n}.{c}")
-            units[f"{n}.{c}"] = "-" if c == "dc.state" else "mm"
-    for n in machine.dc_axes:
-        for f in record:
-            cols.append(f"{n}.dc.{f}")
-            units[f"{n}.dc.{f}"] = RECORDABLE[f]
-    cols += ["true.surface", "true.distance"]
-    units.update({"true.surface": "mm", "true.distance": "mm"})
-    if getattr(machine, "ch3d", None) is not None:
-        for c, (unit, _) in DC3D_COLUMNS.items():
-            cols.append(c)
-            units[c] = unit
-    for n in machine.axis_names:
-        if n in ("A", "B", "C"):
-            for c in ("prog", "cmd", "act") + _nozzle(machine, n):
-                units[f"{n}.{c}"] = "deg"
-    return cols, units
-
-
-def _nozzle(machine: Machine, axis: str) -> tuple[str, ...]:
-    """``("nozzle",)`` for an axis whose drive has a mechanical resonance (the nozzle is then not the
-    motor the encoder ``<ax>.act`` reports), else ``()``: a rigid axis's trace is unchanged."""
-    return ("nozzle",) if machine.drives[axis].resonance_hz else ()
-
-
-def row_builder(machine: Machine, record: tuple[str, ...] = (), pack=None):
-    """A function ``(t, line) -> tuple`` giving one trace row in the order of :func:`trace_columns`
-    (with ``pack``, e.g. ``TraceRecorder.pack``: ``(t, line) -> pack(*row)``, the packed row).
-
-    It is generated once per machine layout as a single tuple expression (the way
-    ``collections.namedtuple`` builds its code): the row is assembled 10^5 times a second, and one
-    expression avoids the intermediate lists and tuples of a generic loop."""
-    env = {"m": machine, "pack": pack}
-    parts = ["t", "line"]
-    kinematic = getattr(machine, "kinematic_path", False)
-    for j, n in enumerate(machine.axis_names):
-        env[f"i{j}"], env[f"o{j}"], env[f"d{j}"] = machine.inputs[n], machine.outputs[n], machine.drives[n]
-        # with kinematics the axis's CycleInput holds the machine setpoint; the NC's value is kept apart
-        prog = f"m.prog_values[{j}]" if kinematic else f"i{j}.programmed_position"
-        parts += [prog, f"o{j}.command_position", f"d{j}.actual"] + [f"d{j}.nozzle" for _ in _nozzle(machine, n)]
-    for j, n in enumerate(machine.dc_axes):
-        env[f"c{j}"] = machine.outputs[n]
-        parts += [f"c{j}.{a}" for a in ("hli_state", "offset", "sensor_value", "feedback_value", "filtered_feedback",
-                                        "target_deviation", "delta_deviation_pre_limiter", "sloped_delta_deviation",
-                                        "set_pos", "set_distance")]
-    for j, n in enumerate(machine.dc_axes):
-        parts += [f"float(c{j}.{f})" for f in record]            # names checked by check_record
-    parts += ["m.true_surface", "m.true_distance"]
-    if getattr(machine, "ch3d", None) is not None:
-        env["q"] = machine.out3d
-        parts += [expr for _, expr in DC3D_COLUMNS.values()]
-    if pack is None:
-        src = "def build_row(t, line):\n    return (" + ", ".join(parts) + ",)\n"
-    else:
-        src = "def build_row(t, line):\n    return pack(" + ", ".join(parts) + ")\n"
-    exec(compile(src, "<trace row builder>", "exec"), env)       # names only from the lists above
-    return env["build_row"]
 
 
 def load_program(scenario):
