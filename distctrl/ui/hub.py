@@ -4,7 +4,7 @@
 under the machine's lock, right after the step, inside the cycle's slack, so the page never takes the
 lock at a time the cycle is due):
 
-* every cycle one trace row (the columns of ``distctrl run --trace``, :func:`~distctrl.sim.runner.trace_columns`)
+* every cycle one trace row (the columns of ``distctrl run --trace``, :func:`~distctrl.sim.signals.trace_columns`)
   goes into a queue; the page thread moves the rows into a ring buffer of ``buffer_s`` seconds;
 * every ``snapshot_every`` cycles (10: 100 per second at 1 ms, about 60 µs for two axes) a snapshot of plain values: every CNC
   object of every axis (raw value and pending write), each HLI control unit, the machine's events,
@@ -30,7 +30,7 @@ from ..objects.channel3d import (CHANNEL3D_OBJECTS, Channel3DObjectContext, find
                                  write_value as write_value_3d)
 from ..objects.registry import (SERVED_OBJECTS, ObjectAccessError, ObjectValueError, find_spec, index_offset,
                                 read_value, write_value)
-from ..sim.runner import row_builder, trace_columns
+from ..sim.signals import row_builder, trace_columns
 from ..sim.scenario import OVERRIDE_PATH_MAX, Event
 from ..trace import Trace
 from .ring import program_lines, ring_put, ring_since

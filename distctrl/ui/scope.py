@@ -35,6 +35,7 @@ from bokeh.models import (
 from bokeh.palettes import Category10_10
 from bokeh.plotting import figure
 
+from ..sim.signals import SCOPE_DEFAULT
 from ..trace.recorder import HLI_STATE_NAMES
 from .hub import MachineHub, state_name
 
@@ -47,7 +48,7 @@ EVENT_COLOURS = {"error": "red", "warning": "darkorange", "state": "grey", "trig
 def default_signals(hub: MachineHub) -> list[str]:
     m = hub.machine
     ax = m.dc_axes[0] if m.dc_axes else m.axis_names[-1]
-    wanted = ["true.distance", f"{ax}.dc.sensor", f"{ax}.dc.offset", f"{ax}.dc.state"]
+    wanted = [s.format(ax=ax) for s in SCOPE_DEFAULT]
     return [s for s in wanted if s in hub.columns] or [hub.columns[2]]
 
 

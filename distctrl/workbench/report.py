@@ -29,6 +29,7 @@ from ..base.states import HLI_STATE_NAMES
 from ..params.channel import CHANNEL_LIST
 from ..params.listfile import format_list
 from ..sim.scenario import Scenario, load_scenario
+from ..sim.signals import PLOT_3D
 from ..trace import Trace
 from ..trace.plot import (add_event_markers, distance_error, events_from_meta, figure_bytes, plot_trace,
                           slice_trace)
@@ -72,7 +73,6 @@ _PNG_DPI = 100
 #: the zoom shows this fraction of the run around the largest error (clamped below)
 _ZOOM_FRACTION = 0.05
 _ZOOM_MIN_S, _ZOOM_MAX_S = 0.05, 0.5
-_PLOT_3D = ("dc3d.offset", "dc3d.delta", "dc3d.comp_x", "dc3d.comp_y", "dc3d.comp_z", "dc3d.inclination")
 
 # ------------------------------------------------------------------------------------------------------
 # small helpers. The markup is in templates/ (distctrl.workbench.pages): report_page.html.j2 (the
@@ -97,7 +97,7 @@ def _png(fig: "Figure") -> bytes:
 
 def _scope_signals(trace: "Trace") -> list[str] | None:
     if "dc3d.offset" in trace:
-        return [s for s in _PLOT_3D if s in trace]
+        return [s for s in PLOT_3D if s in trace]
     return None
 
 
