@@ -168,8 +168,10 @@ class Browser:
         self.pages = []
         for _ in range(n):
             page = self.browser.new_page(viewport={"width": 1300, "height": 900})
-            page.goto(url)
-            page.locator(".scope-plot").first.wait_for(timeout=60000)
+            # generous: on a busy machine (the campaigns run beside other work) the first load of the
+            # page took over 30 s, playwright's default, and ended the campaign at its start
+            page.goto(url, wait_until="commit", timeout=300_000)
+            page.locator(".scope-plot").first.wait_for(timeout=300_000)
             self.pages.append(page)
 
     def updating(self, page, seconds: float = 15.0) -> bool:
