@@ -22,6 +22,8 @@ the closure's variables are read as fast as the locals of the loop it was cut ou
 from __future__ import annotations
 
 import math
+import sys
+from collections import deque
 
 import numpy as np
 
@@ -148,8 +150,6 @@ class _Metrics:
                  "excluded_process", "process_names")
 
     def __init__(self, band: float, hold_cycles: int, T: float):
-        from collections import deque
-
         self.T = T
         self.n = 0
         self.sq = 0.0
@@ -509,12 +509,11 @@ class ProgressObserver:
     """A rich progress bar on a terminal (nothing otherwise), updated every 2000 cycles."""
 
     def __init__(self, total: int | None, T: float):
-        import sys
-
         self.T = T
         self.bar = None
         self.after_cycle = None
         if sys.stderr.isatty():
+            # rich's progress bar (0.1 s of import) only on a terminal
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
             self.bar = Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.fields[t]:.2f} s"),

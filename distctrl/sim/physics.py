@@ -11,6 +11,7 @@ mm/s, s.
 """
 from __future__ import annotations
 
+import math
 from math import floor
 
 
@@ -104,12 +105,11 @@ def resonance_step(e, de, dv, p11, p12, p21, p22):
 def resonance_coefficients(resonance_hz, damping, cycle_time):
     """``(p11, p12, p21, p22)`` = expm(A T), A = [[0, 1], [-w0^2, -2 zeta w0]], w0 = 2 pi f0 (set-up
     only, not compiled: scipy)."""
-    from math import pi
-
+    # set-up only: numpy and scipy stay off the import path of the functions numba compiles from here
     import numpy as np
     from scipy.linalg import expm
 
-    w0 = 2.0 * pi * resonance_hz
+    w0 = 2.0 * math.pi * resonance_hz
     a = np.array([[0.0, 1.0], [-w0 * w0, -2.0 * damping * w0]])
     phi = expm(a * cycle_time)
     return float(phi[0, 0]), float(phi[0, 1]), float(phi[1, 0]), float(phi[1, 1])

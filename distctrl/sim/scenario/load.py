@@ -18,6 +18,7 @@ from distctrl.errors import ParameterError
 from distctrl.errors.config import MISSING, ConfigError, require_int, require_mapping, require_number
 from distctrl.params.channel import ChannelParameters
 from distctrl.params.external_variables import load_external_variables
+from distctrl.plc.process import make_process_program, process_configs
 from distctrl.sim.drive import Drive
 from distctrl.sim.interpolator import AxisLimits
 from distctrl.sim.sensors import SensorBase
@@ -75,7 +76,6 @@ class Scenario:
         (:class:`distctrl.plc.process.ProcessProgram`), or None without any."""
         if not self.processes:
             return None
-        from distctrl.plc.process import make_process_program
         return make_process_program(self.processes, self.cycle_time)
 
     @property
@@ -193,7 +193,6 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
     # issue 16: [[process]] tables (docs/process.md)
     processes: tuple = ()
     if "process" in data:
-        from distctrl.plc.process import process_configs
         processes = process_configs(data["process"], axes, sensor, cycle_time, has_3d)
 
     return Scenario(path, base_dir, name, cycle_time, program_text, program_file, duration, settle_time, seed,

@@ -15,8 +15,10 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 from distctrl.errors.config import (MAX_DELAY_CYCLES, MISSING, ConfigError, require_choice, require_int,
                                     require_mapping, require_number)
 from distctrl.params.axis import AxisParameters
-from distctrl.sim.sensors import (FAULT_KINDS, FOOTPRINT_POINTS, ArcVoltageSensor, Bursts, DistanceSensor,
-                                  EncoderProbe, Fault, SensorBase)
+from distctrl.plc.arc_voltage import ARC_K_RANGE, ARC_V0_RANGE, ArcVoltageLinearisation
+from distctrl.plc.linearisation import DistanceLinearisation, check_table
+from distctrl.sim.sensors import (FAULT_KINDS, FOOTPRINT_POINTS, ArcVoltageSensor, Bursts, DistanceSensor, EncoderProbe,
+                                  Fault, SensorBase)
 from distctrl.sim.surface import Surface
 
 from .axes import AxisConfig
@@ -135,11 +137,9 @@ class SensorConfig:
         :class:`distctrl.plc.arc_voltage.ArcVoltageLinearisation`; a distance sensor's table,
         :class:`distctrl.plc.linearisation.DistanceLinearisation`), or None."""
         if self.kind == "distance" and self.linearisation is not None:
-            from distctrl.plc.linearisation import DistanceLinearisation
             return DistanceLinearisation(self.linearisation, f"V.E.{self.raw_variable}", f"V.E.{self.variable}")
         if self.kind != "arc_voltage":
             return None
-        from distctrl.plc.arc_voltage import ArcVoltageLinearisation
         return ArcVoltageLinearisation(self.arc_v0 if self.plc_v0 is None else self.plc_v0,
                                        self.arc_k if self.plc_k is None else self.plc_k,
                                        f"V.E.{self.voltage_variable}", f"V.E.{self.variable}")
@@ -311,7 +311,6 @@ def _footprint_keys(cfg: dict, key: str, range_max: float, cycle_time: float) ->
 def _linearisation_keys(cfg: dict, key: str, variable: str, base_dir: Path) -> dict:
     """``linearisation`` (a table of [reading_mm, distance_mm] pairs, or a TOML file with one) and
     ``raw_variable`` of a distance sensor (issue 16, docs/process.md *Calibration run*)."""
-    from distctrl.plc.linearisation import check_table
     if "linearisation" not in cfg:
         if "raw_variable" in cfg:
             raise ConfigError(f"{key}.raw_variable", cfg["raw_variable"], "only with sensor.linearisation (the "
@@ -342,7 +341,6 @@ def _linearisation_keys(cfg: dict, key: str, variable: str, base_dir: Path) -> d
 
 def _arc_keys(cfg: dict, key: str, cycle_time: float, variable: str) -> dict:
     """The arc-voltage keys (V, V/mm, Hz) and the PLC linearisation's parameters."""
-    from distctrl.plc.arc_voltage import ARC_K_RANGE, ARC_V0_RANGE
     nyquist = 0.5 / cycle_time
     out: dict[str, Any] = {
         "voltage_variable": _var_name(cfg.get("voltage_variable", "ARC_VOLTAGE"), f"{key}.voltage_variable"),
