@@ -23,7 +23,7 @@ from __future__ import annotations
 from ..errors.config import ConfigError
 
 __all__ = ["AXIS_SIGNALS", "DC_SIGNALS", "DC_COLUMNS", "TRUE_SIGNALS", "DC3D_SIGNALS", "DC3D_COLUMNS",
-           "RECORDABLE", "PLOT_3D", "SCOPE_DEFAULT", "check_record", "trace_columns", "row_builder"]
+           "RECORDABLE", "RECORD_COLUMN", "PLOT_3D", "SCOPE_DEFAULT", "check_record", "trace_columns", "row_builder"]
 
 #: per axis: (column suffix, unit, expression on ``i`` (CycleInput), ``o`` (CycleOutput), ``d`` (Drive),
 #: ``p`` (the NC's programmed value; with kinematics the axis's CycleInput holds the machine setpoint))
@@ -59,6 +59,9 @@ RECORDABLE = {"m_actual_offset": "mm", "delta_offset": "mm", "offset_velocity": 
               "d_tv": "s", "smoothing_fact": "-", "kalman_sigma": "-", "n_cycles": "-", "state": "-",
               "surface_position": "mm", "measured_distance": "mm", "command_source": "-", "absorbed_offset": "mm",
               "target_reached": "-", "sensor_valid": "-"}
+#: a recordable value whose column is not ``<ax>.dc.<name>``: the CycleOutput's ``state`` is the internal
+#: state (InternalState), and ``<ax>.dc.state`` is already the HLI state (DC_SIGNALS)
+RECORD_COLUMN = {"state": "internal_state"}
 
 #: the ground truth of the simulated geometry: (column, unit, expression on the machine ``m``)
 TRUE_SIGNALS: tuple[tuple[str, str, str], ...] = (
@@ -101,7 +104,7 @@ SCOPE_DEFAULT = ("true.distance", "{ax}.dc.sensor", "{ax}.dc.offset", "{ax}.dc.s
 
 def check_record(record) -> tuple[str, ...]:
     """The extra per-cycle values asked for (``distctrl run --record``), validated."""
-    fields = tuple(f.strip() for f in record if f.strip())
+    fields = tuple(dict.fromkeys(f.strip() for f in record if f.strip()))   # asked twice: recorded once
     for f in fields:
         if f not in RECORDABLE:
             raise ConfigError("record", f, "one of " + ", ".join(sorted(RECORDABLE)),
@@ -134,8 +137,9 @@ def trace_columns(machine, record: tuple[str, ...] = ()) -> tuple[list[str], dic
             units[f"{n}.{c}"] = unit
     for n in machine.dc_axes:
         for f in record:
-            cols.append(f"{n}.dc.{f}")
-            units[f"{n}.dc.{f}"] = RECORDABLE[f]
+            col = f"{n}.dc.{RECORD_COLUMN.get(f, f)}"
+            cols.append(col)
+            units[col] = RECORDABLE[f]
     for c, unit, _ in TRUE_SIGNALS:
         cols.append(c)
         units[c] = unit

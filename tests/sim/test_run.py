@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from distctrl.base.states import InternalState
 from distctrl.cli import main
 from distctrl.sim.runner import run
 from distctrl.sim.scenario import scenario_from_dict
@@ -394,3 +395,15 @@ def test_tf5200_dist_5_kalman_filter_selected_changed_and_the_head_stays_above_t
     active = r.trace["Z.dc.state"] == 4
     assert d[active].min() > 0.45 and d[active].max() < 1.2
     assert d[active][-200:] == pytest.approx(1.0, abs=2e-3)
+
+
+def test_recording_the_internal_state_beside_the_hli_state(tmp_path):
+    """``--record state`` is the CycleOutput's internal state (InternalState); the trace always has the HLI
+    state as ``<ax>.dc.state``: the recorded one is ``<ax>.dc.internal_state`` (it collided: "duplicate
+    column names" and a traceback). A value asked for twice is recorded once."""
+    r = run(SCN / "dist_1.toml", trace=tmp_path / "t.csv", record=("state", "kp", "state"))
+    cols = list(r.trace.columns)
+    assert len(cols) == len(set(cols))
+    assert "Z.dc.internal_state" in cols and "Z.dc.state" in cols and cols.count("Z.dc.kp") == 1
+    assert r.trace.units["Z.dc.internal_state"] == "-"
+    assert set(np.unique(r.trace["Z.dc.internal_state"])) <= {float(s) for s in InternalState}
