@@ -724,7 +724,6 @@ class MarginResult:
             path = check_plot_path(path)
         m = self.model
         T = m.cycle_time
-        loop = control.tf(m.loop(), name="L")
         fig = Figure(figsize=(13.0 if nyquist else 8.5, 6.4), layout="constrained")
         FigureCanvasAgg(fig)
         if nyquist:
@@ -736,6 +735,9 @@ class MarginResult:
             ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
         w_lo = 2.0 * math.pi * 0.1
         omega = np.logspace(math.log10(w_lo), math.log10(math.pi / T * 0.999), 2000)
+        # the response factor by factor (LoopModel.response), as analyse reads the margins from it
+        resp = m.response(omega)
+        loop = control.frd(resp, omega, dt=T, name="L")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             control.bode_plot(loop, omega, ax=np.array([[ax_mag], [ax_ph]]), Hz=True, dB=True, deg=True,
@@ -749,8 +751,15 @@ class MarginResult:
         if nyquist:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                control.nyquist_plot(loop, omega, ax=ax_ny, title="", max_curve_magnitude=5.0,
-                                     unit_circle=True)
+                # the curve for positive and (mirrored) negative frequencies, clipped at |L| = 5 as
+                # python-control's nyquist_plot does (it cannot draw frequency response data)
+                mag = np.abs(resp)
+                cur = np.where(mag > 5.0, resp / np.maximum(mag, 1e-300) * 5.0, resp)
+                ax_ny.plot(cur.real, cur.imag, color="C0", label="L(z)")
+                ax_ny.plot(cur.real, -cur.imag, color="C0", linestyle="--")
+                ax_ny.plot(np.cos(np.linspace(0.0, 2.0 * math.pi, 361)), np.sin(np.linspace(0.0, 2.0 * math.pi, 361)),
+                           color="grey", linewidth=0.8, linestyle=":")
+                ax_ny.plot([-1.0], [0.0], marker="+", color="C3", markersize=12)
             ax_ny.set_xlim(-3.0, 1.5)
             ax_ny.set_ylim(-2.5, 2.5)
             ax_ny.set_aspect("equal", adjustable="box")
