@@ -142,5 +142,6 @@ def compare(signal, t, configs: Sequence[FilterConfig], cycle_time: float | None
             dead = _crossing(y, tt, e1, i1, i2, base, step, 0.1)
             os_mm = max(0.0, float(np.max((y[i1:i2] - top) * math.copysign(1.0, step))))
             os_pct = 100.0 * os_mm / abs(step)
-        results.append(FilterResult(cfg, cfg.label(), y, noise, delay, dead, os_mm, os_pct))
+        results.append(FilterResult(cfg, cfg.label(), y, noise, delay, dead, os_mm, os_pct, t=tt, signal=x,
+                                    edges=tuple(ed) if ed else None))
     return results

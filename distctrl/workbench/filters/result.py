@@ -5,9 +5,10 @@ Part of :mod:`distctrl.workbench.filters` (docs/workbench-filters.md); the packa
 """
 from __future__ import annotations
 
+import csv
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
@@ -30,7 +31,9 @@ class FilterResult:
 
     ``noise_rms`` [mm]; ``delay_s`` / ``dead_time_s``: time from the first (rising) edge until the
     output has made 50 % / 10 % of the step; ``overshoot_mm`` beyond the top level in the step's
-    direction (0 if none), ``overshoot_pct`` in % of the step.
+    direction (0 if none), ``overshoot_pct`` in % of the step. ``t``, ``signal`` and ``edges`` are
+    what :func:`compare` ran it on (s, mm, s), so that the result plots itself (:meth:`plot`) and
+    writes its time series (:meth:`to_csv`); None for a result built by hand without them.
     """
 
     config: FilterConfig
@@ -41,6 +44,9 @@ class FilterResult:
     dead_time_s: float
     overshoot_mm: float
     overshoot_pct: float
+    t: np.ndarray | None = field(default=None, repr=False, compare=False)
+    signal: np.ndarray | None = field(default=None, repr=False, compare=False)
+    edges: tuple[float, ...] | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
         """This config's entry of ``distctrl filters --json``: label, filter type, the parameters the
@@ -56,6 +62,31 @@ class FilterResult:
                 "overshoot_pct": float(self.overshoot_pct)}
 
 
+    def _signal(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.t is None or self.signal is None:
+            raise WorkbenchError(f"{self.label}: the result holds no signal; allowed: a result of compare()")
+        return self.t, self.signal
+
+    def plot(self, path: str | os.PathLike | None = None, title: str | None = None,
+             ylabel: str = "distance [mm]") -> "Figure":
+        """The raw signal with this filter's output (:func:`plot_overlay` of this one result, titled with
+        its label); saved too with ``path`` (.png, .svg, .pdf)."""
+        t, x = self._signal()
+        return plot_overlay(t, x, [self], path, edges=self.edges, title=self.label if title is None else title,
+                            ylabel=ylabel)
+
+    def to_csv(self, path: str | os.PathLike) -> Path:
+        """The time series as CSV: ``t_s``, ``signal_mm`` (the raw input) and ``output_mm`` (this filter's
+        output), one row per sample, numbers written so that they read back exactly."""
+        t, x = self._signal()
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with open(p, "w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(("t_s", "signal_mm", "output_mm"))
+            w.writerows((repr(float(a)), repr(float(b)), repr(float(c))) for a, b, c in zip(t, x, self.output))
+        return p
+
 def check_plot_path(path: str | os.PathLike) -> Path:
     return check_plot_suffix(path, WorkbenchError)
 
@@ -70,6 +101,7 @@ def plot_overlay(t, signal, results: Sequence[FilterResult], path: str | os.Path
     percentile of the 50 % delays (at least 40 cycles) after it. Returns the Figure (Agg canvas, no pyplot); with
     ``path`` it is saved too, the format by suffix (.png, .svg, .pdf).
     """
+    # matplotlib is imported here only: it stays off the import path of the cycle core and the CLI
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
