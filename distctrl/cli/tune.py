@@ -14,7 +14,7 @@ from ..errors import DistCtrlError
 from ..tuning.metrics import METRIC_NAMES
 from ..tuning.runner import DEFAULT_CHUNK, Evaluator
 from ..tuning.space import build_sets, drop_inert_d_tv, grid_points, parse_grid, random_sample
-from ..tuning.tune import plot_before_after, tune
+from ..tuning.tune import tune
 from .common import SEED, Finite, check_writable, emit_json, fail
 
 
@@ -181,7 +181,7 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, ch
         (out / "tuned.lis").write_text(res.param_list)
         (out / "tuned.nc.txt").write_text(res.nc_block + "\n")
         res.sweep.write(out / "sweep.csv")
-        plot_before_after(scenario, res.base, res.best, out / "before_after.png", cycles=cycles)
+        res.plot(out / "before_after.png")
         text = res.report()
         (out / "report.txt").write_text(text)
     except _errors() as exc:

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.kinds import FilterType
+from ..errors import DistCtrlError
 from ..params import format_list
 from ..params.axis import AxisParameters
 from ..sim.surface import Surface
@@ -215,6 +216,10 @@ class TuneResult:
     #: the margin constraint (:mod:`distctrl.tuning.robust`): what was required, on which plants, the worst
     #: margins of the tuned and the scenario's set, how many sets it changed or dropped; {} when off
     margin_constraint: dict = field(default_factory=dict)
+    #: the closed-loop inputs tuned on and the cycles replayed (what :meth:`plot` runs again); None for a
+    #: result built by hand
+    inputs: object = field(default=None, repr=False, compare=False)
+    cycles: int | None = None
 
     @property
     def param_list(self) -> str:
@@ -265,6 +270,17 @@ class TuneResult:
                 "margin": _plain(self.margin), "param_list": self.param_list, "nc_block": self.nc_block,
                 "margin_constraint": dict(self.margin_constraint) or None, "notes": self.notes}
 
+    def plot(self, path=None, title: str | None = None):
+        """The distance error and the offset over time with the scenario's and the tuned parameters
+        (:func:`plot_before_after` on the inputs tuned on); a Figure on an Agg canvas, saved to ``path``."""
+        if self.inputs is None:
+            raise DistCtrlError("this TuneResult holds no inputs to run again; allowed: a result of tune()")
+        return plot_before_after(self.inputs, self.base, self.best, path, cycles=self.cycles, title=title)
+
+    def to_csv(self, path) -> Path:
+        """The table of every evaluated set (:meth:`SweepResult.to_csv <distctrl.tuning.runner.SweepResult.to_csv>`)."""
+        return self.sweep.to_csv(path)
+
     def report(self, plain: bool = True) -> str:
         names = ["cost"] + list(METRIC_NAMES)
         rows = [[n, METRIC_UNITS.get(n, "-"), _num(self.base_metrics.get(n)), _num(self.best_metrics.get(n))]
@@ -303,7 +319,6 @@ def stability(scenario, params: AxisParameters) -> dict:
     ``distctrl margins`` (:mod:`distctrl.workbench.margins`: drive kv, bus delay, resonance, sensor delay
     and gain of the scenario) with the list ``params`` (in CONST_DIST or the mode of the first select).
     ``{"error": text}`` where the margins cannot be computed (e.g. a 3D scenario)."""
-    from ..errors import DistCtrlError
     from ..workbench.margins import analyse, loop_model, model_from_parts
 
     try:
@@ -422,7 +437,6 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     base = inputs.params
     constraint, mc = None, {}
     if margin_constraint:
-        from ..errors import DistCtrlError
         from ..workbench.margins import loop_model
 
         try:
@@ -598,7 +612,7 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
                       time.perf_counter() - t0, stats, unrounded=unrounded, unrounded_metrics=unrounded_metrics,
                       cost_weights=weights, stability=stability(scenario, best),
-                      base_stability=stability(scenario, base), margin_constraint=mc)
+                      base_stability=stability(scenario, base), margin_constraint=mc, inputs=inputs, cycles=cycles)
 
 
 # ----------------------------------------------------------------------------- plot
@@ -607,6 +621,7 @@ def plot_before_after(scenario_or_inputs, base: AxisParameters, best: AxisParame
                       cycles: int | None = None, title: str | None = None):
     """Distance error over time for the scenario's and the tuned parameters (a Figure on an Agg
     canvas, no pyplot); saved to ``path`` (PNG/SVG) when given. Returns the Figure."""
+    # matplotlib is imported here only: it stays off the import path of the batch kernel and the CLI
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
