@@ -19,6 +19,10 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))   # bench/, als
 
 from _results import merge_results  # noqa: E402
 
+from distctrl.cli.blas import limit_blas_threads  # noqa: E402
+
+limit_blas_threads()   # as the distctrl command does, before numpy is imported (distctrl/cli/blas.py)
+
 from distctrl.workbench.identify import identify, load_signals  # noqa: E402
 from tests.workbench.identify_plants import (Plant, chirp_command, ramp_command, simulate, steps_command,  # noqa: E402
                                              write_csv)

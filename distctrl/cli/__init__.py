@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import sys
 
+from .blas import limit_blas_threads
 from .extras import missing_dependency
+
+limit_blas_threads()      # before anything imports numpy: one OpenBLAS thread (blas.py, issue 26)
 
 try:
     from .main import LAZY_COMMANDS, main

@@ -20,17 +20,19 @@
 """
 from __future__ import annotations
 
+import errno
 import importlib
 import json
 import math
+import os
 import sys
+from pathlib import Path
 from typing import Any, NoReturn
 
 import click
 
 from ..errors import DistCtrlError, ExitCode
 from .extras import missing_dependency
-
 
 #: the state of the command line in this process: the command whose ``--json`` was given (set by
 #: :class:`DistctrlGroup` from the arguments, so that an error before the command's own code runs,
@@ -114,9 +116,6 @@ def check_writable(path: str, what: str, directory: bool = False) -> None:
     """Fail at once (exit 1, one line naming the path) when ``path`` cannot be written, before a
     long run is wasted on an output that cannot be saved. Creates missing parent folders like the
     writers do."""
-    import os
-    from pathlib import Path
-
     p = Path(path)
     target = p if directory else p.parent
     try:
@@ -152,10 +151,6 @@ def os_error_reason(exc: OSError, path: str | None = None) -> str:
     creating a folder failed because a part of the path is an existing file (mkdir says "File
     exists" then, naming the file), else the error's own words ("No space left on device",
     "Permission denied")."""
-    import errno
-    import os
-    from pathlib import Path
-
     where = path if path is not None else exc.filename
     if exc.errno in (errno.EEXIST, errno.ENOTDIR) and where is not None:
         p = Path(os.fspath(where))

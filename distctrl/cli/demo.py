@@ -11,24 +11,25 @@ Prints summary tables and writes traces and plots to ``out/demo/``.
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import click
-
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
 
 from ..sim import run
 from ..sim.plates import TARGET_MIN_SHARE, compare
 from ..sim.scenario import load_scenario
 from .common import emit_json
+
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
 
 def plain_const_dist_scenario():
     """The sheet scenario with P-AXIS-00500 switched off: the documents' warning example, a loop that
     oscillates into the sheet (a limit cycle; docs/run.md "Collisions", docs/margins.md)."""
-    import dataclasses
-
-
     sc = load_scenario(EXAMPLES / "const_dist_sheet.toml")
     z = sc.axes["Z"]
     axes = dict(sc.axes)
@@ -43,8 +44,6 @@ def _mm(value, digits: int) -> str:
 def main(out_dir: str | Path = "out/demo", plate: str | None = "plasma_plate", as_json: bool = False) -> list:
     """Run the demo and print its tables (``as_json``: print nothing but one JSON object with the
     tables' figures, :func:`figures`); returns the three runs' results."""
-    from rich.console import Console
-
     console = Console(quiet=True) if as_json else Console()
     results, plate_res = run_demo(out_dir, plate, console, progress=not as_json)
     if as_json:
@@ -71,16 +70,12 @@ def figures(results: list, plate_res: dict | None, out_dir: str | Path, plate: s
 
 def run_demo(out_dir: str | Path, plate: str | None, console, progress: bool = True) -> tuple[list, dict | None]:
     """The demo's runs and tables on ``console``: ``([(label, stem, result), ...], plate figures or None)``."""
-    from rich.markup import escape
-    from rich.table import Table
-
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cases = [("CONST_DIST 1 mm, both encoders", "sheet", load_scenario(EXAMPLES / "const_dist_sheet.toml")),
              ("CONST_DIST 1 mm, plain (WARNING EXAMPLE)", "sheet_plain", plain_const_dist_scenario()),
              ("SET_POS 30 mm (%DIST_1)", "dist_1", load_scenario(EXAMPLES / "dist_1.toml"))]
-    from ..workbench.report import write_report      # jinja2: loaded only when a report is written
+    from ..workbench.report import write_report  # jinja2: loaded only when a report is written
 
     results = []
     for label, stem, sc in cases:
@@ -125,10 +120,6 @@ def run_demo(out_dir: str | Path, plate: str | None, console, progress: bool = T
 def plate_table(console, plate: str = "plasma_plate") -> dict:
     """Run the plasma plate (``plate``: a scenario stem in examples/scenarios/, the tests take the
     shortened one) with and without its process functions and print the figures, with units."""
-    from rich.markup import escape
-    from rich.table import Table
-
-
     console.print("running the plasma plate (issue 16) with and without the cutting-process functions ...")
     sc = load_scenario(EXAMPLES / f"{plate}.toml")
     res = compare(sc)

@@ -7,16 +7,20 @@ import io
 from pathlib import Path
 
 import click
+from rich.console import Console
 
-from .common import Finite
+from ..errors import DistCtrlError
+from ..linuxcnc.bench import bench as run_bench
+from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, install_component
+from ..linuxcnc.thc import ThcConfig
+from ..params import load_list
+from .common import Finite, emit_json, fail
 
 __all__ = ["linuxcnc", "format_text", "write_html"]
 
 
 def _parse_set(values: tuple) -> dict:
     """``--set PIN=VALUE`` options as {pin: number} (an int when written without a point)."""
-    from .common import fail
-
     out = {}
     for item in values:
         key, sep, raw = item.partition("=")
@@ -33,12 +37,6 @@ def _parse_set(values: tuple) -> dict:
 
 
 def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: float, as_json: bool) -> None:
-    from ..errors import DistCtrlError
-    from ..linuxcnc.hal_env import LinuxCNCError
-    from ..linuxcnc.thc import ThcConfig
-    from ..params import load_list
-    from .common import emit_json, fail
-
     if list_file is None:
         fail("linuxcnc thc-setp needs an axis parameter LIST (kernel format, e.g. examples/scenarios/z_plasma_plate.lis)")
     try:
@@ -54,9 +52,6 @@ def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: floa
 
 
 def _build(as_json: bool) -> None:
-    from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, install_component
-    from .common import emit_json, fail
-
     try:
         paths = [str(install_component(name, force=True)) for name in COMPONENTS]
     except LinuxCNCError as exc:
@@ -96,8 +91,6 @@ def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc
     distctrl linuxcnc build              build and install the HAL components (halcompile)
     distctrl linuxcnc thc-setp LIST.lis  distctrl_thc's setp lines from an axis parameter list
     """
-    from .common import fail
-
     if action == "build":
         _build(as_json)
         return
@@ -111,13 +104,6 @@ def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc
 
 def _bench(plate: str, repeat: int, settings: tuple, max_time: float | None, html_dir: str | None,
            as_json: bool) -> None:
-    from rich.console import Console
-
-    from ..errors import DistCtrlError
-    from ..linuxcnc.bench import bench as run_bench
-    from ..linuxcnc.hal_env import LinuxCNCError
-    from .common import emit_json, fail
-
     overrides = _parse_set(settings)
     console = Console(stderr=True, quiet=as_json)
     try:
@@ -177,10 +163,11 @@ def format_text(doc: dict) -> str:
 
 def write_html(doc: dict, out_dir: str | Path) -> Path:
     """index.html: the table and, per run in halrun (plasmac, distctrl-hal), the nozzle's height over the surface and the arc voltage."""
+    # matplotlib (the [sim] extra) costs about a second of import: loaded only for --html
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after use("Agg"): no display needed
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

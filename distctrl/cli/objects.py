@@ -3,6 +3,7 @@ read over ADS from a running ``distctrl serve`` (``--watch``)."""
 from __future__ import annotations
 
 import sys
+import time
 
 import click
 
@@ -82,11 +83,8 @@ def _ads_address(host: str, port: int) -> str:
 
 def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval, count) -> None:
     """``objects --watch``: the table of a served machine, refreshed every ``interval`` seconds."""
-    import time
-
-
     try:
-        import pyads
+        import pyads  # the [ads] extra: only --watch needs it, so objects works without it
     except ImportError:
         fail("--watch needs pyads (pip install pyads), the ADS client it reads the served machine with")
     names: dict[int, str] = {}

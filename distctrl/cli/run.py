@@ -1,7 +1,9 @@
 """``distctrl run SCENARIO``: the NC program on the virtual machine, with its summary, trace, plot and report."""
 from __future__ import annotations
 
+import shutil
 import sys
+from pathlib import Path
 
 import click
 
@@ -73,7 +75,7 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     if plot_path:
         result.plot(plot_path)
     if report_dir:
-        from ..workbench.report import write_report      # jinja2: loaded only for --report
+        from ..workbench.report import write_report  # jinja2: loaded only for --report
 
         page = write_report(result, sc, report_dir)
         if not as_json:
@@ -119,10 +121,6 @@ TRACE_NOTICE_BYTES = 100e6
 
 def _say_trace_size(est: dict, trace_path: str) -> None:
     """The size of the trace before the run: always when large, a warning when the disk is smaller."""
-    import shutil
-    from pathlib import Path
-
-
     parquet = str(trace_path).lower().endswith(".parquet")
     size = est["memory_bytes"] if parquet else est["csv_bytes"]
     text = (f"trace {trace_path}: up to {est['rows']:,} rows x {est['columns']} columns, about "

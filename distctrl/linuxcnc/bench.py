@@ -21,13 +21,19 @@ The figures, for every contestant (:func:`bench`):
 from __future__ import annotations
 
 import math
+import re
 import statistics
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from ..control.filters import FilterConfig
+from ..sim import run
+from ..sim.plates import CutWatch, select_functions
+from ..sim.scenario import load_scenario
 from .hal_env import HalSession, LinuxCNCError, import_hal, install_component
 from .plant import ARC_REACH, OffsetFollower, PathFollower, arc_sensor, program_moves
+from .thc import ThcConfig
 
 __all__ = ["PLASMAC_DEFAULTS", "bench", "run_plasmac", "run_distctrl", "DiveCounter", "SERVO_PERIOD"]
 
@@ -127,10 +133,6 @@ class PlateJob:
 
     @classmethod
     def load(cls, path: str | Path) -> "PlateJob":
-        import re
-
-        from ..sim.scenario import load_scenario
-
         sc = load_scenario(path)
         text = sc.program_text or ""
         z = sc.axes.get("Z")
@@ -427,8 +429,6 @@ class _DiveWatch:
     """A reading PLC program for distctrl's own runs: the same :class:`DiveCounter` as plasmac's."""
 
     def __init__(self, axis: str, cut_height: float, cut_feed: float, period: float, metal_floor: float):
-        from ..sim.plates import CutWatch
-
         self.watch = CutWatch(axis)
         self.dives = DiveCounter(cut_height, cut_feed, period)
         self.metal_floor = metal_floor
@@ -451,9 +451,6 @@ class _DiveWatch:
 def run_distctrl(job: PlateJob, functions: bool) -> dict:
     """distctrl's controller with its process functions (``functions``: all of the plate's, else without
     corner lock and void lock) on the same plate, sensor and arc-voltage model (distctrl.sim)."""
-    from ..sim import run
-    from ..sim.plates import select_functions
-
     sc = select_functions(job.scenario, True, drop=() if functions else ("corner_lock", "void_lock"))
     axis = sc.sensor.axis if sc.sensor is not None and sc.sensor.axis else "Z"
     watch = _DiveWatch(axis, job.cut_height, job.cut_feed, sc.cycle_time, sc.surface.base - 10.0)
@@ -481,10 +478,6 @@ def thc_config(job: PlateJob):
     (at most the external offset's: OFFSET_AV_RATIO of the Z axis's), max_deviation and both encoders (P-AXIS-00500), the cut height as SET_DIST, the PLC's arc-voltage
     linearisation (the sensor's plc_v0/plc_k, else its arc's v0/k; the plasma plate's for a plate without
     an arc-voltage sensor), the void lock at distctrl's defaults for a voltage (500 V/s over 20 ms)."""
-    from ..control.filters import FilterConfig
-    from .plant import arc_sensor
-    from .thc import ThcConfig
-
     sc = job.scenario
     p = sc.axes["Z"].params
     sensor, _ = arc_sensor(sc, sc.cycle_time)

@@ -26,6 +26,9 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..sim.plates import EXAMPLES
+from ..sim.scenario import load_scenario
+
 __all__ = ["Move", "program_moves", "PathFollower", "OffsetFollower", "ARC_REACH", "arc_sensor"]
 
 #: mm: beyond this height over the metal the arc does not transfer (or breaks)
@@ -165,9 +168,6 @@ def arc_sensor(scenario, cycle_time: float):
     """The arc-voltage model on the scenario's plate: the scenario's own sensor when it is an arc-voltage
     sensor, else the plasma plate's arc model (examples/scenarios/plasma_plate.toml [sensor]) on this
     plate's surface. Returns ``(sensor, note)``."""
-    from ..sim.scenario import load_scenario
-    from ..sim.plates import EXAMPLES
-
     sc = scenario
     note = ""
     if sc.sensor is None or sc.sensor.kind != "arc_voltage":

@@ -8,6 +8,7 @@ more than ``max_lag`` behind (e.g. the process was stopped), it resynchronises a
 """
 from __future__ import annotations
 
+import os
 import threading
 import time
 from dataclasses import dataclass, field
@@ -42,8 +43,6 @@ class JitterStats:
 def sched_fifo(priority: int) -> str:
     """Put the calling thread on the real-time policy SCHED_FIFO at ``priority`` (1..99) where the OS
     allows it; what it runs with: ``"SCHED_FIFO <priority>"`` or ``"normal (... not allowed: why)"``."""
-    import os
-
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (AttributeError, OSError, ValueError) as exc:

@@ -34,6 +34,7 @@ class ParquetError(DistCtrlError):
 
 def _pyarrow():
     try:
+        # the [parquet] extra, loaded when a Parquet trace is read or written: CSV traces work without it
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError as exc:

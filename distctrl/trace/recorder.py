@@ -13,6 +13,7 @@ integers, NaN as ``nan``), about three times faster than Python's own formatting
 from __future__ import annotations
 
 import contextlib
+import difflib
 import itertools
 import json
 import math
@@ -316,7 +317,6 @@ class Trace:
         try:
             return self.data[:, self._index[column]]
         except KeyError:
-            import difflib
             near = difflib.get_close_matches(str(column), self.columns, n=3)
             hint = f"; did you mean {', '.join(near)}?" if near else ""
             raise KeyError(f"no column {column!r} in the trace{hint}") from None

@@ -215,7 +215,7 @@ class UiServer:
 def _client_error(exc: BaseException | None) -> bool:
     """An exception Bokeh raises for a request it cannot use (a malformed session id or token, a
     websocket without the "bokeh, <token>" subprotocol): the client's fault, not the server's."""
-    from bokeh.protocol.exceptions import ProtocolError
+    from bokeh.protocol.exceptions import ProtocolError  # Bokeh: loaded in the page's thread (see _run)
 
     return isinstance(exc, (ValueError, ProtocolError))
 
@@ -224,7 +224,7 @@ def _ws_problem(header: str, app) -> str | None:
     """What is wrong with a websocket upgrade's subprotocol header for Bokeh (None: nothing). Bokeh's
     own checks (in its handler's open, after the 101 answer) raise for each of these, which Tornado
     logs with a traceback; here they are answered 400 before the upgrade."""
-    from bokeh.util.token import check_token_signature, get_token_payload
+    from bokeh.util.token import check_token_signature, get_token_payload  # Bokeh: as in _run
 
     parts = [p.strip() for p in header.split(",")] if header else []
     if len(parts) != 2 or parts[0] != "bokeh" or not parts[1]:
@@ -248,6 +248,7 @@ def _harden(app) -> None:
     malformed request with 400 and one console line (``refused a malformed request from <ip>``)
     instead of a traceback and 500 (found by bench/stress_serve.py, issue 30). Other exceptions keep
     Tornado's handling: a real fault still shows its traceback."""
+    # Tornado comes with Bokeh (the [ui] extra): loaded with it in the page's thread, as in _run
     from tornado.web import RequestHandler
     from tornado.websocket import WebSocketHandler
 
@@ -315,7 +316,7 @@ def _template():
 
 
 def _export_handler():
-    from tornado.web import HTTPError, RequestHandler
+    from tornado.web import HTTPError, RequestHandler  # Tornado (Bokeh's): as in _run
 
     class ExportHandler(RequestHandler):
         """The files the scope exported, by name only (nothing else on disk is reachable)."""

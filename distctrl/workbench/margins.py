@@ -155,6 +155,10 @@ class LoopModel:
     notes: tuple[str, ...] = ()
     resonance_hz: float = 0.0          # the drive's mechanical resonance f0 (0: rigid)
     damping: float = 0.05              # its damping ratio zeta
+    #: LOWPASS: the Butterworth's second-order sections ``(b0, b1, b2, a0, a1, a2)`` as the law runs them;
+    #: the frequency response and the closed loop's poles are computed from them, not from
+    #: ``filter_b`` / ``filter_a`` (their product loses digits next to z = 1 for 4th-5th order filters)
+    filter_sos: tuple[tuple[float, ...], ...] = ()
 
     # -- derived ----------------------------------------------------------------------------------------
     @property
@@ -245,6 +249,102 @@ class LoopModel:
         g_num = -sign * P.polymul(P.polymul(forward, hw), pd)
         return l_num, den, g_num
 
+    def _factors(self, zi: np.ndarray) -> dict[str, np.ndarray]:
+        """The loop's low-order factors evaluated at ``zi`` (= z^-1), as :meth:`_polynomials` multiplies
+        them out: ``cn``, ``cd``, ``cpi`` (PID), ``F`` (filter, by sections for LOWPASS), ``hn`` (the
+        mode's feedback numerator), ``pd`` (drive denominator), ``delta``, ``sign``."""
+        P = np.polynomial.polynomial
+        T = self.cycle_time
+        kvT, ff = self.kv * T, self.feedforward
+        zi = np.asarray(zi, dtype=complex)
+        delta = 1.0 - zi
+        pn = zi ** self.bus_delay_cycles * ((kvT + ff) - ff * zi)
+        pd = 1.0 - (1.0 - kvT) * zi
+        pn_enc = pn
+        if self.resonance_hz:
+            rn, rd = (P.polyval(zi, c) for c in resonance_polynomials(self.resonance_hz, self.damping, T))
+            pn, pn_enc, pd = pn * rn, pn * rd, pd * rd
+        if self.filter_sos:
+            F = np.ones_like(zi)
+            for sec in self.filter_sos:
+                F = F * P.polyval(zi, sec[:3]) / P.polyval(zi, sec[3:])
+        else:
+            F = P.polyval(zi, np.asarray(self.filter_b, float)) / P.polyval(zi, np.asarray(self.filter_a, float))
+        kp, ti, g = self.kp, self.i_gain, self.d_gain
+        if ti > 0.0:
+            cpi, cd = kp * (delta + ti), delta
+            cn = cpi + g * delta * delta
+        else:
+            cpi, cd = np.full_like(zi, kp), np.ones_like(zi)
+            cn = kp + g * delta
+        d_o = self.sensor_gain * zi ** self.dead_time_cycles * pn
+        if self.mode == "SET_POS":
+            hn, sign = zi * pn_enc - d_o, -1.0
+        elif self.both_encoders:
+            hn, sign = d_o + zi * (pd - pn_enc), 1.0
+        else:
+            hn, sign = d_o, 1.0
+        return {"cn": cn, "cd": cd, "cpi": cpi, "F": F, "hn": hn, "pd": pd, "delta": delta, "sign": sign,
+                "zi": zi}
+
+    def response(self, w) -> np.ndarray:
+        """The open loop's frequency response ``L(e^(j w T))`` at ``w`` (rad/s), evaluated factor by factor
+        (the filter by its sections): the same loop as :meth:`loop`, without the digits its multiplied-out
+        polynomials lose next to z = 1."""
+        w = np.asarray(w, dtype=float)
+        f = self._factors(np.exp(-1j * w * self.cycle_time))
+        with np.errstate(all="ignore"):
+            L = f["sign"] * (f["cn"] * f["F"]) * f["hn"] / (f["cd"] * f["delta"] * f["pd"])
+            if self.mode == "SET_POS":
+                L = L + f["cpi"] * f["zi"] / (f["cd"] * f["delta"])
+        return L
+
+    def loop_state_space(self) -> "control.StateSpace":
+        """The open loop as a series of small state-space blocks (the PID and offset integration, each
+        filter section, the feedback path ``sign Hn / Pd``; SET_POS adds ``C_PI z^-1`` in parallel ahead
+        of the integration), so that the closed loop's poles are eigenvalues of a matrix built from
+        low-order pieces instead of roots of one high-order polynomial."""
+        import control
+
+        P = np.polynomial.polynomial
+        T = self.cycle_time
+        kvT, ff = self.kv * T, self.feedforward
+        n = self.dead_time_cycles
+        delta = np.array([1.0, -1.0])
+        z1 = np.array([0.0, 1.0])
+        pn = np.r_[np.zeros(self.bus_delay_cycles), kvT + ff, -ff]
+        pd = np.array([1.0, -(1.0 - kvT)])
+        pn_enc = pn
+        if self.resonance_hz:
+            rn, rd = resonance_polynomials(self.resonance_hz, self.damping, T)
+            pn, pn_enc, pd = P.polymul(pn, rn), P.polymul(pn, rd), P.polymul(pd, rd)
+        kp, ti, g = self.kp, self.i_gain, self.d_gain
+        if ti > 0.0:
+            cpi, cd = kp * P.polyadd(delta, [ti]), delta
+            cn = P.polyadd(cpi, g * P.polymul(delta, delta))
+        else:
+            cpi, cd = np.array([kp]), np.array([1.0])
+            cn = P.polyadd([kp], g * delta)
+        d_o = self.sensor_gain * P.polymul(np.r_[np.zeros(n), 1.0], pn)
+        if self.mode == "SET_POS":
+            hn, sign = P.polysub(P.polymul(z1, pn_enc), d_o), -1.0
+        elif self.both_encoders:
+            hn, sign = P.polyadd(d_o, P.polymul(z1, P.polysub(pd, pn_enc))), 1.0
+        else:
+            hn, sign = d_o, 1.0
+        sections = self.filter_sos or ((tuple(self.filter_b), tuple(self.filter_a)),)
+        blocks = [control.ss(_zinv(cn, [1.0], T))]
+        for sec in sections:
+            b, a = (sec[:3], sec[3:]) if self.filter_sos else sec
+            blocks.append(control.ss(_zinv(b, a, T)))
+        blocks.append(control.ss(_zinv(sign * np.asarray(hn), pd, T)))
+        G = blocks[0]
+        for blk in blocks[1:]:
+            G = control.series(G, blk)
+        if self.mode == "SET_POS":
+            G = control.parallel(G, control.ss(_zinv(P.polymul(cpi, z1), [1.0], T)))
+        return control.series(G, control.ss(_zinv([1.0], P.polymul(cd, delta), T)))
+
     def loop(self) -> "control.TransferFunction":
         """The open loop L(z) (negative feedback): filter x PID x offset integration x dead time x drive
         in the mode's feedback. For plain CONST_DIST it is exactly the product of :meth:`blocks`."""
@@ -257,7 +357,14 @@ class LoopModel:
         return _zinv(g_num, np.polynomial.polynomial.polyadd(den, l_num), self.cycle_time)
 
     def closed_loop_poles(self) -> np.ndarray:
-        return np.asarray(self.closed_loop().poles())
+        """The closed loop's poles: eigenvalues of the feedback of :meth:`loop_state_space` (the roots of
+        ``den + L_num`` agree for low-order loops, but lose digits for a 4th-5th order low-pass whose poles
+        crowd next to z = 1 with the drive's, the resonance's and the integrator's; seen: |z| 1.0037
+        instead of 0.9970). Poles the series connection adds at z = 0 (delays) do not matter here."""
+        import control
+
+        cl = control.feedback(self.loop_state_space(), 1)
+        return np.linalg.eigvals(np.asarray(cl.A, dtype=float)) if cl.nstates else np.zeros(0, dtype=complex)
 
     def spectral_radius(self) -> float:
         """The largest |z| of the closed loop's poles (> 1: unstable)."""
@@ -325,7 +432,12 @@ def model_from_parts(params, cycle_time: float, *, axis: str = "Z", mode: str = 
                                 low_pass_filter_fg_f0=f.fg_f0)
     ctrl = AxisDistanceController(params, cycle_time)
     c = ctrl.law_constants()
-    b, a = filter_coefficients(c["fc"])
+    fc = c["fc"]
+    b, a = filter_coefficients(fc)
+    sos = ()
+    if int(fc[law.FC_KIND]) == law.LOWPASS:
+        sos = tuple(tuple(float(v) for v in fc[law.FC_SOS + 6 * s:law.FC_SOS + 6 * s + 6])
+                    for s in range(int(fc[law.FC_NSEC])))
     t = ctrl.tuning
     return LoopModel(axis=axis, mode=mode_u, both_encoders=bool(params.use_both_encoders) and mode_u == "CONST_DIST",
                      cycle_time=float(cycle_time), kp=float(t.kp), i_tn=float(t.i_tn), d_tv=float(t.d_tv),
@@ -335,7 +447,7 @@ def model_from_parts(params, cycle_time: float, *, axis: str = "Z", mode: str = 
                      optimized_scheduling=bool(params.optimized_scheduling), kv=float(kv),
                      feedforward=float(feedforward), bus_delay_cycles=int(bus_delay_cycles),
                      scenario=scenario, kp_source=kp_source, notes=tuple(notes),
-                     resonance_hz=float(resonance_hz), damping=float(damping))
+                     resonance_hz=float(resonance_hz), damping=float(damping), filter_sos=sos)
 
 
 def _pick_axis(sc: "Scenario", axis: str | None) -> str:
@@ -715,20 +827,23 @@ GRID_F_MIN_HZ = 0.01
 GRID_POINTS_PER_DECADE = 800
 
 
-def _grid_crossings(response, loop, T: float) -> tuple[list[float], list[float]]:
+def _grid_crossings(response, loop_response, T: float) -> tuple[list[float], list[float], float]:
     """(phase crossovers, gain crossovers) in rad/s found on a dense logarithmic frequency grid (0.01 Hz to
     the Nyquist frequency, 800 points per decade) and refined on the response (scipy.optimize.brentq).
     python-control's stability_margins misses the two 0 dB crossings at the flanks of a lightly damped
     resonance peak that rises above 0 dB (seen: 13.5 Hz, zeta 0.018: it reported only the crossing at
-    2.85 Hz with +53 deg, while the peak crosses at 13.0 and 14.0 Hz with negative phase margins)."""
+    2.85 Hz with +53 deg, while the peak crosses at 13.0 and 14.0 Hz with negative phase margins).
+    The third figure is the smallest |1 + L| on the grid (the stability margin)."""
     from scipy.optimize import brentq
 
     f_nyq = 0.5 / T
     n = int(math.ceil(GRID_POINTS_PER_DECADE * math.log10(f_nyq / GRID_F_MIN_HZ)))
     w = 2.0 * math.pi * np.geomspace(GRID_F_MIN_HZ, f_nyq, n)
     with np.errstate(all="ignore"):
-        resp = np.asarray(loop(np.exp(1j * w * T)), dtype=complex).reshape(-1)
+        resp = np.asarray(loop_response(w), dtype=complex).reshape(-1)
         lm = np.log(np.abs(resp))
+        dist = np.abs(1.0 + resp)
+    sm = float(np.nanmin(dist)) if np.isfinite(dist).any() else math.inf
     pcs, gcs = [], []
 
     def refine(fun, a: float, b: float) -> float | None:
@@ -747,7 +862,7 @@ def _grid_crossings(response, loop, T: float) -> tuple[list[float], list[float]]
         r = refine(lambda x: response(x).imag, w[k], w[k + 1])
         if r is not None:
             pcs.append(r)
-    return pcs, gcs
+    return pcs, gcs, sm
 
 
 def analyse(model: LoopModel) -> MarginResult:
@@ -769,10 +884,13 @@ def analyse(model: LoopModel) -> MarginResult:
     # the Nyquist frequency (z = -1, e.g. KP / (z - 1)), which python-control does not report, is added
     w_nyq = math.pi / T
 
+    # the response factor by factor (LoopModel.response): the multiplied-out loop loses digits next to
+    # z = 1 (a 4th-5th order low-pass at a low corner frequency: a gain margin of 2.6e9 at 91.6 Hz and
+    # no phase margin, where the loop crosses 0 dB below 1 Hz and -180 deg near 4 Hz)
     def response(w: float) -> complex:
-        return complex(loop(complex(math.cos(w * T), math.sin(w * T))))
+        return complex(model.response(np.array([w]))[0])
 
-    grid_pcs, grid_gcs = _grid_crossings(response, loop, T)
+    grid_pcs, grid_gcs, grid_sm = _grid_crossings(response, model.response, T)
     phase_x: dict[float, float] = {}          # frequency (rad/s) -> gain margin
     for w in list(wpcs) + grid_pcs + [w_nyq]:
         if not (math.isfinite(w) and 0.0 < w <= w_nyq * (1.0 + 1e-9)):
@@ -796,7 +914,10 @@ def analyse(model: LoopModel) -> MarginResult:
     if gain_x:
         wgc = min(gain_x, key=lambda w: abs(gain_x[w]))
         pm = gain_x[wgc]
-    sm = float(np.min(sms)) if sms.size else math.inf
+    # the stability margin (smallest |1 + L|) on the dense grid of the factor-by-factor response, not
+    # python-control's figure from the multiplied-out loop
+    sm = grid_sm
+    del sms
     to_hz = 1.0 / (2.0 * math.pi)
     all_gm = tuple((float(phase_x[w]), float(w) * to_hz) for w in sorted(phase_x))
     all_pm = tuple((float(gain_x[w]), float(w) * to_hz) for w in sorted(gain_x))
