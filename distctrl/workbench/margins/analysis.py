@@ -96,6 +96,28 @@ def _grid_crossings(response, loop_response, T: float) -> tuple[list[float], lis
     return pcs, gcs, sm
 
 
+def _checked_crossings(response, phase_candidates: list[float], gain_candidates: list[float],
+                       w_nyq: float) -> tuple[dict[float, float], dict[float, float]]:
+    """The candidate crossings (rad/s) that the response confirms, duplicates dropped: phase crossovers
+    (frequency -> gain margin) and gain crossovers (frequency -> phase margin in deg)."""
+    phase_x: dict[float, float] = {}          # frequency (rad/s) -> gain margin
+    for w in phase_candidates:
+        if not (math.isfinite(w) and 0.0 < w <= w_nyq * (1.0 + 1e-9)):
+            continue
+        resp = response(w)
+        if resp.real < 0.0 and abs(resp.imag) <= 1e-6 * abs(resp) and \
+                not any(math.isclose(w, v, rel_tol=1e-6) for v in phase_x):
+            phase_x[w] = 1.0 / abs(resp)
+    gain_x: dict[float, float] = {}           # frequency (rad/s) -> phase margin (deg)
+    for w in gain_candidates:
+        if not (math.isfinite(w) and 0.0 < w <= w_nyq * (1.0 + 1e-9)):
+            continue
+        resp = response(w)
+        if abs(abs(resp) - 1.0) <= 1e-6 and not any(math.isclose(w, v, rel_tol=1e-6) for v in gain_x):
+            gain_x[w] = float(np.remainder(np.angle(resp, deg=True), 360.0) - 180.0)
+    return phase_x, gain_x
+
+
 def analyse(model: LoopModel) -> MarginResult:
     """Gain and phase margins (``control.stability_margins`` of the open loop), the closed loop's
     largest pole, and the KP at the stability limit with its oscillation frequency."""
@@ -122,21 +144,7 @@ def analyse(model: LoopModel) -> MarginResult:
         return complex(model.response(np.array([w]))[0])
 
     grid_pcs, grid_gcs, grid_sm = _grid_crossings(response, model.response, T)
-    phase_x: dict[float, float] = {}          # frequency (rad/s) -> gain margin
-    for w in list(wpcs) + grid_pcs + [w_nyq]:
-        if not (math.isfinite(w) and 0.0 < w <= w_nyq * (1.0 + 1e-9)):
-            continue
-        resp = response(w)
-        if resp.real < 0.0 and abs(resp.imag) <= 1e-6 * abs(resp) and \
-                not any(math.isclose(w, v, rel_tol=1e-6) for v in phase_x):
-            phase_x[w] = 1.0 / abs(resp)
-    gain_x: dict[float, float] = {}           # frequency (rad/s) -> phase margin (deg)
-    for w in list(wgcs) + grid_gcs:
-        if not (math.isfinite(w) and 0.0 < w <= w_nyq * (1.0 + 1e-9)):
-            continue
-        resp = response(w)
-        if abs(abs(resp) - 1.0) <= 1e-6 and not any(math.isclose(w, v, rel_tol=1e-6) for v in gain_x):
-            gain_x[w] = float(np.remainder(np.angle(resp, deg=True), 360.0) - 180.0)
+    phase_x, gain_x = _checked_crossings(response, list(wpcs) + grid_pcs + [w_nyq], list(wgcs) + grid_gcs, w_nyq)
     # as python-control's own choice: the gain margin closest to 1, the smallest |phase margin|
     gm = wpc = pm = wgc = math.inf
     if phase_x:

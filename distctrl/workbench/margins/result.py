@@ -4,6 +4,7 @@ Part of :mod:`distctrl.workbench.margins` (docs/margins.md); the package face re
 """
 from __future__ import annotations
 
+import csv
 import math
 import os
 import warnings
@@ -107,6 +108,25 @@ class MarginResult:
         """The text ``distctrl margins`` prints (:func:`distctrl.workbench.margins.text.format_text`)."""
         return format_text(self)
 
+    # -- table ------------------------------------------------------------------------------------------
+    def to_csv(self, path: str | os.PathLike) -> Path:
+        """The open loop's frequency response on the Bode plot's grid (0.1 Hz to 0.999 x the Nyquist
+        frequency, 2000 points, logarithmic), factor by factor (:meth:`LoopModel.response`): ``f_hz``,
+        ``re``, ``im``, ``magnitude_db``, ``phase_deg`` (unwrapped), numbers that read back exactly."""
+        omega = _omega(self.model.cycle_time)
+        resp = np.asarray(self.model.response(omega), dtype=complex).reshape(-1)
+        with np.errstate(divide="ignore"):
+            mag_db = 20.0 * np.log10(np.abs(resp))
+        phase = np.degrees(np.unwrap(np.angle(resp)))
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with open(p, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(("f_hz", "re", "im", "magnitude_db", "phase_deg"))
+            w.writerows(tuple(repr(float(v)) for v in row)
+                        for row in zip(omega / (2.0 * math.pi), resp.real, resp.imag, mag_db, phase))
+        return p
+
     # -- plot -------------------------------------------------------------------------------------------
     def plot(self, path: str | os.PathLike | None = None, nyquist: bool = True) -> "Figure":
         """Bode plot of the open loop (magnitude in dB, phase in deg over Hz up to the Nyquist frequency,
@@ -130,8 +150,7 @@ class MarginResult:
             ax_ny = fig.add_subplot(grid[:, 1])
         else:
             ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
-        w_lo = 2.0 * math.pi * 0.1
-        omega = np.logspace(math.log10(w_lo), math.log10(math.pi / T * 0.999), 2000)
+        omega = _omega(T)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             control.bode_plot(loop, omega, ax=np.array([[ax_mag], [ax_ph]]), Hz=True, dB=True, deg=True,
@@ -165,6 +184,12 @@ class MarginResult:
             path.parent.mkdir(parents=True, exist_ok=True)
             fig.savefig(path, dpi=110)
         return fig
+
+
+def _omega(T: float) -> np.ndarray:
+    """The Bode plot's frequency grid (rad/s): 0.1 Hz to 0.999 x the Nyquist frequency, 2000 points."""
+    w_lo = 2.0 * math.pi * 0.1
+    return np.logspace(math.log10(w_lo), math.log10(math.pi / T * 0.999), 2000)
 
 
 def check_plot_path(path: str | os.PathLike) -> Path:
