@@ -140,6 +140,33 @@ def _control_error(trace: "Trace", col: str) -> np.ndarray | None:
     return np.where(state == 4, -td, np.where(state == 1, td - o_prev, np.nan))
 
 
+def _baseline_and_band(trace: "Trace", col: str, y_all: np.ndarray, n_pre: int, T: float, step_mm: float,
+                       band: float) -> tuple[float, float, float]:
+    """``(baseline, band_mm, hysteresis)``: the offset before the step, the settling band in mm (+-2 % of
+    the step, or :data:`NOISE_SIGMAS` x the offset's noise before the step where larger) and the swing
+    that counts as a zero crossing (relative to the step)."""
+    # the quiet time before the step: its second half, at most 0.5 s
+    k_quiet = max(n_pre // 2, n_pre - int(round(0.5 / T))) if T > 0 else n_pre // 2
+    quiet = y_all[k_quiet:n_pre]
+    quiet = quiet[np.isfinite(quiet)]
+    noise_mm = float(np.std(quiet)) if quiet.size >= 10 else 0.0
+    if noise_mm > 1e-4 * abs(step_mm) and quiet.size >= 10:
+        # a noisy offset: the mean of the quiet time (the last samples alone carry the noise)
+        baseline = float(np.mean(quiet[-min(quiet.size, int(round(0.1 / T)) if T > 0 else 100):]))
+    else:
+        baseline = float(np.mean(y_all[max(0, n_pre - 10):n_pre]))
+    # the band widens to the offset's noise, unless the limiter already acted before the step (a loop
+    # that oscillates on its own is not noise: its swing must not count as settled)
+    pre_limited = _limited_share(trace, col, k_quiet, None, T, stop=n_pre)
+    if pre_limited is not None and pre_limited > 0.01:
+        noise_mm = 0.0
+    band_mm = max(band * abs(step_mm), NOISE_SIGMAS * noise_mm)
+    # a swing counts beyond half the band on the other side, or beyond the noise band (noise alone
+    # does not get there)
+    hysteresis = max(band * abs(step_mm) / 2.0, NOISE_SIGMAS * noise_mm) / abs(step_mm)
+    return baseline, band_mm, hysteresis
+
+
 def measure(result: Any, t_step: float, step_mm: float, *, ramp_mm_s: float = 0.0, column: str | None = None,
             band: float = BAND) -> StepMetrics:
     """Step-response metrics (:class:`StepMetrics`) of a run (``RunResult``) or a :class:`Trace`.
@@ -164,25 +191,7 @@ def measure(result: Any, t_step: float, step_mm: float, *, ramp_mm_s: float = 0.
     if n_pre == 0 or t.size - n_pre < 2:
         raise StepError(f"measure: t_step = {t_step:g} s is outside the trace ({t[0]:g} .. {t[-1]:g} s); "
                         f"allowed: a time with samples before and after it")
-    # the quiet time before the step: its second half, at most 0.5 s
-    k_quiet = max(n_pre // 2, n_pre - int(round(0.5 / T))) if T > 0 else n_pre // 2
-    quiet = y_all[k_quiet:n_pre]
-    quiet = quiet[np.isfinite(quiet)]
-    noise_mm = float(np.std(quiet)) if quiet.size >= 10 else 0.0
-    if noise_mm > 1e-4 * abs(step_mm) and quiet.size >= 10:
-        # a noisy offset: the mean of the quiet time (the last samples alone carry the noise)
-        baseline = float(np.mean(quiet[-min(quiet.size, int(round(0.1 / T)) if T > 0 else 100):]))
-    else:
-        baseline = float(np.mean(y_all[max(0, n_pre - 10):n_pre]))
-    # the band widens to the offset's noise, unless the limiter already acted before the step (a loop
-    # that oscillates on its own is not noise: its swing must not count as settled)
-    pre_limited = _limited_share(trace, col, k_quiet, None, T, stop=n_pre)
-    if pre_limited is not None and pre_limited > 0.01:
-        noise_mm = 0.0
-    band_mm = max(band * abs(step_mm), NOISE_SIGMAS * noise_mm)
-    # a swing counts beyond half the band on the other side, or beyond the noise band (noise alone
-    # does not get there)
-    hysteresis = max(band * abs(step_mm) / 2.0, NOISE_SIGMAS * noise_mm) / abs(step_mm)
+    baseline, band_mm, hysteresis = _baseline_and_band(trace, col, y_all, n_pre, T, step_mm, band)
     band = band_mm / abs(step_mm)
     tt = t[n_pre:] - t_step
     yn = (y_all[n_pre:] - baseline) / step_mm

@@ -262,6 +262,57 @@ def _check_travel(sensor: dict, params, set_dist: float, step_mm: float, ramp_mm
                         f"(lower the ramp or the duration)")
 
 
+def _step_axis_setup(base: "Scenario | None") -> tuple:
+    """``(axis, params, params_file, axis_cfg, sensor, cycle_time, seed, variables, source)`` of the axis a
+    step runs on: the default Z axis without ``base``, else ``base``'s sensor axis (or Z) with its list,
+    drive data and sensor."""
+    if base is None:
+        axis = "Z"
+        params = parse_list_text(DEFAULT_AXIS_LIST, "<distctrl step default Z axis>").params
+        params_file = None
+        axis_cfg: dict[str, Any] = dict(DEFAULT_AXIS)
+        sensor: dict[str, Any] = dict(DEFAULT_SENSOR, axis=axis)
+        cycle_time, seed, variables = 0.001, 0, {}
+        source = "<distctrl step>"
+    else:
+        axis = _step_axis(base)
+        ax = base.axes[axis]
+        if not ax.params.enabled:
+            raise StepError(f"scenario {base.name!r}: axis {axis} has no distance control "
+                            f"(lr_param.distance_control_on = 0 in its parameter list); allowed: an axis "
+                            f"whose list enables distance control (P-AXIS-00328 = 1)")
+        params, params_file = ax.params, ax.params_file
+        axis_cfg = {"kv": ax.kv, "v_max": ax.v_max, "a_max": ax.a_max, "v_rapid": ax.v_rapid,
+                    "a_rapid": ax.a_rapid, "bus_delay_cycles": ax.bus_delay_cycles,
+                    "resolution": ax.resolution, "feedforward": ax.feedforward,
+                    "resonance_hz": ax.resonance_hz, "damping": ax.damping}
+        sensor = _sensor_dict(base, axis)
+        cycle_time, seed, variables = base.cycle_time, base.seed, dict(base.variables)
+        source = f"step on {base.path or base.name}"
+    return axis, params, params_file, axis_cfg, sensor, cycle_time, seed, variables, source
+
+
+def _program(axis: str, setting: StepSetting, sensor: dict, mode_u: str, step_mm: float, t_step: float,
+             duration: float, set_dist: float, ramp_mm_s: float) -> tuple[str, list[dict]]:
+    """The NC program (select with the setting's words, dwell, end) and the sensor faults of the step."""
+    # the probe reports s = surface - z (a rising surface raises it), a distance sensor d = z - surface
+    sign = 1.0 if sensor["kind"] == "encoder" else -1.0
+    words = f"SET_DIST={_nc(set_dist)}" if mode_u == "CONST_DIST" else "SET_POS=0"
+    source_words = ""
+    if sensor["kind"] == "distance":
+        source_words = f" SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.{sensor['variable']}"
+    select = "ON CONST_DIST" if mode_u == "CONST_DIST" else "ON"
+    program = (f"%STEP\n"
+               f"; distctrl step: {setting.label}, step {step_mm:g} mm at {t_step:g} s ({mode_u})\n"
+               f"N10 {axis}[DIST_CTRL {select} {words} {setting.nc_words()}{source_words}]\n"
+               f"N20 #TIME {_nc(duration)}\n"
+               f"N30 M30\n")
+    events: list[dict] = [{"t": t_step, "sensor_fault": {"kind": "jump", "value": sign * step_mm}}]
+    if ramp_mm_s:
+        events.append({"t": t_step, "sensor_fault": {"kind": "drift", "rate": sign * ramp_mm_s}})
+    return program, events
+
+
 def step_scenario(base: "Scenario | str | os.PathLike | None", setting: StepSetting, step_mm: float = 1.0,
                   mode: str = "CONST_DIST", t_step: float = 0.5, duration: float = 2.0, *,
                   set_dist: float = 1.0, ramp_mm_s: float = 0.0) -> "Scenario":
@@ -301,31 +352,8 @@ def step_scenario(base: "Scenario | str | os.PathLike | None", setting: StepSett
     set_dist = _number("set_dist", set_dist, lo=0.0, lo_open=True, allowed="a distance > 0 mm")
     ramp_mm_s = _number("ramp_mm_s", ramp_mm_s, allowed="a finite rate in mm/s (0: no ramp)")
 
-    if base is not None and not isinstance(base, Scenario):
-        base = load_scenario(base)
-    if base is None:
-        axis = "Z"
-        params = parse_list_text(DEFAULT_AXIS_LIST, "<distctrl step default Z axis>").params
-        params_file = None
-        axis_cfg: dict[str, Any] = dict(DEFAULT_AXIS)
-        sensor: dict[str, Any] = dict(DEFAULT_SENSOR, axis=axis)
-        cycle_time, seed, variables = 0.001, 0, {}
-        source = "<distctrl step>"
-    else:
-        axis = _step_axis(base)
-        ax = base.axes[axis]
-        if not ax.params.enabled:
-            raise StepError(f"scenario {base.name!r}: axis {axis} has no distance control "
-                            f"(lr_param.distance_control_on = 0 in its parameter list); allowed: an axis "
-                            f"whose list enables distance control (P-AXIS-00328 = 1)")
-        params, params_file = ax.params, ax.params_file
-        axis_cfg = {"kv": ax.kv, "v_max": ax.v_max, "a_max": ax.a_max, "v_rapid": ax.v_rapid,
-                    "a_rapid": ax.a_rapid, "bus_delay_cycles": ax.bus_delay_cycles,
-                    "resolution": ax.resolution, "feedforward": ax.feedforward,
-                    "resonance_hz": ax.resonance_hz, "damping": ax.damping}
-        sensor = _sensor_dict(base, axis)
-        cycle_time, seed, variables = base.cycle_time, base.seed, dict(base.variables)
-        source = f"step on {base.path or base.name}"
+    base = load_scenario(base) if base is not None and not isinstance(base, Scenario) else base
+    axis, params, params_file, axis_cfg, sensor, cycle_time, seed, variables, source = _step_axis_setup(base)
 
     step_mm = _number("step", step_mm, nonzero=True, allowed="a step != 0 in mm (> 0: the surface rises)")
     _check_travel(sensor, params, set_dist, step_mm, ramp_mm_s * (duration - t_step))
@@ -337,21 +365,7 @@ def step_scenario(base: "Scenario | str | os.PathLike | None", setting: StepSett
                         f"allowed: |step| <= {params.max_act_value_change * cycle_time:.4g} mm, or raise "
                         f"P-AXIS-00417 in the list")
 
-    # the probe reports s = surface - z (a rising surface raises it), a distance sensor d = z - surface
-    sign = 1.0 if sensor["kind"] == "encoder" else -1.0
-    words = f"SET_DIST={_nc(set_dist)}" if mode_u == "CONST_DIST" else "SET_POS=0"
-    source_words = ""
-    if sensor["kind"] == "distance":
-        source_words = f" SENSOR_SOURCE=VARIABLE SENSOR_VAR=V.E.{sensor['variable']}"
-    select = "ON CONST_DIST" if mode_u == "CONST_DIST" else "ON"
-    program = (f"%STEP\n"
-               f"; distctrl step: {setting.label}, step {step_mm:g} mm at {t_step:g} s ({mode_u})\n"
-               f"N10 {axis}[DIST_CTRL {select} {words} {setting.nc_words()}{source_words}]\n"
-               f"N20 #TIME {_nc(duration)}\n"
-               f"N30 M30\n")
-    events: list[dict] = [{"t": t_step, "sensor_fault": {"kind": "jump", "value": sign * step_mm}}]
-    if ramp_mm_s:
-        events.append({"t": t_step, "sensor_fault": {"kind": "drift", "rate": sign * ramp_mm_s}})
+    program, events = _program(axis, setting, sensor, mode_u, step_mm, t_step, duration, set_dist, ramp_mm_s)
     data = {"name": f"step {setting.label}", "cycle_time": cycle_time, "program_text": program,
             "duration": duration, "settle_time": 0.0, "seed": seed, "variables": variables,
             "axes": {axis: dict(axis_cfg, start=set_dist)}, "surface": {"base": 0.0},
