@@ -95,6 +95,91 @@ def _read_plain_csv(path: Path) -> tuple[list[str], list[list[str]], int]:
     return header, body, data_line
 
 
+def _trace_columns(p: Path, time_column: str | None, value_column: str | None, tf: float, vf: float,
+                   mm_per_increment: float | None) -> tuple:
+    """``(raw_t, raw_v, time_column, value_column, tf, vf)`` of a distctrl trace: the value column by name
+    (default the one ``*.dc.sensor``), time ``t``; the trace's own units win."""
+    try:
+        trace = load_trace(p)
+    except (ValueError, OSError, DistCtrlError) as exc:
+        raise RecordingError(f"{p}: not a readable distctrl trace: {exc}") from None
+    cols = list(trace.columns)
+    if value_column is None:
+        sensors = [c for c in cols if c.endswith(".dc.sensor")]
+        if len(sensors) != 1:
+            raise RecordingError(f"{p}: name the value column (--value-column), e.g. "
+                                 f"{sensors[0] if sensors else 'Z.dc.sensor'}; columns: {', '.join(cols)}")
+        value_column = sensors[0]
+    vi = _pick_column(p, cols, value_column, "value")
+    if time_column is None and "t" in trace:
+        time_column = "t"
+    tu, vu = trace.unit(time_column) if time_column else "", trace.unit(value_column)
+    if tu:
+        tf = _unit_factor(p, f"time column {time_column!r} has a", tu, _TIME_UNITS)
+    if vu:
+        vf = _unit_factor(p, f"value column {value_column!r} has a", vu, _VALUE_UNITS, mm_per_increment)
+    raw_v = trace.data[:, vi]
+    raw_t = trace.data[:, _pick_column(p, cols, time_column, "time")] if time_column else None
+    return raw_t, raw_v, time_column, value_column, tf, vf
+
+
+def _plain_columns(p: Path, time_column: str | None, value_column: str | None, cycle_time: float | None) -> tuple:
+    """``(raw_t, raw_v, time_column, value_column, first_line)`` of a plain CSV: the named columns, else the
+    first two numeric ones (one value column alone with a cycle time)."""
+    header, body, first_line = _read_plain_csv(p)
+    width = len(header)
+    for i, row in enumerate(body):
+        if len(row) != width and any(c.strip() for c in row):
+            raise RecordingError(f"{p}:{first_line + i}: {len(row)} cells, the header has {width} columns")
+    body = [r for r in body if any(c.strip() for c in r)]
+
+    def column(j: int, name: str) -> np.ndarray | None:
+        out = np.empty(len(body))
+        for i, row in enumerate(body):
+            try:
+                out[i] = float(row[j])
+            except ValueError:
+                if name:
+                    raise RecordingError(f"{p}:{first_line + i}: column {name!r}: {row[j]!r} is not a "
+                                         "number; allowed: decimal numbers") from None
+                return None
+        return out
+    if time_column is not None:
+        ti = _pick_column(p, header, time_column, "time")
+    if value_column is not None:
+        vi = _pick_column(p, header, value_column, "value")
+    numeric = [j for j in range(width) if column(j, "") is not None]
+    if time_column is None and value_column is None:
+        if len(numeric) >= 2:
+            ti, vi = numeric[0], numeric[1]
+        elif len(numeric) == 1 and cycle_time:
+            ti, vi = None, numeric[0]
+        else:
+            raise RecordingError(f"{p}: found {len(numeric)} numeric column(s) in {', '.join(header)}; "
+                                 "allowed: a time and a value column (or one value column with a "
+                                 "cycle time); name them with time_column/value_column")
+    elif value_column is None:
+        rest = [j for j in numeric if j != ti]
+        if not rest:
+            raise RecordingError(f"{p}: no numeric value column besides {time_column!r}; "
+                                 f"columns: {', '.join(header)}")
+        vi = rest[0]
+    elif time_column is None:
+        rest = [j for j in numeric if j != vi]
+        if rest:
+            ti = rest[0]
+        elif cycle_time:
+            ti = None
+        else:
+            raise RecordingError(f"{p}: no numeric time column besides {value_column!r}; columns: "
+                                 f"{', '.join(header)}; allowed: name a time column or give a cycle time")
+    value_column = header[vi]
+    time_column = header[ti] if ti is not None else None
+    raw_v = column(vi, value_column)
+    raw_t = column(ti, time_column) if ti is not None else None
+    return raw_t, raw_v, time_column, value_column, first_line
+
+
 def load_recording(path: str | os.PathLike, time_column: str | None = None, value_column: str | None = None,
                    time_unit: str = "s", value_unit: str = "mm", mm_per_increment: float | None = None,
                    cycle_time: float | None = None) -> Recording:
@@ -119,80 +204,12 @@ def load_recording(path: str | os.PathLike, time_column: str | None = None, valu
     tf = _unit_factor(p, "time", time_unit, _TIME_UNITS)
     vf = _unit_factor(p, "value", value_unit, _VALUE_UNITS, mm_per_increment)
     if is_trace_file(p):                 # a CSV with its sidecar, or Parquet (distctrl run --trace x.parquet)
-        try:
-            trace = load_trace(p)
-        except (ValueError, OSError, DistCtrlError) as exc:
-            raise RecordingError(f"{p}: not a readable distctrl trace: {exc}") from None
-        cols = list(trace.columns)
-        if value_column is None:
-            sensors = [c for c in cols if c.endswith(".dc.sensor")]
-            if len(sensors) != 1:
-                raise RecordingError(f"{p}: name the value column (--value-column), e.g. "
-                                     f"{sensors[0] if sensors else 'Z.dc.sensor'}; columns: {', '.join(cols)}")
-            value_column = sensors[0]
-        vi = _pick_column(p, cols, value_column, "value")
-        if time_column is None and "t" in trace:
-            time_column = "t"
-        tu, vu = trace.unit(time_column) if time_column else "", trace.unit(value_column)
-        if tu:
-            tf = _unit_factor(p, f"time column {time_column!r} has a", tu, _TIME_UNITS)
-        if vu:
-            vf = _unit_factor(p, f"value column {value_column!r} has a", vu, _VALUE_UNITS, mm_per_increment)
-        raw_v = trace.data[:, vi]
-        raw_t = trace.data[:, _pick_column(p, cols, time_column, "time")] if time_column else None
+        raw_t, raw_v, time_column, value_column, tf, vf = _trace_columns(p, time_column, value_column, tf, vf,
+                                                                         mm_per_increment)
         first_line = 2
     else:
-        header, body, first_line = _read_plain_csv(p)
-        width = len(header)
-        for i, row in enumerate(body):
-            if len(row) != width and any(c.strip() for c in row):
-                raise RecordingError(f"{p}:{first_line + i}: {len(row)} cells, the header has {width} columns")
-        body = [r for r in body if any(c.strip() for c in r)]
-
-        def column(j: int, name: str) -> np.ndarray | None:
-            out = np.empty(len(body))
-            for i, row in enumerate(body):
-                try:
-                    out[i] = float(row[j])
-                except ValueError:
-                    if name:
-                        raise RecordingError(f"{p}:{first_line + i}: column {name!r}: {row[j]!r} is not a "
-                                             "number; allowed: decimal numbers") from None
-                    return None
-            return out
-        if time_column is not None:
-            ti = _pick_column(p, header, time_column, "time")
-        if value_column is not None:
-            vi = _pick_column(p, header, value_column, "value")
-        numeric = [j for j in range(width) if column(j, "") is not None]
-        if time_column is None and value_column is None:
-            if len(numeric) >= 2:
-                ti, vi = numeric[0], numeric[1]
-            elif len(numeric) == 1 and cycle_time:
-                ti, vi = None, numeric[0]
-            else:
-                raise RecordingError(f"{p}: found {len(numeric)} numeric column(s) in {', '.join(header)}; "
-                                     "allowed: a time and a value column (or one value column with a "
-                                     "cycle time); name them with time_column/value_column")
-        elif value_column is None:
-            rest = [j for j in numeric if j != ti]
-            if not rest:
-                raise RecordingError(f"{p}: no numeric value column besides {time_column!r}; "
-                                     f"columns: {', '.join(header)}")
-            vi = rest[0]
-        elif time_column is None:
-            rest = [j for j in numeric if j != vi]
-            if rest:
-                ti = rest[0]
-            elif cycle_time:
-                ti = None
-            else:
-                raise RecordingError(f"{p}: no numeric time column besides {value_column!r}; columns: "
-                                     f"{', '.join(header)}; allowed: name a time column or give a cycle time")
-        value_column = header[vi]
-        time_column = header[ti] if ti is not None else None
-        raw_v = column(vi, value_column)
-        raw_t = column(ti, time_column) if ti is not None else None
+        raw_t, raw_v, time_column, value_column, first_line = _plain_columns(p, time_column, value_column,
+                                                                             cycle_time)
     n = raw_v.size
     if n < 3:
         raise RecordingError(f"{p}: {n} samples; allowed: at least 3")
