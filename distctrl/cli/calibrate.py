@@ -100,18 +100,14 @@ def calibrate_cmd(scenario, out_path, runs, speed, bottom, surface, tolerance, b
         except OSError as exc:
             fail(output_error_text(exc, out, "table"))
         written = out
+    table = res.to_dict() if res is not None else {"table": None, "points": 0, "distance_range_mm": None,
+                                                     "repeatability_um": None, "noise_um": None, "notes": []}
     payload = dict(info)
     payload.update({
         "ok": error is None, "exit_code": code, "error": error,
-        "table": [list(p) for p in res.table] if res is not None else None,
-        "points": len(res.table) if res is not None else 0,
-        "distance_range_mm": list(res.distance_range) if res is not None else None,
-        "repeatability_um": res.repeatability_um if res is not None else None,
-        "repeatable": repeatable,
-        "noise_um": res.noise_um if res is not None else None,
-        "model_check_um": check,
-        "notes": res.dropped if res is not None else [],
-        "out": written,
+        "table": table["table"], "points": table["points"], "distance_range_mm": table["distance_range_mm"],
+        "repeatability_um": table["repeatability_um"], "repeatable": repeatable, "noise_um": table["noise_um"],
+        "model_check_um": check, "notes": table["notes"], "out": written,
     })
     if as_json:
         emit_json(payload)

@@ -9,7 +9,7 @@ import warnings
 import click
 
 from ..errors import DistCtrlError
-from ..workbench.identify import (IdentifyError, format_summary, identify, load_signals, result_json,
+from ..workbench.identify import (IdentifyError, format_summary, identify, load_signals,
                                   write_report, write_scenario)
 from .common import COORDINATE, Finite, emit_json, fail, output_error_text
 
@@ -103,7 +103,7 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     except OSError as exc:
         fail(output_error_text(exc, getattr(exc, "filename", None) or out_dir, "output"))
     if as_json:
-        emit_json(result_json(res, scenario=scenario, report=report))
+        emit_json(res.to_dict(scenario=scenario, report=report))
         return
     for w in res.warnings:
         click.echo(f"warning: {w}", err=True)

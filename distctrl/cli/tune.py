@@ -12,9 +12,9 @@ import click
 
 from ..errors import DistCtrlError
 from ..tuning.metrics import METRIC_NAMES
-from ..tuning.runner import DEFAULT_CHUNK, Evaluator, plot_sweep
+from ..tuning.runner import DEFAULT_CHUNK, Evaluator
 from ..tuning.space import build_sets, drop_inert_d_tv, grid_points, parse_grid, random_sample
-from ..tuning.tune import plot_before_after, tune
+from ..tuning.tune import tune
 from .common import SEED, Finite, check_writable, emit_json, fail
 
 
@@ -111,18 +111,18 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
             compile_s = ev.stats["compile_s"]
         path = res.write(out)
         if plot_path:
-            plot_sweep(res, plot_path, metric)
+            res.plot(plot_path, metric)
     except _errors() as exc:
         fail(str(exc))
     info = res.info
     rate = info["sets"] * info["cycles"] / max(info["seconds"], 1e-9)
     if as_json:
-        emit_json({"command": "sweep", "scenario": scenario, "metric": metric, "sets": info["sets"],
-                   "cycles": info["cycles"], "seconds": info["seconds"], "compile_seconds": compile_s,
-                   "set_cycles_per_s": rate, "mode": info["mode"], "workers": info["workers"],
+        d = res.to_dict(top, key=metric)
+        emit_json({"command": "sweep", "scenario": scenario, "metric": d["metric"], "sets": d["sets"],
+                   "cycles": d["cycles"], "seconds": d["seconds"], "compile_seconds": compile_s,
+                   "set_cycles_per_s": d["set_cycles_per_s"], "mode": d["mode"], "workers": d["workers"],
                    "rejected": len(rejected), "table": str(path), "plot": plot_path,
-                   "best": res.best_rows(top, key=metric), "units": res.units(),
-                   "notes": res.notes(top, key=metric)})
+                   "best": d["best"], "units": d["units"], "notes": d["notes"]})
         return
     click.echo(res.render(top, key=metric, plain=True,
                           title=f"best {min(top, len(res))} of {len(res)} sets by {metric}"), nl=False)
@@ -181,7 +181,7 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, ch
         (out / "tuned.lis").write_text(res.param_list)
         (out / "tuned.nc.txt").write_text(res.nc_block + "\n")
         res.sweep.write(out / "sweep.csv")
-        plot_before_after(scenario, res.base, res.best, out / "before_after.png", cycles=cycles)
+        res.plot(out / "before_after.png")
         text = res.report()
         (out / "report.txt").write_text(text)
     except _errors() as exc:

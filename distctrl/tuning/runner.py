@@ -207,6 +207,93 @@ class SweepResult:
             text += "".join(f"note: {s}\n" for s in self.notes(n, key))
         return text
 
+    def to_dict(self, top: int = 10, key: str = "rms_error") -> dict:
+        """What ``distctrl sweep --json`` prints of the result: the ranking ``metric``, the sets, cycles,
+        seconds and throughput (set-cycles per second), how it ran (mode, workers), the best ``top``
+        rows (:meth:`best_rows`), the units and the notes."""
+        info = self.info
+        sets, cycles, seconds = info.get("sets", len(self)), info.get("cycles"), info.get("seconds")
+        rate = sets * cycles / max(seconds, 1e-9) if cycles is not None and seconds is not None else None
+        return {"metric": key, "sets": sets, "cycles": cycles, "seconds": seconds, "set_cycles_per_s": rate,
+                "mode": info.get("mode"), "workers": info.get("workers"), "best": self.best_rows(top, key=key),
+                "units": self.units(), "notes": self.notes(top, key=key)}
+
+    def plot(self, path=None, metric: str = "rms_error"):
+        """A heatmap of ``metric`` over the two swept parameters with the most values (the best value
+        over the others), or parallel coordinates when fewer than two numeric parameters vary or the
+        grid is irregular. A Figure on an Agg canvas, saved to ``path`` when given."""
+        # matplotlib is imported here only: it stays off the import path of the batch kernel and the CLI
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(9, 6), constrained_layout=True)
+        FigureCanvasAgg(fig)
+        ax = fig.subplots()
+        varied = [c for c in PARAM_COLUMNS if c in self.data and len(set(map(str, self[c]))) > 1]
+        numeric = [c for c in varied if c != "filter_type"]
+        counts = {c: len(set(map(str, self[c]))) for c in numeric}
+        two = sorted(numeric, key=lambda c: -counts[c])[:2]
+        if len(two) == 2 and counts[two[0]] * counts[two[1]] <= len(self) and counts[two[0]] <= 60 \
+                and counts[two[1]] <= 60:
+            self._heatmap(fig, ax, two, metric)
+        else:
+            self._parallel(fig, ax, varied or ["kp"], metric)
+        if path is not None:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+            fig.savefig(path, dpi=110)
+        return fig
+
+    def _heatmap(self, fig, ax, two: list[str], metric: str) -> None:
+        y = np.asarray(self[metric], dtype=float)
+        xs = np.unique(np.asarray(self[two[0]], dtype=float))
+        ys = np.unique(np.asarray(self[two[1]], dtype=float))
+        grid = np.full((len(ys), len(xs)), np.nan)
+        xi = np.searchsorted(xs, np.asarray(self[two[0]], dtype=float))
+        yi = np.searchsorted(ys, np.asarray(self[two[1]], dtype=float))
+        for a, b, v in zip(yi, xi, y):
+            if np.isfinite(v) and not (grid[a, b] <= v):
+                grid[a, b] = v
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(len(xs)), [f"{v:.4g}" for v in xs], rotation=60, fontsize=7)
+        ax.set_yticks(range(len(ys)), [f"{v:.4g}" for v in ys], fontsize=7)
+        ax.set_xlabel(two[0])
+        ax.set_ylabel(two[1])
+        fig.colorbar(im, ax=ax, label=f"{metric} (best over the other parameters)")
+        ax.set_title(f"{metric} over {two[0]} x {two[1]} ({len(self)} sets)")
+
+    def _parallel(self, fig, ax, cols: list[str], metric: str) -> None:
+        # matplotlib is imported here only (see plot)
+        from matplotlib import colormaps
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.colors import Normalize
+
+        y = np.asarray(self[metric], dtype=float)
+        mat = []
+        for c in cols + [metric]:
+            v = self[c]
+            if c == "filter_type":
+                names = sorted(set(v))
+                v = [names.index(x) for x in v]
+            v = np.asarray(v, dtype=float)
+            lo, hi = np.nanmin(v[np.isfinite(v)]) if np.isfinite(v).any() else 0, \
+                np.nanmax(v[np.isfinite(v)]) if np.isfinite(v).any() else 1
+            mat.append((v - lo) / (hi - lo) if hi > lo else np.zeros_like(v))
+        mat = np.asarray(mat)
+        finite = np.isfinite(y)
+        order = np.argsort(np.where(finite, y, np.inf))[::-1]
+        # viridis: the smallest metric (the best set) is dark purple, the largest yellow; the best sets
+        # are drawn last, on top (the order above is worst first)
+        cmap = colormaps["viridis"]
+        ylo, yhi = (np.min(y[finite]), np.max(y[finite])) if finite.any() else (0, 1)
+        for i in order:
+            c = cmap((y[i] - ylo) / (yhi - ylo) if finite[i] and yhi > ylo else 0.0) if finite[i] else "lightgray"
+            ax.plot(range(len(cols) + 1), mat[:, i], color=c, lw=0.6, alpha=0.6)
+        ax.set_xticks(range(len(cols) + 1), cols + [metric])
+        ax.set_ylabel("normalised value")
+        fig.colorbar(ScalarMappable(Normalize(ylo, yhi if yhi > ylo else ylo + 1), cmap), ax=ax,
+                     label=f"{metric} (dark = smaller = better)")
+        ax.set_title(f"parallel coordinates, colour = {metric} ({len(self)} sets; dark = better)")
+
 
 def _plain(x):
     if isinstance(x, FilterType):
@@ -551,68 +638,5 @@ def evaluate(inputs, param_sets, points=None, **options) -> SweepResult:
 
 
 def plot_sweep(result: SweepResult, path=None, metric: str = "rms_error"):
-    """A heatmap of ``metric`` over the two swept parameters with the most values (the best value
-    over the others), or parallel coordinates when fewer than two numeric parameters vary or the
-    grid is irregular. A Figure on an Agg canvas, saved to ``path`` when given."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(9, 6), constrained_layout=True)
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    y = np.asarray(result[metric], dtype=float)
-    varied = [c for c in PARAM_COLUMNS if c in result.data and len(set(map(str, result[c]))) > 1]
-    numeric = [c for c in varied if c != "filter_type"]
-    counts = {c: len(set(map(str, result[c]))) for c in numeric}
-    two = sorted(numeric, key=lambda c: -counts[c])[:2]
-    if len(two) == 2 and counts[two[0]] * counts[two[1]] <= len(result) and counts[two[0]] <= 60 \
-            and counts[two[1]] <= 60:
-        xs = np.unique(np.asarray(result[two[0]], dtype=float))
-        ys = np.unique(np.asarray(result[two[1]], dtype=float))
-        grid = np.full((len(ys), len(xs)), np.nan)
-        xi = np.searchsorted(xs, np.asarray(result[two[0]], dtype=float))
-        yi = np.searchsorted(ys, np.asarray(result[two[1]], dtype=float))
-        for a, b, v in zip(yi, xi, y):
-            if np.isfinite(v) and not (grid[a, b] <= v):
-                grid[a, b] = v
-        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
-        ax.set_xticks(range(len(xs)), [f"{v:.4g}" for v in xs], rotation=60, fontsize=7)
-        ax.set_yticks(range(len(ys)), [f"{v:.4g}" for v in ys], fontsize=7)
-        ax.set_xlabel(two[0])
-        ax.set_ylabel(two[1])
-        fig.colorbar(im, ax=ax, label=f"{metric} (best over the other parameters)")
-        ax.set_title(f"{metric} over {two[0]} x {two[1]} ({len(result)} sets)")
-    else:
-        cols = varied or ["kp"]
-        mat = []
-        for c in cols + [metric]:
-            v = result[c]
-            if c == "filter_type":
-                names = sorted(set(v))
-                v = [names.index(x) for x in v]
-            v = np.asarray(v, dtype=float)
-            lo, hi = np.nanmin(v[np.isfinite(v)]) if np.isfinite(v).any() else 0, \
-                np.nanmax(v[np.isfinite(v)]) if np.isfinite(v).any() else 1
-            mat.append((v - lo) / (hi - lo) if hi > lo else np.zeros_like(v))
-        mat = np.asarray(mat)
-        finite = np.isfinite(y)
-        order = np.argsort(np.where(finite, y, np.inf))[::-1]
-        from matplotlib import colormaps
-        from matplotlib.cm import ScalarMappable
-        from matplotlib.colors import Normalize
-        # viridis: the smallest metric (the best set) is dark purple, the largest yellow; the best sets
-        # are drawn last, on top (the order above is worst first)
-        cmap = colormaps["viridis"]
-        ylo, yhi = (np.min(y[finite]), np.max(y[finite])) if finite.any() else (0, 1)
-        for i in order:
-            c = cmap((y[i] - ylo) / (yhi - ylo) if finite[i] and yhi > ylo else 0.0) if finite[i] else "lightgray"
-            ax.plot(range(len(cols) + 1), mat[:, i], color=c, lw=0.6, alpha=0.6)
-        ax.set_xticks(range(len(cols) + 1), cols + [metric])
-        ax.set_ylabel("normalised value")
-        fig.colorbar(ScalarMappable(Normalize(ylo, yhi if yhi > ylo else ylo + 1), cmap), ax=ax,
-                     label=f"{metric} (dark = smaller = better)")
-        ax.set_title(f"parallel coordinates, colour = {metric} ({len(result)} sets; dark = better)")
-    if path is not None:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=110)
-    return fig
+    """:meth:`SweepResult.plot` (kept as a function for its callers)."""
+    return result.plot(path, metric)

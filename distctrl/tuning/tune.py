@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.kinds import FilterType
+from ..errors import DistCtrlError
 from ..params import format_list
 from ..params.axis import AxisParameters
 from ..sim.surface import Surface
@@ -215,6 +216,10 @@ class TuneResult:
     #: the margin constraint (:mod:`distctrl.tuning.robust`): what was required, on which plants, the worst
     #: margins of the tuned and the scenario's set, how many sets it changed or dropped; {} when off
     margin_constraint: dict = field(default_factory=dict)
+    #: the closed-loop inputs tuned on and the cycles replayed (what :meth:`plot` runs again); None for a
+    #: result built by hand
+    inputs: object = field(default=None, repr=False, compare=False)
+    cycles: int | None = None
 
     @property
     def param_list(self) -> str:
@@ -265,6 +270,17 @@ class TuneResult:
                 "margin": _plain(self.margin), "param_list": self.param_list, "nc_block": self.nc_block,
                 "margin_constraint": dict(self.margin_constraint) or None, "notes": self.notes}
 
+    def plot(self, path=None, title: str | None = None):
+        """The distance error and the offset over time with the scenario's and the tuned parameters
+        (:func:`plot_before_after` on the inputs tuned on); a Figure on an Agg canvas, saved to ``path``."""
+        if self.inputs is None:
+            raise DistCtrlError("this TuneResult holds no inputs to run again; allowed: a result of tune()")
+        return plot_before_after(self.inputs, self.base, self.best, path, cycles=self.cycles, title=title)
+
+    def to_csv(self, path) -> Path:
+        """The table of every evaluated set (:meth:`SweepResult.to_csv <distctrl.tuning.runner.SweepResult.to_csv>`)."""
+        return self.sweep.to_csv(path)
+
     def report(self, plain: bool = True) -> str:
         names = ["cost"] + list(METRIC_NAMES)
         rows = [[n, METRIC_UNITS.get(n, "-"), _num(self.base_metrics.get(n)), _num(self.best_metrics.get(n))]
@@ -303,7 +319,6 @@ def stability(scenario, params: AxisParameters) -> dict:
     ``distctrl margins`` (:mod:`distctrl.workbench.margins`: drive kv, bus delay, resonance, sensor delay
     and gain of the scenario) with the list ``params`` (in CONST_DIST or the mode of the first select).
     ``{"error": text}`` where the margins cannot be computed (e.g. a 3D scenario)."""
-    from ..errors import DistCtrlError
     from ..workbench.margins import analyse, loop_model, model_from_parts
 
     try:
@@ -393,6 +408,157 @@ def _row(res: SweepResult, i: int) -> dict:
     return {k: (v[i] if not isinstance(v, list) else v[i]) for k, v in res.data.items()}
 
 
+def _meet(constraint, counts: dict, sets_in: list, pts_in: list, lower: bool) -> tuple[list, list]:
+    """The sets that meet the margin constraint (all without one); with ``lower`` a set that misses it gets
+    the largest KP that meets it (dropped if even the floor does not). ``counts`` tallies what changed."""
+    if constraint is None:
+        return sets_in, pts_in
+    out_s, out_p = [], []
+    for st, pt in zip(sets_in, pts_in):
+        if lower:
+            q = constraint.fit_kp(st)
+            if q is None:
+                counts["dropped"] += 1
+                continue
+            if q.kp != st.kp:
+                counts["kp_lowered"] += 1
+                st, pt = q, dict(pt, kp=q.kp)
+        elif not constraint.ok(st):
+            counts["neighbours_dropped"] += 1
+            continue
+        out_s.append(st)
+        out_p.append(pt)
+    return out_s, out_p
+
+
+def _coarse(ev, base: AxisParameters, constraint, n_coarse: int, seed: int, space: tuple[Dim, ...], T: float,
+            meet, say) -> tuple[SweepResult, list, list]:
+    """The coarse sweep: the scenario's set and ``n_coarse`` random points (KP lowered to meet the margin
+    constraint, duplicates merged). Returns the result, the points (the scenario's first) and whether each
+    set meets the constraint."""
+    pts = random_sample(n_coarse, seed, space, cycle_time=T)
+    sets, pts, rejected = build_sets(base, pts, T)
+    sets, pts = meet(sets, pts, lower=True)
+    dedup = {}
+    for st, pt in zip(sets, pts):                       # lowering KP can make two points one
+        dedup.setdefault(_key(pt), (st, pt))
+    sets, pts = [v[0] for v in dedup.values()], [v[1] for v in dedup.values()]
+    base_ok = constraint is None or constraint.ok(base)
+    sets = [base] + sets
+    pts = [_point_of(base)] + pts
+    say(f"coarse sweep: {len(sets)} sets ({len(rejected)} rejected)")
+    res = ev.evaluate(sets, pts, description="coarse")
+    feasible = [base_ok] + [True] * (len(sets) - 1)    # every other set meets the constraint
+    return res, list(pts), feasible
+
+
+def _refine(ev, base: AxisParameters, res: SweepResult, all_pts: list, feasible: list, seen: set, used: int,
+            budget: int, top: int, space: tuple[Dim, ...], T: float, meet, say) -> tuple[SweepResult, int]:
+    """Pattern search around the ``top`` best feasible distinct points of ``res`` until the budget is used
+    or every step has shrunk below 1/64: each round evaluates the unseen neighbours, moves a start to a
+    better neighbour or halves its step. Appends to ``all_pts``, ``feasible`` and ``seen``; returns the
+    grown result and the sets used."""
+    order = res.order("cost")
+    starts, starts_ft = [], []
+    for i in order:
+        if not math.isfinite(res["cost"][i]):
+            break
+        if not feasible[i]:
+            continue
+        p = all_pts[i]
+        starts.append([p, float(res["cost"][i]), 1.0])
+        starts_ft.append(p["filter_type"])
+        if len(starts) >= top:
+            break
+    rounds = 0
+    while used < budget and starts and any(s[2] > 1 / 64 for s in starts):
+        cand, owner = [], []
+        for j, (p, c, scale) in enumerate(starts):
+            if scale <= 1 / 64:
+                continue
+            for q in _neighbours(p, _refine_dims(p["filter_type"], space, T), scale):
+                k = _key(q)
+                if k not in seen:
+                    seen.add(k)
+                    cand.append(q)
+                    owner.append(j)
+        if not cand:
+            for s in starts:
+                s[2] /= 2
+            continue
+        room = budget - used
+        cand, owner = cand[:room], owner[:room]
+        sets_r, kept, rej = build_sets(base, cand, T)
+        sets_r, kept = meet(sets_r, kept, lower=False)
+        ok = {_key(q) for q in kept}
+        owner = [o for q, o in zip(cand, owner) if _key(q) in ok]
+        if not sets_r:
+            for s in starts:
+                s[2] /= 2
+            used += len(cand)
+            continue
+        r = ev.evaluate(sets_r, kept, description=f"refine {rounds + 1}")
+        used += len(cand)
+        res = res.concat(r)
+        all_pts += kept
+        feasible += [True] * len(kept)
+        costs = np.asarray(r["cost"], dtype=float)
+        for j, s in enumerate(starts):
+            mine = [i for i, o in enumerate(owner) if o == j]
+            if not mine:
+                s[2] /= 2
+                continue
+            b = min(mine, key=lambda i: costs[i])
+            if costs[b] < s[1]:
+                s[0], s[1] = kept[b], float(costs[b])
+            else:
+                s[2] /= 2
+        rounds += 1
+        say(f"refine round {rounds}: best cost {min(s[1] for s in starts):.5g} mm ({used}/{budget} sets)")
+    return res, used
+
+
+def _robustness(ev, scenario, inputs, cycles: int | None, base: AxisParameters, best: AxisParameters,
+                base_metrics: dict, best_metrics: dict) -> list[dict]:
+    """The scenario's and the tuned set on each perturbed scenario (:func:`perturbed_scenarios`): their
+    costs, the degradation and the share of the improvement kept (``margin``); ``ev`` is left on ``inputs``."""
+    from ..batch.closed_loop import prepare  # numba (optional: [fast], [tune]) loads only when a batch runs
+
+    rob = []
+    for name, sc in perturbed_scenarios(scenario, inputs.axis):
+        try:
+            pin = prepare(sc, cycles)
+        except Exception as exc:          # noqa: BLE001 - reported, not fatal
+            rob.append({"name": name, "base_cost": math.nan, "best_cost": math.nan, "best_rms": math.nan,
+                        "degradation": math.nan, "margin": math.nan, "failed": True, "note": str(exc)})
+            continue
+        ev.set_inputs(pin)
+        rr = ev.evaluate([base, best], description=name)
+        bc, tc = float(rr["cost"][0]), float(rr["cost"][1])
+        gain_nom = float(base_metrics["cost"]) - float(best_metrics["cost"])
+        margin = (bc - tc) / gain_nom if gain_nom > 0 and math.isfinite(bc) and math.isfinite(tc) else \
+            (math.nan if gain_nom <= 0 else -math.inf)
+        rob.append({"name": name, "base_cost": bc, "best_cost": tc, "best_rms": float(rr["rms_error"][1]),
+                    "degradation": tc / float(best_metrics["cost"]) if best_metrics["cost"] > 0 else math.nan,
+                    "margin": margin, "failed": bool(rr["failed"][1])})
+    ev.set_inputs(inputs)
+    return rob
+
+
+def _constraint_report(constraint: MarginConstraint, best: AxisParameters, base: AxisParameters, met: bool,
+                       counts: dict) -> dict:
+    """What ``TuneResult.margin_constraint`` holds: the requirement, the plants, the worst margins of the
+    tuned and the scenario's set, and how many sets the constraint changed or dropped."""
+    ct, cb = constraint.check(best), constraint.check(base)
+    return {"description": constraint.describe(), "min_gain_margin": constraint.min_gain_margin,
+            "min_phase_margin_deg": constraint.min_phase_margin_deg, "allowance": constraint.allowance.to_dict(),
+            "plants": len(constraint.plants), "met": bool(met and ct.ok),
+            "tuned": {k: _plain(v) for k, v in ct.to_dict().items()},
+            "scenario_params": {k: _plain(v) for k, v in cb.to_dict().items()},
+            "tuned_text": constraint.check_text(ct), "scenario_params_text": constraint.check_text(cb),
+            "binding": ct.binding, **counts}
+
+
 def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = None, coarse_share: float = 0.6,
          top: int = 3, osc_weight: float = 1.0, space: tuple[Dim, ...] = DEFAULT_SPACE,
          robustness: bool = True, evaluator: Evaluator | None = None, log=None, sat_weight: float | None = None,
@@ -422,7 +588,6 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     base = inputs.params
     constraint, mc = None, {}
     if margin_constraint:
-        from ..errors import DistCtrlError
         from ..workbench.margins import loop_model
 
         try:
@@ -433,26 +598,8 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     counts = {"kp_lowered": 0, "dropped": 0, "neighbours_dropped": 0}
 
     def meet(sets_in: list, pts_in: list, lower: bool) -> tuple[list, list]:
-        """The sets that meet the constraint; with ``lower`` a set that misses it gets the largest KP that
-        meets it (dropped if even the floor does not)."""
-        if constraint is None:
-            return sets_in, pts_in
-        out_s, out_p = [], []
-        for st, pt in zip(sets_in, pts_in):
-            if lower:
-                q = constraint.fit_kp(st)
-                if q is None:
-                    counts["dropped"] += 1
-                    continue
-                if q.kp != st.kp:
-                    counts["kp_lowered"] += 1
-                    st, pt = q, dict(pt, kp=q.kp)
-            elif not constraint.ok(st):
-                counts["neighbours_dropped"] += 1
-                continue
-            out_s.append(st)
-            out_p.append(pt)
-        return out_s, out_p
+        return _meet(constraint, counts, sets_in, pts_in, lower)
+
     own = evaluator is None
     ev = evaluator or Evaluator(inputs, cycles=cycles, osc_weight=osc_weight, log=log, **evaluator_options)
     ev.osc_weight = osc_weight
@@ -463,81 +610,12 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     try:
         ev.open()
         # 1. coarse
-        n_coarse = max(1, int(budget * coarse_share))
-        pts = random_sample(n_coarse, seed, space, cycle_time=T)
-        sets, pts, rejected = build_sets(base, pts, T)
-        sets, pts = meet(sets, pts, lower=True)
-        dedup = {}
-        for st, pt in zip(sets, pts):                       # lowering KP can make two points one
-            dedup.setdefault(_key(pt), (st, pt))
-        sets, pts = [v[0] for v in dedup.values()], [v[1] for v in dedup.values()]
-        base_ok = constraint is None or constraint.ok(base)
-        sets = [base] + sets
-        pts = [_point_of(base)] + pts
-        say(f"coarse sweep: {len(sets)} sets ({len(rejected)} rejected)")
-        res = ev.evaluate(sets, pts, description="coarse")
-        seen = {_key(p) for p in pts}
-        all_pts = list(pts)
-        feasible = [base_ok] + [True] * (len(sets) - 1)    # every other set meets the constraint
-        used = len(sets)
+        res, all_pts, feasible = _coarse(ev, base, constraint, max(1, int(budget * coarse_share)), seed, space, T,
+                                         meet, say)
+        seen = {_key(p) for p in all_pts}
+        used = len(all_pts)
         # 2. refine: pattern search around the best distinct points
-        order = res.order("cost")
-        starts, starts_ft = [], []
-        for i in order:
-            if not math.isfinite(res["cost"][i]):
-                break
-            if not feasible[i]:
-                continue
-            p = all_pts[i]
-            starts.append([p, float(res["cost"][i]), 1.0])
-            starts_ft.append(p["filter_type"])
-            if len(starts) >= top:
-                break
-        rounds = 0
-        while used < budget and starts and any(s[2] > 1 / 64 for s in starts):
-            cand, owner = [], []
-            for j, (p, c, scale) in enumerate(starts):
-                if scale <= 1 / 64:
-                    continue
-                for q in _neighbours(p, _refine_dims(p["filter_type"], space, T), scale):
-                    k = _key(q)
-                    if k not in seen:
-                        seen.add(k)
-                        cand.append(q)
-                        owner.append(j)
-            if not cand:
-                for s in starts:
-                    s[2] /= 2
-                continue
-            room = budget - used
-            cand, owner = cand[:room], owner[:room]
-            sets_r, kept, rej = build_sets(base, cand, T)
-            sets_r, kept = meet(sets_r, kept, lower=False)
-            ok = {_key(q) for q in kept}
-            owner = [o for q, o in zip(cand, owner) if _key(q) in ok]
-            if not sets_r:
-                for s in starts:
-                    s[2] /= 2
-                used += len(cand)
-                continue
-            r = ev.evaluate(sets_r, kept, description=f"refine {rounds + 1}")
-            used += len(cand)
-            res = res.concat(r)
-            all_pts += kept
-            feasible += [True] * len(kept)
-            costs = np.asarray(r["cost"], dtype=float)
-            for j, s in enumerate(starts):
-                mine = [i for i, o in enumerate(owner) if o == j]
-                if not mine:
-                    s[2] /= 2
-                    continue
-                b = min(mine, key=lambda i: costs[i])
-                if costs[b] < s[1]:
-                    s[0], s[1] = kept[b], float(costs[b])
-                else:
-                    s[2] /= 2
-            rounds += 1
-            say(f"refine round {rounds}: best cost {min(s[1] for s in starts):.5g} mm ({used}/{budget} sets)")
+        res, used = _refine(ev, base, res, all_pts, feasible, seen, used, budget, top, space, T, meet, say)
         costs_all = np.asarray(res["cost"], dtype=float)
         allowed = np.where(np.asarray(feasible, dtype=bool), costs_all, np.inf)
         met = bool(np.isfinite(allowed).any())
@@ -560,25 +638,7 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
         say(f"rounded set re-run: cost {float(best_metrics['cost']):.5g} mm "
             f"(before rounding {float(unrounded_metrics['cost']):.5g} mm)")
         # 4. robustness
-        rob = []
-        if robustness:
-            for name, sc in perturbed_scenarios(scenario, inputs.axis):
-                try:
-                    pin = prepare(sc, cycles)
-                except Exception as exc:          # noqa: BLE001 - reported, not fatal
-                    rob.append({"name": name, "base_cost": math.nan, "best_cost": math.nan, "best_rms": math.nan,
-                                "degradation": math.nan, "margin": math.nan, "failed": True, "note": str(exc)})
-                    continue
-                ev.set_inputs(pin)
-                rr = ev.evaluate([base, best], description=name)
-                bc, tc = float(rr["cost"][0]), float(rr["cost"][1])
-                gain_nom = float(base_metrics["cost"]) - float(best_metrics["cost"])
-                margin = (bc - tc) / gain_nom if gain_nom > 0 and math.isfinite(bc) and math.isfinite(tc) else \
-                    (math.nan if gain_nom <= 0 else -math.inf)
-                rob.append({"name": name, "base_cost": bc, "best_cost": tc, "best_rms": float(rr["rms_error"][1]),
-                            "degradation": tc / float(best_metrics["cost"]) if best_metrics["cost"] > 0 else math.nan,
-                            "margin": margin, "failed": bool(rr["failed"][1])})
-            ev.set_inputs(inputs)
+        rob = _robustness(ev, scenario, inputs, cycles, base, best, base_metrics, best_metrics) if robustness else []
         stats = dict(ev.stats)
     finally:
         if own:
@@ -587,18 +647,11 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     weights = {"osc_weight": osc_weight, "sat_weight": SAT_WEIGHT, "chatter_weight": CHATTER_WEIGHT,
                **getattr(ev, "cost_weights", {})}
     if constraint is not None:
-        ct, cb = constraint.check(best), constraint.check(base)
-        mc = {"description": constraint.describe(), "min_gain_margin": constraint.min_gain_margin,
-              "min_phase_margin_deg": constraint.min_phase_margin_deg, "allowance": constraint.allowance.to_dict(),
-              "plants": len(constraint.plants), "met": bool(met and ct.ok),
-              "tuned": {k: _plain(v) for k, v in ct.to_dict().items()},
-              "scenario_params": {k: _plain(v) for k, v in cb.to_dict().items()},
-              "tuned_text": constraint.check_text(ct), "scenario_params_text": constraint.check_text(cb),
-              "binding": ct.binding, **counts}
+        mc = _constraint_report(constraint, best, base, met, counts)
     return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
                       time.perf_counter() - t0, stats, unrounded=unrounded, unrounded_metrics=unrounded_metrics,
                       cost_weights=weights, stability=stability(scenario, best),
-                      base_stability=stability(scenario, base), margin_constraint=mc)
+                      base_stability=stability(scenario, base), margin_constraint=mc, inputs=inputs, cycles=cycles)
 
 
 # ----------------------------------------------------------------------------- plot
@@ -607,6 +660,7 @@ def plot_before_after(scenario_or_inputs, base: AxisParameters, best: AxisParame
                       cycles: int | None = None, title: str | None = None):
     """Distance error over time for the scenario's and the tuned parameters (a Figure on an Agg
     canvas, no pyplot); saved to ``path`` (PNG/SVG) when given. Returns the Figure."""
+    # matplotlib is imported here only: it stays off the import path of the batch kernel and the CLI
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -17,10 +17,13 @@ axis position and reading); this module is the engineering side that reads the r
 """
 from __future__ import annotations
 
+import csv
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +34,9 @@ from ..plc.process import process_configs
 from ..sim.machine import Machine
 from ..sim.runner import load_program
 from .identify.fit import CHAR_BIN, characteristic_points
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["CalibrationError", "CalibrationTable", "calibration_table", "run_calibration", "CalibrationRun",
            "table_toml", "REPEATABILITY_TOLERANCE_UM"]
@@ -58,6 +64,51 @@ class CalibrationTable:
     samples: int
     noise_um: float | None = None
     dropped: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """What ``distctrl calibrate --json`` prints of the table: the points ``[reading_mm,
+        distance_mm]``, their number, the distances covered, the repeatability and noise (µm) and the
+        notes (bins left out)."""
+        return {"table": [list(p) for p in self.table], "points": len(self.table),
+                "distance_range_mm": list(self.distance_range), "repeatability_um": self.repeatability_um,
+                "noise_um": self.noise_um, "notes": self.dropped}
+
+    def to_csv(self, path: str | os.PathLike) -> Path:
+        """The table as CSV: ``reading_mm``, ``distance_mm``, one row per point."""
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with open(p, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(("reading_mm", "distance_mm"))
+            w.writerows((repr(float(rd)), repr(float(dd))) for rd, dd in self.table)
+        return p
+
+    def plot(self, path: str | os.PathLike | None = None, title: str | None = None) -> "Figure":
+        """The sensor's non-linearity: reading − distance (µm) over the distance (mm), one line per run
+        and the table's points. A Figure on an Agg canvas, saved to ``path`` too when given."""
+        # matplotlib is imported here only: it stays off the import path of the run and the CLI
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(9, 5), layout="constrained")
+        FigureCanvasAgg(fig)
+        ax = fig.subplots()
+        for n, t in enumerate(self.run_tables, 1):
+            a = np.asarray(t, dtype=float)
+            ax.plot(a[:, 1], (a[:, 0] - a[:, 1]) * 1e3, lw=0.8, alpha=0.7, label=f"run {n}")
+        a = np.asarray(self.table, dtype=float)
+        ax.plot(a[:, 1], (a[:, 0] - a[:, 1]) * 1e3, "o", ms=3, color="k", label="table")
+        ax.set_xlabel("distance [mm]")
+        ax.set_ylabel("reading − distance [µm]")
+        ax.grid(True, alpha=0.4)
+        ax.legend(loc="best", fontsize="small")
+        rep = "-" if self.repeatability_um is None else f"{self.repeatability_um:.2f} µm"
+        ax.set_title(title if title is not None else
+                     f"calibration: {len(self.table)} points, repeatability {rep}", fontsize="medium")
+        if path is not None:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+            fig.savefig(path, dpi=110)
+        return fig
 
 
 def _points(x: np.ndarray, y: np.ndarray, bin_width: float, what: str, dropped: list[str]):

@@ -77,3 +77,18 @@ def test_cli_sweep_and_tune(tmp_path):
     assert "Z[DIST_CTRL KP=" in r.output
     for f in ("tuned.lis", "tuned.nc.txt", "sweep.csv", "before_after.png", "report.txt"):
         assert (tmp_path / "t" / f).exists(), f
+
+
+def test_a_tune_result_plots_itself_and_writes_its_sweep_as_csv(result, tmp_path):
+    """The result face of python-control's results: plot() is the before/after figure of the run it
+    was tuned on (plot_before_after on the same inputs), to_csv() the table of every evaluated set."""
+    fig = result.plot(tmp_path / "ba.png")
+    plot_before_after(SCN, result.base, result.best, tmp_path / "ref.png", cycles=2000)
+    assert (tmp_path / "ba.png").read_bytes() == (tmp_path / "ref.png").read_bytes()
+    assert type(fig.canvas).__name__ == "FigureCanvasAgg"
+    error, offset = fig.axes
+    assert len(error.get_lines()) == 3 and len(offset.get_lines()) == 2     # two runs (+ the zero line)
+    assert [ln.get_label() for ln in offset.get_lines()] == ["scenario parameters", "tuned"]
+    result.to_csv(tmp_path / "sweep.csv")
+    result.sweep.to_csv(tmp_path / "ref.csv")
+    assert (tmp_path / "sweep.csv").read_text() == (tmp_path / "ref.csv").read_text()

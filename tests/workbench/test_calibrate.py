@@ -137,3 +137,32 @@ def _hold(sc) -> float:
         if m.cycle > 3000:
             d.append(m.true_distance)
     return float(np.mean(d))
+
+
+def test_the_calibration_table_answers_to_dict_as_json_plots_and_writes_csv(tmp_path, monkeypatch):
+    """The result face of python-control's results: to_dict() is what --json prints of the table,
+    plot() the reading's deviation from the distance per run and of the table, to_csv() the table."""
+    import csv
+
+    import distctrl.cli.calibrate as cli_calibrate
+
+    seen = []
+    build = cli_calibrate.calibration_table
+    monkeypatch.setattr(cli_calibrate, "calibration_table", lambda *a: seen.append(build(*a)) or seen[-1])
+    r = calibrate(SCN, "--out", tmp_path / "t.toml", "--runs", 2, "--speed", 5, "--json")
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.output)
+    (res,) = seen
+    d = json.loads(json.dumps(res.to_dict()))
+    assert set(d) == {"table", "points", "distance_range_mm", "repeatability_um", "noise_um", "notes"}
+    assert {k: data[k] for k in d} == d
+    fig = res.plot(tmp_path / "cal.png")
+    assert (tmp_path / "cal.png").read_bytes()[:4] == b"\x89PNG"
+    assert type(fig.canvas).__name__ == "FigureCanvasAgg"
+    (ax,) = fig.axes
+    assert [ln.get_label() for ln in ax.get_lines()] == ["run 1", "run 2", "table"]
+    assert ax.get_xlabel() == "distance [mm]" and ax.get_ylabel() == "reading − distance [µm]"
+    res.to_csv(tmp_path / "cal.csv")
+    rows = list(csv.reader((tmp_path / "cal.csv").open()))
+    assert rows[0] == ["reading_mm", "distance_mm"]
+    assert [[float(a), float(b)] for a, b in rows[1:]] == data["table"]

@@ -586,3 +586,25 @@ def test_a_filter_result_answers_to_dict_as_the_json_entry():
     assert [r.to_dict() for r in rs] == results_dicts(rs)
     assert rs[0].to_dict()["params"] == {"n_cycles": 4}
     assert rs[1].to_dict()["params"] == {"n_cycles": 10, "kalman_sigma": 100.0}
+
+
+def test_a_filter_result_plots_itself_on_its_signal_and_exports_its_output_as_csv(tmp_path):
+    """Like python-control's results: a FilterResult keeps the signal it ran on, so it plots itself
+    (plot_overlay of this one result, Agg canvas) and writes its time series as CSV."""
+    t, x, e = obstacle_signal()
+    (r,) = compare(x, t, parse_filter_spec("MOVING_AVERAGE:n_cycles=20", T), T, e)
+    fig = r.plot(tmp_path / "one.png")
+    assert (tmp_path / "one.png").read_bytes()[:4] == b"\x89PNG"
+    assert type(fig.canvas).__name__ == "FigureCanvasAgg"
+    assert len(fig.axes) == 2                                           # overview + zoom on the rising edge
+    for ax in fig.axes:
+        labels = [ln.get_label() for ln in ax.get_lines()]
+        assert len(labels) == 4 and {"raw signal", r.label} <= set(labels)   # raw, output, the two edges
+    assert fig._suptitle.get_text() == r.label
+    without = compare(x, t, parse_filter_spec("MOVING_AVERAGE:n_cycles=20", T), T)[0].plot()
+    assert len(without.axes) == 1 and len(without.axes[0].get_lines()) == 2
+    r.to_csv(tmp_path / "one.csv")
+    rows = list(csv.reader((tmp_path / "one.csv").open()))
+    assert rows[0] == ["t_s", "signal_mm", "output_mm"] and len(rows) == 1 + t.size
+    back = np.array(rows[1:], dtype=float)
+    assert np.array_equal(back[:, 0], t) and np.array_equal(back[:, 1], x) and np.array_equal(back[:, 2], r.output)

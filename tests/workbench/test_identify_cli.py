@@ -157,3 +157,28 @@ def test_a_parquet_trace_reads_as_its_csv_twin(files, tmp_path):
     ja, jb = json.loads(a.stdout), json.loads(b.stdout)
     assert ja["drive"] == jb["drive"] and ja["sensor"] == jb["sensor"]
     assert ja["drive"]["kv"] is not None
+
+
+def test_an_identification_answers_to_dict_as_json_and_plots_itself(files, tmp_path):
+    """The result face of python-control's results: to_dict() is what --json prints, plot() the figure
+    of the report (a Figure on an Agg canvas: per recording motor and sensor, then the frequency
+    response and the characteristic)."""
+    import warnings
+
+    from distctrl.cli.common import json_text
+    from distctrl.workbench.identify import identify, load_signals
+
+    r = run([files["steps"], files["chirp"], *ARGS, "--json"])
+    assert r.exit_code == 0, r.output
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = identify([load_signals(files[k], command="set_pos", actual="act_pos", sensor="sensor")
+                        for k in ("steps", "chirp")])
+    assert json.loads(json_text(res.to_dict())) == json.loads(r.stdout)
+    fig = res.plot(tmp_path / "id.png")
+    assert (tmp_path / "id.png").read_bytes()[:4] == b"\x89PNG"
+    assert type(fig.canvas).__name__ == "FigureCanvasAgg"
+    assert len(fig.axes) == 2 * 3 + 1                                   # 2 recordings + the last row, a phase twin
+    motor, sensor = fig.axes[0], fig.axes[1]
+    assert [ln.get_label() for ln in motor.get_lines()] == ["actual (measured)", "drive model", "command"]
+    assert [ln.get_label() for ln in sensor.get_lines()] == ["sensor (measured)", "sensor model"]

@@ -408,6 +408,29 @@ def test_plot_writes_bode_and_nyquist(tmp_path):
         r.plot(tmp_path / "m.txt")
 
 
+def test_to_dict_is_what_the_cli_prints_and_to_csv_is_the_open_loop_response(tmp_path):
+    """The result face of python-control's results: to_dict() is --json (without the plot's path),
+    to_csv() the open loop's frequency response the Bode plot draws (0.1 Hz to the Nyquist frequency)."""
+    import csv
+
+    from distctrl.cli.common import json_text
+
+    r = analyse(loop_model(SHEET, kp=1.2))
+    res = CliRunner().invoke(main, ["margins", str(SHEET), "--kp", "1.2", "--json"])
+    assert res.exit_code == 0, res.output
+    printed = json.loads(res.stdout)
+    assert printed.pop("plot") is None and printed == json.loads(json_text(r.to_dict()))
+    r.to_csv(tmp_path / "L.csv")
+    rows = list(csv.reader((tmp_path / "L.csv").open()))
+    assert rows[0] == ["f_hz", "re", "im", "magnitude_db", "phase_deg"]
+    a = np.array(rows[1:], dtype=float)
+    assert len(a) == 2000 and a[0, 0] == pytest.approx(0.1) and a[-1, 0] == pytest.approx(0.999 * 0.5 / T)
+    resp = r.model.response(2.0 * np.pi * a[:, 0])
+    assert np.allclose(a[:, 1], resp.real, rtol=1e-9, atol=0) and np.allclose(a[:, 2], resp.imag, rtol=1e-9, atol=0)
+    assert np.allclose(a[:, 3], 20.0 * np.log10(np.abs(resp)))
+    assert np.allclose(a[:, 4], np.degrees(np.unwrap(np.angle(resp))))
+
+
 def test_model_from_parts_without_a_scenario():
     from distctrl.params import AxisParameters
 

@@ -1,6 +1,8 @@
 """What the parts of ``distctrl identify`` share: its errors, warnings and limits, and what to record."""
 from __future__ import annotations
 
+import numpy as np
+
 from ...errors import DistCtrlError
 
 
@@ -25,3 +27,14 @@ RECORD_CHIRP = ("a chirp of the set position 1-150 Hz, 0.02-0.05 mm amplitude, 2
 RECORD_RAMP = ("a slow ramp of the set position (0.2-0.5 mm/s) over the sensor's range, with the "
                "sensor over a flat sheet")
 RECORD_STANDSTILL = "1 s or more at standstill above the sheet"
+
+#: the identified figures, the keys of ``drive`` and ``sensor`` (issue 15 pins them)
+DRIVE_KEYS = ("kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping")
+SENSOR_KEYS = ("delay", "noise_std", "characteristic")
+
+
+def _mode(f: np.ndarray, f0: float, zeta: float) -> np.ndarray:
+    """Motor -> nozzle: (w0^2 + 2 zeta w0 s) / (s^2 + 2 zeta w0 s + w0^2) at s = j 2 pi f."""
+    s = 2j * np.pi * f
+    w0 = 2.0 * np.pi * f0
+    return (w0 * w0 + 2 * zeta * w0 * s) / (s * s + 2 * zeta * w0 * s + w0 * w0)

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from ...sim.physics import limit_velocity
 
-DRIVE_KEYS = ("kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping")
-SENSOR_KEYS = ("delay", "noise_std", "characteristic")
 #: longest dead time / sensor delay searched (s)
 MAX_DELAY = 0.03
 #: quasi-static samples (characteristic, noise): motor slower than this (mm/s) ...
@@ -24,14 +22,18 @@ CHAR_BIN = 0.25
 #: Welch segment length (samples) of the frequency response
 NPERSEG = 2048
 from .common import (
+    DRIVE_KEYS,
+    SENSOR_KEYS,
     RECORD_CHIRP,
     RECORD_RAMP,
     RECORD_STANDSTILL,
     RECORD_STEPS,
     IdentifyError,
     IdentifyWarning,
+    _mode,
 )
 from .recordings import Signals
+from .result import Identification
 
 
 @dataclass
@@ -43,25 +45,6 @@ class _Rec:
     S: np.ndarray          # command (mm)
     Y: np.ndarray          # sensor, sign-corrected (mm, grows with the distance)
     t: np.ndarray
-
-
-@dataclass
-class Identification:
-    """The fitted plant, fit quality and what could not be identified (``warnings``)."""
-
-    cycle_time: float
-    drive: dict
-    sensor: dict
-    fit: dict = field(default_factory=dict)
-    extra: dict = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
-    #: standard deviations of the identified figures: {"drive": {key: sd}, "sensor": {key: sd}}
-    uncertainty: dict = field(default_factory=dict)
-    #: the prediction error on recordings not used for the fit (``validate``), else None
-    validation: dict | None = None
-    recordings: list[dict] = field(default_factory=list)
-    # for the report: per recording (t, X, S, Y) and model curves
-    curves: dict = field(default_factory=dict)
 
 
 def _warn(res_warnings: list[str], text: str) -> None:
@@ -427,13 +410,6 @@ def simulate_drive(S: np.ndarray, x0: float, T: float, kv: float, dead_time: flo
         v = limit_velocity(kv_d * (c[k] - x), vm, v, dvm)     # the simulator's drive limits
         x += v * T
     return np.array(out)
-
-
-def _mode(f: np.ndarray, f0: float, zeta: float) -> np.ndarray:
-    """Motor -> nozzle: (w0^2 + 2 zeta w0 s) / (s^2 + 2 zeta w0 s + w0^2) at s = j 2 pi f."""
-    s = 2j * np.pi * f
-    w0 = 2.0 * np.pi * f0
-    return (w0 * w0 + 2 * zeta * w0 * s) / (s * s + 2 * zeta * w0 * s + w0 * w0)
 
 
 def _frf(recs: Sequence[_Rec], T: float):

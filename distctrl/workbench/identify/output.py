@@ -5,33 +5,8 @@ import math
 import os
 from pathlib import Path
 
-import numpy as np
-
-UNITS = {"kv": "1/s", "dead_time": "s", "v_max": "mm/s", "a_max": "mm/s^2", "resonance_hz": "Hz", "damping": "-",
-         "delay": "s", "noise_std": "mm", "characteristic": "[[true mm, reported mm], ...]"}
 from .common import IdentifyError
-from .fit import DRIVE_KEYS, SENSOR_KEYS, Identification, _mode
-
-
-def result_json(res: Identification, scenario: str | None = None, report: str | None = None) -> dict:
-    """The ``--json`` object: ``drive`` and ``sensor`` with exactly the keys of issue 15, the rest
-    under other keys."""
-    return {"drive": {k: res.drive.get(k) for k in DRIVE_KEYS},
-            "sensor": {k: res.sensor.get(k) for k in SENSOR_KEYS},
-            "uncertainty": uncertainty_json(res),
-            "validation": res.validation,
-            "units": UNITS, "cycle_time_s": res.cycle_time, "fit": res.fit, "details": res.extra,
-            "recordings": res.recordings, "warnings": list(res.warnings), "scenario": scenario, "report": report}
-
-
-def uncertainty_json(res: Identification) -> dict:
-    """Standard deviations beside the pinned keys: ``drive`` and ``sensor`` with the same keys (same
-    units; ``characteristic``: the largest standard deviation of a table point, mm), null where the
-    figure is not identified."""
-    u = res.uncertainty or {}
-    drive = {k: (u.get("drive", {}).get(k) if res.drive.get(k) is not None else None) for k in DRIVE_KEYS}
-    sensor = {k: (u.get("sensor", {}).get(k) if res.sensor.get(k) is not None else None) for k in SENSOR_KEYS}
-    return {"drive": drive, "sensor": sensor, "kind": "standard deviation (statistical, from the fit's residuals)"}
+from .result import UNITS, Identification, result_json, uncertainty_json  # noqa: F401  (part of the API)
 
 
 def _pm(res: Identification, group: str, key: str, scale: float, spec: str, unit: str) -> str:
@@ -325,67 +300,8 @@ def write_scenario(res: Identification, out_dir: str | os.PathLike, template: st
 
 
 def plot_identification(res: Identification, path: str | os.PathLike) -> None:
-    """Measured vs fitted: per recording the actual and the sensor in time, the motor -> sensor
-    frequency response (magnitude, phase) and the characteristic."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    recs = res.curves.get("recs") or []
-    sims = res.curves.get("drive_sim") or []
-    preds = res.curves.get("sensor_pred") or []
-    rows = len(recs) + 1
-    fig, axes = plt.subplots(rows, 2, figsize=(13, 3.0 * rows), squeeze=False)
-    for i, r in enumerate(recs):
-        ax = axes[i][0]
-        ax.plot(r.t, r.X, lw=0.8, label="actual (measured)")
-        if i < len(sims):
-            ax.plot(r.t, sims[i], lw=0.8, ls="--", label="drive model")
-        ax.plot(r.t, r.S, lw=0.5, alpha=0.5, label="command")
-        ax.set_title(f"{Path(r.sig.path).name}: motor", fontsize=9)
-        ax.set_ylabel("mm")
-        ax.legend(fontsize=7, loc="best")
-        ax = axes[i][1]
-        ax.plot(r.t, r.Y, lw=0.6, label="sensor (measured)")
-        if i < len(preds):
-            ax.plot(r.t, preds[i], lw=0.8, ls="--", label="sensor model")
-        ax.set_title(f"{Path(r.sig.path).name}: sensor (sign {res.extra.get('sensor_sign', 1):+.0f})", fontsize=9)
-        ax.set_ylabel("mm")
-        ax.legend(fontsize=7, loc="best")
-    ax_m, ax_c = axes[-1][0], axes[-1][1]
-    fr = res.curves.get("frf_fit") or {}
-    if fr.get("_points") is not None:
-        f, H, _ = fr["_points"]
-        g, tau, f0, zeta = fr["_model"]
-        ff = np.linspace(f.min(), f.max(), 600)
-        G = g * np.exp(-2j * np.pi * ff * tau) * (_mode(ff, f0, zeta) if f0 else 1.0)
-        ax_m.semilogx(f, 20 * np.log10(np.abs(H)), ".", ms=3, label="|H| measured (coherent)")
-        ax_m.semilogx(ff, 20 * np.log10(np.abs(G)), "-", lw=1, label="|H| model")
-        ax_p = ax_m.twinx()
-        ax_p.semilogx(f, np.degrees(np.unwrap(np.angle(H))), ".", ms=2, color="tab:green", label="phase measured")
-        ax_p.semilogx(ff, np.degrees(np.unwrap(np.angle(G))), "-", lw=0.8, color="tab:red", label="phase model")
-        ax_p.set_ylabel("phase [deg]")
-        ax_m.set_xlabel("Hz")
-        ax_m.set_ylabel("dB")
-        ax_m.legend(fontsize=7, loc="lower left")
-        ax_p.legend(fontsize=7, loc="upper right")
-    ax_m.set_title("frequency response motor -> sensor", fontsize=9)
-    ch = res.sensor.get("characteristic")
-    if ch:
-        a = np.array(ch)
-        ax_c.plot(a[:, 0], (a[:, 1] - a[:, 0]) * 1e3, "o-", ms=3)
-        ax_c.set_xlabel("true distance [mm]")
-        ax_c.set_ylabel("reported - true [um]")
-    else:
-        ax_c.text(0.5, 0.5, "characteristic not identified", ha="center", va="center", transform=ax_c.transAxes)
-    ax_c.set_title("sensor characteristic", fontsize=9)
-    for row in axes[:-1]:
-        for ax in row:
-            ax.set_xlabel("s")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    """:meth:`Identification.plot` saved to ``path`` (kept as a function: the report calls it)."""
+    res.plot(path)
 
 
 def write_report(res: Identification, out_dir: str | os.PathLike, scenario: str | None = None) -> Path:

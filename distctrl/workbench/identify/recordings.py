@@ -9,7 +9,7 @@ import numpy as np
 
 from ...errors import DistCtrlError
 from ...trace import Trace, is_trace_file, load_trace, sidecar_path
-from ..filters import _TIME_UNITS, _VALUE_UNITS, _pick_column, _read_plain_csv, _unit_factor
+from ..filters.recording import _TIME_UNITS, _VALUE_UNITS, _pick_column, _read_plain_csv, _unit_factor
 from .common import MIN_SAMPLES, MIN_SECONDS, IdentifyError
 
 
