@@ -134,13 +134,13 @@ def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits
     NaN, minus the window's mean where it is not."""
     n_sets, n = distance.shape
     m = n - k0
+    tol = 1.0 - 1e-3
+    s = max(k0 - 2, 0)
+    n_a = n - s - 2                      # length of the acceleration series (np.diff twice)
     ez = np.empty(m)
     oz = np.empty(m)
     vb = np.empty(m, dtype=np.bool_)
     sq = np.empty(m)
-    tol = 1.0 - 1e-3
-    s = max(k0 - 2, 0)
-    n_a = n - s - 2                      # length of the acceleration series (np.diff twice)
     for i in range(n_sets):
         cnt = 0
         failed = False
@@ -209,12 +209,9 @@ def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits
             ex[i, j] = ez[j] - me * w
             ox[i, j] = oz[j] - mo * w
         # limiter saturation share
-        if not has_limits:
-            fig[i, F_SAT] = np.nan
-            continue
         nsat = 0
         span = max(dev_a_max[i] - dev_a_min[i], 1e-12)
-        for j in range(max(n_a, 0)):
+        for j in range(max(n_a, 0) if has_limits else 0):
             k = s + j
             v0 = (offset[i, k + 1] - offset[i, k]) / T
             v = (offset[i, k + 2] - offset[i, k + 1]) / T
@@ -230,8 +227,6 @@ def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits
                 al = al * w_a[i]
             else:
                 vl = v_lim[i]
-            if np.isnan(v) or np.isnan(acc):
-                continue
-            if abs(v) >= tol * vl or abs(acc) >= tol * al:
+            if not (np.isnan(v) or np.isnan(acc)) and (abs(v) >= tol * vl or abs(acc) >= tol * al):
                 nsat += 1
-        fig[i, F_SAT] = nsat / c1
+        fig[i, F_SAT] = nsat / c1 if has_limits else np.nan
