@@ -41,6 +41,11 @@ C_SOURCE = ROOT / "bench" / "batch_c" / "closed_loop.c"
 BUILD_DIR = ROOT / "bench" / "batch_c" / "build"
 #: the issue's compiler setting; no contraction / fast math so the numbers equal numba's
 CFLAGS = ("-O2", "-fno-fast-math", "-ffp-contract=off")
+#: the SIMD anchor (issue 27): the same law across sets, vectorised by gcc; no contraction / fast math, so
+#: bit for bit equal too (-fno-math-errno: sqrt and floor as vector instructions, correctly rounded either way;
+#: -fno-trapping-math: gcc may compute both sides of a select, as the lane loops need; no value changes)
+C_SIMD_SOURCE = ROOT / "bench" / "batch_c" / "closed_loop_simd.c"
+CFLAGS_SIMD = ("-O3", "-march=native", "-fno-fast-math", "-ffp-contract=off", "-fno-math-errno", "-fno-trapping-math")
 SCENARIO = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"
 N_CYCLES = 10_000
 TARGET_RATE = 100e6            # set-cycles / s per core
@@ -51,14 +56,16 @@ TARGET_SWEEP_S = 60.0          # 10 000 x 10 000
 
 # ----------------------------------------------------------------------------- the C reference
 
-def build_c(out_dir: pathlib.Path = BUILD_DIR, flags=CFLAGS, name: str = "libclosed_loop.so") -> pathlib.Path:
-    """Compile the C reference into a shared library in ``out_dir``; the path of the library."""
+def build_c(out_dir: pathlib.Path = BUILD_DIR, flags=CFLAGS, name: str = "libclosed_loop.so",
+            source: pathlib.Path = C_SOURCE) -> pathlib.Path:
+    """Compile the C reference (or ``source``: the SIMD anchor) into a shared library in ``out_dir``; the
+    path of the library."""
     cc = shutil.which("gcc")
     if cc is None:
         raise RuntimeError("gcc not found: the C reference needs it")
     out_dir.mkdir(parents=True, exist_ok=True)
     lib = out_dir / name
-    subprocess.run([cc, *flags, "-Wall", "-shared", "-fPIC", "-o", str(lib), str(C_SOURCE), "-lm"],
+    subprocess.run([cc, *flags, "-Wall", "-shared", "-fPIC", "-o", str(lib), str(source), "-lm"],
                    check=True, capture_output=True, text=True)
     return lib
 
@@ -66,15 +73,16 @@ def build_c(out_dir: pathlib.Path = BUILD_DIR, flags=CFLAGS, name: str = "libclo
 class CReference:
     """The compiled C loop, called with the kernel's arrays (ctypes releases the GIL)."""
 
-    def __init__(self, lib_path):
+    def __init__(self, lib_path, entry: str = "closed_loop_batch"):
         from distctrl.batch import closed_loop as CL
         from distctrl.control import law
         from distctrl.errors import ErrorId
 
         self.lib = ctypes.CDLL(str(lib_path))
         p, i64 = ctypes.c_void_p, ctypes.c_int64
-        self.lib.closed_loop_batch.argtypes = [i64, i64, p, p, p, p, p, i64, p, p, p, p]
-        self.lib.closed_loop_batch.restype = None
+        self.entry = getattr(self.lib, entry)         # closed_loop_batch, or closed_loop_simd_batch
+        self.entry.argtypes = [i64, i64, p, p, p, p, p, i64, p, p, p, p]
+        self.entry.restype = None
         layout = np.zeros(5, dtype=np.int64)
         self.lib.closed_loop_layout(layout.ctypes.data_as(p))
         want = [law.FC_LEN, CL.Q_LEN, CL.PL_LEN, law.MAX_N, CL.PACKED_LEN]
@@ -105,7 +113,7 @@ class CReference:
         outs = [off.ctypes.data, dist.ctypes.data, err.ctypes.data, self.err_ids.ctypes.data]
 
         def block(first, count):
-            self.lib.closed_loop_batch(first, count, *ptr, n, *outs)
+            self.entry(first, count, *ptr, n, *outs)
 
         bounds = np.linspace(0, n_sets, max(1, threads) + 1).astype(int)
         if threads <= 1:
