@@ -42,63 +42,60 @@ def _prototype(order: int) -> np.ndarray:
     return p
 
 
-def _is_real(x) -> bool:
-    return x.imag == 0
+def _worst(p: list) -> int:
+    """Index of the pole closest to the unit circle (the first of equals; abs of a complex is hypot, as in
+    numpy)."""
+    d = [abs(1 - abs(z)) for z in p]
+    return d.index(min(d))
 
 
-def _worst(p: np.ndarray) -> int:
-    """Index of the pole closest to the unit circle (the first of equals)."""
-    return int(np.argmin(np.abs(1 - np.abs(p))))
+def _nearest(zeros: list, p1: complex) -> int:
+    """Index into ``zeros`` (all real here) of the zero nearest to ``p1`` (the first of equals)."""
+    d = [abs(complex(z) - p1) for z in zeros]
+    return d.index(min(d))
 
 
-def _nearest(zeros: list, p1) -> int:
-    """Index into ``zeros`` (all real here) of the zero nearest to ``p1`` (argsort's first)."""
-    return int(np.argsort(np.abs(np.asarray(zeros, dtype=np.float64) - p1))[0])
-
-
-def _sections(order: int, poles: np.ndarray) -> list[tuple[list, list]]:
-    """The pole and zero pairs of the sections, first section first."""
-    # the zeros: `order` at -1 (plus one at 0 with a pole at 0 for an odd order), real, sorted
-    zeros = [-1.0] * order
-    p = poles
-    if order % 2:
-        zeros.append(0.0)
-        p = np.concatenate((p, [0.0]))
+def _sections(order: int, poles) -> list[tuple[list, list]]:
+    """The zero and pole pairs of the sections, first section first (plain Python numbers: a handful of
+    comparisons per design)."""
+    p = [complex(z) for z in poles]
+    zl = [-1.0] * order
+    if order % 2:                                  # odd: a pole and a zero at 0 make the pairs even
+        zl.append(0.0)
+        p.append(0j)
+    zl.sort()
     # conjugate pairs as one pole (positive imaginary part), sorted by real part, then the real poles
-    cplx = p[p.imag > 0]
-    cplx = cplx[np.lexsort((np.abs(cplx.imag), cplx.real))]
-    real = np.sort(p[p.imag == 0].real)
-    p = np.concatenate((cplx, real))
-    zeros = np.sort(np.asarray(zeros))
-    zl = list(zeros)
+    cplx = sorted((z for z in p if z.imag > 0), key=lambda z: (z.real, abs(z.imag)))
+    real = sorted(z.real for z in p if z.imag == 0)
+    p = cplx + [complex(r, 0.0) for r in real]
     n_sections = (order + 1) // 2
     out: list = [None] * n_sections
     for si in range(n_sections - 1, -1, -1):
-        i1 = _worst(p)
-        p1 = p[i1]
-        p = np.delete(p, i1)
-        reals_left = int(np.sum(p.imag == 0))
-        if _is_real(p1) and reals_left == 0:
-            j = _nearest(zl, p1)
-            z1 = zl.pop(j)
-            out[si] = ([z1, 0.0], [p1, 0.0], True)
+        p1 = p.pop(_worst(p))
+        reals = [i for i, z in enumerate(p) if z.imag == 0]
+        if p1.imag == 0 and not reals:
+            z1 = zl.pop(_nearest(zl, p1))
+            out[si] = ((z1, 0.0), (p1, 0j))
             continue
-        if _is_real(p1):
-            ridx = np.flatnonzero(p.imag == 0)
-            i2 = int(ridx[_worst(p[ridx])])
-            p2 = p[i2]
-            p = np.delete(p, i2)
+        if p1.imag == 0:
+            p2 = p.pop(reals[_worst([p[i] for i in reals])])
         else:
-            p2 = np.conj(p1)
-        j = _nearest(zl, p1)
-        z1 = zl.pop(j)
-        if zl:
-            j = _nearest(zl, p1)
-            z2 = zl.pop(j)
-            out[si] = ([z1, z2], [p1, p2], False)
-        else:                                   # pragma: no cover - a Butterworth low-pass has as many zeros
-            out[si] = ([z1], [p1, p2], False)
+            p2 = p1.conjugate()
+        z1 = zl.pop(_nearest(zl, p1))
+        z2 = zl.pop(_nearest(zl, p1))             # a Butterworth low-pass has as many zeros as poles
+        out[si] = ((z1, z2), (p1, p2))
     return out
+
+
+_ZPOLY: dict = {}
+
+
+def _zeros_poly(zeros: tuple) -> np.ndarray:
+    """The numerator of a section (its zeros are -1 or 0: a handful of distinct tuples, each computed once)."""
+    b = _ZPOLY.get(zeros)
+    if b is None:
+        b = _ZPOLY[zeros] = np.asarray(1.0) * _poly(np.asarray(zeros, dtype=np.float64))
+    return b
 
 
 def _poly(roots) -> np.ndarray:
@@ -145,11 +142,14 @@ def butter_lowpass(order: int, fg, fs: float) -> tuple[np.ndarray, np.ndarray]:
     n_sec = (order + 1) // 2
     sos = np.zeros((k_n, n_sec, 6))
     for i in range(k_n):
-        for si, (zz, pp, _) in enumerate(_sections(order, p_z[i])):
-            b = np.asarray(1.0) * _poly(np.asarray(zz, dtype=np.float64))
-            a = _poly(np.asarray(pp))
+        for si, (zz, (p1, p2)) in enumerate(_sections(order, p_z[i].tolist())):
+            b = _zeros_poly(zz)
             sos[i, si, 3 - len(b):3] = b
-            sos[i, si, 6 - len(a):6] = np.real(a) if np.iscomplexobj(a) else a
+            # (x - p1)(x - p2) = x^2 + (-p1 - p2) x + p1 p2: the real parts of the convolution's terms
+            sos[i, si, 3] = 1.0
+            # (the convolution's dot products start from 0.0: a -0.0 product comes out as 0.0)
+            sos[i, si, 4] = 0.0 + ((-p1.real) + (-p2.real))
+            sos[i, si, 5] = 0.0 + ((-p1.real) * (-p2.real) - (-p1.imag) * (-p2.imag))
         sos[i, 0, :3] *= k_z[i]
     zi = _step_states(sos)
     return sos, zi
