@@ -1,4 +1,4 @@
-"""Benchmark: the numba closed-loop batch kernel beside its C reference (gcc -O2).
+"""Benchmark: the numba closed-loop batch kernel beside its C reference (gcc -O2) and its SIMD anchor.
 
 Targets (issue): >= 100 M parameter-set-cycles per second per core for the full closed loop with a
 MOVING_AVERAGE filter; the numba kernel within 1.5x of the C reference per core; a 10 000-set x
@@ -14,6 +14,11 @@ with the law inlined by hand, operation for operation (MOVING_AVERAGE; SET_POS a
 is compiled here with ``gcc -O2 -fno-fast-math -ffp-contract=off`` into bench/batch_c/build/ and
 called through ctypes with the very arrays the kernel gets; the benchmark first checks that both
 give the same offsets and distances (max |difference|, normally exactly 0).
+
+The SIMD anchor (issue 27) is bench/batch_c/closed_loop_simd.c: the same law (it includes
+closed_loop.c's functions) across 8 sets at once on a structure-of-arrays layout, each step a loop over
+the sets that ``gcc -O3 -march=native`` vectorises (no fast math, no contraction: bit for bit equal,
+checked here and in tests/batch/test_c_simd.py). Target: numba within 1.5x of it per core.
 
 Results are merged into bench/results.json (keys ``batch_*``) and appended to bench/RESULTS.md
 (own section), as bench_run.py does. ``--quick``: small sizes, a smoke test.
@@ -41,6 +46,11 @@ C_SOURCE = ROOT / "bench" / "batch_c" / "closed_loop.c"
 BUILD_DIR = ROOT / "bench" / "batch_c" / "build"
 #: the issue's compiler setting; no contraction / fast math so the numbers equal numba's
 CFLAGS = ("-O2", "-fno-fast-math", "-ffp-contract=off")
+#: the SIMD anchor (issue 27): the same law across sets, vectorised by gcc; no contraction / fast math, so
+#: bit for bit equal too (-fno-math-errno: sqrt and floor as vector instructions, correctly rounded either way;
+#: -fno-trapping-math: gcc may compute both sides of a select, as the lane loops need; no value changes)
+C_SIMD_SOURCE = ROOT / "bench" / "batch_c" / "closed_loop_simd.c"
+CFLAGS_SIMD = ("-O3", "-march=native", "-fno-fast-math", "-ffp-contract=off", "-fno-math-errno", "-fno-trapping-math")
 SCENARIO = ROOT / "examples" / "scenarios" / "const_dist_sheet.toml"
 N_CYCLES = 10_000
 TARGET_RATE = 100e6            # set-cycles / s per core
@@ -51,14 +61,16 @@ TARGET_SWEEP_S = 60.0          # 10 000 x 10 000
 
 # ----------------------------------------------------------------------------- the C reference
 
-def build_c(out_dir: pathlib.Path = BUILD_DIR, flags=CFLAGS, name: str = "libclosed_loop.so") -> pathlib.Path:
-    """Compile the C reference into a shared library in ``out_dir``; the path of the library."""
+def build_c(out_dir: pathlib.Path = BUILD_DIR, flags=CFLAGS, name: str = "libclosed_loop.so",
+            source: pathlib.Path = C_SOURCE) -> pathlib.Path:
+    """Compile the C reference (or ``source``: the SIMD anchor) into a shared library in ``out_dir``; the
+    path of the library."""
     cc = shutil.which("gcc")
     if cc is None:
         raise RuntimeError("gcc not found: the C reference needs it")
     out_dir.mkdir(parents=True, exist_ok=True)
     lib = out_dir / name
-    subprocess.run([cc, *flags, "-Wall", "-shared", "-fPIC", "-o", str(lib), str(C_SOURCE), "-lm"],
+    subprocess.run([cc, *flags, "-Wall", "-shared", "-fPIC", "-o", str(lib), str(source), "-lm"],
                    check=True, capture_output=True, text=True)
     return lib
 
@@ -66,15 +78,16 @@ def build_c(out_dir: pathlib.Path = BUILD_DIR, flags=CFLAGS, name: str = "libclo
 class CReference:
     """The compiled C loop, called with the kernel's arrays (ctypes releases the GIL)."""
 
-    def __init__(self, lib_path):
+    def __init__(self, lib_path, entry: str = "closed_loop_batch"):
         from distctrl.batch import closed_loop as CL
         from distctrl.control import law
         from distctrl.errors import ErrorId
 
         self.lib = ctypes.CDLL(str(lib_path))
         p, i64 = ctypes.c_void_p, ctypes.c_int64
-        self.lib.closed_loop_batch.argtypes = [i64, i64, p, p, p, p, p, i64, p, p, p, p]
-        self.lib.closed_loop_batch.restype = None
+        self.entry = getattr(self.lib, entry)         # closed_loop_batch, or closed_loop_simd_batch
+        self.entry.argtypes = [i64, i64, p, p, p, p, p, i64, p, p, p, p]
+        self.entry.restype = None
         layout = np.zeros(5, dtype=np.int64)
         self.lib.closed_loop_layout(layout.ctypes.data_as(p))
         want = [law.FC_LEN, CL.Q_LEN, CL.PL_LEN, law.MAX_N, CL.PACKED_LEN]
@@ -105,7 +118,7 @@ class CReference:
         outs = [off.ctypes.data, dist.ctypes.data, err.ctypes.data, self.err_ids.ctypes.data]
 
         def block(first, count):
-            self.lib.closed_loop_batch(first, count, *ptr, n, *outs)
+            self.entry(first, count, *ptr, n, *outs)
 
         bounds = np.linspace(0, n_sets, max(1, threads) + 1).astype(int)
         if threads <= 1:
@@ -224,6 +237,8 @@ def main(argv=None) -> dict:
     lib = build_c()
     t_gcc = time.perf_counter() - t0
     cref = CReference(lib)
+    csimd = CReference(build_c(flags=CFLAGS_SIMD, name="libclosed_loop_simd.so", source=C_SIMD_SOURCE),
+                       entry="closed_loop_simd_batch")
     t0 = time.perf_counter()
     CL.run_batch(inputs, packed[:1], cycles=10)                        # compile the kernel
     t_jit = time.perf_counter() - t0
@@ -239,6 +254,10 @@ def main(argv=None) -> dict:
     match = same_err and nan_same and d_off <= 1e-12 and d_dist <= 1e-12
     identical = bool(np.array_equal(off_n, off_c, equal_nan=True)
                      and np.array_equal(dist_n, dist_c, equal_nan=True))
+    off_v, dist_v, err_v = csimd.run(inputs, packed)
+    identical_simd = bool(np.array_equal(off_n, off_v, equal_nan=True) and np.array_equal(dist_n, dist_v, equal_nan=True)
+                          and np.array_equal(err_n, err_v))
+    del off_v, dist_v
     del off_n, dist_n, off_c, dist_c
 
     # per core and 2 workers: the kernels write into outputs allocated once (as bench_core's numba
@@ -250,6 +269,7 @@ def main(argv=None) -> dict:
     t_a1 = best_of(lambda: CL.run_batch(inputs, packed, threads=1), repeats)
     t_s1 = best_of(lambda: CL.run_batch(inputs, packed, threads=1, vectorised=False, out=out), repeats)
     t_c1 = best_of(lambda: cref.run(inputs, packed, threads=1, out=out), repeats)
+    t_v1 = best_of(lambda: csimd.run(inputs, packed, threads=1, out=out), repeats)
     t_n2 = best_of(lambda: CL.run_batch(inputs, packed, threads=2, out=out), repeats)
     t_c2 = best_of(lambda: cref.run(inputs, packed, threads=2, out=out), repeats)
     # the drive with a mechanical resonance (issue 15): the same sets on the resonant plant, and the
@@ -272,6 +292,8 @@ def main(argv=None) -> dict:
     r_n1, r_c1, r_n2, r_c2 = work / t_n1, work / t_c1, work / t_n2, work / t_c2
     r_s1, r_a1 = work / t_s1, work / t_a1
     ratio = t_n1 / t_c1
+    r_v1 = work / t_v1
+    ratio_simd = t_n1 / t_v1
     ratio_scalar = t_s1 / t_c1
 
     # the same kind of sweep through dask (kernel + metrics per chunk), 1 and 2 workers
@@ -305,6 +327,8 @@ def main(argv=None) -> dict:
         "batch_numba_c_max_abs_diff_offset_mm": d_off, "batch_numba_c_max_abs_diff_distance_mm": d_dist,
         "batch_numba_c_errors_equal": same_err, "batch_sets_with_error": n_err, "batch_numba_c_match": match,
         "batch_numba_c_bit_identical": identical,
+        "batch_simd_cflags": " ".join(CFLAGS_SIMD), "batch_numba_simd_c_bit_identical": identical_simd,
+        "batch_simd_c_1t_set_cycles_per_s": r_v1, "batch_numba_over_simd_c_time": ratio_simd,
         "batch_numba_1t_set_cycles_per_s": r_n1, "batch_c_1t_set_cycles_per_s": r_c1,
         "batch_numba_1t_alloc_set_cycles_per_s": r_a1,
         "batch_numba_over_c_time": ratio, "batch_numba_scalar_1t_set_cycles_per_s": r_s1,
@@ -335,6 +359,10 @@ def main(argv=None) -> dict:
          "PASS" if ratio <= TARGET_RATIO else "FAIL"),
         ("numba time / C time, 1 thread (both one set after the other)", ratio_scalar, "x", "(<= 1.5)",
          "PASS" if ratio_scalar <= TARGET_RATIO else "FAIL"),
+        ("SIMD C anchor (gcc -O3 -march=native, 8 sets per vector loop), 1 thread", r_v1 / 1e6,
+         "M set-cycles/s", "", "PASS (bit for bit)" if identical_simd else "FAIL (numbers differ)"),
+        ("numba time / SIMD C time, 1 thread (issue 27)", ratio_simd, "x", "<= 1.5",
+         "PASS" if ratio_simd <= TARGET_RATIO else "FAIL"),
         ("numba kernel, 2 threads", r_n2 / 1e6, "M set-cycles/s", "", "-"),
         ("numba scaling 1 -> 2 threads", r_n2 / r_n1, "x", "", "-"),
         ("C reference, 2 threads", r_c2 / 1e6, "M set-cycles/s", "", "-"),
@@ -366,6 +394,9 @@ def main(argv=None) -> dict:
              f"{n_sets * n_cycles * 8 / 2**20:.0f} MiB per call (page faults and zeroing of fresh memory)",
              f"- C reference bench/batch_c/closed_loop.c, `gcc {' '.join(CFLAGS)}`, called through ctypes "
              "(2 threads: two OS threads, each a half of the sets); numba via `run_batch(threads=...)`",
+             f"- SIMD anchor bench/batch_c/closed_loop_simd.c (the same law across 8 sets per vector loop, "
+             f"every branch computed and selected), `gcc {' '.join(CFLAGS_SIMD)}`; bit for bit equal to numba: "
+             f"{identical_simd}",
              f"- max abs offset difference {d_off:.3g} mm, max abs distance difference {d_dist:.3g} mm, "
              f"errors equal: {same_err}, bit for bit identical: {identical}",
              f"- sweep: packing {sweep_sets} sets {t_pack:.2f} s (not in the sweep time); "

@@ -15,8 +15,11 @@ LocalCluster of 1 and of 2 single-threaded workers, ``--dask-sets`` sets (defaul
 issue's 10^6 with ``--dask-sets 1000000``), scaling and the share of the time outside the kernels
 (1 - kernel time / (workers x wall time)).
 
-Targets (issue 27): marginal cost within 2x the kernel's; warm fixed cost <= 2 s; dask 2 workers
->= 1.8x 1 worker with <= 10 % outside the kernels. The machine's load (``uptime``) is recorded:
+The kernel per core beside the SIMD C anchor (``--simd-sets``, bench/batch_c/closed_loop_simd.c, the
+law vectorised across sets by gcc) and the scalar C reference, 1 thread each, checked bit for bit.
+
+Targets (issue 27): marginal cost within 2x the kernel's; warm fixed cost <= 2 s; numba within 1.5x of
+the SIMD C anchor; dask 2 workers >= 1.8x 1 worker with <= 10 % outside the kernels. The machine's load (``uptime``) is recorded:
 the bench machine is shared. Results: bench/results.json (keys ``sweep_*``), bench/RESULTS.md.
 """
 from __future__ import annotations
@@ -25,6 +28,7 @@ import argparse
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -108,6 +112,33 @@ def steps(n: int, repeats: int = 3) -> dict:
     return out
 
 
+def simd_anchor(n_sets: int, n_cycles: int = 4000, repeats: int = 3) -> dict:
+    """numba's kernel per core beside the SIMD C anchor (bench/batch_c/closed_loop_simd.c) and the scalar
+    C reference, on bench_batch's scenario and MOVING_AVERAGE sets (what the C code covers), 1 thread each,
+    outputs allocated once; the numbers are checked bit for bit first."""
+    import bench_batch as BB
+    from distctrl.batch import closed_loop as CL
+
+    inputs = CL.prepare(BB.scenario(n_cycles / 1000.0 + 2.0), cycles=n_cycles)
+    packed = BB.param_sets(inputs, n_sets)
+    with tempfile.TemporaryDirectory() as tmp:
+        simd = BB.CReference(BB.build_c(pathlib.Path(tmp), flags=BB.CFLAGS_SIMD, name="simd.so",
+                                        source=BB.C_SIMD_SOURCE), entry="closed_loop_simd_batch")
+        scalar = BB.CReference(BB.build_c(pathlib.Path(tmp)))
+        off, dist, err = CL.run_batch(inputs, packed, threads=1, return_errors=True)
+        o2, d2, e2 = simd.run(inputs, packed)
+        same = bool(np.array_equal(off, o2, equal_nan=True) and np.array_equal(dist, d2, equal_nan=True)
+                    and np.array_equal(err, e2))
+        out = (off, dist)
+        t_n = BB.best_of(lambda: CL.run_batch(inputs, packed, threads=1, out=out), repeats)
+        t_v = BB.best_of(lambda: simd.run(inputs, packed, threads=1, out=out), repeats)
+        t_c = BB.best_of(lambda: scalar.run(inputs, packed, threads=1, out=out), repeats)
+    work = n_sets * n_cycles
+    return {"sets": n_sets, "cycles": n_cycles, "bit_identical": same, "numba_per_s": work / t_n,
+            "simd_c_per_s": work / t_v, "scalar_c_per_s": work / t_c, "numba_over_simd_c": t_n / t_v,
+            "cflags": " ".join(BB.CFLAGS_SIMD)}
+
+
 def dask_scaling(n_sets: int, chunk: int = 2048) -> dict:
     """Evaluator over LocalClusters of 1 and 2 workers: wall time, scaling, share outside the kernels."""
     from distctrl.batch import closed_loop as CL
@@ -146,11 +177,13 @@ def main(argv=None) -> dict:
     ap.add_argument("--sets", type=int, default=10_000)
     ap.add_argument("--small", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--dask-sets", type=int, default=100_000, help="0: no dask measurement")
+    ap.add_argument("--dask-sets", type=int, default=100_000,
+                    help="sets of the dask scaling measurement (the issue's 10^6: --dask-sets 1000000; 0: none)")
+    ap.add_argument("--simd-sets", type=int, default=512, help="sets of numba vs the SIMD C anchor (0: none)")
     ap.add_argument("--quick", action="store_true", help="small sizes, a smoke test")
     args = ap.parse_args(argv)
     if args.quick:
-        args.sets, args.repeats, args.dask_sets = 300, 1, 0
+        args.sets, args.repeats, args.dask_sets, args.simd_sets = 300, 1, 0, 32
     load_before = load()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
@@ -165,6 +198,10 @@ def main(argv=None) -> dict:
     res = {"sweep_fixed_s": small, "sweep_big_s": big, "sweep_big_sets": n_big, "sweep_cycles": cycles,
            "sweep_marginal_ns_per_set_cycle": marginal_ns, "sweep_kernel_ns_per_set_cycle": st["kernel_ns_per_set_cycle"],
            "sweep_marginal_over_kernel": ratio, "sweep_steps": st, "sweep_load_before": load_before}
+    sd = None
+    if args.simd_sets and shutil.which("gcc"):
+        sd = simd_anchor(args.simd_sets, 500 if args.quick else 4000, args.repeats)
+        res["sweep_simd"] = sd
     dk = None
     if args.dask_sets:
         dk = dask_scaling(args.dask_sets)
@@ -185,6 +222,13 @@ def main(argv=None) -> dict:
              f"sampling {st['sample_s']:.2f} s, checking the sets {st['build_sets_s']:.2f} s "
              f"({st['filter_designs']} distinct filter designs), packing {st['pack_s']:.2f} s, kernel "
              f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s.", ""]
+    if sd:
+        lines += [f"Kernel per core vs the SIMD C anchor (bench/batch_c/closed_loop_simd.c, `gcc {sd['cflags']}`), "
+                  f"{sd['sets']} MOVING_AVERAGE sets × {sd['cycles']} cycles, 1 thread: numba "
+                  f"{sd['numba_per_s'] / 1e6:.1f} M set-cycles/s, SIMD C {sd['simd_c_per_s'] / 1e6:.1f} M, scalar C "
+                  f"{sd['scalar_c_per_s'] / 1e6:.1f} M; numba time / SIMD C time {sd['numba_over_simd_c']:.2f}× "
+                  f"(target ≤ 1.5×: {ok(sd['numba_over_simd_c'] <= 1.5)}); bit for bit equal: {sd['bit_identical']}.",
+                  ""]
     if dk:
         lines += [f"Dask, {dk['sets']} sets × {dk['cycles']} cycles, embedded LocalCluster: 1 worker "
                   f"{dk['wall_s_1']:.1f} s ({dk['outside_share_1']:.0%} outside the kernel), 2 workers "

@@ -8,7 +8,12 @@ alpha, sigma, order, fg_f0)`` and cycle time, and hands out the same read-only b
 configuration that the design refuses (the low-pass cut-off above Nyquist, ...) raises the same
 :class:`~distctrl.errors.ParameterError` every time.
 
-Importing this module imports neither numba nor scipy (the low-pass design imports scipy when it runs).
+The tuner rounds the low-pass cut-off to 0.1 Hz, which still leaves thousands of distinct (order, fg_f0) in a
+random sweep: :func:`design_many` designs all low-passes of a list of sets at once
+(:func:`distctrl.control.butter.butter_lowpass`, vectorised over the cut-offs of one order, the same numbers
+as the controller's own design) and fills the cache before the sets are checked one by one.
+
+Importing this module imports neither numba nor scipy.
 """
 from __future__ import annotations
 
@@ -18,7 +23,7 @@ import numpy as np
 
 from ..control.filters import FilterConfig, design_coefficients
 
-__all__ = ["filter_coefficients", "filter_config", "check_cycle_time", "clear_cache", "cache_info"]
+__all__ = ["filter_coefficients", "filter_config", "design_many", "check_cycle_time", "clear_cache", "cache_info"]
 
 #: at most this many designs are kept (a tuner's long run with continuous values cannot grow it without bound)
 MAX_ENTRIES = 1 << 16
@@ -63,6 +68,44 @@ def filter_coefficients(config: FilterConfig, cycle_time: float) -> np.ndarray:
     fc.flags.writeable = False
     _store(key, fc)
     return fc
+
+
+def design_many(configs, cycle_time: float) -> int:
+    """Design the distinct LOWPASS configurations among ``configs`` that are not cached yet, all at once
+    (per order, over the cut-offs), and cache their buffers; returns how many were designed. Configurations
+    the design refuses are left to :func:`filter_coefficients` (which raises for them)."""
+    from ..base.kinds import FilterType
+    from ..control import law
+    from ..control.butter import butter_lowpass
+
+    todo: dict = {}
+    for c in configs:
+        if c.filter_type != FilterType.LOWPASS:
+            continue
+        try:
+            key = _key(c, cycle_time)
+            if key in _CACHE or key in todo:
+                continue
+            c.check(cycle_time)
+            if c.effective_kind != law.LOWPASS:
+                continue
+        except Exception:                   # noqa: BLE001 - refused or unhashable: the one-by-one path
+            continue
+        todo[key] = c
+    by_order: dict = {}
+    for key, c in todo.items():
+        by_order.setdefault(int(c.order), []).append((key, c))
+    for order, items in by_order.items():
+        try:
+            sos, zi = butter_lowpass(order, [float(c.fg_f0) for _, c in items], 1.0 / cycle_time)
+        except (ValueError, TypeError):     # pragma: no cover - check() refuses these first
+            continue
+        for i, (key, c) in enumerate(items):
+            fc = np.asarray(design_coefficients(c, cycle_time, lowpass=(sos[i], zi[i])), dtype=np.float64)
+            fc.flags.writeable = False
+            _STATS["designs"] += 1
+            _store(key, fc)
+    return sum(len(v) for v in by_order.values())
 
 
 def _store(key, value) -> None:

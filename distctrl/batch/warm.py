@@ -2,7 +2,8 @@
 
 ``python -m distctrl.batch.warm`` compiles every kernel a sweep, a tune and the batch API use (the
 closed-loop kernels of :mod:`distctrl.batch.closed_loop` with the argument types ``run_batch`` passes,
-and the SET_POS kernels of :mod:`distctrl.batch.kernel`), so that the first ``distctrl sweep`` on a
+the SET_POS kernels of :mod:`distctrl.batch.kernel` and the metrics pass of
+:mod:`distctrl.batch.metrics_kernel`), so that the first ``distctrl sweep`` on a
 fresh machine loads them (well under a second) instead of compiling for tens of seconds. It says on
 stderr what it does; kernels already cached for the current sources are only loaded. Without numba
 (``make demo`` installs the package without it) it says so and does nothing. Exit code 0 either way.
@@ -58,6 +59,12 @@ def warm() -> bool:
     CL.run_batch(inputs, packed, return_errors=True)
     CL.run_batch(inputs, packed, vectorised=False)
     K.compile_kernels()
+    from . import metrics_kernel as MK              # the sweep's metrics pass
+
+    z, one = np.zeros(2), np.ones(2)
+    MK.chunk_metrics(np.zeros((2, n)), np.ones((2, n)), np.ones(n), 0, 0, 1e-3, 0.05, 1, 1, True, one, one, one,
+                     one, np.array([True, False]), one, z, one, np.empty((2, MK.N_FIG)), np.empty((2, n)),
+                     np.empty((2, n)))
     assert law.FC_LEN == packed.shape[1] - CL.Q_LEN
     _say(f"batch kernels ready in {time.perf_counter() - t0:.1f} s")
     return True

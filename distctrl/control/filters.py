@@ -1,7 +1,7 @@
 """Sensor filters (SPEC §4, P-AXIS-00782): configuration, design and a small filter object.
 
 The per-sample law lives in :mod:`distctrl.control.law`; this module turns a configuration into
-the flat coefficient buffer the law uses (designing the Butterworth low-pass with scipy, once) and
+the flat coefficient buffer the law uses (designing the Butterworth low-pass once, with scipy.signal.butter's numbers: :mod:`distctrl.control.butter`) and
 offers :class:`SensorFilter`, a filterpy-style object with public state for use on its own
 (workbench, tests, a user's own loop).
 """
@@ -174,8 +174,10 @@ def kalman_design(kind: int, n: int, alpha: float, sigma: float,
     return KalmanDesign(c, v, p_prior, gain, (1.0 - gain) * p_prior)
 
 
-def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
-    """The law's coefficient buffer ``fc`` for a configuration (designs the low-pass with scipy)."""
+def design_coefficients(config: FilterConfig, cycle_time: float, lowpass=None) -> list[float]:
+    """The law's coefficient buffer ``fc`` for a configuration (designs the low-pass with
+    :func:`distctrl.control.butter.butter_lowpass`). ``lowpass``: the LOWPASS design ``(sos, zi)``
+    of this configuration when designed already (many at once, :mod:`distctrl.batch.design`)."""
     config.check(cycle_time)
     fc = [0.0] * law.FC_LEN
     kind = config.effective_kind
@@ -193,7 +195,9 @@ def design_coefficients(config: FilterConfig, cycle_time: float) -> list[float]:
     fc[law.FC_DECAY_N] = math.exp(n * log_rho)
     fc[law.FC_WSUM] = 1.0
     design = FILTER_KINDS[FilterType(kind)].design
-    if design is not None:
+    if design is _design_lowpass and lowpass is not None:
+        _put_lowpass(fc, *lowpass)
+    elif design is not None:
         design(config, fc, cycle_time)
     return fc
 
@@ -217,10 +221,13 @@ def _design_kalman(config: FilterConfig, fc: list[float], cycle_time: float) -> 
 
 
 def _design_lowpass(config: FilterConfig, fc: list[float], cycle_time: float) -> None:
-    from scipy import signal  # only the LOWPASS design needs scipy: not on the cycle core's import path
+    from .butter import butter_lowpass   # scipy.signal.butter's numbers without scipy (issue 27)
 
-    sos = signal.butter(int(config.order), float(config.fg_f0), btype="low", fs=1.0 / cycle_time, output="sos")
-    zi = signal.sosfilt_zi(sos)     # steady state for a unit input: seeding causes no jump
+    sos, zi = butter_lowpass(int(config.order), float(config.fg_f0), 1.0 / cycle_time)
+    _put_lowpass(fc, sos[0], zi[0])     # zi: steady state for a unit input, seeding causes no jump
+
+
+def _put_lowpass(fc: list[float], sos, zi) -> None:
     fc[law.FC_NSEC] = float(len(sos))
     for s, row in enumerate(sos):
         fc[law.FC_SOS + 6 * s: law.FC_SOS + 6 * s + 6] = [float(v) for v in row]

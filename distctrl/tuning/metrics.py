@@ -42,7 +42,7 @@ import numpy as np
 from ..control import law
 
 __all__ = ["METRIC_NAMES", "METRIC_UNITS", "wanted_distance", "compute_metrics", "limits_from_packed", "cost",
-           "SAT_WEIGHT", "CHATTER_WEIGHT"]
+           "reference_metrics", "SAT_WEIGHT", "CHATTER_WEIGHT"]
 
 METRIC_NAMES = ("rms_error", "max_error", "overshoot", "osc_index", "hf_rms", "offset_hf_rms", "settle_time_50um",
                 "sat_share")
@@ -92,7 +92,80 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
 
     ``wanted``: scalar or per-cycle array (:func:`wanted_distance`); ``limits``: from
     :func:`limits_from_packed` (without: ``sat_share`` is NaN).
+
+    With numba installed, one compiled pass over the traces
+    (:func:`distctrl.batch.metrics_kernel.chunk_metrics`) computes them, bit for bit equal to
+    :func:`reference_metrics` (numpy, the definition; used without numba).
     """
+    from ..batch import numba_available
+
+    if not numba_available():
+        return reference_metrics(offset, distance, wanted, cycle_time, k_on, limits, skip=skip, band=band,
+                                 hold=hold, f_osc=f_osc, overshoot_window=overshoot_window)
+    from ..batch import metrics_kernel as MK   # numba (optional: [fast], [tune]) loads only when a batch runs
+
+    offset = np.ascontiguousarray(np.atleast_2d(np.asarray(offset, dtype=np.float64)))
+    distance = np.ascontiguousarray(np.atleast_2d(np.asarray(distance, dtype=np.float64)))
+    n_sets, n = distance.shape
+    T = float(cycle_time)
+    k0 = min(n, int(k_on) + int(round(skip / T)))
+    wanted = np.ascontiguousarray(np.broadcast_to(np.asarray(wanted, dtype=np.float64), (n,))) \
+        if np.ndim(wanted) else np.full(n, float(wanted))
+    m = n - k0
+    if m == 0 or offset.shape != distance.shape:
+        return reference_metrics(offset, distance, wanted, cycle_time, k_on, limits, skip=skip, band=band,
+                                 hold=hold, f_osc=f_osc, overshoot_window=overshoot_window)
+    h = max(1, int(round(hold / T)))
+    ow = max(1, int(round(overshoot_window / T)))
+    if limits is None:
+        z = np.zeros(n_sets)
+        lim = (False, z, z, z, z, np.zeros(n_sets, np.bool_), z, z, z)
+    else:
+        col = [np.ascontiguousarray(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)))
+               for k in ("v_lim", "a_lim", "w_v", "w_a")]
+        ad = np.ascontiguousarray(np.broadcast_to(np.asarray(limits["adaptive"], dtype=np.bool_), (n_sets,)))
+        rest = [np.ascontiguousarray(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)))
+                for k in ("a_min", "dev_a_min", "dev_a_max")]
+        lim = (True, *col, ad, *rest)
+    fig = np.empty((n_sets, MK.N_FIG))
+    ex = np.empty((n_sets, m))
+    ox = np.empty((n_sets, m))
+    MK.chunk_metrics(offset, distance, wanted, k0, int(k_on), T, float(band), h, ow, *lim, fig, ex, ox)
+    cnt = fig[:, MK.F_CNT].astype(np.int64)
+    out: dict[str, np.ndarray] = {"failed": fig[:, MK.F_FAILED] != 0.0}
+    for name, c in (("rms_error", MK.F_RMS), ("max_error", MK.F_MAX), ("overshoot", MK.F_OVERSHOOT),
+                    ("osc_index", MK.F_OSC)):
+        out[name] = fig[:, c].copy()
+    w = _hf_weights(m, T, f_osc)
+    out["hf_rms"] = _hf_rms(ex, w, m, cnt)
+    out["offset_hf_rms"] = _hf_rms(ox, w, m, cnt)
+    out["settle_time_50um"] = fig[:, MK.F_SETTLE].copy()
+    out["sat_share"] = fig[:, MK.F_SAT].copy()
+    return out
+
+
+def _hf_weights(m: int, T: float, f_osc: float) -> np.ndarray:
+    """One-sided spectrum weights of the part above ``f_osc`` (Parseval)."""
+    freqs = np.fft.rfftfreq(m, T)
+    w = np.where(freqs >= f_osc, 2.0, 0.0)
+    w[freqs == 0] = 0.0
+    if m % 2 == 0:
+        w[-1] = np.where(freqs[-1] >= f_osc, 1.0, 0.0)
+    return w
+
+
+def _hf_rms(x: np.ndarray, w: np.ndarray, m: int, cnt: np.ndarray) -> np.ndarray:
+    """RMS of the part of the rows of ``x`` (mean-free, zero where not valid) above ``f_osc``."""
+    spec = np.fft.rfft(x, axis=1)
+    power = (np.abs(spec) ** 2 * w[None, :]).sum(axis=1) / (m * m)
+    return np.sqrt(power * m / np.maximum(cnt, 1))
+
+
+def reference_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time: float, k_on: int,
+                      limits: dict | None = None, *, skip: float = 0.0, band: float = 0.05,
+                      hold: float = 0.1, f_osc: float = 20.0,
+                      overshoot_window: float = 0.25) -> dict[str, np.ndarray]:
+    """:func:`compute_metrics` in numpy over 2-D arrays: the definition (and the path without numba)."""
     offset = np.atleast_2d(np.asarray(offset, dtype=np.float64))
     distance = np.atleast_2d(np.asarray(distance, dtype=np.float64))
     n_sets, n = distance.shape

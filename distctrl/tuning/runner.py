@@ -124,11 +124,12 @@ class SweepResult:
     def to_csv(self, path) -> Path:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
+        # column by column (tolist: the values of rows(), without a dict per row; 10 000 rows took seconds)
+        cols = [[_csv(_plain(x)) for x in (v if isinstance(v, list) else v.tolist())] for v in self.data.values()]
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(self.columns)
-            for row in self.rows():
-                w.writerow([_csv(row[c]) for c in self.columns])
+            w.writerows(zip(*cols))
         return path
 
     def to_parquet(self, path) -> Path:

@@ -372,7 +372,7 @@ def build_sets(base: AxisParameters, points: list[dict], cycle_time: float | Non
     without a controller per set. A point the vectorised check does not pass (or a field it does not
     cover: the sensor window, software limits, axis type, values of other types) goes through
     :func:`to_params`, so the sets and the messages are those of :func:`to_params`."""
-    from ..batch.design import check_cycle_time, filter_coefficients, filter_config
+    from ..batch.design import check_cycle_time, design_many, filter_coefficients, filter_config
 
     points = list(points)
     fast = _fast_ok(base, points)
@@ -381,12 +381,13 @@ def build_sets(base: AxisParameters, points: list[dict], cycle_time: float | Non
             check_cycle_time(cycle_time)
         except (ParameterError, ValueError, TypeError):
             fast[:] = False
+    if cycle_time is not None and fast.any():
+        # every distinct low-pass at once (vectorised over the cut-offs): the loop below finds them cached
+        design_many((filter_config(_with(base, pt)) for pt, ok in zip(points, fast) if ok), cycle_time)
     sets, kept, rejected = [], [], []
     for pt, ok in zip(points, fast):
         if ok:
-            p = object.__new__(AxisParameters)          # base's (valid) values and the point's (checked)
-            p.__dict__.update(base.__dict__)
-            p.__dict__.update(pt)
+            p = _with(base, pt)
             if cycle_time is not None:
                 try:
                     filter_coefficients(filter_config(p), cycle_time)
@@ -402,6 +403,14 @@ def build_sets(base: AxisParameters, points: list[dict], cycle_time: float | Non
         except SpaceError as exc:
             rejected.append((pt, str(exc)))
     return sets, kept, rejected
+
+
+def _with(base: AxisParameters, pt: dict) -> AxisParameters:
+    """``base`` with the point's (checked) values, without running the checks again."""
+    p = object.__new__(AxisParameters)
+    p.__dict__.update(base.__dict__)
+    p.__dict__.update(pt)
+    return p
 
 
 #: fields whose checks involve other fields (AxisParameters.__post_init__) or convert values: per point

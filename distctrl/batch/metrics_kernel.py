@@ -1,0 +1,232 @@
+"""The sweep's quality figures in one compiled pass over a chunk's traces (issue 27).
+
+:func:`distctrl.tuning.metrics.compute_metrics` defines the figures with numpy over 2-D arrays; a
+chunk of 256 sets x 2 000 cycles went through some forty temporary arrays of that size, which cost
+more than the kernel that produced the traces. :func:`chunk_metrics` computes the same numbers, bit
+for bit, in one loop per set:
+
+* sums are numpy's: ``np.add.reduce`` along a contiguous row starts from 0.0 and adds the row by
+  pairwise summation (blocks of at most 128 values summed in eight interleaved accumulators,
+  :func:`pairwise_sum`); the tests compare the result with numpy's over thousands of random rows;
+* every other figure is a count, a maximum or one elementwise expression, written in numpy's order
+  of operations (no fastmath, so no reassociation and no fused multiply-add);
+* the two FFT-based figures (``hf_rms``, ``offset_hf_rms``) keep numpy's FFT: the pass writes their
+  inputs (the mean-free error and offset of the window) and ``compute_metrics`` transforms them.
+
+Importing this module imports numba.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["pairwise_sum", "chunk_metrics", "N_FIG", "F_FAILED", "F_CNT", "F_RMS", "F_MAX", "F_OVERSHOOT",
+           "F_OSC", "F_SETTLE", "F_SAT"]
+
+#: columns of :func:`chunk_metrics`' figure array
+F_FAILED, F_CNT, F_RMS, F_MAX, F_OVERSHOOT, F_OSC, F_SETTLE, F_SAT = range(8)
+N_FIG = 8
+
+_PW_BLOCK = 128          # numpy's PW_BLOCKSIZE
+
+
+@njit(cache=True, nogil=True)
+def _pairwise_leaf(a, lo, n):
+    """numpy's ``pairwise_sum`` for ``n <= 128``: sequential below 8, else 8 interleaved accumulators."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0 = a[lo]
+    r1 = a[lo + 1]
+    r2 = a[lo + 2]
+    r3 = a[lo + 3]
+    r4 = a[lo + 4]
+    r5 = a[lo + 5]
+    r6 = a[lo + 6]
+    r7 = a[lo + 7]
+    i = 8
+    end = n - n % 8
+    while i < end:
+        j = lo + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True)
+def pairwise_sum(a, lo, n):
+    """``a[lo:lo+n]`` summed as numpy's pairwise summation does (``@TYPE@_pairwise_sum``): above 128
+    values, the sum of the halves (the first rounded down to a multiple of 8). numpy recurses; this walks
+    the same tree with an explicit stack (a recursive function loaded from numba's disk cache crashes)."""
+    if n <= _PW_BLOCK:
+        return _pairwise_leaf(a, lo, n)
+    f_lo = np.empty(64, np.int64)          # depth <= log2(n / 64): 64 frames hold any array
+    f_n = np.empty(64, np.int64)
+    f_stage = np.empty(64, np.int64)       # 0: nothing summed yet, 1: left half under way, 2: right half
+    f_left = np.empty(64)
+    sp = 0
+    f_lo[0] = lo
+    f_n[0] = n
+    f_stage[0] = 0
+    ret = 0.0
+    have = False                           # ret is the value of a child of frame sp
+    while True:
+        fl = f_lo[sp]
+        k = f_n[sp]
+        n2 = k // 2
+        n2 -= n2 % 8
+        if not have:                       # start the left half
+            f_stage[sp] = 1
+            if n2 <= _PW_BLOCK:
+                ret = _pairwise_leaf(a, fl, n2)
+                have = True
+            else:
+                sp += 1
+                f_lo[sp] = fl
+                f_n[sp] = n2
+                f_stage[sp] = 0
+        elif f_stage[sp] == 1:             # left half done: start the right half
+            f_left[sp] = ret
+            f_stage[sp] = 2
+            if k - n2 <= _PW_BLOCK:
+                ret = _pairwise_leaf(a, fl + n2, k - n2)
+            else:
+                have = False
+                sp += 1
+                f_lo[sp] = fl + n2
+                f_n[sp] = k - n2
+                f_stage[sp] = 0
+        else:                              # both halves done
+            ret = f_left[sp] + ret
+            if sp == 0:
+                return ret
+            sp -= 1
+
+
+@njit(cache=True, nogil=True)
+def row_sum(a):
+    """``a.sum()`` of a 1-D float64 array as numpy computes it (0.0 + the pairwise sum)."""
+    return 0.0 + pairwise_sum(a, 0, a.size)
+
+
+@njit(cache=True, nogil=True)
+def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits, v_lim, a_lim, w_v, w_a,
+                  adaptive, a_min, dev_a_min, dev_a_max, fig, ex, ox):
+    """The figures of :func:`distctrl.tuning.metrics.compute_metrics` but the FFT ones, for every row.
+
+    ``offset``, ``distance``: ``(n_sets, n)``; ``wanted``: ``(n,)``; ``k0``: first cycle of the window
+    (``m = n - k0 >= 1`` cycles); ``h``, ``ow``: the hold and overshoot windows in cycles; the limits
+    per set (ignored without ``has_limits``: ``sat_share`` NaN). Writes ``fig`` ``(n_sets, N_FIG)``
+    and the FFT inputs ``ex`` (error) and ``ox`` (offset), ``(n_sets, m)``: zero where the error is
+    NaN, minus the window's mean where it is not."""
+    n_sets, n = distance.shape
+    m = n - k0
+    tol = 1.0 - 1e-3
+    s = max(k0 - 2, 0)
+    n_a = n - s - 2                      # length of the acceleration series (np.diff twice)
+    ez = np.empty(m)
+    oz = np.empty(m)
+    vb = np.empty(m, dtype=np.bool_)
+    sq = np.empty(m)
+    for i in range(n_sets):
+        cnt = 0
+        failed = False
+        for j in range(m):
+            e = distance[i, k0 + j] - wanted[k0 + j]
+            if np.isnan(e):
+                failed = True
+                vb[j] = False
+                ez[j] = 0.0
+                oz[j] = 0.0
+            else:
+                vb[j] = True
+                cnt += 1
+                ez[j] = e
+                oz[j] = offset[i, k0 + j]
+            sq[j] = ez[j] * ez[j]
+        c1 = max(cnt, 1)
+        fig[i, F_FAILED] = 1.0 if failed else 0.0
+        fig[i, F_CNT] = cnt
+        fig[i, F_RMS] = np.sqrt(row_sum(sq) / c1) if cnt > 0 else np.nan
+        # largest |e| and where it is first reached
+        kpk = 0
+        amax = abs(ez[0])
+        for j in range(1, m):
+            a = abs(ez[j])
+            if a > amax:
+                amax = a
+                kpk = j
+        fig[i, F_MAX] = amax if cnt > 0 else np.nan
+        # overshoot: opposite-side excursion after the largest peak
+        sgn = np.sign(ez[kpk])
+        opp = -np.inf
+        for j in range(kpk, min(m, kpk + ow)):
+            if vb[j]:
+                x = -sgn * ez[j]
+                if x > opp:
+                    opp = x
+        fig[i, F_OVERSHOOT] = opp if opp >= 0.0 else 0.0      # np.maximum(0.0, -0.0) is -0.0
+        # ringing rate with hysteresis
+        last = 0
+        changes = 0
+        for j in range(m):
+            st = 1 if ez[j] > band else (-1 if ez[j] < -band else 0)
+            if st != 0:
+                if last != 0 and st != last:
+                    changes += 1
+                last = st
+        fig[i, F_OSC] = changes / max(cnt * T, T)
+        # settling: first cycle from which |e| <= band holds for h cycles
+        run = 0
+        first = -1
+        for j in range(m):
+            if vb[j] and abs(ez[j]) <= band:
+                run += 1
+                if run >= h:
+                    first = j - h + 1
+                    break
+            else:
+                run = 0
+        fig[i, F_SETTLE] = (k0 - k_on + first) * T if first >= 0 else np.nan
+        # the FFT inputs: mean removed where valid
+        me = row_sum(ez) / c1
+        mo = row_sum(oz) / c1
+        for j in range(m):
+            w = 1.0 if vb[j] else 0.0
+            ex[i, j] = ez[j] - me * w
+            ox[i, j] = oz[j] - mo * w
+        # limiter saturation share
+        nsat = 0
+        span = max(dev_a_max[i] - dev_a_min[i], 1e-12)
+        for j in range(max(n_a, 0) if has_limits else 0):
+            k = s + j
+            v0 = (offset[i, k + 1] - offset[i, k]) / T
+            v = (offset[i, k + 2] - offset[i, k + 1]) / T
+            acc = (v - v0) / T
+            if adaptive[i]:
+                frac = (abs(ez[k + 2 - k0]) - dev_a_min[i]) / span
+                frac = min(max(frac, 0.0), 1.0)
+                al = a_min[i] + (a_lim[i] - a_min[i]) * frac
+            else:
+                al = a_lim[i]
+            if v < 0:
+                vl = v_lim[i] * w_v[i]
+                al = al * w_a[i]
+            else:
+                vl = v_lim[i]
+            if not (np.isnan(v) or np.isnan(acc)) and (abs(v) >= tol * vl or abs(acc) >= tol * al):
+                nsat += 1
+        fig[i, F_SAT] = nsat / c1 if has_limits else np.nan
