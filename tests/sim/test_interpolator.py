@@ -272,8 +272,8 @@ def test_long_blocks_ignore_the_look_ahead():
 
 def test_a_chain_whose_next_block_does_not_come_runs_out_braking_at_a_max():
     T, A = 0.001, 5000.0
-    steps = [0.004] * 40
-    feeds = [240.0] * 40                                  # 4 mm/s: 0.004 mm per cycle
+    steps = [0.004 * k for k in range(1, 6)] + [0.02] * 40           # up to 20 mm/s, 4 mm/s per cycle
+    feeds = [s / T * 60.0 for s in steps]
     z = _chain(Interpolator(T, {"Z": AxisLimits(v_max=300.0, a_max=A)}), steps, feeds, stop_after=20)
     v = [(b - a) / T for a, b in zip(z, z[1:])]
     assert max(abs(b - a) for a, b in zip(v, v[1:])) <= A * T + 1e-6   # no velocity step at the stop
