@@ -161,10 +161,9 @@ def program(e: Excitation) -> tuple[str, list[str]]:
         out.append(f"; chirp {f0:g}-{f1:g} Hz in {e.chirp_seconds:g} s, amplitude {_num(e.amplitude)} mm"
                    + (f" (falling as 1/f^2 above {f_acc:.1f} Hz to {e.amplitude * (f_acc / f1) ** 2:.4f} mm: "
                       f"{ACCEL_SHARE:.0%} of a_max {e.a_max:g} mm/s^2)" if f1 > f_acc else ""))
-        out.append(f"; sampled every {T * 1e3:g} ms: a block per change, its F = its distance / its time. Played at "
-                   f"{f0:g}-{f1:g} Hz by a CNC that runs a block per cycle without stopping between blocks in the")
-        out.append("; same direction (distctrl's NC does); a CNC that needs longer per block plays it slower: "
-                   "check the recording")
+        out.append(f"; sampled every {T * 1e3:g} ms: a block per change, its F = its distance / its time")
+        out.append(f"; played at {f0:g}-{f1:g} Hz by a CNC that runs a block per cycle without stopping between")
+        out.append("; blocks in the same direction (distctrl's NC does); a slower CNC plays it slower: check the recording")
         add(f"G1 F{feed}")
         k_rate = (f1 - f0) / e.chirp_seconds
         last, last_z, last_k = _num(e.work), float(_num(e.work)), 0
@@ -179,7 +178,7 @@ def program(e: Excitation) -> tuple[str, list[str]]:
             if text != last:
                 zk = float(text)
                 # the feed that covers the step in the (k - last_k) cycles since the last block, rounded up
-                fk = min(math.ceil(abs(zk - last_z) / ((k - last_k) * T) * 60.0 * 1e4) / 1e4, f_max)
+                fk = min(math.ceil(round(abs(zk - last_z) / ((k - last_k) * T) * 60.0 * 1e4, 3)) / 1e4, f_max)
                 out.append(f"{ax}{text} F{_num(fk)}")
                 last, last_z, last_k = text, zk, k
         add(f"G0 {ax}{_num(e.work)}")
