@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import gc
+import json
 import time
 from pathlib import Path
 
@@ -314,3 +315,27 @@ def test_serve_ends_at_its_duration_saying_so():
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
     assert json.loads(out)["stopped_by"] == "duration"
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "1000"])
+def test_speed_out_of_range_is_one_line_with_the_range(value):
+    """issue 28: `distctrl serve --speed X` (machine seconds per wall-clock second), 0 < X <= 100."""
+    from click.testing import CliRunner
+
+    from distctrl.cli import main
+
+    r = CliRunner().invoke(main, ["serve", str(SCN / "serve_z.toml"), "--speed", value, "--json"])
+    assert r.exit_code == 1, r.output
+    err = json.loads(r.stdout)["error"]
+    assert "--speed" in err and "100" in err and "\n" not in err
+
+
+def test_speed_runs_the_served_machine_faster_than_real_time():
+    """The realtime loop is given the factor (its period is the cycle time / speed) and the machine time
+    runs ahead of the wall clock; the bound is generous, a busy machine may not keep up with 4x."""
+    proc = _serve_process("--json", "--duration", "1.0", "--speed", "4")
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    doc = json.loads(out)
+    assert doc["speed"] == 4.0 and doc["cycle_period_ms"] == pytest.approx(0.25)
+    assert doc["machine_seconds"] > 1.5, doc          # 4 s at full pace; > 1.5 s even on a loaded machine

@@ -34,8 +34,11 @@ def _parse_axis(text: str):
     if not sep:
         name, ident = (text, text) if text.isdigit() else (text, "")
     if not ident.isdigit() or not 1 <= int(ident) <= 0xFFFF:
-        fail(f"--axis {text!r}: give the axis_id (from 1), e.g. --axis {name or 'Z'}=3; "
-             "`distctrl machine show` lists the axes the target has")
+        n = name if name and not name.isdigit() else "Z"
+        fail(f"--axis {text!r}: the CNC objects carry no axis names (FCT-M3 §9.4 and TF5200 §7.5 address an "
+             f"axis by its index, the A_ID of the index offset 0x<A_ID>3xxx): give --axis {n}=<index>, e.g. "
+             f"--axis {n}=3, the axis's index from 1 (gpAx[index] in the PLC; 1 to 65535); "
+             "`distctrl machine show --ads ...` lists the indexes whose distance-control objects answer")
     return Unit("axis", int(ident), name or ident)
 
 

@@ -18,7 +18,8 @@ from .common import PORT, Finite, emit_json, fail
 
 def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ...], net_id: str,
                   duration: float | None, no_discovery: bool, ui: bool, ui_port: int, export_dir: str,
-                  open_browser: bool = False, as_json: bool = False, rt_priority: int = 10) -> None:
+                  open_browser: bool = False, as_json: bool = False, rt_priority: int = 10,
+                  speed: float = 1.0) -> None:
     """Serve SCENARIO over ADS (and the live page with ``ui``) until ``duration``, Ctrl-C or SIGTERM;
     print the cycle's lateness at the end (and what stopped the session). All three are a normal end:
     exit code 0 (docs/serve.md)."""
@@ -28,7 +29,7 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
     page = None
     previous_handler = catch_sigterm()
     try:
-        served = ServedMachine(load_scenario(scenario), rt_priority=rt_priority)
+        served = ServedMachine(load_scenario(scenario), rt_priority=rt_priority, speed=speed)
         ads = AdsEndpoint(served, host=host, port=port, allowed=allowed, net_id=net_id,
                           discovery_port=None if no_discovery else 48899)
         if ui:
@@ -57,8 +58,9 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
         restore_sigterm(previous_handler)
         raise
     if not as_json:
+        pace = "" if speed == 1.0 else f", {speed:g}x real time"
         click.echo(f"serving {served.scenario.name}: ADS {net_id} on {host}:{ads.server.port}, "
-                   f"allowed {', '.join(allowed)}; Ctrl-C or SIGTERM stops")
+                   f"allowed {', '.join(allowed)}{pace}; Ctrl-C or SIGTERM stops")
     if page is not None:
         if not as_json:
             click.echo(f"live page: {page.url}")
@@ -79,7 +81,8 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
                    "cycle_thread": served.loop.scheduling,
                    "ui_url": page.url if page is not None else None,
                    "ui_sessions": page.sessions if page is not None else 0, "stopped_by": stopped_by,
-                   "cycle_lateness": stats})
+                   "speed": served.speed, "cycle_period_ms": served.loop.cycle_time * 1e3,
+                   "machine_seconds": served.machine.cycle * served.machine.T, "cycle_lateness": stats})
         return
     if stopped_by != "duration":
         click.echo(f"stopped by {stopped_by}")
@@ -110,16 +113,21 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
               help="Run the 1 ms cycle thread with the real-time policy SCHED_FIFO at this priority where the "
                    "OS allows it (root, CAP_SYS_NICE or an rtprio limit; otherwise one warning and normal "
                    "priority); 0: normal priority.")
+@click.option("--speed", default=1.0, show_default=True, type=Finite(0.0, 100.0, min_open=True),
+              help="Machine seconds per wall-clock second: 3 runs the machine 3x faster than real time, as far "
+                   "as the CPU allows (notification stamps stay in machine time); 0.5 half as fast.")
 @click.option("--json", "as_json", is_flag=True,
-              help="Print one JSON object at the end (addresses, page sessions, cycle lateness in µs).")
+              help="Print one JSON object at the end (addresses, page sessions, speed, machine seconds, "
+                   "cycle lateness in µs).")
 def serve(scenario: str, host: str, port: int, allowed: tuple[str, ...], net_id: str, duration: float | None,
-          no_discovery: bool, with_ui: bool, ui_port: int, export_dir: str, rt_priority: int, as_json: bool) -> None:
+          no_discovery: bool, with_ui: bool, ui_port: int, export_dir: str, rt_priority: int, speed: float,
+          as_json: bool) -> None:
     """Run SCENARIO.toml in real time and serve it over ADS (CNC objects on AMS port 551, the PLC
     interface and V.E. variables by symbol name on port 851; route discovery and add-route on UDP
     48899); with --ui also the live page. Reports the cycle jitter at the end."""
     serve_session(scenario, host=host, port=port, allowed=allowed, net_id=net_id, duration=duration,
                   no_discovery=no_discovery, ui=with_ui, ui_port=ui_port, export_dir=export_dir, as_json=as_json,
-                  rt_priority=rt_priority)
+                  rt_priority=rt_priority, speed=speed)
 
 
 RT_OPTION = click.option(

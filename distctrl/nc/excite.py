@@ -3,9 +3,12 @@ moves one axis so that ``distctrl identify`` gets what it needs (docs/identify.m
 
 1. **steps** of the set position (``G0``, every ``step_dwell`` s, alternating up and down around the
    working height), and one large step at a safe height;
-2. a **chirp** of the set position, ``f0``..``f1`` Hz, one ``G1`` block per CNC cycle (the sampled sine;
-   a block the axis's acceleration cannot complete in one cycle takes longer, so the chirp stretches
-   there -- identify uses the recorded command, not this plan);
+2. a **chirp** of the set position, ``f0``..``f1`` Hz, sampled at the CNC cycle: one ``G1`` block per
+   sample that changes the position (0.1 µm), each with the feed that covers it in the time since the
+   last one (``F`` = distance / time), so the program carries its own time base: a CNC that runs a
+   block per cycle and does not stop between blocks in the same direction (look-ahead; distctrl's NC
+   does) plays it at the written rate. Above ``f_acc`` the amplitude falls as ``1/f^2`` so that the
+   sine's acceleration stays within :data:`ACCEL_SHARE` of the axis's ``a_max``;
 3. a slow **ramp** over the sensor's range, then a dwell at standstill.
 
 It starts with a rapid approach to the working height from the safe height and ends with a retract to
@@ -26,6 +29,15 @@ STEP_SIZE = (0.2, 0.5)               # mm
 RAMP_SPEED = (0.2, 0.5)              # mm/s
 #: nozzle amplitude at a resonance, as a multiple of the motor's (1/(2 zeta), zeta ~0.05)
 RESONANCE_GAIN = 10.0
+#: the share of the axis's a_max the chirp's sine may use ((2 pi f)^2 x amplitude); the rest is margin
+#: for the drive's following error and the chirp's sweep
+ACCEL_SHARE = 0.8
+
+
+def accel_corner(amplitude: float, a_max: float) -> float:
+    """The frequency (Hz) above which a sine of ``amplitude`` (mm) would need more than
+    :data:`ACCEL_SHARE` x ``a_max``: the chirp's amplitude falls as ``1/f^2`` above it."""
+    return math.sqrt(ACCEL_SHARE * a_max / amplitude) / (2 * math.pi)
 
 
 class ExciteError(DistCtrlError, ValueError):
@@ -80,7 +92,12 @@ def check(e: Excitation) -> list[str]:
         if not CHIRP_AMPLITUDE[0] <= e.amplitude <= CHIRP_AMPLITUDE[1]:
             warnings.append(f"--amplitude {e.amplitude} mm: docs/identify.md recommends "
                             f"{CHIRP_AMPLITUDE[0]}-{CHIRP_AMPLITUDE[1]} mm (the drive's following error stays small)")
-        v_peak = 2 * math.pi * f1 * e.amplitude
+        f_acc = accel_corner(e.amplitude, e.a_max)
+        if f1 > f_acc:
+            warnings.append(f"--amplitude {e.amplitude} mm needs more than {ACCEL_SHARE:.0%} of --a-max {e.a_max:g} "
+                            f"mm/s² above {f_acc:.1f} Hz: the chirp's amplitude falls as 1/f² there, to "
+                            f"{e.amplitude * (f_acc / f1) ** 2:.4f} mm at {f1:g} Hz")
+        v_peak = 2 * math.pi * min(f1, f_acc) * e.amplitude
         if v_peak > e.v_max:
             raise ExciteError(f"--amplitude {e.amplitude} mm at {f1:g} Hz needs {v_peak:.1f} mm/s, beyond the axis's "
                               f"v_max {e.v_max:g} mm/s: lower the amplitude or the top frequency")
@@ -140,18 +157,30 @@ def program(e: Excitation) -> tuple[str, list[str]]:
     if e.chirp:
         f0, f1 = e.chirp
         steps = int(round(e.chirp_seconds / T))
-        out.append(f"; chirp {f0:g}-{f1:g} Hz, amplitude {_num(e.amplitude)} mm, {e.chirp_seconds:g} s: one block per cycle")
+        f_acc = accel_corner(e.amplitude, e.a_max)
+        out.append(f"; chirp {f0:g}-{f1:g} Hz in {e.chirp_seconds:g} s, amplitude {_num(e.amplitude)} mm"
+                   + (f" (falling as 1/f^2 above {f_acc:.1f} Hz to {e.amplitude * (f_acc / f1) ** 2:.4f} mm: "
+                      f"{ACCEL_SHARE:.0%} of a_max {e.a_max:g} mm/s^2)" if f1 > f_acc else ""))
+        out.append(f"; sampled every {T * 1e3:g} ms: a block per change, its F = its distance / its time")
+        out.append(f"; played at {f0:g}-{f1:g} Hz by a CNC that runs a block per cycle without stopping between")
+        out.append("; blocks in the same direction (distctrl's NC does); a slower CNC plays it slower: check the recording")
         add(f"G1 F{feed}")
         k_rate = (f1 - f0) / e.chirp_seconds
-        last = None
+        last, last_z, last_k = _num(e.work), float(_num(e.work)), 0
+        f_max = e.v_max * 60.0
         for k in range(1, steps + 1):
             t = k * T
             fade = min(1.0, t / 0.1, (e.chirp_seconds - t) / 0.1)     # 0.1 s fade in and out
-            z = e.work + e.amplitude * max(fade, 0.0) * math.sin(2 * math.pi * (f0 * t + 0.5 * k_rate * t * t))
+            f = f0 + k_rate * t
+            amp = e.amplitude * (1.0 if f <= f_acc else (f_acc / f) ** 2)
+            z = e.work + amp * max(fade, 0.0) * math.sin(2 * math.pi * (f0 * t + 0.5 * k_rate * t * t))
             text = _num(z)
             if text != last:
-                out.append(f"{ax}{text}")
-                last = text
+                zk = float(text)
+                # the feed that covers the step in the (k - last_k) cycles since the last block, rounded up
+                fk = min(math.ceil(round(abs(zk - last_z) / ((k - last_k) * T) * 60.0 * 1e4, 3)) / 1e4, f_max)
+                out.append(f"{ax}{text} F{_num(fk)}")
+                last, last_z, last_k = text, zk, k
         add(f"G0 {ax}{_num(e.work)}")
         add("#TIME 0.5")
     if e.ramp:

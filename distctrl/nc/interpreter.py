@@ -18,9 +18,18 @@ channel method that refuses a block raises :class:`NcAbort` (e.g. 51062, 900020)
 program with that ID and the block's line. After a block's assignments the channel is told which
 variables were written (``variables_assigned``), so it can re-read the tool length and the
 kinematic parameters.
+
+Look-ahead (block preparation): a channel with ``look_ahead = N > 0`` gets with each G1 block the
+(length, feed) of up to N following blocks that continue it on the same straight line in the same
+direction (``start_linear(target, feed, ahead=...)``), so its interpolator need not stop between them
+(:mod:`distctrl.sim.interpolator`, "Look-ahead"). Only blocks whose effect is known before they run
+are prepared: G1 motion with constant axis values and feed, nothing else in the block (no
+assignment, DIST_CTRL, dwell, M function, #WAIT FOR, G0); the first other block ends the chain, and
+the last prepared block stops at its end unless it prepares its own followers.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -28,6 +37,13 @@ from ..control.commands import Action, Command
 from ..control.commands3d import Command3D
 from ..errors import ErrorId
 from .program import ExprError, NcSyntaxError, Program
+
+#: G codes a prepared (look-ahead) block may carry
+_CHAIN_G_CODES = frozenset((1, 90, 91))
+
+
+def _constant(name: str) -> float:
+    raise ExprError(f"variable {name} is not known before the block runs")
 
 #: a program that loops through this many blocks without motion in one cycle is stopped
 MAX_BLOCKS_PER_CYCLE = 10_000
@@ -234,7 +250,12 @@ class NcInterpreter:
                 target[axis] = value if self.absolute else ch.positions[axis] + value
             if not self.rapid and self.feed is None:
                 raise ValueError("G1 without a feed: program F")
-            ch.start_linear(target, None if self.rapid else self.feed)
+            depth = 0 if self.rapid or block.ends_program else getattr(ch, "look_ahead", 0)
+            ahead = self._prepare_ahead(dict(ch.positions), target, depth) if depth else ()
+            if ahead:
+                ch.start_linear(target, self.feed, ahead=ahead)
+            else:
+                ch.start_linear(target, None if self.rapid else self.feed)
             takes_time = True
         if block.dwell is not None:
             seconds = block.dwell.evaluate(lookup)
@@ -252,6 +273,54 @@ class NcInterpreter:
             else:
                 self.ended = True
         return takes_time
+
+    def _prepare_ahead(self, start: dict[str, float], target: dict[str, float],
+                       depth: int) -> tuple[tuple[float, float], ...]:
+        """(length mm, feed mm/min) of up to ``depth`` blocks after the current one that continue its
+        line in its direction (module docstring, "Look-ahead"); read, not executed."""
+        pos = dict(start)
+        delta = {a: v - pos[a] for a, v in target.items() if v != pos[a]}
+        length = math.hypot(*delta.values())
+        if length == 0.0:
+            return ()
+        direction = {a: d / length for a, d in delta.items()}
+        pos.update(target)
+        absolute, feed = self.absolute, self.feed
+        blocks = self.program.blocks
+        out: list[tuple[float, float]] = []
+        i = self.index
+        while len(out) < depth and i < len(blocks):
+            b = blocks[i]
+            i += 1
+            if b.is_empty:
+                continue
+            if (b.assignments or b.dist_ctrl or b.dist_ctrl_3d or b.kinematics or b.dwell is not None
+                    or b.wait_for is not None or b.m_codes or not b.axes
+                    or not _CHAIN_G_CODES.issuperset(b.g_codes)):
+                break
+            if 90 in b.g_codes:
+                absolute = True
+            elif 91 in b.g_codes:
+                absolute = False
+            try:
+                if b.feed is not None:
+                    feed = b.feed.evaluate(_constant)
+                nxt = {}
+                for a, expr in b.axes.items():
+                    value = expr.evaluate(_constant)
+                    nxt[a] = value if absolute else pos[a] + value
+            except (ExprError, KeyError, ZeroDivisionError, OverflowError, ValueError):
+                break
+            if not (feed is not None and feed > 0):
+                break
+            d = {a: v - pos[a] for a, v in nxt.items() if v != pos[a]}
+            n = math.hypot(*d.values())
+            if n == 0.0 or d.keys() != direction.keys() \
+                    or sum(d[a] * direction[a] for a in d) < n * (1.0 - 1e-9):
+                break
+            out.append((n, feed))
+            pos.update(nxt)
+        return tuple(out)
 
 
 def program_end_command(line: int | None) -> Command:

@@ -1,6 +1,7 @@
 """Channel path interpolation in the GEO cycle: G1 / G0 straight lines and ``#TIME`` dwell.
 
-Every block starts and ends at rest (no look-ahead). The path parameter ``s`` (mm along the
+A block starts and ends at rest, except inside a chain of G1 blocks the NC prepared ahead
+(``start_linear(..., ahead=...)``, see "Look-ahead" below). The path parameter ``s`` (mm along the
 straight line) follows an acceleration-limited (trapezoidal) velocity profile that is generated
 *online*, one cycle at a time, so the feed override can change at any moment:
 
@@ -23,6 +24,24 @@ The override also scales G0 (one override input for the channel). Dwell time is 
 
 The continuous trapezoid takes ``L/V + V/A`` (``L >= V^2/A``) or ``2 sqrt(L/A)``; the discrete
 profile needs at most about one cycle more.
+
+**Look-ahead** (tangential transitions): the NC may hand a G1 block the blocks that follow it on the
+same straight line in the same direction (``ahead``: their lengths and feeds, prepared before they
+run; :class:`distctrl.nc.interpreter.NcInterpreter`). The block then need not stop at its end: its
+velocity is bounded by braking so that each following block is entered at no more than its own feed
+and the path can still stop at the end of the prepared chain (``v_brake`` of the whole remaining
+chain), and the next block starts with the velocity the last one ended with. So a chain of short
+blocks (an excitation sampled one block per cycle, ``distctrl excite``) runs at one block per cycle at
+the velocities its feeds give, within ``A``; without ``ahead`` nothing changes. Only **short** blocks are
+chained: the running block and each prepared one must be covered in at most
+:data:`SHORT_BLOCK_CYCLES` cycles at its feed (sampled motion, which stopping at every block end would
+play several times slower); longer blocks start and end at rest as before, so runs of programs
+without such blocks are unchanged (a real CNC would not stop between long collinear blocks either:
+a simplification kept on purpose). A block is at least one
+cycle (one block per cycle at most: the part of a cycle after a block's end is not used). If the
+next block does not come (the program was stopped), the path runs out along the chain's line,
+braking at ``A``, within the distance that was prepared. The following blocks' feeds are taken at
+100 % override; the running block's at the current one.
 """
 from __future__ import annotations
 
@@ -32,6 +51,10 @@ from dataclasses import dataclass
 from distctrl.errors.config import ConfigError, require_number
 
 __all__ = ["AxisLimits", "Interpolator", "trapezoid_time"]
+
+#: look-ahead chains only blocks the path covers in at most this many cycles at their feed (module
+#: docstring, "Look-ahead")
+SHORT_BLOCK_CYCLES = 8
 
 
 @dataclass(frozen=True)
@@ -111,6 +134,11 @@ class Interpolator:
         self._v_axis_cap = 0.0   # path velocity the axes allow (caps override > 1)
         self._dv = 0.0           # path velocity change per cycle, A*T (mm/s)
         self._dwell_left = 0
+        #: look-ahead: (length mm, velocity cap mm/s) of the blocks prepared after the running one
+        self._ahead: tuple[tuple[float, float], ...] = ()
+        self._direction: dict[str, float] = {}      # unit direction of the running G1 block
+        #: a G1 block of a prepared chain ended moving: (velocity mm/s, direction, prepared distance mm)
+        self._carry: tuple[float, dict[str, float], float] | None = None
 
     # -- state --------------------------------------------------------------------------------------
     @property
@@ -161,11 +189,15 @@ class Interpolator:
             self.position[name] = require_number(value, f"set_position[{name!r}]")
 
     # -- blocks -------------------------------------------------------------------------------------
-    def start_linear(self, target: dict[str, float], feed_mm_min: float | None = None) -> None:
+    def start_linear(self, target: dict[str, float], feed_mm_min: float | None = None,
+                     ahead: tuple[tuple[float, float], ...] = ()) -> None:
         """Start a straight move to ``target`` (mm; missing axes stay): G1 at path feed
-        ``feed_mm_min`` (mm/min), or G0 rapid when ``feed_mm_min`` is None."""
+        ``feed_mm_min`` (mm/min), or G0 rapid when ``feed_mm_min`` is None. ``ahead`` (G1 only): the
+        (length mm, feed mm/min) of the blocks that follow on the same line in the same direction
+        (module docstring, "Look-ahead")."""
         if self.block != "idle":
             raise RuntimeError(f"start_linear while a {self.block} block is running")
+        carry, self._carry = self._carry, None
         rapid = feed_mm_min is None
         if not rapid:
             feed = require_number(feed_mm_min, "start_linear.feed_mm_min", lo=0.0, lo_open=True) / 60.0
@@ -182,7 +214,8 @@ class Interpolator:
                 tgt[name] = value
         length = math.hypot(*delta.values())  # hypot: no underflow for tiny moves
         if length == 0.0:
-            return  # nothing to do: the block is complete at once
+            self._carry = carry         # nothing to do: the block is complete at once
+            return
         v_axes = a_axes = math.inf
         for name, d in delta.items():
             lim = self.axes[name]
@@ -203,11 +236,29 @@ class Interpolator:
         self.path_position = 0.0
         self.path_velocity = 0.0
         self.block = "rapid" if rapid else "linear"
+        self._ahead = ()
+        if rapid or not (ahead or carry):
+            return
+        direction = {name: d / length for name, d in delta.items()}
+        if carry is not None and _same_direction(carry[1], direction):
+            self.path_velocity = carry[0]        # a tangential transition: the path goes on moving
+        reach = SHORT_BLOCK_CYCLES * self.cycle_time
+        if ahead and length <= reach * self._v_block:
+            chain = []
+            for n, f in ahead:                   # short blocks only (module docstring)
+                cap = min(float(f) / 60.0, v_axes)
+                if not float(n) <= reach * cap:
+                    break
+                chain.append((float(n), cap))
+            if chain:
+                self._direction = direction
+                self._ahead = tuple(chain)
 
     def start_dwell(self, seconds: float) -> None:
         """``#TIME``: hold all positions for ``seconds`` (rounded up to whole cycles)."""
         if self.block != "idle":
             raise RuntimeError(f"start_dwell while a {self.block} block is running")
+        self._carry = None              # (the NC prepares only G1 blocks as a chain's next block)
         t = require_number(seconds, "start_dwell.seconds", lo=0.0)
         n = math.ceil(t / self.cycle_time - 1e-9)
         if n > 0:
@@ -223,11 +274,16 @@ class Interpolator:
         self._moving = ()
         self._dwell_left = 0
         self.path_velocity = 0.0
+        self._ahead = ()
+        self._carry = None
 
     # -- per cycle ----------------------------------------------------------------------------------
     def step(self) -> dict[str, float]:
         """Advance one cycle; return the programmed positions (a new dict, mm)."""
         block = self.block
+        if block == "idle" and self._carry is not None:
+            self._run_out()             # the prepared next block did not come: brake along the line
+            block = self.block
         if block == "linear" or block == "rapid":
             self._step_path()
         elif block == "dwell":
@@ -252,7 +308,11 @@ class Interpolator:
             v = v_cap
         # Braking only matters near the end: T*(v + v^2/dv) bounds the discrete stopping distance,
         # so the exact (sqrt) solution is needed only below it.
-        if r < T * (v + v * v / dv):
+        if self._ahead:
+            vl = self._chain_limit(r)
+            if vl < v:
+                v = vl
+        elif r < T * (v + v * v / dv):
             vb = brake_velocity(r, dv, T)
             if vb < v:
                 v = vb
@@ -268,6 +328,9 @@ class Interpolator:
             self.path_position = L
             self.path_velocity = r / T
             self.block = "idle"
+            if self._ahead:             # the next block of the chain takes this velocity over
+                self._carry = (r / T, self._direction, sum(n for n, _ in self._ahead))
+                self._ahead = ()
             return
         s += ds
         self.path_position = s
@@ -277,3 +340,48 @@ class Interpolator:
             p = start + d * f
             # Rounding must not carry a coordinate past its target.
             pos[name] = lo if p < lo else (hi if p > hi else p)
+
+    # -- look-ahead -------------------------------------------------------------------------------
+    def _chain_limit(self, r: float) -> float:
+        """The largest velocity this cycle from which every prepared block is entered at no more than
+        its cap and the path can stop at the end of the chain (``r``: what is left of this block)."""
+        dv, T = self._dv, self.cycle_time
+        d = r
+        limit = math.inf
+        for length, cap in self._ahead:
+            # enter the block at <= cap: brake to rest over d plus the distance braking from cap takes
+            v = brake_velocity(d + T * (cap + cap * cap / (2.0 * dv)), dv, T)
+            if v < limit:
+                limit = v
+            d += length
+        v = brake_velocity(d, dv, T)
+        return v if v < limit else limit
+
+    def _run_out(self) -> None:
+        """The chain's next block did not come (the program was stopped): brake from the velocity the
+        last block ended with along its line, at ``A``, within the prepared distance."""
+        v, direction, prepared = self._carry
+        self._carry = None
+        dv, T = self._dv, self.cycle_time
+        n = math.floor(v / dv) if dv > 0.0 else 0
+        stop = T * (n * v - dv * n * (n + 1) / 2.0)          # the braking sequence v-dv, v-2dv, ... > 0
+        stop = min(max(stop, 0.0), prepared)
+        if stop <= 0.0:
+            self.path_velocity = 0.0
+            return
+        pos = self.position
+        tgt = {name: pos[name] + u * stop for name, u in direction.items()}
+        self._target = tgt
+        self._moving = tuple((name, pos[name], tgt[name] - pos[name], min(pos[name], tgt[name]),
+                              max(pos[name], tgt[name])) for name in direction)
+        self._v_block = 0.0
+        self.path_length = stop
+        self.path_position = 0.0
+        self.path_velocity = v
+        self.block = "linear"
+
+
+def _same_direction(a: dict[str, float], b: dict[str, float]) -> bool:
+    if a.keys() != b.keys():
+        return False
+    return sum(a[k] * b[k] for k in a) >= 1.0 - 1e-9

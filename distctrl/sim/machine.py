@@ -67,6 +67,11 @@ def _wait_done(out: CycleOutput, action: Action) -> bool:
     return True
 
 
+#: blocks prepared ahead of a G1 block (the chain's braking distance: 16 blocks of an excitation at
+#: one block per cycle cover ~16 ms of its motion)
+LOOK_AHEAD_BLOCKS = 16
+
+
 class Machine:
     """A simulated channel built from a :class:`~distctrl.sim.scenario.Scenario`."""
 
@@ -170,6 +175,10 @@ class Machine:
         self.true_surface = 0.0
         self.true_distance = 0.0
         self._init_channel(scenario)
+        #: the NC's look-ahead (distctrl.nc.interpreter, distctrl.sim.interpolator "Look-ahead"): how many
+        #: following G1 blocks on the same line are prepared with each G1 block; the axis variant without
+        #: the CNC's lift only (a kinematic path and a lift motion stop at every block end, as before)
+        self.look_ahead = LOOK_AHEAD_BLOCKS if not (self.kinematic_path or self.lift_motions) else 0
         #: one GEO cycle: the axis variant's loop, or the channel loop with kinematics / 3D distance control
         self.step = self.channel3d.step if self.kinematic_path else self._step_axes
 
@@ -198,10 +207,10 @@ class Machine:
     def positions(self) -> dict[str, float]:
         return self.interp.position
 
-    def start_linear(self, target: dict[str, float], feed_mm_min: float | None) -> None:
+    def start_linear(self, target: dict[str, float], feed_mm_min: float | None, ahead=()) -> None:
         self._take_shift()
         self.channel3d.before_linear(target)
-        self.interp.start_linear(target, feed_mm_min)
+        self.interp.start_linear(target, feed_mm_min, ahead)
 
     def start_dwell(self, seconds: float) -> None:
         self.interp.start_dwell(seconds)

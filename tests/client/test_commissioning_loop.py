@@ -187,6 +187,16 @@ def test_whole_commissioning_loop(tmp_path):
         assert recorded["interrupted"] and recorded["lost_total"] == 0 and recorded["late"] == 0, recorded
         assert recorded["seconds"] > 5.0, recorded
 
+        # the served NC plays the chirp at its written rate (issue 28): the recorded command reaches the top
+        # of the 1-150 Hz band (one block per cycle; before, ~3 cycles per block, it stopped near 50 Hz)
+        rec = np.genfromtxt(rec_csv, delimiter=",", names=True)
+        z = rec["Zcommand"] - 31.5
+        nz = np.flatnonzero(np.abs(z) > 1e-9)
+        a, b = nz[:-1], nz[1:]
+        up = (z[a] < 0) & (z[b] > 0) & (np.abs(z[a]) < 0.05) & (np.abs(z[b]) < 0.05)
+        f_top = np.sort(1.0 / np.diff(rec["t"][a[up]]))[-5:]
+        assert np.median(f_top) > 120.0, f_top
+
         if os.environ.get("DISTCTRL_LOOP_KEEP"):          # keep the recording for a look at it
             import shutil
             for f in (rec_csv, rec_csv.with_name(rec_csv.name + ".meta.json")):

@@ -170,3 +170,15 @@ def test_3d_channel_shown_and_written(tmp_path):
         assert "--channel 1" in Path(done["backup"]).read_text()
     finally:
         sm.stop()
+
+
+@pytest.mark.parametrize("command", [("show",), ("record", "--seconds", 1, "--out", "x.csv"), ("write", "x.lis")])
+def test_axis_name_without_index_says_what_to_give(idle, command):
+    """issue 28: the CNC objects carry no axis names (FCT-M3 §9.4, TF5200 §7.5 address an axis by its
+    index), so `--axis Z` cannot be resolved: the one line says so and names the form and the index."""
+    name, *rest = command
+    r, err = run("machine", name, *ads(idle), "--axis", "Z", *rest, "--json")
+    assert r.exit_code == 1
+    msg = err["error"]
+    assert "\n" not in msg
+    assert "no axis names" in msg and "--axis Z=<index>" in msg and "A_ID" in msg and "machine show" in msg, msg

@@ -226,3 +226,55 @@ def test_never_exceeds_axis_limits_and_always_lands(limits, moves, cycle_time):
             n += 1
             assert n < 200_000
         assert ip.position == target
+
+
+# ------------------------------------------------------------------ look-ahead (issue 28)
+def _chain(interp, steps, feeds, use_ahead=True, stop_after=None):
+    """Start the blocks one after the other, each when the interpolator is idle (as the machine does), with
+    the following ones as ``ahead``; the Z position of every cycle."""
+    z, pos, i = [], 0.0, 0
+    while i < len(steps) or not interp.done:
+        if interp.done and i < len(steps) and (stop_after is None or i < stop_after):
+            pos += steps[i]
+            ahead = tuple((s, f) for s, f in zip(steps[i + 1:i + 17], feeds[i + 1:i + 17])) if use_ahead else ()
+            interp.start_linear({"Z": pos}, feeds[i], ahead=ahead)
+            i += 1
+        elif interp.done and stop_after is not None and i >= stop_after:
+            z.append(interp.step()["Z"])
+            if interp.done and interp.path_velocity == 0.0 or len(z) > 10_000:
+                break
+            continue
+        z.append(interp.step()["Z"])
+    return z
+
+
+def test_a_chain_of_short_blocks_runs_one_block_per_cycle_within_a_max():
+    T, A = 0.001, 20000.0
+    steps = [0.002 * k for k in range(1, 16)] + [0.03] * 10 + [0.002 * k for k in range(15, 0, -1)]
+    feeds = [s / T * 60.0 for s in steps]                 # each block's feed covers it in one cycle
+    z = _chain(Interpolator(T, {"Z": AxisLimits(v_max=300.0, a_max=A)}), steps, feeds)
+    assert len(z) == len(steps)                           # one block per cycle
+    assert z[-1] == pytest.approx(sum(steps))
+    v = [0.0] + [(b - a) / T for a, b in zip([0.0] + z[:-1], z)]
+    assert max(abs(b - a) for a, b in zip(v, v[1:])) <= A * T + 1e-6
+    # without look-ahead every block starts and ends at rest: more than one cycle per block
+    z0 = _chain(Interpolator(T, {"Z": AxisLimits(v_max=300.0, a_max=A)}), steps, feeds, use_ahead=False)
+    assert len(z0) > 1.3 * len(steps)
+
+
+def test_long_blocks_ignore_the_look_ahead():
+    """Blocks longer than SHORT_BLOCK_CYCLES cycles at their feed start and end at rest as before."""
+    T = 0.001
+    lim = {"Z": AxisLimits(v_max=300.0, a_max=5000.0)}
+    steps, feeds = [10.0, 10.0, 10.0], [6000.0] * 3
+    assert _chain(Interpolator(T, lim), steps, feeds) == _chain(Interpolator(T, lim), steps, feeds, use_ahead=False)
+
+
+def test_a_chain_whose_next_block_does_not_come_runs_out_braking_at_a_max():
+    T, A = 0.001, 5000.0
+    steps = [0.004 * k for k in range(1, 6)] + [0.02] * 40           # up to 20 mm/s, 4 mm/s per cycle
+    feeds = [s / T * 60.0 for s in steps]
+    z = _chain(Interpolator(T, {"Z": AxisLimits(v_max=300.0, a_max=A)}), steps, feeds, stop_after=20)
+    v = [(b - a) / T for a, b in zip(z, z[1:])]
+    assert max(abs(b - a) for a, b in zip(v, v[1:])) <= A * T + 1e-6   # no velocity step at the stop
+    assert z[-1] <= sum(steps)                                         # within the prepared blocks
