@@ -109,12 +109,14 @@ class ThcConfig:
     @classmethod
     def from_params(cls, p, **kw) -> "ThcConfig":
         """From an axis parameter list (:class:`distctrl.params.AxisParameters`): KP, I_TN, D_TV, both
-        encoders, the filter, v_max, a_max (0: the axis's), max_deviation; ``kw`` sets the rest."""
+        encoders, the filter, v_max, a_max (0: the axis's), max_deviation, the monitoring's
+        max_act_value_change, max_pos, min_pos, tolerance; ``kw`` sets the rest."""
         fields = dict(kp=p.kp, i_tn=p.i_tn, d_tv=p.d_tv, use_both_encoders=bool(p.use_both_encoders),
                       filter=FilterConfig(p.filter_type, p.n_cycles, p.smoothing_factor, p.kalman_sigma,
                                           p.low_pass_filter_order, p.low_pass_filter_fg_f0),
                       v_max=p.v_max, a_max=p.a_max if p.a_max > 0 else p.axis_a_max,
-                      max_deviation=p.max_deviation)
+                      max_deviation=p.max_deviation, max_act_value_change=p.max_act_value_change,
+                      max_pos=p.max_pos, min_pos=p.min_pos, tolerance=p.tolerance)
         fields.update(kw)
         return cls(**fields)
 
