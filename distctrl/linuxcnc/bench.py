@@ -247,7 +247,7 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
                         ("req-vel", hal.HAL_FLOAT)):
             comp.newpin(name, t, hal.HAL_OUT)
         for name, t in (("dthc-counts", hal.HAL_S32), ("dthc-scale", hal.HAL_FLOAT), ("dthc-state", hal.HAL_S32),
-                        ("dthc-cl", hal.HAL_BIT), ("dthc-vl", hal.HAL_BIT)):
+                        ("dthc-error", hal.HAL_S32), ("dthc-cl", hal.HAL_BIT), ("dthc-vl", hal.HAL_BIT)):
             comp.newpin(name, t, hal.HAL_IN)
     comp.ready()
     try:
@@ -266,6 +266,7 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
                      f"net dt-counts {t0}.z-offset-counts => distctrl-plant.dthc-counts",
                      f"net dt-scale {t0}.offset-scale => distctrl-plant.dthc-scale",
                      f"net dt-state {t0}.state => distctrl-plant.dthc-state",
+                     f"net dt-error {t0}.error-id => distctrl-plant.dthc-error",
                      f"net dt-cl {t0}.cornerlock-is-locked => distctrl-plant.dthc-cl",
                      f"net dt-vl {t0}.voidlock-is-locked => distctrl-plant.dthc-vl"]
         hs.cmd(*nets)
@@ -311,6 +312,7 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
         comp["req-vel"] = job.cut_feed
     thc_delay = int(round(float(settings["thc-delay"]) / T))     # plasmac's THC delay, for distctrl_thc too
     in_cut = 0
+    last_dthc_error = 0
     hs.cmd("start")
     phase = "move"               # move | wait-idle (after a cut, until plasmac is idle again) | done
     k = 0
@@ -359,6 +361,11 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
             in_cut = in_cut + 1 if (comp["state"] == 11 and torch) else 0
             comp["dthc-enable"] = in_cut > thc_delay
             plasmac_target = target
+            dthc_error = comp["dthc-error"]
+            if dthc_error != last_dthc_error and dthc_error:      # its ERROR (the offset held): reported
+                plasmac_errors.append(f"distctrl_thc ERROR {dthc_error} at {k * T:.3f} s (x {path.x:.1f}, "
+                                      f"y {path.y:.1f})")
+            last_dthc_error = dthc_error
             target = target + comp["dthc-counts"] * comp["dthc-scale"]
         eo = offset.step(target)
         z_cmd = job.z_prog + eo
