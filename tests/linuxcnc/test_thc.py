@@ -86,8 +86,22 @@ def _error_inputs():
     return rows
 
 
+def _command_inputs():
+    """The commands' edges: thc-enable coming on while the corner lock holds (ON_CONST_DIST and FREEZE in
+    one period), once with a NaN cut height (ON refused: 900005, then FREEZE in ERROR: 900003)."""
+    rows = []
+    for k in range(400):
+        v = 104.0 + 2.0 * math.sin(2 * math.pi * 50 * k * 0.001)
+        slow = 95 <= k < 105 or 340 <= k < 360
+        sd = math.nan if 90 <= k < 110 else 1.5
+        rows.append(_row(v, 100 <= k < 300 or k >= 350, True, 50.0 if slow else 80.0, 80.0, False, 30.0, 30.0, sd))
+    return rows + rows[-1:] * (N - len(rows))
+
+
+COMMANDS = {"ON refused, FREEZE at ON": ThcConfig(kp=0.5, i_tn=0.05)}
 GROUPS = [(list(LAW), [LAW[n] for n in LAW], _law_inputs),
-          (list(ERRORS), [c for c, _ in ERRORS.values()], _error_inputs)]
+          (list(ERRORS), [c for c, _ in ERRORS.values()], _error_inputs),
+          (list(COMMANDS), list(COMMANDS.values()), _command_inputs)]
 _IN = {"arc": ("arc-voltage-in", "f"), "enable": ("thc-enable", "b"), "cl-enable": ("cornerlock-enable", "b"),
        "vel": ("current-velocity", "f"), "req-vel": ("requested-velocity", "f"), "vl-enable": ("voidlock-enable", "b"),
        "zc": ("axis-z-command", "f"), "za": ("axis-z-position", "f"), "sd": ("set-dist", "f")}
@@ -222,6 +236,14 @@ def test_the_component_raises_the_cores_monitoring_errors_bit_for_bit(streamed, 
     # in ERROR the offset is held: the velocity brakes to 0 and stays
     errs = [k for k, s in enumerate(states) if s == 5]
     assert got[errs[-1]]["velocity"] == 0.0
+
+
+def test_the_component_answers_the_commands_edges_as_the_core(streamed):
+    cfg, rows, got = streamed[0]["ON refused, FREEZE at ON"]
+    states = _compare(cfg, rows, got, cfg.set_dist)
+    assert states[99] == 0 and (states[100], got[100]["error_id"]) == (5, 900003)    # ON refused, FREEZE in ERROR
+    assert states[299] == 5 and states[300] == 0             # OFF: nothing to run out, INACTIVE at once
+    assert states[350] == 2 and states[360] == 4                 # ON and FREEZE in one period, then tracking
 
 
 def test_thc_config_refuses_values_outside_the_documents_ranges():
