@@ -257,3 +257,32 @@ def test_thc_config_refuses_values_outside_the_documents_ranges():
         ThcConfig(filter=FilterConfig(FilterType.LOWPASS, order=2, fg_f0=600.0)).check(0.001)
     with pytest.raises(LinuxCNCError, match="window is empty"):
         ThcConfig(min_pos=1.0, max_pos=1.5, tolerance=0.5).check(0.001)
+
+
+def test_the_components_void_lock_is_distctrls_void_lock_function():
+    """ThcLocks (the component's void lock, streamed bit for bit above) locks and releases in the same
+    periods as distctrl's void_lock process function on the law stream's arc voltage (its hole), with the
+    window starting afresh whenever the THC is switched on (the function: at every select)."""
+    from types import SimpleNamespace
+
+    from distctrl.linuxcnc.thc import ThcLocks
+    from distctrl.plc.process.void_lock import VoidLock
+
+    cfg = LAW["DEFAULT"]
+    locks = ThcLocks(cfg)
+    fn = VoidLock("Z", 0.001, cfg.voidlock_slope, variable="ARC", window=cfg.voidlock_window,
+                  on_cycles=cfg.voidlock_on_cycles, off_cycles=cfg.voidlock_off_cycles,
+                  release_band=cfg.voidlock_release_band)
+    fn.hold = SimpleNamespace(held_by_us=True, request=lambda name: None)
+    state_r = SimpleNamespace(actual_state=0)
+    machine = SimpleNamespace(hli={"Z": SimpleNamespace(state_r=state_r)}, variables={})
+    ours, theirs = [], []
+    for k, (v, en, cl, vel, req, vl, zc, za, sd) in enumerate(_law_inputs()):
+        locks.step(v, en, False, vel, req, vl)
+        state_r.actual_state = 4 if en else 0          # tracking (or held by the lock) while switched on
+        machine.variables["V.E.ARC"] = v
+        fn.step(machine, k)
+        ours.append(locks.voidlock)
+        theirs.append(fn.locked)
+    assert ours == theirs
+    assert any(ours[300:340]) and not any(ours[:300])
