@@ -1,9 +1,10 @@
 """distctrl's law as a LinuxCNC component: the configuration of hal/distctrl_thc.comp and its Python reference.
 
 :class:`ThcConfig` holds the component's settings with the documents' ranges (KP P-AXIS-00759 0 < kp <= 2,
-I_TN P-AXIS-00764 and D_TV P-AXIS-00765 >= 0 s, the filter of P-AXIS-00782/00413/00784/00783/00507/00508
+I_TN P-AXIS-00764 0..50 s, D_TV P-AXIS-00765 0..2 s, the filter of P-AXIS-00782/00413/00784/00783/00507/00508
 through :class:`distctrl.control.filters.FilterConfig`, v_max P-AXIS-00415, a_max P-AXIS-00416,
-max_deviation P-AXIS-00414) and gives them as ``setp`` lines (:meth:`ThcConfig.setp_lines`), the filter
+max_deviation P-AXIS-00414, the monitoring's max_act_value_change P-AXIS-00417 and sensor window
+max_pos/min_pos/tolerance P-AXIS-00419/00420/00421) and gives them as ``setp`` lines (:meth:`ThcConfig.setp_lines`), the filter
 coefficients designed by distctrl's own design (:func:`distctrl.control.filters.design_coefficients`).
 
 :class:`ThcCore` is the component's period in Python with distctrl's cycle core
