@@ -243,11 +243,11 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
     comp.newpin("seq", hal.HAL_U32, hal.HAL_IN)
     comp.newpin("ack", hal.HAL_U32, hal.HAL_OUT)
     if thc is not None:
-        for name, t in (("dthc-enable", hal.HAL_BIT), ("dthc-reset", hal.HAL_BIT), ("z-cmd", hal.HAL_FLOAT),
+        for name, t in (("dthc-enable", hal.HAL_BIT), ("z-cmd", hal.HAL_FLOAT),
                         ("req-vel", hal.HAL_FLOAT)):
             comp.newpin(name, t, hal.HAL_OUT)
         for name, t in (("dthc-counts", hal.HAL_S32), ("dthc-scale", hal.HAL_FLOAT), ("dthc-state", hal.HAL_S32),
-                        ("dthc-cl", hal.HAL_BIT), ("dthc-vl", hal.HAL_BIT)):
+                        ("dthc-error", hal.HAL_S32), ("dthc-cl", hal.HAL_BIT), ("dthc-vl", hal.HAL_BIT)):
             comp.newpin(name, t, hal.HAL_IN)
     comp.ready()
     try:
@@ -261,12 +261,12 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
                      f"net dp-z-pos {t0}.axis-z-position", f"net dp-cornerlock-enable {t0}.cornerlock-enable",
                      f"net dp-voidlock-enable {t0}.voidlock-enable",
                      f"net dt-enable distctrl-plant.dthc-enable => {t0}.thc-enable",
-                     f"net dt-reset distctrl-plant.dthc-reset => {t0}.offset-reset",
                      f"net dt-zc distctrl-plant.z-cmd => {t0}.axis-z-command",
                      f"net dt-req distctrl-plant.req-vel => {t0}.requested-velocity",
                      f"net dt-counts {t0}.z-offset-counts => distctrl-plant.dthc-counts",
                      f"net dt-scale {t0}.offset-scale => distctrl-plant.dthc-scale",
-                     f"net dt-state {t0}.state-out => distctrl-plant.dthc-state",
+                     f"net dt-state {t0}.state => distctrl-plant.dthc-state",
+                     f"net dt-error {t0}.error-id => distctrl-plant.dthc-error",
                      f"net dt-cl {t0}.cornerlock-is-locked => distctrl-plant.dthc-cl",
                      f"net dt-vl {t0}.voidlock-is-locked => distctrl-plant.dthc-vl"]
         hs.cmd(*nets)
@@ -310,9 +310,9 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
     comp["feed-upm"] = job.cut_feed * 60.0
     if thc is not None:
         comp["req-vel"] = job.cut_feed
-        comp["dthc-reset"] = True
     thc_delay = int(round(float(settings["thc-delay"]) / T))     # plasmac's THC delay, for distctrl_thc too
     in_cut = 0
+    last_dthc_error = 0
     hs.cmd("start")
     phase = "move"               # move | wait-idle (after a cut, until plasmac is idle again) | done
     k = 0
@@ -356,20 +356,25 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
             comp["is-idle"] = True
         target = counts * scale if comp["z-enable"] else offset.value
         if thc is not None:
-            # distctrl_thc on from plasmac's THC delay into its CUT state (11) with the torch on; its offset
-            # back to 0 when the cut ends (offset-reset while idle)
+            # distctrl_thc on from plasmac's THC delay into its CUT state (11) with the torch on; off when the
+            # cut ends (its TURNING_OFF runs its offset out to 0)
             in_cut = in_cut + 1 if (comp["state"] == 11 and torch) else 0
-            on = in_cut > thc_delay
-            comp["dthc-enable"] = on
-            comp["dthc-reset"] = not on
+            comp["dthc-enable"] = in_cut > thc_delay
+            plasmac_target = target
+            dthc_error = comp["dthc-error"]
+            if dthc_error != last_dthc_error and dthc_error:      # its ERROR (the offset held): reported
+                plasmac_errors.append(f"distctrl_thc ERROR {dthc_error} at {k * T:.3f} s (x {path.x:.1f}, "
+                                      f"y {path.y:.1f})")
+            last_dthc_error = dthc_error
             target = target + comp["dthc-counts"] * comp["dthc-scale"]
         eo = offset.step(target)
         z_cmd = job.z_prog + eo
         if thc is not None:
-            # c for both encoders (d + c - a): the programmed Z plus the offsets as commanded (counts x
-            # scale), before motion's external-offset planner, whose lag, like the drive's, is then out of
-            # the loop as P-AXIS-00500 intends (with the planner's output the loop oscillated: measured)
-            comp["z-cmd"] = job.z_prog + target
+            # p for both encoders (d + c - a, c = p + the component's own offset): the programmed Z plus
+            # plasmac's offset as commanded (counts x scale), before motion's external-offset planner, whose
+            # lag, like the drive's, is then out of the loop as P-AXIS-00500 intends (with the planner's
+            # output the loop oscillated: measured)
+            comp["z-cmd"] = job.z_prog + plasmac_target
         drive.step(z_cmd)
         nozzle = drive.nozzle
         x, y = path.x, path.y

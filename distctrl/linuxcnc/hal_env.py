@@ -11,6 +11,7 @@ build, a halcmd line that fails - each message names what failed and how to fix 
 from __future__ import annotations
 
 import fcntl
+import hashlib
 import os
 import pwd
 import shutil
@@ -75,11 +76,15 @@ def import_hal():
 def install_component(name: str, force: bool = False) -> Path:
     """Build ``hal/<name>.comp`` with halcompile and install it into LinuxCNC's module directory (rtapi_app
     loads modules only from there; the new file is renamed over the old one, so a running session keeps
-    the module it loaded). Skipped when the installed module is newer than the source."""
+    the module it loaded). Skipped when the installed module was built from this very source: the module
+    directory is one per machine, shared by every checkout, so the source's SHA-256 is kept beside the
+    module (``.<name>.so.src-sha256``) and compared, not file times."""
     require_linuxcnc(dev=True)
     src = HAL_DIR / f"{name}.comp"
     target = MODULE_DIR / f"{name}.so"
-    if not force and target.exists() and target.stat().st_mtime >= src.stat().st_mtime:
+    stamp = MODULE_DIR / f".{name}.so.src-sha256"
+    digest = hashlib.sha256(src.read_bytes()).hexdigest()
+    if not force and target.exists() and stamp.exists() and stamp.read_text().strip() == digest:
         return target
     with tempfile.TemporaryDirectory(prefix="distctrl-halcompile-") as tmp:
         shutil.copy(src, tmp)
@@ -92,6 +97,9 @@ def install_component(name: str, force: bool = False) -> Path:
             partial = MODULE_DIR / f".{name}.so.{os.getpid()}"
             shutil.copy(Path(tmp) / f"{name}.so", partial)
             os.replace(partial, target)
+            partial_stamp = MODULE_DIR / f".{name}.so.src-sha256.{os.getpid()}"
+            partial_stamp.write_text(digest + "\n")
+            os.replace(partial_stamp, stamp)
         except OSError as exc:
             raise LinuxCNCError(f"cannot install {target} ({exc.strerror}; root is needed to write "
                                 f"{MODULE_DIR})") from None

@@ -11,7 +11,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
+from distctrl.cli import main
 from distctrl.linuxcnc.plant import Move, OffsetFollower, PathFollower, program_moves
 
 HERE = Path(__file__).resolve().parent
@@ -131,8 +133,9 @@ def test_bench_text_table_names_every_contestant():
 @pytest.mark.parametrize("setting, words", [("foo=1", "not a plasmac setting"), ("pid-p-gain=x", "not a number"),
                                             ("pid-p-gain=nan", "finite"), ("cornerlock-enable=1", "not a plasmac")])
 def test_bench_refuses_a_bad_setting_with_exit_1_before_running(setting, words):
-    p = subprocess.run([sys.executable, "-m", "distctrl", "linuxcnc", "bench", str(PLATE), "--set", setting, "--json"],
-                       capture_output=True, text=True, cwd=ROOT, timeout=120)
-    assert p.returncode == 1
-    doc = json.loads(p.stdout)
-    assert doc["outcome"] == "error" and words in doc["error"] and "Traceback" not in p.stderr
+    # in-process (the CLI's exit code, stdout and stderr as a shell sees them; no interpreter start-up each)
+    res = CliRunner().invoke(main, ["linuxcnc", "bench", str(PLATE), "--set", setting, "--json"])
+    assert res.exit_code == 1
+    doc = json.loads(res.stdout)
+    assert doc["outcome"] == "error" and words in doc["error"] and "Traceback" not in res.stderr
+    assert res.exception is None or isinstance(res.exception, SystemExit)

@@ -1,22 +1,26 @@
 """distctrl's law as a LinuxCNC component (hal/distctrl_thc.comp): streamed through halrun in lock-step,
-its outputs equal the Python law's (distctrl.linuxcnc.thc.ThcReference, made of distctrl.control.law)
-to the last bit, for every filter type, with the state transitions idle -> active -> locked (corner
-lock, void lock) -> active -> idle -> active."""
+its outputs equal distctrl's cycle core's (AxisDistanceController, driven by distctrl.linuxcnc.thc.ThcCore
+with the commands a PLC gives it) to the last bit: for every filter type through the HLI state transitions
+INACTIVE -> ACTIVE_CONST_DIST -> FREEZE (void lock, corner lock) -> ACTIVE_CONST_DIST -> TURNING_OFF ->
+INACTIVE -> ACTIVE_CONST_DIST, and on inputs that trigger each monitoring error (70329, 70330, 70576,
+70331, 900001): ERROR -> TURNING_OFF -> INACTIVE -> ACTIVE_CONST_DIST. One halrun session runs all
+instances, each group of instances on its own input stream."""
 from __future__ import annotations
 
 import math
+import struct
 import time
 
 import numpy as np
 import pytest
 
+from distctrl.base.kinds import FilterType
 from distctrl.control.filters import FilterConfig
 from distctrl.linuxcnc.bench import release_gate
 from distctrl.linuxcnc.hal_env import HalSession, LinuxCNCError, import_hal, install_component
-from distctrl.linuxcnc.thc import ThcConfig, ThcReference
-from distctrl.base.kinds import FilterType
+from distctrl.linuxcnc.thc import ThcConfig, ThcCore
 
-CONFIGS = {
+LAW = {
     "PASS (n 1)": ThcConfig(kp=0.6, filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=1)),
     "DEFAULT": ThcConfig(kp=0.5, i_tn=0.05, filter=FilterConfig(FilterType.DEFAULT)),
     "MOVING_AVERAGE": ThcConfig(kp=0.4, d_tv=0.01, use_both_encoders=True, filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=7)),
@@ -27,12 +31,26 @@ CONFIGS = {
     "KALMAN_EXPO": ThcConfig(kp=0.5, filter=FilterConfig(FilterType.KALMAN_EXPO, n_cycles=30, smoothing_factor=0.2,
                                                          kalman_sigma=4.0)),
 }
+#: each trips its monitoring error on _error_inputs() (name: config, its error ID); the NaN there trips
+#: 900001 in every instance that is running then
+ERRORS = {
+    "70329 sensor jump": (ThcConfig(kp=0.5, max_act_value_change=1000.0), 70329),
+    "70576 run-out min": (ThcConfig(kp=0.5, min_pos=-6.0, tolerance=0.5), 70576),
+    "70330 run-out max": (ThcConfig(kp=0.5, max_pos=2.0, tolerance=0.5), 70330),
+    "70331 max deviation": (ThcConfig(kp=0.5, i_tn=0.05, max_deviation=1.0), 70331),
+    "900001 not finite": (ThcConfig(kp=0.5, filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=5)), 900001),
+}
+NAN_AT = 720
 N = 900
 
 
-def _inputs():
-    """Arc voltage with warp, ripple, noise, a void (fast rise and fall), a corner slow-down, and the THC
-    switched off and on again."""
+def _row(v, enable, cl, vel, req, vl, zc, za, sd):
+    return (float(v), bool(enable), bool(cl), float(vel), float(req), bool(vl), float(zc), float(za), float(sd))
+
+
+def _law_inputs():
+    """Arc voltage with warp, ripple, noise, a void (fast rise and fall), a corner slow-down, the THC
+    switched off (the offset runs out) and on again, the cut height changed."""
     rng = np.random.default_rng(29)
     rows = []
     for k in range(N):
@@ -40,56 +58,95 @@ def _inputs():
         v = 104.0 + 3.0 * math.sin(2 * math.pi * 3 * t) + 2.0 * math.sin(2 * math.pi * 50 * t) + 0.3 * rng.standard_normal()
         if 300 <= k < 330:
             v += 45.0 * min(1.0, (k - 300) / 5.0)      # a hole: fast rise, then high
-        enable = not (20 > k or 600 <= k < 640)      # idle, active, ..., idle, active
+        enable = not (20 > k or 600 <= k < 680)      # INACTIVE, ACTIVE..., TURNING_OFF, INACTIVE, ACTIVE
         vel = 83.3 if not (450 <= k < 520) else 83.3 * (1.0 - min(1.0, (k - 450) / 20.0)) + 5.0
-        zc = 40.0 - 0.01 * k + 0.5 * math.sin(2 * math.pi * 7 * t)       # commanded and actual Z (both encoders)
+        zc = 40.0 - 0.01 * k + 0.5 * math.sin(2 * math.pi * 7 * t)       # programmed and actual Z (both encoders)
         za = zc - 0.2 * math.cos(2 * math.pi * 7 * t) - 0.001 * rng.standard_normal()
-        reset = 620 <= k < 625                          # while idle: the offset back to 0
-        rows.append((float(v), enable, True, float(vel), 83.3, True, zc, za, reset))
+        rows.append(_row(v, enable, True, vel, 83.3, True, zc, za, 1.5 if k < 750 else 1.8))
     return rows
+
+
+def _error_inputs():
+    """No locks: a hole (70329 with a tight jump limit, 70576 with a narrow window, 70331 with a small
+    bound), an arc-voltage dip (70330), a NaN (900001); the THC off and on again after each."""
+    rng = np.random.default_rng(31)
+    rows = []
+    for k in range(N):
+        t = k * 0.001
+        v = 104.0 + 2.0 * math.sin(2 * math.pi * 50 * t) + 0.3 * rng.standard_normal()
+        if 200 <= k < 260:
+            v += 45.0 * min(1.0, (k - 200) / 5.0, (259 - k) / 5.0)      # a hole (in and out in 5 periods)
+        if 480 <= k < 540:
+            v -= 24.0 * min(1.0, (k - 480) / 20.0, (539 - k) / 20.0)     # a dip (distance below -1.5 mm)
+        if k == NAN_AT:
+            v = math.nan
+        enable = not (k < 10 or 380 <= k < 440 or 600 <= k < 660 or 800 <= k < 860)
+        zc = 30.0 - 0.005 * k
+        rows.append(_row(v, enable, False, 80.0, 80.0, False, zc, zc, 1.5))
+    return rows
+
+
+def _command_inputs():
+    """The commands' edges: thc-enable coming on while the corner lock holds (ON_CONST_DIST and FREEZE in
+    one period), once with a NaN cut height (ON refused: 900005, then FREEZE in ERROR: 900003)."""
+    rows = []
+    for k in range(400):
+        v = 104.0 + 2.0 * math.sin(2 * math.pi * 50 * k * 0.001)
+        slow = 95 <= k < 105 or 340 <= k < 360
+        sd = math.nan if 90 <= k < 110 else 1.5
+        rows.append(_row(v, 100 <= k < 300 or k >= 350, True, 50.0 if slow else 80.0, 80.0, False, 30.0, 30.0, sd))
+    return rows + rows[-1:] * (N - len(rows))
+
+
+COMMANDS = {"ON refused, FREEZE at ON": ThcConfig(kp=0.5, i_tn=0.05)}
+GROUPS = [(list(LAW), [LAW[n] for n in LAW], _law_inputs),
+          (list(ERRORS), [c for c, _ in ERRORS.values()], _error_inputs),
+          (list(COMMANDS), list(COMMANDS.values()), _command_inputs)]
+_IN = {"arc": ("arc-voltage-in", "f"), "enable": ("thc-enable", "b"), "cl-enable": ("cornerlock-enable", "b"),
+       "vel": ("current-velocity", "f"), "req-vel": ("requested-velocity", "f"), "vl-enable": ("voidlock-enable", "b"),
+       "zc": ("axis-z-command", "f"), "za": ("axis-z-position", "f"), "sd": ("set-dist", "f")}
+_OUT = {"offset": ("offset", "f"), "filtered": ("filtered", "f"), "velocity": ("velocity", "f"),
+        "distance": ("distance", "f"), "counts": ("z-offset-counts", "s"), "state": ("state", "s"),
+        "error_id": ("error-id", "s"), "cl": ("cornerlock-is-locked", "b"), "vl": ("voidlock-is-locked", "b")}
 
 
 @pytest.fixture(scope="module")
 def streamed():
+    """All groups' instances in one halrun session, in lock-step; per group the rows and per period the
+    outputs of each instance."""
     install_component("distctrl_lockstep")
     install_component("distctrl_thc")
     hal = import_hal()
-    names = list(CONFIGS)
+    types = {"f": hal.HAL_FLOAT, "b": hal.HAL_BIT, "s": hal.HAL_S32}
+    inst = []                                     # (group, index in group, instance name)
+    for g, (names, cfgs, _) in enumerate(GROUPS):
+        inst += [(g, i, f"distctrl-thc.{len(inst) + i}") for i in range(len(names))]
+    rows = [make() for _, _, make in GROUPS]
     with HalSession() as hs:
+        setp = [line for g, i, name in inst for line in GROUPS[g][1][i].setp_lines(0.001, name)]
         hs.cmd("loadrt threads name1=servo-thread period1=1000000", "loadrt distctrl_lockstep",
-               f"loadrt distctrl_thc count={len(names)}", "addf distctrl-lockstep.0.wait servo-thread",
-               *[f"addf distctrl-thc.{i} servo-thread" for i in range(len(names))],
-               "addf distctrl-lockstep.0.post servo-thread", "setp distctrl-lockstep.0.enable 1",
-               *[line for i, n in enumerate(names) for line in CONFIGS[n].setp_lines(0.001, f"distctrl-thc.{i}")])
+               f"loadrt distctrl_thc count={len(inst)}", "addf distctrl-lockstep.0.wait servo-thread",
+               *[f"addf {name} servo-thread" for _, _, name in inst],
+               "addf distctrl-lockstep.0.post servo-thread", "setp distctrl-lockstep.0.enable 1", *setp)
         comp = hal.component("thc-stream")
-        ins = {"arc": hal.HAL_FLOAT, "enable": hal.HAL_BIT, "cl-enable": hal.HAL_BIT, "vel": hal.HAL_FLOAT,
-               "req-vel": hal.HAL_FLOAT, "vl-enable": hal.HAL_BIT, "zc": hal.HAL_FLOAT, "za": hal.HAL_FLOAT,
-               "reset": hal.HAL_BIT}
-        for p, t in ins.items():
-            comp.newpin(p, t, hal.HAL_OUT)
-        outs = {"offset": hal.HAL_FLOAT, "filtered": hal.HAL_FLOAT, "velocity": hal.HAL_FLOAT, "distance": hal.HAL_FLOAT,
-                "counts": hal.HAL_S32, "state": hal.HAL_S32, "cl": hal.HAL_BIT, "vl": hal.HAL_BIT}
-        for i in range(len(names)):
-            for p, t in outs.items():
-                comp.newpin(f"{i}-{p}", t, hal.HAL_IN)
+        for g in range(len(GROUPS)):
+            for p, (_, t) in _IN.items():
+                comp.newpin(f"g{g}-{p}", types[t], hal.HAL_OUT)
+        for n, (g, i, _) in enumerate(inst):
+            for p, (_, t) in _OUT.items():
+                comp.newpin(f"{n}-{p}", types[t], hal.HAL_IN)
         comp.newpin("seq", hal.HAL_U32, hal.HAL_IN)
         comp.newpin("ack", hal.HAL_U32, hal.HAL_OUT)
         comp.ready()
         try:
-            target = {"arc": "arc-voltage-in", "enable": "thc-enable", "cl-enable": "cornerlock-enable",
-                      "vel": "current-velocity", "req-vel": "requested-velocity", "vl-enable": "voidlock-enable",
-                      "zc": "axis-z-command", "za": "axis-z-position", "reset": "offset-reset"}
-            src = {"offset": "offset", "filtered": "filtered", "velocity": "velocity", "distance": "distance",
-                   "counts": "z-offset-counts", "state": "state-out", "cl": "cornerlock-is-locked",
-                   "vl": "voidlock-is-locked"}
-            nets = [f"net ts-{p} thc-stream.{p} => " + " ".join(f"distctrl-thc.{i}.{q}" for i in range(len(names)))
-                    for p, q in target.items()]
-            nets += [f"net ts-{i}-{p} distctrl-thc.{i}.{q} => thc-stream.{i}-{p}" for i in range(len(names))
-                     for p, q in src.items()]
+            nets = [f"net ts-g{g}-{p} thc-stream.g{g}-{p} => " + " ".join(f"{name}.{q}" for gg, _, name in inst
+                                                                         if gg == g)
+                    for g in range(len(GROUPS)) for p, (q, _) in _IN.items()]
+            nets += [f"net ts-{n}-{p} {name}.{q} => thc-stream.{n}-{p}" for n, (_, _, name) in enumerate(inst)
+                     for p, (q, _) in _OUT.items()]
             nets += ["net ts-seq distctrl-lockstep.0.seq => thc-stream.seq",
                      "net ts-ack thc-stream.ack => distctrl-lockstep.0.ack", "start"]
-            rows = _inputs()
-            # period 1 runs on the pins' start values (all 0): its outputs are read and skipped
+            # period 1 runs on the pins' start values (all 0 but the set-dist setp): its outputs are skipped
             got = []
             k = 0
             deadline = time.monotonic() + 240.0
@@ -100,13 +157,11 @@ def streamed():
                     time.sleep(0.0001)
                     continue
                 k = s
-                got.append([{p: comp[f"{i}-{p}"] for p in outs} for i in range(len(names))])
+                got.append([{p: comp[f"{n}-{p}"] for p in _OUT} for n in range(len(inst))])
                 if k - 1 < N:
-                    v, en, cl, vel, req, vl, zc, za, reset = rows[k - 1]
-                    comp["reset"] = reset
-                    comp["arc"], comp["enable"], comp["cl-enable"] = v, en, cl
-                    comp["vel"], comp["req-vel"], comp["vl-enable"] = vel, req, vl
-                    comp["zc"], comp["za"] = zc, za
+                    for g in range(len(GROUPS)):
+                        for p, value in zip(_IN, rows[g][k - 1]):
+                            comp[f"g{g}-{p}"] = value
                 comp["ack"] = k
             release_gate()
             missed = int(hs.getp("distctrl-lockstep.0.missed"), 0)
@@ -117,44 +172,117 @@ def streamed():
             except LinuxCNCError:
                 pass
             comp.exit()
-    return names, rows, got[1:N + 1], missed
+    got = got[1:N + 1]
+    per = {}
+    for n, (g, i, _) in enumerate(inst):
+        per[GROUPS[g][0][i]] = (GROUPS[g][1][i], rows[g], [p[n] for p in got])
+    return per, missed, len(got)
+
+
+def _bits(x: float) -> bytes:
+    return struct.pack("<d", x)
+
+
+def _compare(cfg, rows, got, first_set_dist):
+    """ThcCore on the rows against the component's outputs, every period; the HLI states seen."""
+    ref = ThcCore(cfg)
+    ref.step(0.0, False, set_dist=first_set_dist)      # period 1: the pins' start values (outputs skipped)
+    states = []
+    for k, row in enumerate(rows):
+        v, en, cl, vel, req, vl, zc, za, sd = row
+        r = ref.step(v, en, cl, vel, req, vl, zc, za, sd)
+        g = got[k]
+        states.append(r["state"])
+        assert (g["state"], g["error_id"]) == (r["state"], r["error_id"]), (k, "state, error id")
+        for key in ("offset", "velocity", "distance", "filtered"):
+            assert _bits(g[key]) == _bits(r[key]), (k, key, g[key], r[key])
+        assert g["counts"] == r["counts"], (k, "counts")
+        assert (bool(g["cl"]), bool(g["vl"])) == (r["cornerlock_is_locked"], r["voidlock_is_locked"]), (k, "locks")
+    return states
+
+
+def _changes(states):
+    return [s for n, s in enumerate(states) if n == 0 or s != states[n - 1]]
 
 
 def test_the_stream_ran_lock_step(streamed):
-    names, rows, got, missed = streamed
-    assert missed == 0 and len(got) == N
+    _, missed, n = streamed
+    assert missed == 0 and n == N
 
 
-@pytest.mark.parametrize("name", list(CONFIGS))
-def test_the_component_equals_the_python_law_bit_for_bit(streamed, name):
-    names, rows, got, _ = streamed
-    i = names.index(name)
-    ref = ThcReference(CONFIGS[name])
-    ref.step(0.0, False)                     # period 1: the pins' start values (its outputs are skipped)
-    states = []
-    for k, (v, en, cl, vel, req, vl, zc, za, reset) in enumerate(rows):
-        r = ref.step(v, en, cl, vel, req, vl, zc, za, reset)
-        g = got[k][i]
-        states.append(g["state"])
-        assert g["distance"] == r["distance"], (k, "distance")
-        assert g["state"] == r["state"], (k, "state")
-        assert g["offset"] == r["offset"], (k, "offset", g["offset"], r["offset"])
-        assert g["velocity"] == r["velocity"], (k, "velocity")
-        assert bool(g["cl"]) == r["cornerlock_is_locked"] and bool(g["vl"]) == r["voidlock_is_locked"], k
-        assert g["counts"] == r["counts"], (k, "counts")
-        if r["state"]:
-            assert g["filtered"] == r["filtered"], (k, "filtered")
-    # the transitions happened: idle -> active -> locked -> active -> idle -> active
-    seq = [s for n, s in enumerate(states) if n == 0 or s != states[n - 1]]
-    assert seq[:3] == [0, 1, 2] and 0 in seq[3:] and seq[-1] == 1
-    assert any(s == 2 for s in states[300:340]) and any(s == 2 for s in states[460:520])
-    assert got[630][i]["offset"] == 0.0 and got[590][i]["offset"] != 0.0     # the reset while idle
+@pytest.mark.parametrize("name", list(LAW))
+def test_the_component_equals_the_cycle_core_bit_for_bit_through_the_states(streamed, name):
+    cfg, rows, got = streamed[0][name]
+    states = _compare(cfg, rows, got, cfg.set_dist)
+    # INACTIVE -> ACTIVE_CONST_DIST -> FREEZE (void) -> ... -> TURNING_OFF -> INACTIVE -> ACTIVE_CONST_DIST
+    seq = _changes(states)
+    assert seq[:4] == [0, 4, 2, 4] and seq[-3:] == [3, 0, 4], seq
+    assert 2 in states[300:340] and 2 in states[460:520]          # void lock, corner lock
+    assert states[600] == 3 and states[679] == 0 and got[679]["offset"] == 0.0 != got[590]["offset"]   # the run-out
+    assert all(g["error_id"] == 0 for g in got)
+
+
+@pytest.mark.parametrize("name", list(ERRORS))
+def test_the_component_raises_the_cores_monitoring_errors_bit_for_bit(streamed, name):
+    cfg, rows, got = streamed[0][name]
+    states = _compare(cfg, rows, got, cfg.set_dist)
+    error_id = ERRORS[name][1]
+    before = {g["error_id"] for g in got[:NAN_AT]} - {0}
+    assert before == ({error_id} if error_id != 900001 else set())
+    assert got[NAN_AT]["error_id"] == 900001 and math.isnan(got[NAN_AT]["distance"])
+    seq = _changes(states)
+    i = seq.index(5)                                           # ERROR -> TURNING_OFF -> INACTIVE -> ACTIVE again
+    assert seq[i:i + 4] == [5, 3, 0, 4], seq
+    # in ERROR the offset is held: the velocity brakes to 0 and stays
+    errs = [k for k, s in enumerate(states) if s == 5]
+    assert got[errs[-1]]["velocity"] == 0.0
+
+
+def test_the_component_answers_the_commands_edges_as_the_core(streamed):
+    cfg, rows, got = streamed[0]["ON refused, FREEZE at ON"]
+    states = _compare(cfg, rows, got, cfg.set_dist)
+    assert states[99] == 0 and (states[100], got[100]["error_id"]) == (5, 900003)    # ON refused, FREEZE in ERROR
+    assert states[299] == 5 and states[300] == 0             # OFF: nothing to run out, INACTIVE at once
+    assert states[350] == 2 and states[360] == 4                 # ON and FREEZE in one period, then tracking
 
 
 def test_thc_config_refuses_values_outside_the_documents_ranges():
     with pytest.raises(LinuxCNCError, match="kp = 2.5 out of range"):
         ThcConfig(kp=2.5).check(0.001)
+    with pytest.raises(LinuxCNCError, match="P-AXIS-00765"):
+        ThcConfig(d_tv=3.0).check(0.001)
     with pytest.raises(LinuxCNCError, match="P-AXIS-00413"):
         ThcConfig(filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=100)).check(0.001)
     with pytest.raises(LinuxCNCError, match="P-AXIS-00508"):
         ThcConfig(filter=FilterConfig(FilterType.LOWPASS, order=2, fg_f0=600.0)).check(0.001)
+    with pytest.raises(LinuxCNCError, match="window is empty"):
+        ThcConfig(min_pos=1.0, max_pos=1.5, tolerance=0.5).check(0.001)
+
+
+def test_the_components_void_lock_is_distctrls_void_lock_function():
+    """ThcLocks (the component's void lock, streamed bit for bit above) locks and releases in the same
+    periods as distctrl's void_lock process function on the law stream's arc voltage (its hole), with the
+    window starting afresh whenever the THC is switched on (the function: at every select)."""
+    from types import SimpleNamespace
+
+    from distctrl.linuxcnc.thc import ThcLocks
+    from distctrl.plc.process.void_lock import VoidLock
+
+    cfg = LAW["DEFAULT"]
+    locks = ThcLocks(cfg)
+    fn = VoidLock("Z", 0.001, cfg.voidlock_slope, variable="ARC", window=cfg.voidlock_window,
+                  on_cycles=cfg.voidlock_on_cycles, off_cycles=cfg.voidlock_off_cycles,
+                  release_band=cfg.voidlock_release_band)
+    fn.hold = SimpleNamespace(held_by_us=True, request=lambda name: None)
+    state_r = SimpleNamespace(actual_state=0)
+    machine = SimpleNamespace(hli={"Z": SimpleNamespace(state_r=state_r)}, variables={})
+    ours, theirs = [], []
+    for k, (v, en, cl, vel, req, vl, zc, za, sd) in enumerate(_law_inputs()):
+        locks.step(v, en, False, vel, req, vl)
+        state_r.actual_state = 4 if en else 0          # tracking (or held by the lock) while switched on
+        machine.variables["V.E.ARC"] = v
+        fn.step(machine, k)
+        ours.append(locks.voidlock)
+        theirs.append(fn.locked)
+    assert ours == theirs
+    assert any(ours[300:340]) and not any(ours[:300])

@@ -1,33 +1,41 @@
 component distctrl_thc "distctrl's distance-control law as a torch height control in the servo thread (docs/linuxcnc.md)";
 description """
-The CONST_DIST loop of distctrl's control law (distctrl/control/law.py: filter, PID with derivative on the
-measurement and anti-windup, slope limiter with braking, max_deviation bound), translated operation for
-operation into C so that its outputs equal the Python law's bit for bit (tests/linuxcnc/test_thc.py checks
-it in halrun for every filter type). The arc voltage is linearised into the distance as distctrl's PLC does
-(distance = (arc-voltage-in - arc-v0) / arc-k). Pins are named like plasmac's where they mean the same.
+distctrl's cycle core for CONST_DIST (distctrl/control/controller.py, AxisDistanceController.update, with the
+law of distctrl/control/law.py: filter, PID with derivative on the measurement and anti-windup, slope
+limiter with braking, max_deviation bound; the HLI states; the monitoring errors) translated operation for
+operation into C, so that its outputs equal the Python core's bit for bit (tests/linuxcnc/test_thc.py checks
+it in halrun for every filter type, the state transitions and every monitoring error, against
+distctrl.linuxcnc.thc.ThcCore). The arc voltage is linearised into the distance as distctrl's PLC does
+(distance = (arc-voltage-in - arc-v0) * (1 / arc-k)); the core sees it as the sensor variable (reading
+s = -distance). Pins are named like plasmac's where they mean the same.
 
-States (state-out): 0 idle (thc-enable off: the law does not run, the offset stays, or returns to 0 with
-offset-reset), 1 active, 2 locked
-(corner lock or void lock: the wanted step is 0, the offset brakes within the acceleration limit and
-stays, the integrator holds). Entering active seeds the filter with the current distance (no jump).
-Corner lock: current-velocity below cornerlock-threshold percent of requested-velocity. Void lock:
-distctrl's void_lock function (distctrl/plc/process/void_lock.py, its ST): the arc voltage's rate over a
-window of voidlock-window s above voidlock-slope for voidlock-on-cycles periods closes it; steady for
-voidlock-off-cycles periods with the window's mean at most voidlock-release-band above the level before
-the void opens it; the window starts afresh whenever thc-enable comes on.
+States (state, HLI DistanceControl's numbers): 0 INACTIVE, 4 ACTIVE_CONST_DIST, 2 FREEZE, 3 TURNING_OFF,
+5 ERROR. The pins give the commands a PLC would: thc-enable on in INACTIVE = ON_CONST_DIST with set-dist
+(entering seeds the filter with the current distance: no jump); a lock (corner or void) in
+ACTIVE_CONST_DIST = FREEZE (the wanted step is 0, the offset brakes within the acceleration limit and
+stays, the integrator holds), the lock open again = ON_CONST_DIST; thc-enable off = OFF: TURNING_OFF runs
+the offset out to 0 within the limits, then INACTIVE. Monitoring while ACTIVE_CONST_DIST (error-id, the
+documents' IDs): 70329 the reading changed by more than max-act-value-change * period, 70330 / 70576 the
+reading left the window max-pos - tolerance / min-pos + tolerance, 70331 the offset at max-deviation and
+the law wants beyond, 900001 a non-finite input. ERROR holds the offset (it brakes and stays) and is left
+only by thc-enable off (TURNING_OFF, the run-out) and on again.
+Corner lock: current-velocity below cornerlock-threshold percent of requested-velocity (plasmac's).
+Void lock: distctrl's void_lock function (distctrl/plc/process/void_lock.py, its ST): the arc voltage's
+rate over a window of voidlock-window s above voidlock-slope for voidlock-on-cycles periods closes it;
+steady for voidlock-off-cycles periods with the window's mean at most voidlock-release-band above the
+level before the void opens it; the window starts afresh whenever thc-enable comes on.
 
 The filter coefficients fc-000..fc-134 are the law's coefficient buffer (distctrl.control.filters.
-design_coefficients; the low-pass is designed with scipy there): `distctrl linuxcnc thc-config` prints
+design_coefficients; the low-pass is designed with scipy there): `distctrl linuxcnc thc-setp` prints
 them as setp lines, validated with the documents' ranges.
 """;
 pin in float arc_voltage_in "arc voltage (V)";
 pin in float arc_v0 = 95.0 "linearisation: voltage at zero height (V)";
 pin in float arc_k = 6.0 "linearisation: V per mm";
-pin in bit thc_enable "run the law (active)";
-pin in bit offset_reset "while idle: the offset returns to 0 (motion's external-offset planner smooths the step; e.g. at the cut's end)";
+pin in bit thc_enable "on: ON_CONST_DIST (from INACTIVE); off: OFF (TURNING_OFF runs the offset out to 0)";
 pin in bit use_both_encoders "P-AXIS-00500: feedback d + c - a (FCT-M3 §7.1) instead of d";
 pin in float axis_z_position "a: the Z joint's actual position (joint.N.pos-fb)";
-pin in float axis_z_command "c: the Z joint's commanded position (joint.N.motor-pos-cmd)";
+pin in float axis_z_command "p: Z as programmed, without this component's offset (the core adds it: c = p + offset)";
 pin in bit cornerlock_enable "enable corner lock";
 pin in float cornerlock_threshold = 90.0 "corner lock below this percentage of requested-velocity";
 pin in float current_velocity "current path velocity (units/s), motion.current-vel";
@@ -44,7 +52,11 @@ pin in float i_tn "I_TN, P-AXIS-00764 (s; 0 = no I part)";
 pin in float d_tv "D_TV, P-AXIS-00765 (s; 0 = no D part)";
 pin in float v_max = 100.0 "velocity limit of the offset (mm/s), P-AXIS-00415 in mm/s";
 pin in float a_max = 2000.0 "acceleration limit of the offset (mm/s^2), P-AXIS-00416";
-pin in float max_deviation = 20.0 "bound of the offset (mm), P-AXIS-00414";
+pin in float max_deviation = 20.0 "bound of the offset (mm), P-AXIS-00414 (70331)";
+pin in float max_act_value_change = 5000.0 "P-AXIS-00417 (mm/s): the reading may change by this * period (70329)";
+pin in float max_pos = 50000.0 "P-AXIS-00419 (mm): upper end of the reading s = -distance (70330)";
+pin in float min_pos = -50000.0 "P-AXIS-00420 (mm): lower end of the reading s = -distance (70576)";
+pin in float tolerance = 0.0 "P-AXIS-00421 (mm): the window is min-pos + tolerance .. max-pos - tolerance";
 pin in float resolution = 0.001 "mm per offset count (wire plasmac.offset-scale to it; 0: no counts)";
 pin in float fc-###[135] "the law's filter coefficients (design_coefficients)";
 pin out s32 z_offset_counts "offset in counts, connect to axis.z.eoffset-counts";
@@ -54,17 +66,27 @@ pin out bit cornerlock_is_locked "corner locked";
 pin out bit voidlock_is_locked "void locked";
 pin out float offset "the offset o (mm)";
 pin out float distance "the linearised distance (mm)";
-pin out float filtered "the filtered distance (mm)";
+pin out float filtered "the filtered distance (mm; the unfiltered one where the filter does not run)";
 pin out float velocity "the offset's velocity (mm/s)";
-pin out s32 state_out "0 idle, 1 active, 2 locked";
+pin out s32 state "HLI state: 0 INACTIVE, 2 FREEZE, 3 TURNING_OFF, 4 ACTIVE_CONST_DIST, 5 ERROR";
+pin out s32 error_id "the error that put it into ERROR (70329, 70330, 70576, 70331, 900001, ...), 0 once INACTIVE";
 variable double buf[100];
 variable double fs[11];
 variable double cf[135];
 variable double integral;
 variable double m_prev;
-variable double v_prev;
+variable double vel;
 variable double o;
-variable int was_active;
+variable double sd;
+variable double last_s;
+variable double last_p;
+variable double last_a;
+variable double a_bound_st;
+variable int hli;
+variable int errv;
+variable int seeded;
+variable int has_last_s;
+variable int mode_cd;
 variable double vbuf[100];
 variable double vmean[100];
 variable double vsum;
@@ -106,6 +128,22 @@ author "distctrl";
 #define K_KALMAN_MA 4
 #define HUGE_MM 1e12
 #define D_ROOM_SHARE 0.3
+#define MAX_I_GAIN 1e6
+#define LAND 1e-9
+/* HLI_DIST_CTRL_STATE_* (distctrl/base/states.py) and the error IDs (distctrl/errors) */
+#define S_INACTIVE 0
+#define S_FREEZE 2
+#define S_TURNING_OFF 3
+#define S_ACTIVE_CD 4
+#define S_ERROR 5
+#define E_SENSOR_JUMP 70329
+#define E_RUN_OUT_MAX 70330
+#define E_MAX_DEVIATION 70331
+#define E_RUN_OUT_MIN 70576
+#define E_NOT_FINITE 900001
+#define E_INVALID_TRANSITION 900003
+#define E_VALUE_OUT_OF_RANGE 900005
+#define FINITE(x) ((x) == (x) && -HUGE_MM < (x) && (x) < HUGE_MM)
 
 /* ---- distctrl/control/law.py, function for function, the same operations in the same order ---- */
 
@@ -347,14 +385,15 @@ static double advance_offset(double o_, double v, double T, double lo, double hi
 }
 
 FUNCTION(_) {
-    double T = fperiod, d, fb, y, e, m, u, ic, v, t_over_tn, dg, clipped;
-    int i, lower, locked;
+    double T = fperiod, inv_T = 1.0 / T, d_in, s_now, s, d, prog, act, fb, y, e, m, u, ic, integral0, v, v_prev,
+           i_gain, dg, a_base, a_floor, a_lim, a_applied, a_bound, v_lim, lo, hi, v_limited, o_prev, o_new, u_lim,
+           e_lim, wanted, clipped, v_real;
+    int i, lower, locked, finite_inputs = 1, sensor_ok, running, hold, st0;
     for (i = 0; i < 135; i++)
         cf[i] = fc(i);
     offset_scale = resolution;
-    z_offset_enable = thc_enable;
-    d = (arc_voltage_in - arc_v0) * (1.0 / arc_k);
-    distance = d;
+    d_in = (arc_voltage_in - arc_v0) * (1.0 / arc_k);
+    distance = d_in;
     /* the locks (also while idle, so that they are current when the law starts) */
     if (cornerlock_enable)
         cornerlock_is_locked = current_velocity < requested_velocity * cornerlock_threshold * 0.01;
@@ -419,53 +458,184 @@ FUNCTION(_) {
             }
         }
     }
-    if (!thc_enable) {
-        was_active = 0;
-        state_out = 0;
-        velocity = 0.0;
-        v_prev = 0.0;
-        if (offset_reset)
-            o = 0.0;
-        offset = o;
-        z_offset_counts = resolution > 0.0 ? (int)lround(o / resolution) : 0;
-        return;
-    }
-    fb = use_both_encoders ? d + axis_z_command - axis_z_position : d;    /* law.feedback_value */
-    if (!was_active) {                 /* activation: the filter starts from this sample, no jump */
-        filter_seed(cf, fs, buf, fb);
-        integral = 0.0;
-        m_prev = -fb;
-        was_active = 1;
-    }
     locked = cornerlock_is_locked || voidlock_is_locked;
-    y = filter_step(cf, fs, buf, fb);
-    filtered = y;
-    e = set_dist - y;
-    m = -y;
-    if (locked) {                       /* FREEZE: no wanted step, brake within the limits */
-        u = 0.0;
-        e = 0.0;
-        ic = integral;
+
+    /* ---- AxisDistanceController.update (distctrl/control/controller.py) as the component reaches it:
+       CONST_DIST, PLC-commanded, the distance as the sensor variable, optimized scheduling, no adaptive
+       acceleration, no lowering weights (1), no software limits, override 1 ---- */
+    a_base = a_max;
+    a_floor = a_base * 1.0;                 /* min(a_candidates) * min(1.0, w_a) */
+    i_gain = i_tn > 0.0 ? (T / i_tn < MAX_I_GAIN ? T / i_tn : MAX_I_GAIN) : 0.0;
+    dg = derivative_gain(kp, d_tv, T);
+    /* 1. inputs made safe */
+    prog = axis_z_command;
+    if (-HUGE_MM < prog && prog < HUGE_MM)
+        last_p = prog;
+    else {
+        prog = last_p;
+        finite_inputs = 0;
+    }
+    act = axis_z_position;
+    if (-HUGE_MM < act && act < HUGE_MM)
+        last_a = act;
+    else {
+        act = last_a;
+        finite_inputs = 0;
+    }
+    /* 2. the sensor variable: s = -d + ref_shift (0) */
+    if (FINITE(d_in)) {
+        s_now = -d_in + 0.0;
+        sensor_ok = 1;
     } else {
-        t_over_tn = i_tn > 0.0 ? T / i_tn : 0.0;
-        dg = derivative_gain(kp, d_tv, T);
-        ic = integral + kp * t_over_tn * e;
+        s_now = last_s;
+        sensor_ok = 0;
+        finite_inputs = 0;
+    }
+    s = s_now;
+    /* 3. the PLC's commands from the state of the last period and the locks of this one */
+    st0 = hli;
+    if (!thc_enable) {
+        if (st0 == S_ACTIVE_CD || st0 == S_FREEZE || st0 == S_ERROR)
+            hli = S_TURNING_OFF;                                 /* OFF */
+    } else if (st0 == S_INACTIVE || (st0 == S_FREEZE && !locked)) {
+        if (!FINITE(set_dist)) {                                 /* ON_CONST_DIST refused: 900005 */
+            hli = S_ERROR;
+            errv = E_VALUE_OUT_OF_RANGE;
+        } else {                                                 /* ON_CONST_DIST with SET_DIST */
+            sd = set_dist;
+            if (st0 == S_INACTIVE || !mode_cd) {
+                seeded = 0;
+                integral = 0.0;
+            }
+            mode_cd = 1;
+            hli = S_ACTIVE_CD;
+        }
+        if (st0 == S_INACTIVE && locked) {                       /* FREEZE at once */
+            if (hli == S_ACTIVE_CD)
+                hli = S_FREEZE;
+            else
+                errv = E_INVALID_TRANSITION;
+        }
+    } else if (st0 == S_ACTIVE_CD && locked) {
+        hli = S_FREEZE;                                          /* FREEZE */
+    }
+    running = hli == S_ACTIVE_CD;
+    if (running) {
+        if (FINITE(set_dist))                                    /* the PLC's cyclic D_Distance */
+            sd = set_dist;
+        /* 4. monitoring */
+        if (!finite_inputs) {
+            hli = S_ERROR;
+            errv = E_NOT_FINITE;
+        } else if (has_last_s && fabs(s - last_s) > max_act_value_change * T) {
+            hli = S_ERROR;
+            errv = E_SENSOR_JUMP;
+        } else if (s > max_pos - tolerance) {
+            hli = S_ERROR;
+            errv = E_RUN_OUT_MAX;
+        } else if (s < min_pos + tolerance) {
+            hli = S_ERROR;
+            errv = E_RUN_OUT_MIN;
+        }
+        running = hli == S_ACTIVE_CD;
+    }
+    if (sensor_ok) {
+        last_s = s;
+        has_last_s = 1;
+    } else
+        s = last_s;
+    /* 5. feedback, filter, error, PID */
+    d = -s;
+    o_prev = o;
+    if (mode_cd)                                                 /* law.feedback_value */
+        fb = use_both_encoders ? d + (prog + o_prev) - act : d;
+    else
+        fb = act - d;
+    if (hli == S_ACTIVE_CD || hli == S_FREEZE) {
+        if (!seeded) {
+            filter_seed(cf, fs, buf, fb);
+            seeded = 1;
+            m_prev = mode_cd ? -fb : fb;
+        }
+        y = filter_step(cf, fs, buf, fb);
+        if (hli == S_FREEZE)
+            m_prev = -y;                                         /* no D kick when tracking resumes */
+    } else {
+        y = fb;
+        seeded = 0;
+    }
+    filtered = y;
+    e = 0.0;
+    u = 0.0;
+    integral0 = ic = integral;
+    if (running) {
+        e = sd - y;                                              /* law.mode_error, CONST_DIST */
+        m = -y;
+        ic = integral + kp * i_gain * e;                         /* law.pid_step */
         u = kp * e + ic + dg * (m - m_prev);
-        if (!(-HUGE_MM < u && u < HUGE_MM && -HUGE_MM < ic && ic < HUGE_MM)) {
+        m_prev = m;
+        if (!(-HUGE_MM < u && u < HUGE_MM && -HUGE_MM < ic && ic < HUGE_MM)) {   /* law.finite_step */
             u = u != u ? 0.0 : (u > HUGE_MM ? HUGE_MM : (u < -HUGE_MM ? -HUGE_MM : u));
-            ic = integral;
+            ic = integral0;
+        }
+    } else if (hli == S_TURNING_OFF) {
+        e = -o_prev;
+        u = -o_prev;
+    }
+    /* 6. slope limiter and bounds */
+    hold = !(hli == S_ACTIVE_CD || hli == S_TURNING_OFF);
+    v_lim = v_max * 1.0;
+    a_lim = a_base;
+    if (hold) {
+        u_lim = 0.0;
+        e_lim = 0.0;
+    } else {
+        u_lim = u;
+        e_lim = e;
+    }
+    v_prev = vel;
+    v = slope_limit_side(u_lim, e_lim, v_prev, T, v_lim, a_lim, a_lim, v_lim * 1.0, a_lim * 1.0, &lower);
+    a_applied = a_lim;
+    lo = -max_deviation;
+    hi = max_deviation;
+    a_bound = a_floor;
+    if (v_prev != 0.0 && a_bound_st > a_bound)
+        a_bound = a_bound_st;
+    a_bound_st = a_bound;
+    v_limited = v;
+    v = bound_velocity(v, o_prev, T, lo, hi, a_bound);
+    if (v != v_limited && a_bound > a_applied)
+        a_applied = a_bound;
+    o_new = advance_offset(o_prev, v, T, lo, hi);
+    if (!hold) {
+        wanted = o_prev + u_lim;
+        if ((wanted > hi + LAND && hi - o_new <= LAND) || (wanted < lo - LAND && o_new - lo <= LAND)) {
+            hli = S_ERROR;                                       /* 70331 */
+            errv = E_MAX_DEVIATION;
+        }
+        if (hli == S_ACTIVE_CD) {                                /* law.integrator_after_limiter */
+            clipped = u_lim - v * T;
+            integral = (fabs(clipped) <= 1e-12 || (clipped > 0.0) != (e > 0.0)) ? ic : integral0;
         }
     }
-    v = slope_limit_side(u, e, v_prev, T, v_max, a_max, a_max, v_max, a_max, &lower);
-    v = bound_velocity(v, o, T, -max_deviation, max_deviation, a_max);
-    o = advance_offset(o, v, T, -max_deviation, max_deviation);
-    clipped = u - v * T;
-    if (!locked && (fabs(clipped) <= 1e-12 || (clipped > 0.0) != (e > 0.0)))
-        integral = ic;
-    m_prev = m;
-    v_prev = v;
-    velocity = v;
-    offset = o;
-    z_offset_counts = resolution > 0.0 ? (int)lround(o / resolution) : 0;
-    state_out = locked ? 2 : 1;
+    v_real = (o_new - o_prev) * inv_T;
+    vel = v_real;
+    o = o_new;
+    if (hli == S_TURNING_OFF && fabs(o_new) <= LAND && fabs(v_real) <= a_applied * T) {
+        o = 0.0;                                                 /* the run-out: INACTIVE, offset exactly 0 */
+        if (o_prev * v > 0.0)
+            vel = -o_prev * inv_T;
+        o_new = 0.0;
+        hli = S_INACTIVE;
+        errv = 0;
+        integral = 0.0;
+        seeded = 0;
+    }
+    /* 7. outputs */
+    offset = o_new;
+    velocity = vel;
+    state = hli;
+    error_id = errv;
+    z_offset_counts = resolution > 0.0 ? (int)lround(o_new / resolution) : 0;
+    z_offset_enable = thc_enable || hli != S_INACTIVE || o_new != 0.0 || z_offset_counts != 0;
 }
