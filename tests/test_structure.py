@@ -210,3 +210,55 @@ if __name__ == "__main__":  # pragma: no cover
     print("file-level cycles:", cycles(GRAPH))
     print("package-level cycles:", cycles(package_graph(GRAPH)))
     sys.exit(0)
+
+
+def local_import_blocks(root: Path = ROOT):
+    """(file, first line, the imported top-level names, commented) for every block of consecutive import
+    statements inside a function: commented when a line of the block or the line right above it says why."""
+    for path in sorted(root.rglob("*.py")):
+        src = path.read_text(encoding="utf-8").splitlines()
+        lines: dict[int, str] = {}
+        for fn in ast.walk(ast.parse("\n".join(src), str(path))):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for node in ast.walk(fn):
+                    if isinstance(node, ast.Import):
+                        for ln in range(node.lineno, node.end_lineno + 1):
+                            lines[ln] = node.names[0].name.split(".")[0]
+                    elif isinstance(node, ast.ImportFrom):
+                        for ln in range(node.lineno, node.end_lineno + 1):
+                            lines[ln] = "." if node.level else (node.module or "").split(".")[0]
+        block: list[int] = []
+        for ln in sorted(lines) + [None]:
+            if block and (ln is None or any(src[i - 1].strip() for i in range(block[-1] + 1, ln))):
+                above = src[block[0] - 2].strip() if block[0] > 1 else ""
+                commented = above.startswith("#") or any("#" in src[i - 1] for i in block)
+                yield path, block[0], sorted({lines[i] for i in block}), commented
+                block = []
+            if ln is not None:
+                block.append(ln)
+
+
+def test_an_import_inside_a_function_says_why():
+    """issue 25: an import inside a function hides a dependency from the reader; it stays only where it
+    keeps a heavy or optional dependency (or a costly import) off an import path, with a comment saying so
+    (docs/architecture.md "Imports inside functions"). The standard library is imported at the top."""
+    stdlib = set(sys.stdlib_module_names) - {"tomllib"}   # tomllib: tomli before Python 3.11
+    silent, stdlib_inside = [], []
+    for path, line, names, commented in local_import_blocks():
+        where = f"{path.relative_to(ROOT.parent)}:{line} {', '.join(names)}"
+        if not commented:
+            silent.append(where)
+        if any(n in stdlib for n in names) and not commented:
+            stdlib_inside.append(where)
+    assert not silent, "imports inside functions without a comment saying why:\n" + "\n".join(silent)
+    assert not stdlib_inside, "\n".join(stdlib_inside)
+
+
+def test_a_silent_import_inside_a_function_is_found(tmp_path):
+    pkg = tmp_path / "distctrl"
+    pkg.mkdir()
+    (pkg / "a.py").write_text("def f():\n    import os\n    return os\n\n\ndef g():\n"
+                              "    # numba: the [batch] extra, only here\n    import numba\n    return numba\n")
+    found = list(local_import_blocks(pkg))
+    assert [(line, names, commented) for _, line, names, commented in found] == [(2, ["os"], False),
+                                                                                (8, ["numba"], True)]

@@ -754,6 +754,7 @@ def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, thre
     into and return instead of new ones. A caller that runs many batches can reuse them: fresh
     memory costs the operating system a page fault and zeroing on first touch (docs/batch.md).
     """
+    # numba (the [batch] extra): loaded only where a kernel is compiled or run
     import numba
 
     if isinstance(param_sets, np.ndarray):

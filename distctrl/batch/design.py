@@ -18,10 +18,16 @@ Importing this module imports neither numba nor scipy.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
+from ..base.kinds import FilterType
+from ..control import law
+from ..control.butter import butter_lowpass
+from ..control.controller import AxisDistanceController
 from ..control.filters import FilterConfig, design_coefficients
+from ..params.axis import AxisParameters
 
 __all__ = ["filter_coefficients", "filter_config", "design_many", "check_cycle_time", "clear_cache", "cache_info"]
 
@@ -74,10 +80,6 @@ def design_many(configs, cycle_time: float) -> int:
     """Design the distinct LOWPASS configurations among ``configs`` that are not cached yet, all at once
     (per order, over the cut-offs), and cache their buffers; returns how many were designed. Configurations
     the design refuses are left to :func:`filter_coefficients` (which raises for them)."""
-    from ..base.kinds import FilterType
-    from ..control import law
-    from ..control.butter import butter_lowpass
-
     todo: dict = {}
     for c in configs:
         if c.filter_type != FilterType.LOWPASS:
@@ -130,12 +132,8 @@ def cache_info() -> dict:
 def check_cycle_time(cycle_time) -> None:
     """Raise what :class:`~distctrl.control.controller.AxisDistanceController` raises for a cycle time
     out of its range (the sets' checks that do not build a controller per set start with it)."""
-    import math
-
     if isinstance(cycle_time, (int, float)) and math.isfinite(cycle_time) and 1e-5 <= cycle_time <= 1.0:
         return
-    from ..control.controller import AxisDistanceController
-    from ..params.axis import AxisParameters
 
     AxisDistanceController(AxisParameters(), cycle_time)       # raises the controller's own ParameterError
     raise AssertionError("the controller accepted a cycle time this check refuses")  # pragma: no cover

@@ -71,6 +71,7 @@ def register_law() -> None:
             raise RuntimeError(f"numba.register_jitable replaced {fn.__name__}; CPython callers would change")
         _REGISTERED.add(id(fn))
     if id(physics.floor_float) not in _REGISTERED:
+        # numba (the [batch] extra): loaded only where a kernel is compiled or run
         from numba.extending import overload
 
         @overload(physics.floor_float, jit_options=dict(_LAW_JIT_OPTIONS))

@@ -20,12 +20,14 @@ def _say(message: str) -> None:
 
 def warm() -> bool:
     """Compile (or load) the kernels; False when numba is missing."""
+    # the batch kernels import numba: loaded only when warming or running them
     from . import numba_available
 
     if not numba_available():
         _say("numba is not installed: no batch kernels to compile (distctrl sweep / tune need "
              "`pip install 'distctrl[tune]'`)")
         return False
+    # the batch kernels import numba: loaded only when warming or running them
     import numpy as np
 
     from ..control import law
@@ -50,6 +52,7 @@ def warm() -> bool:
     inputs = CL.LoopInputs(scenario=None, axis="Z", cycle_time=1e-3, n_cycles=n, k_on=0, mode=CL.MODE_SET_POS,
                            set_value=0.0, prog=np.zeros(n), surface=np.zeros(n), noise=np.zeros(n), plant=plant,
                            params=None)
+    # the batch kernels import numba: loaded only when warming or running them
     from ..base.kinds import FilterType
     from ..params.axis import AxisParameters
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from .common import Finite, emit_json, fail
+from ..nc.excite import Excitation, ExciteError, program
+from .common import Finite, check_writable, emit_json, fail
 
 
 def _range(text: str, what: str, sep: str = "-") -> tuple[float, float]:
@@ -46,9 +47,6 @@ def excite(axis, work, safe, min_pos, max_pos, v_max, a_max, cycle_ms, step, ste
     """Write the NC program (ISG dialect) that excites AXIS for `distctrl identify`: steps, a chirp, a
     slow ramp, with a safe approach and retract, distance control off. Refuses a program beyond
     the axis limits given (docs/identify.md, docs/commissioning.md)."""
-    from ..nc.excite import Excitation, ExciteError, program
-    from .common import check_writable
-
     chirp_band = None if chirp.strip().lower() == "none" else _range(chirp, "--chirp")
     e = Excitation(axis=axis, work=work, safe=safe, min_pos=min_pos, max_pos=max_pos, a_max=a_max, v_max=v_max,
                    cycle_time=cycle_ms * 1e-3, step=step or None, step_count=step_count, large_step=large_step,

@@ -3,12 +3,21 @@ and written over ADS through its distance-control CNC objects (docs/commissionin
 code is in :mod:`distctrl.client`; here are only the options, the tables and the exit codes."""
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
 import click
 
+from ..client import MachineError
+from ..client.axes import Unit, describe_unit, format_list_text, probe_axes, probe_channels, read_parameters, state_name
+from ..client.recorder import make_signal
+from ..client.recorder import record as do_record
+from ..client.recorder import summary, write_trace
+from ..client.target import Target, parse_target
+from ..client.writer import default_backup_path, execute, plan_write
 from ..errors import ExitCode
-from .common import Finite, emit_json, fail
+from .common import Finite, check_writable, emit_json, fail
 
 
 def _target_options(f):
@@ -29,7 +38,6 @@ def _axis_option(required: bool):
 
 
 def _parse_axis(text: str):
-    from ..client.axes import Unit
     name, sep, ident = text.partition("=")
     if not sep:
         name, ident = (text, text) if text.isdigit() else (text, "")
@@ -47,9 +55,6 @@ def _quiet_adslib() -> None:
     frame failed``); our own one-line message says what happened. In a real process (stderr is file
     descriptor 2) Python's stderr moves to a copy of it and descriptor 2 to /dev/null, unless
     DISTCTRL_ADS_LOG=1 asks for the library's lines."""
-    import os
-    import sys
-
     if os.environ.get("DISTCTRL_ADS_LOG") == "1" or getattr(_quiet_adslib, "done", False):
         return
     try:
@@ -67,7 +72,6 @@ def _quiet_adslib() -> None:
 
 
 def _open(ads: str, ip: str | None, timeout: float):
-    from ..client.target import Target, parse_target
     _quiet_adslib()
     net_id, port, host = parse_target(ads, ip)
     return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0)).open()
@@ -92,9 +96,6 @@ def machine() -> None:
 def show(ads: str, ip: str | None, timeout: float, axes: tuple[str, ...], out: str | None, as_json: bool) -> None:
     """The axes and 3D channels with distance control: state and every parameter the CNC objects
     expose, in the parameter lists' units (as `distctrl params` prints them), with ranges."""
-    from ..client import MachineError
-    from ..client.axes import describe_unit, format_list_text, probe_axes, probe_channels, read_parameters
-
     try:
         with _open(ads, ip, timeout) as target:
             units = [_parse_axis(a) for a in axes] if axes else probe_axes(target)
@@ -149,10 +150,6 @@ def record(ads, ip, timeout, axis, seconds, signals, cycle_ms, max_delay_ms, mm_
     """Record CNC objects of one axis at the CNC cycle (cyclic device notifications with the target's
     timestamps) into a trace. Lost and late samples are counted and reported; a lost sample is NaN
     in the trace, never filled in. Ctrl-C ends early and keeps what was recorded (exit code 130)."""
-    from ..client import MachineError
-    from ..client.recorder import make_signal, record as do_record, summary, write_trace
-    from .common import check_writable
-
     unit = _parse_axis(axis)
     names = [s.strip() for s in signals.split(",") if s.strip()]
     if not names:
@@ -200,12 +197,6 @@ def write(ads, ip, timeout, axis, channel, list_file, yes, pending, backup, as_j
     """Write the writable parameters that LIST_FILE sets (kp, i_tn, d_tv, v_max, a_max) through the
     CNC objects: shows old -> new; with --yes writes a backup first, writes, reads back and verifies,
     and restores the backup when anything fails half way. `machine write ... BACKUP --yes` undoes it."""
-    from ..client import MachineError
-    from ..client.axes import Unit
-    from ..client.target import Target, parse_target
-    from ..client.writer import default_backup_path, execute, plan_write
-    from .common import check_writable
-
     if (axis is None) == (channel is None):
         fail("give --axis NAME=ID or --channel N")
     unit = _parse_axis(axis) if axis else Unit("channel", channel, str(channel))
@@ -242,7 +233,6 @@ def _show_plan(plan, result: dict, as_json: bool, written: bool) -> None:
     if as_json:
         emit_json(result)
         return
-    from ..client.axes import state_name
     click.echo(f"{plan.unit.label}: state {state_name(plan.state)}")
     if not plan.changes:
         click.echo("nothing to change: the target has these values")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import sys
+import webbrowser
 
 import click
 
@@ -33,7 +34,7 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
         ads = AdsEndpoint(served, host=host, port=port, allowed=allowed, net_id=net_id,
                           discovery_port=None if no_discovery else 48899)
         if ui:
-            from ..ui.app import UiServer     # Bokeh, the [ui] extra: loaded only for the page
+            from ..ui.app import UiServer  # Bokeh, the [ui] extra: loaded only for the page
 
             # the page's server starts before the cycle does: importing and setting up Bokeh is heavy
             page = UiServer(served, host=host, port=ui_port, allowed=allowed, export_dir=export_dir)
@@ -65,8 +66,6 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
         if not as_json:
             click.echo(f"live page: {page.url}")
         if open_browser:
-            import webbrowser
-
             if not webbrowser.open(page.url) and not as_json:
                 click.echo(f"no browser could be started here: open {page.url} yourself", err=True)
     try:

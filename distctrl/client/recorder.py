@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..objects.registry import BY_NAME, ObjectSpec, decode, find_spec
+from ..trace import TraceRecorder
 from .axes import Unit
 from .target import MachineError, Target
 
@@ -116,6 +117,7 @@ class Recorder:
         self._lock = threading.Lock()
 
     def start(self) -> None:
+        # pyads (the [ads] extra): loaded only when a target is reached
         import pyads
 
         conn = self.target.conn
@@ -138,6 +140,7 @@ class Recorder:
             self.by_handle[handles[0]] = i
 
     def stop(self) -> None:
+        # pyads (the [ads] extra): loaded only when a target is reached
         import pyads
 
         conn = self.target.conn
@@ -232,8 +235,6 @@ def record(target: Target, unit: Unit, signals: list[Signal], seconds: float, cy
 
 def write_trace(recording: Recording, path, meta: dict) -> None:
     """The recording as a distctrl trace (CSV + ``.meta.json`` sidecar, docs/trace.md)."""
-    from ..trace import TraceRecorder
-
     m = dict(meta)
     m.update({"cycle_s": recording.cycle_s, "source": "machine record (ADS cyclic notifications)",
               "samples": recording.samples, "lost": recording.lost, "late": recording.late,

@@ -8,8 +8,11 @@ unreachable host is an error in seconds, not the OS's minutes), every ADS reques
 """
 from __future__ import annotations
 
+import ctypes
 import ipaddress
+import os
 import socket
+import sys
 import time
 
 from ..ads.errors import describe as _describe_device
@@ -40,6 +43,7 @@ def describe(code: int) -> str:
     if code in CLIENT_CODES:
         return CLIENT_CODES[code]
     try:
+        # pyads (the [ads] extra): loaded only when a target is reached
         from pyads.errorcodes import ERROR_CODES
         if code in ERROR_CODES and ERROR_CODES[code]:
             return str(ERROR_CODES[code])
@@ -91,8 +95,6 @@ class _quiet_stderr:
     """File descriptor 2 to /dev/null for a moment (the C library's own log lines, not ours)."""
 
     def __enter__(self):
-        import os
-        import sys
         try:
             sys.stderr.flush()
             self.saved = os.dup(2)
@@ -104,7 +106,6 @@ class _quiet_stderr:
         return self
 
     def __exit__(self, *exc):
-        import os
         if self.saved is not None:
             os.dup2(self.saved, 2)
             os.close(self.saved)
@@ -112,6 +113,7 @@ class _quiet_stderr:
 
 def _pyads():
     try:
+        # pyads (the [ads] extra): loaded only when a target is reached
         import pyads
     except ImportError:            # pragma: no cover - the [ads] extra is missing
         raise MachineError("the ADS client needs pyads: pip install 'distctrl[ads]'") from None
@@ -193,7 +195,6 @@ class Target:
         return self._call(what, self.conn.read_state)
 
     def read(self, index_group: int, index_offset: int, length: int, what: str) -> bytes:
-        import ctypes
         raw = self._call(what, self.conn.read, index_group, index_offset, ctypes.c_uint8 * length)
         data = bytes(raw)
         if len(data) != length:
@@ -201,7 +202,6 @@ class Target:
         return data
 
     def write(self, index_group: int, index_offset: int, data: bytes, what: str) -> None:
-        import ctypes
         self._call(what, self.conn.write, index_group, index_offset, list(bytes(data)), ctypes.c_uint8 * len(data))
 
 

@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..control.controller import check_object_value
-from ..errors import ExitCode
-from ..params.listfile import canonical_key, list_entries
-from .axes import ACTIVE_STATES, PARAMETERS, WRITABLE, Unit, format_list_text, read_object, read_state, state_name, \
-    write_object
+from ..errors import ExitCode, ParameterError
+from ..params.channel import load_channel_list
+from ..params.listfile import canonical_key, list_entries, load_list
+from .axes import (ACTIVE_STATES, PARAMETERS, WRITABLE, Unit, format_list_text, read_object, read_state, state_name,
+                   write_object)
 from .target import MachineError, Target
 
 #: the write order: the limits first, then the gains (a restore goes the same way)
@@ -75,10 +76,6 @@ def explicit_keys(path: str | Path) -> list[str]:
 def wanted_values(unit: Unit, path: str | Path) -> tuple[dict, list[dict]]:
     """{field: value in the list's unit} of the writable parameters the list sets, and the other keys it
     sets (not writable over ADS). The list is loaded and checked as ``distctrl params`` does."""
-    from ..errors import ParameterError
-    from ..params.channel import load_channel_list
-    from ..params.listfile import load_list
-
     try:
         pl = load_list(path) if unit.kind == "axis" else load_channel_list(path)
     except ParameterError as exc:

@@ -39,6 +39,8 @@ from the cycles before it and ``failed = True``; the tuner treats it as infinite
 from __future__ import annotations
 
 import numpy as np
+
+from ..batch import numba_available
 from ..control import law
 
 __all__ = ["METRIC_NAMES", "METRIC_UNITS", "wanted_distance", "compute_metrics", "limits_from_packed", "cost",
@@ -97,8 +99,6 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
     (:func:`distctrl.batch.metrics_kernel.chunk_metrics`) computes them, bit for bit equal to
     :func:`reference_metrics` (numpy, the definition; used without numba).
     """
-    from ..batch import numba_available
-
     if not numba_available():
         return reference_metrics(offset, distance, wanted, cycle_time, k_on, limits, skip=skip, band=band,
                                  hold=hold, f_osc=f_osc, overshoot_window=overshoot_window)

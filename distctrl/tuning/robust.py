@@ -33,6 +33,7 @@ import numpy as np
 
 from ..control import law
 from ..control.controller import AxisDistanceController
+from ..workbench.margins import filter_coefficients, resonance_polynomials
 
 __all__ = ["PlantAllowance", "DEFAULT_ALLOWANCE", "MIN_GAIN_MARGIN", "MIN_PHASE_MARGIN_DEG", "KP_FLOOR",
            "MarginCheck", "MarginConstraint"]
@@ -151,8 +152,6 @@ class MarginConstraint:
             d = 1.0 - (1.0 - kvT) * zi
             rn = rd = 1.0
             if p["resonance_hz"]:
-                from ..workbench.margins import resonance_polynomials
-
                 a, b = resonance_polynomials(p["resonance_hz"], p["damping"], T)
                 rn = a[0] + a[1] * zi + a[2] * zi * zi
                 rd = b[0] + b[1] * zi + b[2] * zi * zi
@@ -165,8 +164,6 @@ class MarginConstraint:
 
     # -- the loop -----------------------------------------------------------------------------------------
     def _filter_response(self, fc) -> np.ndarray:
-        from ..workbench.margins import filter_coefficients
-
         zi = self.zi
         if int(fc[law.FC_KIND]) == law.LOWPASS:
             h = np.ones_like(zi)

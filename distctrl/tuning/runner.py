@@ -23,9 +23,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import logging
 import math
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -134,6 +136,7 @@ class SweepResult:
 
     def to_parquet(self, path) -> Path:
         try:
+            # pyarrow (the [parquet] extra): only for a Parquet table
             import pyarrow as pa
             import pyarrow.parquet as pq
         except ImportError:
@@ -396,8 +399,6 @@ class Evaluator:
         if self.mode != "cluster":
             return
         if self._opening is None and self._client is None:
-            import threading
-
             self._open_error = None
             self._opening = threading.Thread(target=self._open_now, name="distctrl-cluster-start", daemon=True)
             self._opening.start()
@@ -420,11 +421,11 @@ class Evaluator:
 
     def _open_cluster(self) -> None:
         try:
+            # dask.distributed (the [batch] extra, seconds of import): only for a cluster sweep
             from distributed import Client, LocalCluster
         except ImportError:
             raise TuningRunError("cluster mode needs dask.distributed: pip install 'dask[distributed]' "
                                  "(or use --local)") from None
-        import logging
         try:
             if self.scheduler:
                 self._client = Client(self.scheduler, timeout="20s")
@@ -444,8 +445,6 @@ class Evaluator:
         return self._client.submit(_hold, self._slim, pure=False)
 
     def close(self) -> None:
-        import threading
-
         if self._opening is not None and self._opening is not threading.current_thread():
             try:
                 self._wait_open()
@@ -536,6 +535,7 @@ class Evaluator:
         t0 = time.perf_counter()
         status = None
         if self.progress:
+            # rich (0.1 s of import): only where a table or progress bar is printed
             from rich.console import Console
 
             status = Console(stderr=True).status(text)
@@ -568,6 +568,7 @@ class Evaluator:
     def _bar(self, total: int, description: str):
         if not self.progress:
             return None
+        # rich (0.1 s of import): only where a table or progress bar is printed
         from rich.console import Console
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -599,6 +600,7 @@ class Evaluator:
         return parts
 
     def _run_cluster(self, chunks, description) -> list[dict]:
+        # dask.distributed (the [batch] extra, seconds of import): only for a cluster sweep
         from distributed import as_completed
 
         client = self._client

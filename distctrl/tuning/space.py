@@ -21,6 +21,7 @@ parameter. Names are the field names or the NC words (``kp``, ``i_tn``, ``d_tv``
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import re
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base.kinds import FILTER_TYPE_NAMES, FilterType
+from ..batch.design import check_cycle_time, design_many, filter_coefficients, filter_config
 from ..control.controller import AxisDistanceController
 from ..control.filters import FILTER_KINDS
 from ..errors import DistCtrlError, ParameterError
@@ -372,8 +374,6 @@ def build_sets(base: AxisParameters, points: list[dict], cycle_time: float | Non
     without a controller per set. A point the vectorised check does not pass (or a field it does not
     cover: the sensor window, software limits, axis type, values of other types) goes through
     :func:`to_params`, so the sets and the messages are those of :func:`to_params`."""
-    from ..batch.design import check_cycle_time, design_many, filter_coefficients, filter_config
-
     points = list(points)
     fast = _fast_ok(base, points)
     if cycle_time is not None:
@@ -419,8 +419,6 @@ _CROSS_FIELDS = frozenset({"min_pos", "max_pos", "tolerance", "sw_limit_min", "s
 
 def _fast_ok(base: AxisParameters, points: list[dict]) -> np.ndarray:
     """Per point: every value passes check_internal's rule for its field (vectorised over the points)."""
-    import dataclasses
-
     n = len(points)
     ok = np.ones(n, dtype=bool)
     names = {f.name for f in dataclasses.fields(AxisParameters) if f.init}

@@ -39,6 +39,7 @@ from ..errors import DistCtrlError
 from ..params import format_list
 from ..params.axis import AxisParameters
 from ..sim.surface import Surface
+from ..workbench.margins import analyse, loop_model, model_from_parts
 from ..workbench.tables import render_table
 from .metrics import CHATTER_WEIGHT, METRIC_NAMES, METRIC_UNITS, SAT_WEIGHT, wanted_distance
 from .robust import DEFAULT_ALLOWANCE, KP_FLOOR, MIN_GAIN_MARGIN, MIN_PHASE_MARGIN_DEG, MarginConstraint, PlantAllowance
@@ -319,8 +320,6 @@ def stability(scenario, params: AxisParameters) -> dict:
     ``distctrl margins`` (:mod:`distctrl.workbench.margins`: drive kv, bus delay, resonance, sensor delay
     and gain of the scenario) with the list ``params`` (in CONST_DIST or the mode of the first select).
     ``{"error": text}`` where the margins cannot be computed (e.g. a 3D scenario)."""
-    from ..workbench.margins import analyse, loop_model, model_from_parts
-
     try:
         m = loop_model(scenario)
         r = analyse(model_from_parts(params, m.cycle_time, axis=m.axis, mode=m.mode, kv=m.kv,
@@ -588,8 +587,6 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     base = inputs.params
     constraint, mc = None, {}
     if margin_constraint:
-        from ..workbench.margins import loop_model
-
         try:
             constraint = MarginConstraint(loop_model(scenario), min_gain_margin=min_gain_margin,
                                           min_phase_margin_deg=min_phase_margin, allowance=allowance)

@@ -171,6 +171,7 @@ def _mm_panel(fig: "Figure"):
 
 def _timeline_png(trace: "Trace | None", events: list[dict], t_end: float) -> bytes:
     """The dc state over time as a step line, errors (red) and warnings (orange) as marked lines."""
+    # matplotlib (about a second of import): only when a plot is drawn
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -47,6 +47,7 @@ def signal_noise_rms(y: np.ndarray, t: np.ndarray, edges: Sequence[float] | None
     if edges is not None and len(edges):
         i_edge = int(np.searchsorted(t, float(min(edges)), side="left"))
         return _rms_about_mean(y[warmup:i_edge])
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.ndimage import median_filter
 
     w = median_window or _median_window(warmup)

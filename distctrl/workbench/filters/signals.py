@@ -71,6 +71,7 @@ def find_edges(t, values, window: int = 21) -> list[float]:
     """Estimate the obstacle edges of a recording: the largest level change and, after it, the
     largest change back (each more than 8 noise RMS). Times where the moving median makes half of
     the change; [] if there is no clear edge. A helper for ``--edge auto``; check it on the plot."""
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.ndimage import median_filter
 
     x = np.asarray(values, dtype=np.float64)

@@ -21,17 +21,9 @@ QS_ACCELERATION = 20.0
 CHAR_BIN = 0.25
 #: Welch segment length (samples) of the frequency response
 NPERSEG = 2048
-from .common import (
-    DRIVE_KEYS,
-    SENSOR_KEYS,
-    RECORD_CHIRP,
-    RECORD_RAMP,
-    RECORD_STANDSTILL,
-    RECORD_STEPS,
-    IdentifyError,
-    IdentifyWarning,
-    _mode,
-)
+from .common import (DRIVE_KEYS, RECORD_CHIRP, RECORD_RAMP, RECORD_STANDSTILL, RECORD_STEPS, SENSOR_KEYS, IdentifyError,
+                     IdentifyWarning, _mode)
+from .nozzle import _paths, fit_sensor_path, nozzle_delayed
 from .recordings import Signals
 from .result import Identification
 
@@ -169,6 +161,7 @@ def _limited_cost(recs, T: float, theta: float, scale: float, alpha: float, v_ma
 
 
 def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.optimize import minimize_scalar
 
     out = {"kv": None, "dead_time": None, "v_max": None, "a_max": None}
@@ -413,6 +406,7 @@ def simulate_drive(S: np.ndarray, x0: float, T: float, kv: float, dead_time: flo
 
 
 def _frf(recs: Sequence[_Rec], T: float):
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.signal import csd, welch
 
     fs = 1.0 / T
@@ -440,6 +434,7 @@ def _frf(recs: Sequence[_Rec], T: float):
 
 
 def _fit_frf(f, H, coh, T: float, res: Identification) -> dict:
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.optimize import least_squares
 
     out = {"resonance_hz": None, "damping": None, "delay": None, "gain": None}
@@ -529,12 +524,14 @@ def nozzle_from_motor(X: np.ndarray, T: float, f0: float | None, zeta: float | N
     """The nozzle the fitted mode makes of the motor positions (continuous model, bilinear)."""
     if not f0:
         return X.copy()
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.signal import cont2discrete, lfilter
 
     w0 = 2 * math.pi * f0
     num, den = [2 * zeta * w0, w0 * w0], [1.0, 2 * zeta * w0, w0 * w0]
     b, a, _ = cont2discrete((num, den), T, method="bilinear")
     b = np.ravel(b)
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.signal import lfilter_zi
 
     zi = lfilter_zi(b, a) * X[0]
@@ -739,8 +736,6 @@ def _sensor_path(recs, T: float, res: Identification, fr: dict, frf_warnings: li
     the time domain (:mod:`.nozzle`), started from the frequency response ``fr`` (updated in place). The
     frequency response's own warnings are kept only where the time-domain fit does not determine the
     figure either."""
-    from .nozzle import fit_sensor_path
-
     if max(float(np.ptp(r.X)) for r in recs) <= 0.0:
         for w in frf_warnings:
             _warn(res.warnings, w)
@@ -794,8 +789,6 @@ def _sensor_path(recs, T: float, res: Identification, fr: dict, frf_warnings: li
 
 def _nozzle_at_sensor(r: _Rec, T: float, f0, zeta, tau: float) -> np.ndarray:
     """The nozzle the sensor sees at each row (the model of the sensor path, :mod:`.nozzle`)."""
-    from .nozzle import _paths, nozzle_delayed
-
     return nozzle_delayed(_paths([r], T)[0], T, f0, zeta, tau)
 
 

@@ -205,6 +205,7 @@ def fit_sensor_path(recs, T: float, f_hint: float | None = None) -> dict:
     Returns a dict with ``resonance_hz``, ``damping`` (None for a rigid drive), ``delay`` (s),
     ``noise_std`` (mm of true distance), ``gain`` (the characteristic's median slope), ``sd`` (standard
     deviations of f0, zeta, delay, noise), ``lr`` (the likelihood ratio resonant : rigid), ``rss``."""
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.optimize import least_squares
 
     sp = SensorPath(recs, T)

@@ -1,10 +1,12 @@
 """``distctrl identify``, the output: JSON, summary, the fitted scenario TOML, the report."""
 from __future__ import annotations
 
+import base64
 import math
 import os
 from pathlib import Path
 
+from ..pages import render
 from .common import IdentifyError
 from .result import UNITS, Identification, result_json, uncertainty_json  # noqa: F401  (part of the API)
 
@@ -241,6 +243,7 @@ def write_scenario(res: Identification, out_dir: str | os.PathLike, template: st
                    axis: str = "Z", name: str = "fitted.toml") -> tuple[Path, list[str]]:
     """The fitted machine and sensor as a complete scenario TOML in ``out_dir`` (with its parameter
     list when no template is given). Returns the path and notes (what was not written)."""
+    # tomllib (Python >= 3.11) only to read a template; without it (3.10) the rest of identify works
     import tomllib
 
     out = Path(out_dir)
@@ -307,10 +310,6 @@ def plot_identification(res: Identification, path: str | os.PathLike) -> None:
 def write_report(res: Identification, out_dir: str | os.PathLike, scenario: str | None = None) -> Path:
     """``report.html`` (the figure embedded, the values with units, the fit quality, the warnings)
     and ``identify.png`` in ``out_dir``. The page: templates/identify_report.html.j2."""
-    import base64
-
-    from ..pages import render
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     png = out / "identify.png"

@@ -65,6 +65,7 @@ def _grid_crossings(response, loop_response, T: float) -> tuple[list[float], lis
     resonance peak that rises above 0 dB (seen: 13.5 Hz, zeta 0.018: it reported only the crossing at
     2.85 Hz with +53 deg, while the peak crosses at 13.0 and 14.0 Hz with negative phase margins).
     The third figure is the smallest |1 + L| on the grid (the stability margin)."""
+    # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.optimize import brentq
 
     f_nyq = 0.5 / T
@@ -121,6 +122,7 @@ def _checked_crossings(response, phase_candidates: list[float], gain_candidates:
 def analyse(model: LoopModel) -> MarginResult:
     """Gain and phase margins (``control.stability_margins`` of the open loop), the closed loop's
     largest pole, and the KP at the stability limit with its oscillation frequency."""
+    # python-control (about 1 s of import): only where the loop model is built
     import control
 
     loop = model.loop()

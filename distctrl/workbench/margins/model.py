@@ -62,6 +62,7 @@ def filter_coefficients(fc: list[float]) -> tuple[list[float], list[float]]:
 
 def _zinv(b, a, T: float) -> "control.TransferFunction":
     """``(b0 + b1 z^-1 + ...) / (a0 + a1 z^-1 + ...)`` as a python-control transfer function in z."""
+    # python-control (about 1 s of import): only where the loop model is built
     import control
 
     m = max(len(b), len(a))
@@ -257,6 +258,7 @@ class LoopModel:
         filter section, the feedback path ``sign Hn / Pd``; SET_POS adds ``C_PI z^-1`` in parallel ahead
         of the integration), so that the closed loop's poles are eigenvalues of a matrix built from
         low-order pieces instead of roots of one high-order polynomial."""
+        # python-control (about 1 s of import): only where the loop model is built
         import control
 
         P = np.polynomial.polynomial
@@ -314,6 +316,7 @@ class LoopModel:
         ``den + L_num`` agree for low-order loops, but lose digits for a 4th-5th order low-pass whose poles
         crowd next to z = 1 with the drive's, the resonance's and the integrator's; seen: |z| 1.0037
         instead of 0.9970). Poles the series connection adds at z = 0 (delays) do not matter here."""
+        # python-control (about 1 s of import): only where the loop model is built
         import control
 
         cl = control.feedback(self.loop_state_space(), 1)
@@ -327,6 +330,7 @@ class LoopModel:
     def offset_response(self, w_mm: float, cycles: int) -> np.ndarray:
         """The offset (mm) over ``cycles`` cycles after the surface the sensor sees rises by ``w_mm``
         (the reading changes in cycle 0); the linear prediction of the simulator's ``<axis>.dc.offset``."""
+        # python-control (about 1 s of import): only where the loop model is built
         import control
 
         resp = control.step_response(self.closed_loop(), T=np.arange(cycles) * self.cycle_time)

@@ -28,6 +28,7 @@ class _Bar:
         if enabled is None:
             enabled = sys.stderr.isatty()
         if enabled and total > 0:
+            # rich (0.1 s of import): only where a table or progress bar is printed
             from rich.console import Console
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
