@@ -190,10 +190,10 @@ def test_whole_commissioning_loop(tmp_path):
         # the served NC plays the chirp at its written rate (issue 28): the recorded command reaches the top
         # of the 1-150 Hz band (one block per cycle; before, ~3 cycles per block, it stopped near 50 Hz)
         rec = np.genfromtxt(rec_csv, delimiter=",", names=True)
-        z = rec["Zcommand"] - 31.5
-        nz = np.flatnonzero(np.abs(z) > 1e-9)
+        cmd = rec["Zcommand"] - 31.5                     # (not `z`: that is the axis unit read below)
+        nz = np.flatnonzero(np.abs(cmd) > 1e-9)
         a, b = nz[:-1], nz[1:]
-        up = (z[a] < 0) & (z[b] > 0) & (np.abs(z[a]) < 0.05) & (np.abs(z[b]) < 0.05)
+        up = (cmd[a] < 0) & (cmd[b] > 0) & (np.abs(cmd[a]) < 0.05) & (np.abs(cmd[b]) < 0.05)
         f_top = np.sort(1.0 / np.diff(rec["t"][a[up]]))[-5:]
         assert np.median(f_top) > 120.0, f_top
 
