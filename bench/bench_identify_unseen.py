@@ -66,26 +66,33 @@ def margins_ok(m: dict) -> bool:
         and (m.get("phase_margin_deg") is None or m["phase_margin_deg"] > 0.0)
 
 
-def tune_one(seed: int, tmp: pathlib.Path, budget: int) -> dict:
-    """identify -> fitted twin -> tune -> the tuned list's margins on the true plant."""
-    import shutil
-    import tomllib
-
+def _fitted_twin(seed: int, folder: pathlib.Path):
+    """The unseen plant of ``seed``, its recordings in ``folder`` and ``distctrl identify --out folder/fitted``:
+    ``(plant, folder, fitted folder, None)``, or the command's last output as the 4th item where it failed."""
     from click.testing import CliRunner
 
     from distctrl.cli import main as cli_main
-    from distctrl.tuning.tune import tune
-    from distctrl.workbench.margins import analyse, loop_model
 
     plant = random_plant(seed)
-    folder = tmp / f"t{seed}"
     folder.mkdir()
     files = write_recordings(plant, seed, folder)
     fitted = folder / "fitted"
     r = CliRunner().invoke(cli_main, ["identify", *map(str, files), "--command", "set_pos", "--actual", "act_pos",
                                       "--sensor", "sensor", "--surface", str(plant.surface), "--out", str(fitted)])
-    if r.exit_code != 0:
-        return {"seed": seed, "pass": False, "error": r.output[-400:]}
+    return plant, folder, fitted, (r.output[-400:] if r.exit_code != 0 else None)
+
+
+def tune_one(seed: int, tmp: pathlib.Path, budget: int) -> dict:
+    """identify -> fitted twin -> tune -> the tuned list's margins on the true plant."""
+    import shutil
+    import tomllib
+
+    from distctrl.tuning.tune import tune
+    from distctrl.workbench.margins import analyse, loop_model
+
+    plant, folder, fitted, error = _fitted_twin(seed, tmp / f"t{seed}")
+    if error is not None:
+        return {"seed": seed, "pass": False, "error": error}
     scenario = fitted / "fitted.toml"
     doc = tomllib.loads(scenario.read_text())
     t0 = time.perf_counter()
@@ -114,23 +121,14 @@ def recheck_one(row: dict, tmp: pathlib.Path) -> dict:
     not rerun: its margin constraint evaluates the loop on its own)."""
     import shutil
 
-    from click.testing import CliRunner
-
-    from distctrl.cli import main as cli_main
     from distctrl.sim.scenario import load_scenario
     from distctrl.tuning.tune import param_list
     from distctrl.workbench.margins import analyse, loop_model
 
     seed = int(row["seed"])
-    plant = random_plant(seed)
-    folder = tmp / f"r{seed}"
-    folder.mkdir()
-    files = write_recordings(plant, seed, folder)
-    fitted = folder / "fitted"
-    r = CliRunner().invoke(cli_main, ["identify", *map(str, files), "--command", "set_pos", "--actual", "act_pos",
-                                      "--sensor", "sensor", "--surface", str(plant.surface), "--out", str(fitted)])
-    if r.exit_code != 0:
-        return dict(row, error=r.output[-400:], **{"pass": False})
+    plant, folder, fitted, error = _fitted_twin(seed, tmp / f"r{seed}")
+    if error is not None:
+        return dict(row, error=error, **{"pass": False})
     scenario = fitted / "fitted.toml"
     sc = load_scenario(str(scenario))
     params = sc.axes["Z"].params.replace(**row["tuned"])
