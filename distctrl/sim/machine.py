@@ -521,10 +521,10 @@ class Machine:
         :func:`distctrl.sim.status.machine_status`."""
         return machine_status(self)
 
-    def activity(self) -> tuple:
-        """The cheap part of :meth:`status` that changes when a PLC command is taken or refused, a
-        state changes or the NC program ends (:func:`distctrl.sim.status.activity`)."""
-        return activity(self)
+    #: :func:`distctrl.sim.status.activity` as the method itself, the cheap part of :meth:`status` that
+    #: changes when a PLC command is taken or refused, a state changes or the NC program ends (no wrapper:
+    #: the served cycle's session log calls it every cycle)
+    activity = activity
 
     def event_cursor(self, *, from_now: bool = False) -> EventCursor:
         """A cursor over :attr:`events` that takes each ``(t, ErrorEvent)`` once

@@ -103,7 +103,9 @@ def activity(machine) -> tuple:
     axis the PLC commands taken, the commands refused and distance control's HLI state. A few
     comparisons a cycle; equal values mean :func:`machine_status` has nothing new in those fields."""
     hli, outputs = machine.hli, machine.outputs
-    out = [_nc_state(machine.nc)]
+    nc = machine.nc
+    # _nc_state written out: the served cycle calls this every cycle, and a call costs more than the test
+    out = ["none" if nc is None else "aborted" if nc.aborted else "ended" if nc.ended else "running"]
     for n in machine.axis_names:
         u = hli[n]
         out += (u.consumed, len(u.rejected), outputs[n].hli_state)
