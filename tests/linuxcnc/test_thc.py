@@ -44,8 +44,8 @@ NAN_AT = 720
 N = 900
 
 
-def _row(v, enable, cl, vel, req, vl, zc, za, sd):
-    return (float(v), bool(enable), bool(cl), float(vel), float(req), bool(vl), float(zc), float(za), float(sd))
+def _row(v, enable, cl, vel, feed_upm, vl, zc, za, sd):
+    return (float(v), bool(enable), bool(cl), float(vel), float(feed_upm), bool(vl), float(zc), float(za), float(sd))
 
 
 def _law_inputs():
@@ -62,7 +62,7 @@ def _law_inputs():
         vel = 83.3 if not (450 <= k < 520) else 83.3 * (1.0 - min(1.0, (k - 450) / 20.0)) + 5.0
         zc = 40.0 - 0.01 * k + 0.5 * math.sin(2 * math.pi * 7 * t)       # programmed and actual Z (both encoders)
         za = zc - 0.2 * math.cos(2 * math.pi * 7 * t) - 0.001 * rng.standard_normal()
-        rows.append(_row(v, enable, True, vel, 83.3, True, zc, za, 1.5 if k < 750 else 1.8))
+        rows.append(_row(v, enable, True, vel, 83.3 * 60.0, True, zc, za, 1.5 if k < 750 else 1.8))
     return rows
 
 
@@ -82,32 +82,85 @@ def _error_inputs():
             v = math.nan
         enable = not (k < 10 or 380 <= k < 440 or 600 <= k < 660 or 800 <= k < 860)
         zc = 30.0 - 0.005 * k
-        rows.append(_row(v, enable, False, 80.0, 80.0, False, zc, zc, 1.5))
+        rows.append(_row(v, enable, False, 80.0, 4800.0, False, zc, zc, 1.5))
     return rows
 
 
 def _command_inputs():
-    """The commands' edges: thc-enable coming on while the corner lock holds (ON_CONST_DIST and FREEZE in
-    one period), once with a NaN cut height (ON refused: 900005, then FREEZE in ERROR: 900003)."""
+    """The commands' edges: thc-enable coming on while plasmac's corner lock holds (ON_CONST_DIST and FREEZE
+    in one period), once with a NaN cut height (ON refused: 900005, then FREEZE in ERROR: 900003)."""
     rows = []
     for k in range(400):
         v = 104.0 + 2.0 * math.sin(2 * math.pi * 50 * k * 0.001)
         slow = 95 <= k < 105 or 340 <= k < 360
         sd = math.nan if 90 <= k < 110 else 1.5
-        rows.append(_row(v, 100 <= k < 300 or k >= 350, True, 50.0 if slow else 80.0, 80.0, False, 30.0, 30.0, sd))
+        rows.append(_row(v, 100 <= k < 300 or k >= 350, True, 50.0 if slow else 80.0, 4800.0, False, 30.0, 30.0, sd))
     return rows + rows[-1:] * (N - len(rows))
 
 
-COMMANDS = {"ON refused, FREEZE at ON": ThcConfig(kp=0.5, i_tn=0.05)}
+COMMANDS = {"ON refused, FREEZE at ON": ThcConfig(kp=0.5, i_tn=0.05, cornerlock_mode="plasmac")}
+
+
+def _lock_inputs():
+    """The locks' edges. The path accelerates after the THC came on (k 20..120: distctrl's corner lock is
+    not armed before 95 % of the feed, plasmac's locks), slows to 87.5 % of the feed (a corner: both lock),
+    comes back to 92.5 % (distctrl's holds: hysteresis; plasmac's holds below 99 %), to 96.25 % (distctrl's
+    opens), to 100 % (plasmac's opens); a feed hold (feed-upm 0: distctrl's locks at once); the THC off and on
+    at full speed (armed at once); the void lock switched off and on (reset); a void; a second one with a
+    NaN sample (not stored by the void lock, 900001 for the core)."""
+    rng = np.random.default_rng(37)
+    rows = []
+    F = 80.0                                          # mm/s: feed-upm 4800
+    for k in range(N):
+        t = k * 0.001
+        v = 104.0 + 2.0 * math.sin(2 * math.pi * 50 * t) + 0.3 * rng.standard_normal()
+        if 560 <= k < 600:
+            v += 45.0 * min(1.0, (k - 560) / 5.0, (599 - k) / 5.0)     # a void (hole) in and out
+        if 780 <= k < 820:
+            v += 45.0 * min(1.0, (k - 780) / 5.0)
+        if k == 790:
+            v = math.nan
+        feed = 0.0 if 400 <= k < 430 else F * 60.0
+        if k < 20:
+            vel = 0.0
+        elif k < 120:
+            vel = F * (k - 20) / 100.0
+        elif 200 <= k < 230:
+            vel = 0.875 * F
+        elif 230 <= k < 280:
+            vel = 0.925 * F
+        elif 280 <= k < 330:
+            vel = 0.9625 * F
+        elif 400 <= k < 430:
+            vel = F * (1.0 - (k - 400) / 30.0)
+        elif 430 <= k < 480:
+            vel = F * (k - 430) / 50.0
+        else:
+            vel = F
+        enable = not (k < 20 or 500 <= k < 520 or k >= 860)
+        vl = not (640 <= k < 660)
+        rows.append(_row(v, enable, True, vel, feed, vl, 30.0, 30.0, 1.5))
+    return rows
+
+
+LOCKS = {
+    "locks distctrl": ThcConfig(kp=0.5, i_tn=0.05),
+    "locks plasmac": ThcConfig(kp=0.5, i_tn=0.05, cornerlock_mode="plasmac"),
+    "locks distctrl 75 % no hysteresis": ThcConfig(kp=0.4, cornerlock_threshold=75.0, cornerlock_hysteresis=0.0,
+                                                   voidlock_slope=300.0, voidlock_window=0.01, voidlock_on_cycles=2,
+                                                   voidlock_off_cycles=10, voidlock_release_band=3.0),
+}
 GROUPS = [(list(LAW), [LAW[n] for n in LAW], _law_inputs),
           (list(ERRORS), [c for c, _ in ERRORS.values()], _error_inputs),
-          (list(COMMANDS), list(COMMANDS.values()), _command_inputs)]
+          (list(COMMANDS), list(COMMANDS.values()), _command_inputs),
+          (list(LOCKS), list(LOCKS.values()), _lock_inputs)]
 _IN = {"arc": ("arc-voltage-in", "f"), "enable": ("thc-enable", "b"), "cl-enable": ("cornerlock-enable", "b"),
-       "vel": ("current-velocity", "f"), "req-vel": ("requested-velocity", "f"), "vl-enable": ("voidlock-enable", "b"),
+       "vel": ("current-velocity", "f"), "feed-upm": ("feed-upm", "f"), "vl-enable": ("voidlock-enable", "b"),
        "zc": ("axis-z-command", "f"), "za": ("axis-z-position", "f"), "sd": ("set-dist", "f")}
 _OUT = {"offset": ("offset", "f"), "filtered": ("filtered", "f"), "velocity": ("velocity", "f"),
         "distance": ("distance", "f"), "counts": ("z-offset-counts", "s"), "state": ("state", "s"),
-        "error_id": ("error-id", "s"), "cl": ("cornerlock-is-locked", "b"), "vl": ("voidlock-is-locked", "b")}
+        "error_id": ("error-id", "s"), "cl": ("cornerlock-is-locked", "b"), "vl": ("voidlock-is-locked", "b"),
+        "vl-rate": ("voidlock-rate", "f"), "vl-mean": ("voidlock-mean", "f")}
 
 
 @pytest.fixture(scope="module")
@@ -183,6 +236,11 @@ def _bits(x: float) -> bytes:
     return struct.pack("<d", x)
 
 
+def _same(a: float, b: float) -> bool:
+    """The same double to the last bit (any NaN equals any NaN: a NaN's payload is not the law's)."""
+    return (math.isnan(a) and math.isnan(b)) or _bits(a) == _bits(b)
+
+
 def _compare(cfg, rows, got, first_set_dist):
     """ThcCore on the rows against the component's outputs, every period; the HLI states seen."""
     ref = ThcCore(cfg)
@@ -195,9 +253,11 @@ def _compare(cfg, rows, got, first_set_dist):
         states.append(r["state"])
         assert (g["state"], g["error_id"]) == (r["state"], r["error_id"]), (k, "state, error id")
         for key in ("offset", "velocity", "distance", "filtered"):
-            assert _bits(g[key]) == _bits(r[key]), (k, key, g[key], r[key])
+            assert _same(g[key], r[key]), (k, key, g[key], r[key])
         assert g["counts"] == r["counts"], (k, "counts")
         assert (bool(g["cl"]), bool(g["vl"])) == (r["cornerlock_is_locked"], r["voidlock_is_locked"]), (k, "locks")
+        for key, ref_key in (("vl-rate", "voidlock_rate"), ("vl-mean", "voidlock_mean")):
+            assert _same(g[key], r[ref_key]), (k, key, g[key], r[ref_key])
     return states
 
 
@@ -259,30 +319,36 @@ def test_thc_config_refuses_values_outside_the_documents_ranges():
         ThcConfig(min_pos=1.0, max_pos=1.5, tolerance=0.5).check(0.001)
 
 
-def test_the_components_void_lock_is_distctrls_void_lock_function():
-    """ThcLocks (the component's void lock, streamed bit for bit above) locks and releases in the same
-    periods as distctrl's void_lock process function on the law stream's arc voltage (its hole), with the
-    window starting afresh whenever the THC is switched on (the function: at every select)."""
-    from types import SimpleNamespace
+def test_the_components_locks_are_distctrls_process_functions_period_for_period(streamed):
+    """The component's corner lock and void lock against ThcCore, whose locks are distctrl's CornerLock and
+    VoidLock process functions themselves (ThcLocks steps them): locks, the void lock's rate and mean bit for
+    bit, every period; and the edges the stream was made for happen."""
+    cl, vl = {}, {}
+    for name, cfg in LOCKS.items():
+        _, rows, got = streamed[0][name]
+        _compare(cfg, rows, got, cfg.set_dist)
+        cl[name] = [bool(g["cl"]) for g in got]
+        vl[name] = [bool(g["vl"]) for g in got]
+    d, p, d75 = cl["locks distctrl"], cl["locks plasmac"], cl["locks distctrl 75 % no hysteresis"]
+    assert not any(d[:200]) and all(p[25:100])           # arming: distctrl's waits for 95 % of the feed
+    assert all(d[202:280]) and not any(d[282:400])       # 87.5 % locks, 92.5 % holds (hysteresis), 96.25 % opens
+    assert all(p[202:330]) and not any(p[332:400])       # plasmac's opens above 99 % only
+    assert not any(d75[200:330])                         # 75 %: the corner's 87.5 % is no corner
+    assert all(d[401:430]) and all(d75[401:430])         # a feed hold (feed-upm 0) locks distctrl's
+    assert not any(p[400:405])                           # plasmac's compares with 0 % of 0
+    assert not any(d[500:521]) and d[540] is False       # THC off: disarmed; on at full speed: armed, open
+    for name in LOCKS:
+        assert any(vl[name][560:600]) and not any(vl[name][640:661]), name   # the void; the switch resets
+    assert cl["locks distctrl"][0] is False
 
-    from distctrl.linuxcnc.thc import ThcLocks
-    from distctrl.plc.process.void_lock import VoidLock
 
-    cfg = LAW["DEFAULT"]
-    locks = ThcLocks(cfg)
-    fn = VoidLock("Z", 0.001, cfg.voidlock_slope, variable="ARC", window=cfg.voidlock_window,
-                  on_cycles=cfg.voidlock_on_cycles, off_cycles=cfg.voidlock_off_cycles,
-                  release_band=cfg.voidlock_release_band)
-    fn.hold = SimpleNamespace(held_by_us=True, request=lambda name: None)
-    state_r = SimpleNamespace(actual_state=0)
-    machine = SimpleNamespace(hli={"Z": SimpleNamespace(state_r=state_r)}, variables={})
-    ours, theirs = [], []
-    for k, (v, en, cl, vel, req, vl, zc, za, sd) in enumerate(_law_inputs()):
-        locks.step(v, en, False, vel, req, vl)
-        state_r.actual_state = 4 if en else 0          # tracking (or held by the lock) while switched on
-        machine.variables["V.E.ARC"] = v
-        fn.step(machine, k)
-        ours.append(locks.voidlock)
-        theirs.append(fn.locked)
-    assert ours == theirs
-    assert any(ours[300:340]) and not any(ours[:300])
+def test_thc_config_refuses_lock_settings_outside_the_process_functions_ranges():
+    with pytest.raises(LinuxCNCError, match="cornerlock-threshold / 100: corner_lock.share"):
+        ThcConfig(cornerlock_threshold=0.0).check(0.001)
+    with pytest.raises(LinuxCNCError, match="corner_lock.hysteresis"):
+        ThcConfig(cornerlock_threshold=97.0, cornerlock_hysteresis=5.0).check(0.001)
+    with pytest.raises(LinuxCNCError, match="cornerlock-mode = 'vad' unknown"):
+        ThcConfig(cornerlock_mode="vad").check(0.001)
+    with pytest.raises(LinuxCNCError, match="voidlock-on-cycles: void_lock.on_cycles"):
+        ThcConfig(voidlock_on_cycles=0).check(0.001)
+    ThcConfig(cornerlock_mode="plasmac", cornerlock_threshold=0.0).check(0.001)   # plasmac: 0 % never locks

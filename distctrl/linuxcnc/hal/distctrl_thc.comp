@@ -19,11 +19,17 @@ documents' IDs): 70329 the reading changed by more than max-act-value-change * p
 reading left the window max-pos - tolerance / min-pos + tolerance, 70331 the offset at max-deviation and
 the law wants beyond, 900001 a non-finite input. ERROR holds the offset (it brakes and stays) and is left
 only by thc-enable off (TURNING_OFF, the run-out) and on again.
-Corner lock: current-velocity below cornerlock-threshold percent of requested-velocity (plasmac's).
-Void lock: distctrl's void_lock function (distctrl/plc/process/void_lock.py, its ST): the arc voltage's
-rate over a window of voidlock-window s above voidlock-slope for voidlock-on-cycles periods closes it;
-steady for voidlock-off-cycles periods with the window's mean at most voidlock-release-band above the
-level before the void opens it; the window starts afresh whenever thc-enable comes on.
+Corner lock (cornerlock-mode 0, the default): distctrl's corner_lock process function
+(distctrl/plc/process/corner_lock.py, its ST): while tracking (ACTIVE_CONST_DIST, or the FREEZE it
+commanded), armed once current-velocity * 60 has reached (cornerlock-threshold + cornerlock-hysteresis) % of
+feed-upm (F times the override, units/min), then locked below cornerlock-threshold % (or feed-upm 0) and open
+again at threshold + hysteresis. cornerlock-mode 1: plasmac 1.235's rule (locked below cornerlock-threshold %
+of feed-upm, open above 99 %, while thc-enable is on; no arming).
+Void lock: distctrl's void_lock function (distctrl/plc/process/void_lock.py, its ST), while tracking: the arc
+voltage's rate over a window of voidlock-window s above voidlock-slope for voidlock-on-cycles periods closes
+it; steady for voidlock-off-cycles periods with the window's mean at most voidlock-release-band above the
+level before the void opens it; the window starts afresh at every select; a non-finite sample is not
+stored and counts as unsteady. Switching cornerlock-enable or voidlock-enable resets the function.
 
 The filter coefficients fc-000..fc-134 are the law's coefficient buffer (distctrl.control.filters.
 design_coefficients; the low-pass is designed with scipy there): `distctrl linuxcnc thc-setp` prints
@@ -37,9 +43,11 @@ pin in bit use_both_encoders "P-AXIS-00500: feedback d + c - a (FCT-M3 §7.1) in
 pin in float axis_z_position "a: the Z joint's actual position (joint.N.pos-fb)";
 pin in float axis_z_command "p: Z as programmed, without this component's offset (the core adds it: c = p + offset)";
 pin in bit cornerlock_enable "enable corner lock";
-pin in float cornerlock_threshold = 90.0 "corner lock below this percentage of requested-velocity";
+pin in float cornerlock_threshold = 90.0 "corner lock below this % of feed-upm (corner_lock.share * 100; plasmac's threshold)";
 pin in float current_velocity "current path velocity (units/s), motion.current-vel";
-pin in float requested_velocity "requested path velocity (units/s)";
+pin in float feed_upm "the feed F times the override (units/min), motion.feed-upm (plasmac's feed-upm)";
+pin in s32 cornerlock_mode "0: distctrl's corner_lock process function (default); 1: plasmac's rule";
+pin in float cornerlock_hysteresis = 5.0 "mode 0: opens at cornerlock-threshold + this (% of feed-upm), corner_lock.hysteresis";
 pin in bit voidlock_enable "enable void lock";
 pin in float voidlock_slope = 500.0 "void lock above this arc-voltage rate over the window (V/s)";
 pin in float voidlock_window = 0.02 "the rate's window (s; 20 ms spans a 50 Hz ripple period; at most 100 periods)";
@@ -64,6 +72,8 @@ pin out float offset_scale "mm per count, connect to axis.z.eoffset-scale";
 pin out bit z_offset_enable "connect to axis.z.eoffset-enable";
 pin out bit cornerlock_is_locked "corner locked";
 pin out bit voidlock_is_locked "void locked";
+pin out float voidlock_rate "the void lock's arc-voltage rate over its window (V/s; NaN before the first full window)";
+pin out float voidlock_mean "the void lock's window mean (V; NaN until the window is full)";
 pin out float offset "the offset o (mm)";
 pin out float distance "the linearised distance (mm)";
 pin out float filtered "the filtered distance (mm; the unfiltered one where the filter does not run)";
@@ -91,6 +101,12 @@ variable double vbuf[100];
 variable double vmean[100];
 variable double vsum;
 variable double vlevel;
+variable double vmean_now;
+variable double vrate;
+variable int cl_armed;
+variable int cl_locked;
+variable int held;
+variable int vinit;
 variable int vi;
 variable int nfill;
 variable int nmfill;
@@ -388,66 +404,112 @@ FUNCTION(_) {
     double T = fperiod, inv_T = 1.0 / T, d_in, s_now, s, d, prog, act, fb, y, e, m, u, ic, integral0, v, v_prev,
            i_gain, dg, a_base, a_floor, a_lim, a_applied, a_bound, v_lim, lo, hi, v_limited, o_prev, o_new, u_lim,
            e_lim, wanted, clipped, v_real;
-    int i, lower, locked, finite_inputs = 1, sensor_ok, running, hold, st0;
+    int i, lower, locked, finite_inputs = 1, sensor_ok, running, hold, st0, tracking, freeze = 0;
     for (i = 0; i < 135; i++)
         cf[i] = fc(i);
+    if (!vinit) {                               /* VoidLock's initial state: no mean, no rate, no level */
+        vmean_now = NAN;
+        vrate = NAN;
+        vlevel = NAN;
+        vinit = 1;
+    }
     offset_scale = resolution;
     d_in = (arc_voltage_in - arc_v0) * (1.0 / arc_k);
     distance = d_in;
-    /* the locks (also while idle, so that they are current when the law starts) */
-    if (cornerlock_enable)
-        cornerlock_is_locked = current_velocity < requested_velocity * cornerlock_threshold * 0.01;
-    else
-        cornerlock_is_locked = 0;
-    if (!voidlock_enable || !thc_enable) {
+    /* the locks: distctrl's corner_lock and void_lock process functions (distctrl/plc/process/corner_lock.py,
+       void_lock.py, their step) as distctrl's PLC runs them on an axis: state_r.actual_state is the state of
+       the last period (hli), the hold is ours in a FREEZE the locks commanded (held); a switch resets */
+    tracking = hli == S_ACTIVE_CD || (hli == S_FREEZE && held);
+    if (cornerlock_mode == 1) {                 /* plasmac 1.235's rule (plasmac.comp, CUT_MODE_01) */
+        double vc = current_velocity * 60.0;
+        if (!cornerlock_enable || !thc_enable)
+            cornerlock_is_locked = 0;
+        else if (vc < feed_upm * cornerlock_threshold * 0.01)
+            cornerlock_is_locked = 1;
+        else if (cornerlock_is_locked && vc > feed_upm * 0.99)
+            cornerlock_is_locked = 0;
+        cl_armed = 0;
+        cl_locked = 0;
+    } else {
+        if (!cornerlock_enable || !tracking) {  /* switched off (reset), or not tracking (disarmed) */
+            cl_armed = 0;
+            cl_locked = 0;
+        } else {
+            double ref = feed_upm * 1.0, vc = current_velocity * 60.0;   /* D_CommandFeed * override, D_ActiveFeed */
+            double share = cornerlock_threshold * 0.01, hyst = cornerlock_hysteresis * 0.01;
+            int back = ref > 0.0 && vc >= (share + hyst) * ref;
+            if (!cl_armed)
+                cl_armed = back;
+            else if (cl_locked)
+                cl_locked = !back;
+            else
+                cl_locked = ref <= 0.0 || vc < share * ref;
+        }
+        cornerlock_is_locked = cornerlock_enable && cl_armed && cl_locked;
+    }
+    if (!voidlock_enable) {                     /* switched off: VoidLock.reset() */
+        vi = 0;
         nfill = 0;
         nmfill = 0;
         vsum = 0.0;
+        vmean_now = NAN;
+        vrate = NAN;
+        vlevel = NAN;
+        voidlock_is_locked = 0;
+        non = 0;
+        noff = 0;
+    } else if (!tracking) {                     /* the window starts afresh at the select */
+        nfill = 0;
+        nmfill = 0;
+        vsum = 0.0;
+        vmean_now = NAN;
         voidlock_is_locked = 0;
         non = 0;
         noff = 0;
     } else {
-        int N = (int)lround(voidlock_window / T), full, mfull;
-        double x = arc_voltage_in, old, mean_old, mean = 0.0, rate;
+        int N = (int)rint(voidlock_window / T), full, mfull, vfinite, steady;
+        double x = arc_voltage_in, old, mean_old, rate;
         if (N < 1)
             N = 1;
         if (N > 100)
             N = 100;
         if (vi >= N)
             vi = 0;
+        vfinite = isfinite(x);
         old = vbuf[vi];
-        full = nfill >= N;
-        mean_old = vmean[vi];
+        full = nfill >= N;                      /* old is a sample taken N periods ago */
+        mean_old = vmean[vi];                   /* the window mean N periods ago */
         mfull = nmfill >= N;
-        vbuf[vi] = x;
-        vsum = vsum + x - (full ? old : 0.0);
-        if (!full)
-            nfill += 1;
-        if (nfill >= N) {
-            mean = vsum / N;
-            vmean[vi] = mean;
-            if (nmfill < N)
-                nmfill += 1;
+        if (vfinite) {                          /* a non-finite sample is not stored */
+            vbuf[vi] = x;
+            vsum += full ? x - old : x;
+            if (!full)
+                nfill += 1;
+            if (nfill >= N) {
+                vmean_now = vsum / N;
+                vmean[vi] = vmean_now;
+                if (nmfill < N)
+                    nmfill += 1;
+            }
+            vi = (vi + 1) % N;
         }
-        vi = (vi + 1) % N;
         if (!full) {
             voidlock_is_locked = 0;
             non = 0;
             noff = 0;
         } else {
-            rate = (x - old) / (N * T);
+            rate = vfinite ? (x - old) * (1.0 / (N * T)) : INFINITY;
+            vrate = rate;
+            steady = fabs(rate) <= voidlock_slope;
             if (!voidlock_is_locked) {
-                if (fabs(rate) > voidlock_slope)
-                    non += 1;
-                else
-                    non = 0;
+                non = steady ? 0 : non + 1;
                 if (non >= voidlock_on_cycles) {
                     voidlock_is_locked = 1;
                     vlevel = mfull ? mean_old : old;
                     noff = 0;
                 }
             } else {
-                if (fabs(rate) <= voidlock_slope && mean - vlevel <= voidlock_release_band)
+                if (steady && vmean_now - vlevel <= voidlock_release_band)
                     noff += 1;
                 else
                     noff = 0;
@@ -458,6 +520,8 @@ FUNCTION(_) {
             }
         }
     }
+    voidlock_rate = vrate;
+    voidlock_mean = vmean_now;
     locked = cornerlock_is_locked || voidlock_is_locked;
 
     /* ---- AxisDistanceController.update (distctrl/control/controller.py) as the component reaches it:
@@ -511,6 +575,7 @@ FUNCTION(_) {
             hli = S_ACTIVE_CD;
         }
         if (st0 == S_INACTIVE && locked) {                       /* FREEZE at once */
+            freeze = 1;
             if (hli == S_ACTIVE_CD)
                 hli = S_FREEZE;
             else
@@ -518,6 +583,7 @@ FUNCTION(_) {
         }
     } else if (st0 == S_ACTIVE_CD && locked) {
         hli = S_FREEZE;                                          /* FREEZE */
+        freeze = 1;
     }
     running = hli == S_ACTIVE_CD;
     if (running) {
@@ -636,6 +702,7 @@ FUNCTION(_) {
     velocity = vel;
     state = hli;
     error_id = errv;
+    held = hli == S_FREEZE && (freeze || held);     /* the hold is ours while the FREEZE the locks commanded lasts */
     z_offset_counts = resolution > 0.0 ? (int)lround(o_new / resolution) : 0;
     z_offset_enable = thc_enable || hli != S_INACTIVE || o_new != 0.0 || z_offset_counts != 0;
 }
