@@ -41,6 +41,8 @@ __all__ = ["ThcConfig", "ThcCore", "ThcLocks", "lround", "CORNERLOCK_MODES"]
 CORNERLOCK_MODES = {"distctrl": 0, "plasmac": 1}
 #: the void lock's signal, a V.E. variable of the PLC (the arc voltage)
 _ARC = "V.E.ARC_VOLTAGE"
+#: the parameter list's defaults (software limits, adaptive acceleration, lowering weights)
+_AXIS = AxisParameters()
 
 
 def lround(x: float) -> int:
@@ -84,6 +86,16 @@ class ThcConfig:
     max_pos: float = 50000.0               # P-AXIS-00419, mm: the window of the reading s = -distance (70330)
     min_pos: float = -50000.0              # P-AXIS-00420, mm (70576)
     tolerance: float = 0.0                 # P-AXIS-00421, mm
+    check_sw_limit_switch: bool = False    # P-AXIS-00428: the offset bounded by the software limits
+    sw_limit_max: float = _AXIS.sw_limit_max   # P-AXIS-00177 swe_pos, mm (of axis-z-command's coordinates)
+    sw_limit_min: float = _AXIS.sw_limit_min   # P-AXIS-00178 swe_neg, mm
+    v_weight_down: float = 0.0             # P-AXIS-00533, fraction (0 = off): v_max of a lowering move
+    a_weight_down: float = 0.0             # P-AXIS-00534, fraction (0 = off): a_max of a lowering move
+    use_adaptive_acceleration: bool = False    # P-AXIS-00501 (Fig. 31)
+    a_min: float = _AXIS.a_min             # P-AXIS-00502, mm/s²
+    dist_error_a_min: float = _AXIS.dist_error_a_min   # P-AXIS-00504, mm
+    dist_error_a_max: float = _AXIS.dist_error_a_max   # P-AXIS-00505, mm
+    dryrun: bool = False                   # the dryrun pin's setting: thc-enable selects DRYRUN (CONST_DIST)
 
     def check(self, cycle_time: float) -> None:
         """Raise :class:`LinuxCNCError` naming the parameter and its range unless every value is allowed."""
@@ -129,6 +141,10 @@ class ThcConfig:
             self.filter.check(cycle_time)
         except ParameterError as exc:
             raise LinuxCNCError(f"distctrl_thc filter: {exc}") from None
+        try:                                         # the parameter list's own checks (ranges, swe_neg < swe_pos)
+            self.axis_parameters()
+        except ParameterError as exc:
+            raise LinuxCNCError(f"distctrl_thc: {exc}") from None
 
     @property
     def cornerlock_share(self) -> float:
@@ -148,20 +164,24 @@ class ThcConfig:
     def from_params(cls, p, **kw) -> "ThcConfig":
         """From an axis parameter list (:class:`distctrl.params.AxisParameters`): KP, I_TN, D_TV, both
         encoders, the filter, v_max, a_max (0: the axis's), max_deviation, the monitoring's
-        max_act_value_change, max_pos, min_pos, tolerance; ``kw`` sets the rest."""
+        max_act_value_change, max_pos, min_pos, tolerance, the software limits, the lowering weights and
+        the adaptive acceleration; ``kw`` sets the rest."""
         fields = dict(kp=p.kp, i_tn=p.i_tn, d_tv=p.d_tv, use_both_encoders=bool(p.use_both_encoders),
                       filter=FilterConfig(p.filter_type, p.n_cycles, p.smoothing_factor, p.kalman_sigma,
                                           p.low_pass_filter_order, p.low_pass_filter_fg_f0),
                       v_max=p.v_max, a_max=p.a_max if p.a_max > 0 else p.axis_a_max,
                       max_deviation=p.max_deviation, max_act_value_change=p.max_act_value_change,
-                      max_pos=p.max_pos, min_pos=p.min_pos, tolerance=p.tolerance)
+                      max_pos=p.max_pos, min_pos=p.min_pos, tolerance=p.tolerance,
+                      check_sw_limit_switch=bool(p.check_sw_limit_switch), sw_limit_max=p.sw_limit_max,
+                      sw_limit_min=p.sw_limit_min, v_weight_down=p.v_weight_down, a_weight_down=p.a_weight_down,
+                      use_adaptive_acceleration=bool(p.use_adaptive_acceleration), a_min=p.a_min,
+                      dist_error_a_min=p.dist_error_a_min, dist_error_a_max=p.dist_error_a_max)
         fields.update(kw)
         return cls(**fields)
 
     def axis_parameters(self) -> AxisParameters:
         """The axis parameter list the cycle core runs the component's law with (:class:`ThcCore`): these
-        settings, the sensor absolute (no REF), optimized scheduling (the reading of this period), no
-        adaptive acceleration, no lowering weights, no software limits (LinuxCNC's motion keeps them)."""
+        settings, the sensor absolute (no REF), optimized scheduling (the reading of this period)."""
         f = self.filter
         return AxisParameters(enabled=True, kp=self.kp, i_tn=self.i_tn, d_tv=self.d_tv,
                               use_both_encoders=self.use_both_encoders, filter_type=f.filter_type,
@@ -170,8 +190,11 @@ class ThcConfig:
                               a_max=self.a_max, max_deviation=self.max_deviation,
                               max_act_value_change=self.max_act_value_change, max_pos=self.max_pos,
                               min_pos=self.min_pos, tolerance=self.tolerance, sensor_absolute=True,
-                              optimized_scheduling=True, use_adaptive_acceleration=False, v_weight_down=0.0,
-                              a_weight_down=0.0, check_sw_limit_switch=False)
+                              optimized_scheduling=True, use_adaptive_acceleration=self.use_adaptive_acceleration,
+                              a_min=self.a_min, dist_error_a_min=self.dist_error_a_min,
+                              dist_error_a_max=self.dist_error_a_max, v_weight_down=self.v_weight_down,
+                              a_weight_down=self.a_weight_down, check_sw_limit_switch=self.check_sw_limit_switch,
+                              sw_limit_max=self.sw_limit_max, sw_limit_min=self.sw_limit_min)
 
     def setp_lines(self, cycle_time: float, name: str = "distctrl-thc.0") -> list[str]:
         """halcmd ``setp`` lines for the component instance ``name`` (exact: repr of each double)."""
@@ -186,7 +209,13 @@ class ThcConfig:
                 "voidlock-off-cycles": int(self.voidlock_off_cycles),
                 "voidlock-release-band": self.voidlock_release_band,
                 "max-act-value-change": self.max_act_value_change, "max-pos": self.max_pos,
-                "min-pos": self.min_pos, "tolerance": self.tolerance}
+                "min-pos": self.min_pos, "tolerance": self.tolerance,
+                "check-sw-limit-switch": int(self.check_sw_limit_switch), "sw-limit-max": self.sw_limit_max,
+                "sw-limit-min": self.sw_limit_min, "v-weight-down": self.v_weight_down,
+                "a-weight-down": self.a_weight_down,
+                "use-adaptive-acceleration": int(self.use_adaptive_acceleration), "a-min": self.a_min,
+                "dist-error-a-min": self.dist_error_a_min, "dist-error-a-max": self.dist_error_a_max,
+                "dryrun": int(self.dryrun)}
         lines = [f"setp {name}.{k} {v!r}" for k, v in pins.items()]
         lines += [f"setp {name}.fc-{i:03d} {float(c)!r}" for i, c in enumerate(fc)]
         return lines
@@ -286,6 +315,7 @@ class ThcLocks:
 STATE_INACTIVE, STATE_FREEZE, STATE_TURNING_OFF, STATE_ACTIVE_CONST_DIST, STATE_ERROR = (
     int(HliState.INACTIVE), int(HliState.FREEZE), int(HliState.TURNING_OFF), int(HliState.ACTIVE_CONST_DIST),
     int(HliState.ERROR))
+STATE_DRYRUN_CONST_DIST = int(HliState.DRYRUN_CONST_DIST)
 
 
 class ThcCore:
@@ -298,10 +328,13 @@ class ThcCore:
     period and this period's locks (:class:`ThcLocks`: distctrl's corner_lock and void_lock functions, which
     see that state as ``state_r.actual_state``) the commands:
 
-    * thc-enable on and INACTIVE: ON_CONST_DIST with SET_DIST (and FREEZE at once if a lock holds);
-    * thc-enable on, ACTIVE_CONST_DIST and a lock holds: FREEZE; FREEZE and no lock: ON_CONST_DIST;
-    * thc-enable off in ACTIVE_CONST_DIST, FREEZE or ERROR: OFF (TURNING_OFF runs the offset out to 0,
-      then INACTIVE). ERROR is left only this way (FCT-M3 §8.1): thc-enable off, then on again.
+    * thc-enable on and INACTIVE: ON_CONST_DIST with SET_DIST (and FREEZE at once if a lock holds); with
+      ``dryrun`` on, DRYRUN with SET_DIST (HLI CONST_DIST: the cycle runs, the offset stands; a DRYRUN
+      selected while the offset still moves is a FREEZE until it stands, the core's rule);
+    * thc-enable on, ACTIVE_CONST_DIST and a lock holds: FREEZE; the FREEZE the locks commanded and no
+      lock: ON_CONST_DIST;
+    * thc-enable off in ACTIVE_CONST_DIST, DRYRUN_CONST_DIST, FREEZE or ERROR: OFF (TURNING_OFF runs the
+      offset out to 0, then INACTIVE). ERROR is left only this way (FCT-M3 §8.1): thc-enable off, then on.
 
     hal/distctrl_thc.comp is this class in C; tests/linuxcnc/test_thc.py checks it bit for bit."""
 
@@ -317,9 +350,10 @@ class ThcCore:
 
     def step(self, arc_voltage: float, enable: bool, cornerlock_enable: bool = False, current_velocity: float = 0.0,
              feed_upm: float = 0.0, voidlock_enable: bool = False, z_command: float = 0.0,
-             z_actual: float = 0.0, set_dist: float | None = None) -> dict:
+             z_actual: float = 0.0, set_dist: float | None = None, dryrun: bool | None = None) -> dict:
         c = self.c
         set_dist = c.set_dist if set_dist is None else set_dist
+        dryrun = c.dryrun if dryrun is None else dryrun
         d = (arc_voltage - c.arc_v0) * (1.0 / c.arc_k)
         locked = self.locks.step(arc_voltage, self.state, self._held, enable, cornerlock_enable, current_velocity,
                                  feed_upm, voidlock_enable)
@@ -333,8 +367,10 @@ class ThcCore:
         on = Command(Action.ON, const_dist=True, set_dist=set_dist, source=CommandSource.PLC)
         freeze = False
         if not enable:
-            if st in (STATE_ACTIVE_CONST_DIST, STATE_FREEZE, STATE_ERROR):
+            if st in (STATE_ACTIVE_CONST_DIST, STATE_FREEZE, STATE_ERROR, STATE_DRYRUN_CONST_DIST):
                 cmds.append(Command(Action.OFF, source=CommandSource.PLC))
+        elif st == STATE_INACTIVE and dryrun:        # DRYRUN with SET_DIST (HLI CONST_DIST); no lock freezes it
+            cmds.append(Command(Action.DRYRUN, const_dist=True, set_dist=set_dist, source=CommandSource.PLC))
         elif st == STATE_INACTIVE:
             cmds.append(on)
             if locked:
@@ -343,7 +379,7 @@ class ThcCore:
         elif st == STATE_ACTIVE_CONST_DIST and locked:
             cmds.append(Command(Action.FREEZE, source=CommandSource.PLC))
             freeze = True
-        elif st == STATE_FREEZE and not locked:
+        elif st == STATE_FREEZE and self._held and not locked:   # the hold releases only its own FREEZE
             cmds.append(on)
         out = CycleOutput()
         self.ctrl.update(inp, out)
@@ -357,5 +393,6 @@ class ThcCore:
                 "offset": o, "velocity": out.offset_velocity, "filtered": out.filtered_feedback,
                 "counts": lround(o / r) if r > 0.0 else 0, "cornerlock_is_locked": self.locks.cornerlock,
                 "voidlock_is_locked": self.locks.voidlock, "voidlock_rate": self.locks.void.rate,
-                "voidlock_mean": self.locks.void.mean,
+                "voidlock_mean": self.locks.void.mean, "target_deviation": out.target_deviation,
+                "wanted_step": out.delta_deviation_pre_limiter,
                 "events": [ev.id for ev in out.events]}

@@ -44,8 +44,9 @@ NAN_AT = 720
 N = 900
 
 
-def _row(v, enable, cl, vel, feed_upm, vl, zc, za, sd):
-    return (float(v), bool(enable), bool(cl), float(vel), float(feed_upm), bool(vl), float(zc), float(za), float(sd))
+def _row(v, enable, cl, vel, feed_upm, vl, zc, za, sd, dryrun=False):
+    return (float(v), bool(enable), bool(cl), float(vel), float(feed_upm), bool(vl), float(zc), float(za), float(sd),
+            bool(dryrun))
 
 
 def _law_inputs():
@@ -150,17 +151,59 @@ LOCKS = {
                                                    voidlock_slope=300.0, voidlock_window=0.01, voidlock_on_cycles=2,
                                                    voidlock_off_cycles=10, voidlock_release_band=3.0),
 }
+
+
+def _limit_inputs():
+    """The rest of the core's CONST_DIST cycle: first a DRYRUN from rest with a pulse (the offset stands),
+    the THC off for one period and on (ACTIVE_CONST_DIST); arc-voltage pulses that lower (+12 V) and lift
+    (-12 V) the torch for 40 periods each (the software limits, the lowering weights, the adaptive
+    acceleration act), then the THC off for one period with dryrun on (TURNING_OFF runs the offset out; the DRYRUN selected
+    right after, while the run-out's last step still moves, is the core's FREEZE until the offset stands,
+    which the braking reaches within that period), a pulse in DRYRUN (computed, reported, not applied), the
+    THC off (dryrun off), on again and a last pulse."""
+    rng = np.random.default_rng(41)
+    rows = []
+    for k in range(N):
+        t = k * 0.001
+        v = 104.0 + 2.0 * math.sin(2 * math.pi * 3 * t) + 1.0 * math.sin(2 * math.pi * 50 * t) \
+            + 0.2 * rng.standard_normal()
+        for start, dv in ((15, 12.0), (100, 12.0), (200, -12.0), (600, 12.0), (720, 12.0)):
+            if start <= k < start + 40:
+                v += dv * min(1.0, (k - start) / 10.0, (start + 39 - k) / 10.0)
+        enable = not (k < 10 or k == 60 or k == 400 or 650 <= k < 670)
+        rows.append(_row(v, enable, False, 80.0, 4800.0, False, 30.0, 30.0, 1.5, k < 60 or 400 <= k < 650))
+    return rows
+
+
+LIMITS = {
+    "plain": ThcConfig(kp=0.5),
+    "software limit below (900002)": ThcConfig(kp=0.5, check_sw_limit_switch=True, sw_limit_min=29.0,
+                                               sw_limit_max=31.0),
+    "software limit above (900002)": ThcConfig(kp=0.5, check_sw_limit_switch=True, sw_limit_min=25.0,
+                                               sw_limit_max=30.5),
+    "lowering weights": ThcConfig(kp=0.5, v_weight_down=0.2, a_weight_down=0.25),
+    "adaptive acceleration": ThcConfig(kp=0.5, use_adaptive_acceleration=True, a_min=300.0, dist_error_a_min=0.2,
+                                       dist_error_a_max=1.5),
+    "all, I and D, moving average": ThcConfig(kp=0.4, i_tn=0.08, d_tv=0.004, v_weight_down=0.5, a_weight_down=0.6,
+                                              use_adaptive_acceleration=True, a_min=800.0, dist_error_a_min=0.1,
+                                              dist_error_a_max=0.8, check_sw_limit_switch=True, sw_limit_min=20.0,
+                                              sw_limit_max=40.0,
+                                              filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=4)),
+}
 GROUPS = [(list(LAW), [LAW[n] for n in LAW], _law_inputs),
           (list(ERRORS), [c for c, _ in ERRORS.values()], _error_inputs),
           (list(COMMANDS), list(COMMANDS.values()), _command_inputs),
-          (list(LOCKS), list(LOCKS.values()), _lock_inputs)]
+          (list(LOCKS), list(LOCKS.values()), _lock_inputs),
+          (list(LIMITS), list(LIMITS.values()), _limit_inputs)]
 _IN = {"arc": ("arc-voltage-in", "f"), "enable": ("thc-enable", "b"), "cl-enable": ("cornerlock-enable", "b"),
        "vel": ("current-velocity", "f"), "feed-upm": ("feed-upm", "f"), "vl-enable": ("voidlock-enable", "b"),
-       "zc": ("axis-z-command", "f"), "za": ("axis-z-position", "f"), "sd": ("set-dist", "f")}
+       "zc": ("axis-z-command", "f"), "za": ("axis-z-position", "f"), "sd": ("set-dist", "f"),
+       "dryrun": ("dryrun", "b")}
 _OUT = {"offset": ("offset", "f"), "filtered": ("filtered", "f"), "velocity": ("velocity", "f"),
         "distance": ("distance", "f"), "counts": ("z-offset-counts", "s"), "state": ("state", "s"),
         "error_id": ("error-id", "s"), "cl": ("cornerlock-is-locked", "b"), "vl": ("voidlock-is-locked", "b"),
-        "vl-rate": ("voidlock-rate", "f"), "vl-mean": ("voidlock-mean", "f")}
+        "vl-rate": ("voidlock-rate", "f"), "vl-mean": ("voidlock-mean", "f"),
+        "tdev": ("target-deviation", "f"), "step": ("wanted-step", "f")}
 
 
 @pytest.fixture(scope="module")
@@ -247,8 +290,8 @@ def _compare(cfg, rows, got, first_set_dist):
     ref.step(0.0, False, set_dist=first_set_dist)      # period 1: the pins' start values (outputs skipped)
     states = []
     for k, row in enumerate(rows):
-        v, en, cl, vel, req, vl, zc, za, sd = row
-        r = ref.step(v, en, cl, vel, req, vl, zc, za, sd)
+        v, en, cl, vel, feed, vl, zc, za, sd, dry = row
+        r = ref.step(v, en, cl, vel, feed, vl, zc, za, sd, dry)
         g = got[k]
         states.append(r["state"])
         assert (g["state"], g["error_id"]) == (r["state"], r["error_id"]), (k, "state, error id")
@@ -256,7 +299,8 @@ def _compare(cfg, rows, got, first_set_dist):
             assert _same(g[key], r[key]), (k, key, g[key], r[key])
         assert g["counts"] == r["counts"], (k, "counts")
         assert (bool(g["cl"]), bool(g["vl"])) == (r["cornerlock_is_locked"], r["voidlock_is_locked"]), (k, "locks")
-        for key, ref_key in (("vl-rate", "voidlock_rate"), ("vl-mean", "voidlock_mean")):
+        for key, ref_key in (("vl-rate", "voidlock_rate"), ("vl-mean", "voidlock_mean"),
+                             ("tdev", "target_deviation"), ("step", "wanted_step")):
             assert _same(g[key], r[ref_key]), (k, key, g[key], r[ref_key])
     return states
 
@@ -352,3 +396,52 @@ def test_thc_config_refuses_lock_settings_outside_the_process_functions_ranges()
     with pytest.raises(LinuxCNCError, match="voidlock-on-cycles: void_lock.on_cycles"):
         ThcConfig(voidlock_on_cycles=0).check(0.001)
     ThcConfig(cornerlock_mode="plasmac", cornerlock_threshold=0.0).check(0.001)   # plasmac: 0 % never locks
+
+
+@pytest.mark.parametrize("name", list(LIMITS))
+def test_the_component_has_the_cores_limits_weights_adaptive_acceleration_and_dryrun_bit_for_bit(streamed, name):
+    """Software limits (P-AXIS-00428/00177/00178), lowering weights (P-AXIS-00533/00534), adaptive
+    acceleration (P-AXIS-00501..00505) and DRYRUN (HLI CONST_DIST) against AxisDistanceController, bit for
+    bit; and each of them acts on the stream."""
+    cfg, rows, got = streamed[0][name]
+    states = _compare(cfg, rows, got, cfg.set_dist)
+    seq = _changes(states)
+    off = [g["offset"] for g in got]
+    vel = [g["velocity"] for g in got]
+    dry = [k for k, st in enumerate(states) if st == 6]
+    if name.startswith("software limit below"):
+        assert {g["error_id"] for g in got} - {0} == {900002} and min(off) >= -1.0 - 1e-9, (min(off), seq)
+    elif name.startswith("software limit above"):
+        assert {g["error_id"] for g in got} - {0} == {900002} and max(off) <= 0.5 + 1e-9, (max(off), seq)
+    else:
+        assert all(g["error_id"] == 0 for g in got), seq
+    plain = streamed[0]["plain"][2]
+    if name == "lowering weights":                   # lowers at most at 0.2 v-max (reached), lifts faster
+        assert min(vel) >= -20.0 - 1e-9 and min(vel[100:200]) < -19.0 and max(vel) > 50.0
+    if name == "adaptive acceleration":              # a_min near the target: a smaller first step
+        assert abs(vel[101]) < 0.5 * abs(plain[101]["velocity"])
+    # DRYRUN from rest: the cycle runs, the offset stands at 0, the law's step is reported
+    assert set(states[10:60]) == {6} and all(g["offset"] == 0.0 for g in got[:61]), seq
+    assert max(abs(g["step"]) for g in got[10:60]) > 0.2 and max(abs(g["tdev"]) for g in got[10:60]) > 1.0
+    assert states[60] == 0 and states[61] == 4
+    # DRYRUN right after a run-out: the core's FREEZE until the offset stands, then DRYRUN
+    dry = [k for k in dry if k > 400]
+    assert dry and set(states[dry[0]:650]) == {6}, seq
+    assert 2 in states[401:dry[0]] or states[dry[0] - 1] == 0, seq
+    assert len({off[k] for k in dry}) == 1                                      # the offset stands ...
+    assert max(abs(got[k]["step"]) for k in dry) > 0.2                          # ... the law's step is reported
+    assert max(abs(got[k]["tdev"]) for k in dry) > 1.0
+    assert 4 in states[670:] and 6 not in states[670:]
+
+
+def test_thc_config_refuses_limits_weights_and_adaptive_settings_outside_the_documents_ranges():
+    with pytest.raises(LinuxCNCError, match="P-AXIS-00533"):
+        ThcConfig(v_weight_down=2.5).check(0.001)
+    with pytest.raises(LinuxCNCError, match="P-AXIS-00534"):
+        ThcConfig(a_weight_down=-0.1).check(0.001)
+    with pytest.raises(LinuxCNCError, match="P-AXIS-00502"):
+        ThcConfig(use_adaptive_acceleration=True, a_min=0.0).check(0.001)
+    with pytest.raises(LinuxCNCError, match="P-AXIS-00177/00178"):
+        ThcConfig(check_sw_limit_switch=True, sw_limit_min=31.0, sw_limit_max=30.0).check(0.001)
+    lines = ThcConfig(check_sw_limit_switch=True, sw_limit_max=12.5, dryrun=True).setp_lines(0.001)
+    assert "setp distctrl-thc.0.sw-limit-max 12.5" in lines and "setp distctrl-thc.0.dryrun 1" in lines

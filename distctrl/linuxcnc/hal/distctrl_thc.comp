@@ -65,6 +65,16 @@ pin in float max_act_value_change = 5000.0 "P-AXIS-00417 (mm/s): the reading may
 pin in float max_pos = 50000.0 "P-AXIS-00419 (mm): upper end of the reading s = -distance (70330)";
 pin in float min_pos = -50000.0 "P-AXIS-00420 (mm): lower end of the reading s = -distance (70576)";
 pin in float tolerance = 0.0 "P-AXIS-00421 (mm): the window is min-pos + tolerance .. max-pos - tolerance";
+pin in bit check_sw_limit_switch "P-AXIS-00428: the offset bounded by the software limits (c = p + offset within them)";
+pin in float sw_limit_max = 214748.3646 "P-AXIS-00177 swe_pos (mm, axis-z-command's coordinates)";
+pin in float sw_limit_min = -214748.3648 "P-AXIS-00178 swe_neg (mm)";
+pin in float v_weight_down "P-AXIS-00533: v-max of a lowering move times this (fraction, 0 = off)";
+pin in float a_weight_down "P-AXIS-00534: a-max of a lowering move times this (fraction, 0 = off)";
+pin in bit use_adaptive_acceleration "P-AXIS-00501: the acceleration by the control error (FCT-M3 Fig. 31)";
+pin in float a_min = 500.0 "P-AXIS-00502: the acceleration up to dist-error-a-min (mm/s^2)";
+pin in float dist_error_a_min = 0.1 "P-AXIS-00504 (mm)";
+pin in float dist_error_a_max = 0.5 "P-AXIS-00505 (mm): a-max from this control error on";
+pin in bit dryrun "on: thc-enable selects DRYRUN (CONST_DIST): the cycle runs, the offset stands (target-deviation, wanted-step)";
 pin in float resolution = 0.001 "mm per offset count (wire plasmac.offset-scale to it; 0: no counts)";
 pin in float fc-###[135] "the law's filter coefficients (design_coefficients)";
 pin out s32 z_offset_counts "offset in counts, connect to axis.z.eoffset-counts";
@@ -78,7 +88,9 @@ pin out float offset "the offset o (mm)";
 pin out float distance "the linearised distance (mm)";
 pin out float filtered "the filtered distance (mm; the unfiltered one where the filter does not run)";
 pin out float velocity "the offset's velocity (mm/s)";
-pin out s32 state "HLI state: 0 INACTIVE, 2 FREEZE, 3 TURNING_OFF, 4 ACTIVE_CONST_DIST, 5 ERROR";
+pin out float target_deviation "the filtered distance minus SET_DIST (mm), in ACTIVE_CONST_DIST and DRYRUN";
+pin out float wanted_step "the law's step before the limiter (mm per period; delta_deviation_pre_limiter)";
+pin out s32 state "HLI state: 0 INACTIVE, 2 FREEZE, 3 TURNING_OFF, 4 ACTIVE_CONST_DIST, 5 ERROR, 6 DRYRUN_CONST_DIST";
 pin out s32 error_id "the error that put it into ERROR (70329, 70330, 70576, 70331, 900001, ...), 0 once INACTIVE";
 variable double buf[100];
 variable double fs[11];
@@ -107,6 +119,7 @@ variable int cl_armed;
 variable int cl_locked;
 variable int held;
 variable int vinit;
+variable int pend_dry;
 variable int vi;
 variable int nfill;
 variable int nmfill;
@@ -152,6 +165,8 @@ author "distctrl";
 #define S_TURNING_OFF 3
 #define S_ACTIVE_CD 4
 #define S_ERROR 5
+#define S_DRY_CD 6
+#define E_SW_LIMIT 900002
 #define E_SENSOR_JUMP 70329
 #define E_RUN_OUT_MAX 70330
 #define E_MAX_DEVIATION 70331
@@ -363,6 +378,44 @@ static double slope_limit_side(double u, double e, double v_prev_, double T, dou
     return v;
 }
 
+static double adaptive_acceleration(double error_abs, double a_min_, double a_max_, double dev_a_min,
+                                    double dev_a_max)
+{
+    if (error_abs <= dev_a_min)
+        return a_min_;
+    if (error_abs >= dev_a_max)
+        return a_max_;
+    return a_min_ + (a_max_ - a_min_) * (error_abs - dev_a_min) / (dev_a_max - dev_a_min);
+}
+
+static double adaptive_braking_acceleration(double error_abs, double a_min_, double a_max_, double dev_a_min,
+                                            double dev_a_max)
+{
+    double a_here = adaptive_acceleration(error_abs, a_min_, a_max_, dev_a_min, dev_a_max);
+    return a_min_ < a_here ? a_min_ : a_here;
+}
+
+/* law.slope_limit: returns v, *a_applied */
+static double slope_limit(double u, double e, double v_prev_, double T, double v_lim, double a_lim, double a_brake,
+                          double w_v, double w_a, double *a_applied)
+{
+    double v_lim_down = v_lim * w_v, a_lim_down = a_lim * w_a, v;
+    int lower, dummy;
+    v = slope_limit_side(u, e, v_prev_, T, v_lim, a_lim, a_brake, v_lim_down, a_lim_down, &lower);
+    if (!lower) {
+        *a_applied = a_lim;
+        return v;
+    }
+    v = slope_limit_side(u, e, v_prev_, T, v_lim_down, a_lim_down, a_brake * w_a, v_lim_down, a_lim_down, &dummy);
+    if (v <= 0.0) {
+        *a_applied = a_lim_down;
+        return v;
+    }
+    /* the velocity passes zero this period: stop there, go on next period */
+    *a_applied = v_prev_ < 0.0 ? a_lim_down : a_lim;
+    return 0.0;
+}
+
 static int brakes_to_bound(double speed, double room, double T, double a_floor)
 {
     return room < (speed * speed / (2.0 * a_floor) + 0.5 * speed * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12)
@@ -403,8 +456,8 @@ static double advance_offset(double o_, double v, double T, double lo, double hi
 FUNCTION(_) {
     double T = fperiod, inv_T = 1.0 / T, d_in, s_now, s, d, prog, act, fb, y, e, m, u, ic, integral0, v, v_prev,
            i_gain, dg, a_base, a_floor, a_lim, a_applied, a_bound, v_lim, lo, hi, v_limited, o_prev, o_new, u_lim,
-           e_lim, wanted, clipped, v_real;
-    int i, lower, locked, finite_inputs = 1, sensor_ok, running, hold, st0, tracking, freeze = 0;
+           e_lim, wanted, clipped, v_real, w_v, w_a, a_brake, tdev;
+    int i, locked, finite_inputs = 1, sensor_ok, running, hold, st0, tracking, freeze = 0;
     for (i = 0; i < 135; i++)
         cf[i] = fc(i);
     if (!vinit) {                               /* VoidLock's initial state: no mean, no rate, no level */
@@ -528,7 +581,10 @@ FUNCTION(_) {
        CONST_DIST, PLC-commanded, the distance as the sensor variable, optimized scheduling, no adaptive
        acceleration, no lowering weights (1), no software limits, override 1 ---- */
     a_base = a_max;
-    a_floor = a_base * 1.0;                 /* min(a_candidates) * min(1.0, w_a) */
+    w_v = v_weight_down > 0.0 ? v_weight_down : 1.0;
+    w_a = a_weight_down > 0.0 ? a_weight_down : 1.0;
+    /* min(a_candidates) * min(1.0, w_a): the smallest acceleration the limiter may use */
+    a_floor = (use_adaptive_acceleration && a_min < a_base ? a_min : a_base) * (w_a < 1.0 ? w_a : 1.0);
     i_gain = i_tn > 0.0 ? (T / i_tn < MAX_I_GAIN ? T / i_tn : MAX_I_GAIN) : 0.0;
     dg = derivative_gain(kp, d_tv, T);
     /* 1. inputs made safe */
@@ -559,9 +615,11 @@ FUNCTION(_) {
     /* 3. the PLC's commands from the state of the last period and the locks of this one */
     st0 = hli;
     if (!thc_enable) {
-        if (st0 == S_ACTIVE_CD || st0 == S_FREEZE || st0 == S_ERROR)
+        if (st0 == S_ACTIVE_CD || st0 == S_FREEZE || st0 == S_ERROR || st0 == S_DRY_CD) {
             hli = S_TURNING_OFF;                                 /* OFF */
-    } else if (st0 == S_INACTIVE || (st0 == S_FREEZE && !locked)) {
+            pend_dry = 0;
+        }
+    } else if (st0 == S_INACTIVE || (st0 == S_FREEZE && held && !locked)) {
         if (!FINITE(set_dist)) {                                 /* ON_CONST_DIST refused: 900005 */
             hli = S_ERROR;
             errv = E_VALUE_OUT_OF_RANGE;
@@ -572,9 +630,16 @@ FUNCTION(_) {
                 integral = 0.0;
             }
             mode_cd = 1;
-            hli = S_ACTIVE_CD;
+            if (st0 == S_INACTIVE && dryrun) {                   /* DRYRUN with SET_DIST (HLI CONST_DIST) */
+                hli = S_DRY_CD;
+                if (vel != 0.0) {                                /* the offset still moves: FREEZE until it stands */
+                    hli = S_FREEZE;
+                    pend_dry = 1;
+                }
+            } else
+                hli = S_ACTIVE_CD;
         }
-        if (st0 == S_INACTIVE && locked) {                       /* FREEZE at once */
+        if (st0 == S_INACTIVE && locked && !dryrun) {            /* FREEZE at once */
             freeze = 1;
             if (hli == S_ACTIVE_CD)
                 hli = S_FREEZE;
@@ -585,7 +650,7 @@ FUNCTION(_) {
         hli = S_FREEZE;                                          /* FREEZE */
         freeze = 1;
     }
-    running = hli == S_ACTIVE_CD;
+    running = hli == S_ACTIVE_CD || hli == S_DRY_CD;
     if (running) {
         if (FINITE(set_dist))                                    /* the PLC's cyclic D_Distance */
             sd = set_dist;
@@ -603,7 +668,7 @@ FUNCTION(_) {
             hli = S_ERROR;
             errv = E_RUN_OUT_MIN;
         }
-        running = hli == S_ACTIVE_CD;
+        running = hli == S_ACTIVE_CD || hli == S_DRY_CD;
     }
     if (sensor_ok) {
         last_s = s;
@@ -617,7 +682,7 @@ FUNCTION(_) {
         fb = use_both_encoders ? d + (prog + o_prev) - act : d;
     else
         fb = act - d;
-    if (hli == S_ACTIVE_CD || hli == S_FREEZE) {
+    if (hli == S_ACTIVE_CD || hli == S_FREEZE || hli == S_DRY_CD) {
         if (!seeded) {
             filter_seed(cf, fs, buf, fb);
             seeded = 1;
@@ -633,9 +698,11 @@ FUNCTION(_) {
     filtered = y;
     e = 0.0;
     u = 0.0;
+    tdev = 0.0;
     integral0 = ic = integral;
     if (running) {
-        e = sd - y;                                              /* law.mode_error, CONST_DIST */
+        tdev = y - sd;                                           /* law.mode_error, CONST_DIST */
+        e = sd - y;
         m = -y;
         ic = integral + kp * i_gain * e;                         /* law.pid_step */
         u = kp * e + ic + dg * (m - m_prev);
@@ -651,7 +718,12 @@ FUNCTION(_) {
     /* 6. slope limiter and bounds */
     hold = !(hli == S_ACTIVE_CD || hli == S_TURNING_OFF);
     v_lim = v_max * 1.0;
-    a_lim = a_base;
+    a_lim = a_brake = a_base;
+    if (use_adaptive_acceleration && hli == S_ACTIVE_CD) {      /* Fig. 31 on the remaining error e */
+        double e_abs = fabs(e);
+        a_lim = adaptive_acceleration(e_abs, a_min, a_base, dist_error_a_min, dist_error_a_max);
+        a_brake = adaptive_braking_acceleration(e_abs, a_min, a_base, dist_error_a_min, dist_error_a_max);
+    }
     if (hold) {
         u_lim = 0.0;
         e_lim = 0.0;
@@ -660,10 +732,16 @@ FUNCTION(_) {
         e_lim = e;
     }
     v_prev = vel;
-    v = slope_limit_side(u_lim, e_lim, v_prev, T, v_lim, a_lim, a_lim, v_lim * 1.0, a_lim * 1.0, &lower);
-    a_applied = a_lim;
+    v = slope_limit(u_lim, e_lim, v_prev, T, v_lim, a_lim, a_brake, w_v, w_a, &a_applied);
     lo = -max_deviation;
     hi = max_deviation;
+    if (check_sw_limit_switch) {                                 /* c = p + o within swe_neg .. swe_pos */
+        double lo_sw = sw_limit_min - prog, hi_sw = sw_limit_max - prog;
+        if (lo_sw > lo)
+            lo = lo_sw;
+        if (hi_sw < hi)
+            hi = hi_sw;
+    }
     a_bound = a_floor;
     if (v_prev != 0.0 && a_bound_st > a_bound)
         a_bound = a_bound_st;
@@ -675,9 +753,12 @@ FUNCTION(_) {
     o_new = advance_offset(o_prev, v, T, lo, hi);
     if (!hold) {
         wanted = o_prev + u_lim;
-        if ((wanted > hi + LAND && hi - o_new <= LAND) || (wanted < lo - LAND && o_new - lo <= LAND)) {
-            hli = S_ERROR;                                       /* 70331 */
-            errv = E_MAX_DEVIATION;
+        if (wanted > hi + LAND && hi - o_new <= LAND) {         /* 70331, or the software limit 900002 */
+            hli = S_ERROR;
+            errv = hi >= max_deviation - LAND ? E_MAX_DEVIATION : E_SW_LIMIT;
+        } else if (wanted < lo - LAND && o_new - lo <= LAND) {
+            hli = S_ERROR;
+            errv = lo <= -max_deviation + LAND ? E_MAX_DEVIATION : E_SW_LIMIT;
         }
         if (hli == S_ACTIVE_CD) {                                /* law.integrator_after_limiter */
             clipped = u_lim - v * T;
@@ -687,6 +768,14 @@ FUNCTION(_) {
     v_real = (o_new - o_prev) * inv_T;
     vel = v_real;
     o = o_new;
+    if (pend_dry) {                                              /* a DRYRUN begins once the offset stands */
+        if (hli != S_FREEZE)
+            pend_dry = 0;
+        else if (v_real == 0.0) {
+            hli = S_DRY_CD;
+            pend_dry = 0;
+        }
+    }
     if (hli == S_TURNING_OFF && fabs(o_new) <= LAND && fabs(v_real) <= a_applied * T) {
         o = 0.0;                                                 /* the run-out: INACTIVE, offset exactly 0 */
         if (o_prev * v > 0.0)
@@ -700,6 +789,8 @@ FUNCTION(_) {
     /* 7. outputs */
     offset = o_new;
     velocity = vel;
+    target_deviation = tdev;
+    wanted_step = u;
     state = hli;
     error_id = errv;
     held = hli == S_FREEZE && (freeze || held);     /* the hold is ours while the FREEZE the locks commanded lasts */
