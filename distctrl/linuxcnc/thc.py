@@ -35,10 +35,12 @@ from ..plc.process.corner_lock import CornerLock
 from ..plc.process.void_lock import VoidLock
 from .hal_env import LinuxCNCError
 
-__all__ = ["ThcConfig", "ThcCore", "ThcLocks", "lround", "CORNERLOCK_MODES"]
+__all__ = ["ThcConfig", "ThcCore", "ThcLocks", "lround", "CORNERLOCK_MODES", "MODES"]
 
 #: cornerlock-mode: 0 distctrl's corner_lock process function (the default), 1 plasmac 1.235's rule
 CORNERLOCK_MODES = {"distctrl": 0, "plasmac": 1}
+#: the mode pin: 0 CONST_DIST (the height above the plate, the default), 1 SET_POS (the surface at set-pos)
+MODES = {"CONST_DIST": 0, "SET_POS": 1}
 #: the void lock's signal, a V.E. variable of the PLC (the arc voltage)
 _ARC = "V.E.ARC_VOLTAGE"
 #: the parameter list's defaults (software limits, adaptive acceleration, lowering weights)
@@ -95,7 +97,9 @@ class ThcConfig:
     a_min: float = _AXIS.a_min             # P-AXIS-00502, mm/s²
     dist_error_a_min: float = _AXIS.dist_error_a_min   # P-AXIS-00504, mm
     dist_error_a_max: float = _AXIS.dist_error_a_max   # P-AXIS-00505, mm
-    dryrun: bool = False                   # the dryrun pin's setting: thc-enable selects DRYRUN (CONST_DIST)
+    dryrun: bool = False                   # the dryrun pin's setting: thc-enable selects DRYRUN
+    mode: str = "CONST_DIST"               # the mode pin's setting (MODES), read at the select
+    set_pos: float = 0.0                   # SET_POS (mm, axis-z-command's coordinates): the surface position
 
     def check(self, cycle_time: float) -> None:
         """Raise :class:`LinuxCNCError` naming the parameter and its range unless every value is allowed."""
@@ -114,6 +118,10 @@ class ThcConfig:
         _check("a-max", self.a_max, 0.0, 1e7, lo_open=True, pid="P-AXIS-00416")
         _check("max-deviation", self.max_deviation, 0.0, 1e4, lo_open=True, pid="P-AXIS-00414")
         _check("set-dist", self.set_dist, 0.0, 100.0, lo_open=True, pid="SET_DIST")
+        if self.mode not in MODES:
+            raise LinuxCNCError(f"distctrl_thc mode = {self.mode!r} unknown; allowed: "
+                                + ", ".join(f"{k} ({v})" for k, v in MODES.items()))
+        _check("set-pos", self.set_pos, -1e6, 1e6, pid="SET_POS, mm")
         _check("arc-k", self.arc_k, 0.5, 50.0, pid="V/mm")
         _check("arc-v0", self.arc_v0, 0.0, 400.0, pid="V")
         _check("resolution", self.resolution, 0.0, 1.0, lo_open=True, pid="mm per count")
@@ -215,7 +223,7 @@ class ThcConfig:
                 "a-weight-down": self.a_weight_down,
                 "use-adaptive-acceleration": int(self.use_adaptive_acceleration), "a-min": self.a_min,
                 "dist-error-a-min": self.dist_error_a_min, "dist-error-a-max": self.dist_error_a_max,
-                "dryrun": int(self.dryrun)}
+                "dryrun": int(self.dryrun), "mode": MODES.get(self.mode, -1), "set-pos": self.set_pos}
         lines = [f"setp {name}.{k} {v!r}" for k, v in pins.items()]
         lines += [f"setp {name}.fc-{i:03d} {float(c)!r}" for i, c in enumerate(fc)]
         return lines
@@ -315,7 +323,11 @@ class ThcLocks:
 STATE_INACTIVE, STATE_FREEZE, STATE_TURNING_OFF, STATE_ACTIVE_CONST_DIST, STATE_ERROR = (
     int(HliState.INACTIVE), int(HliState.FREEZE), int(HliState.TURNING_OFF), int(HliState.ACTIVE_CONST_DIST),
     int(HliState.ERROR))
-STATE_DRYRUN_CONST_DIST = int(HliState.DRYRUN_CONST_DIST)
+STATE_ACTIVE, STATE_DRYRUN_CONST_DIST, STATE_DRYRUN_SETPOS = (
+    int(HliState.ACTIVE), int(HliState.DRYRUN_CONST_DIST), int(HliState.DRYRUN_SETPOS))
+_TRACKING = (STATE_ACTIVE, STATE_ACTIVE_CONST_DIST)
+_OFF_FROM = (STATE_ACTIVE, STATE_ACTIVE_CONST_DIST, STATE_FREEZE, STATE_ERROR, STATE_DRYRUN_CONST_DIST,
+             STATE_DRYRUN_SETPOS)
 
 
 class ThcCore:
@@ -346,41 +358,53 @@ class ThcCore:
         self.locks = ThcLocks(config, period_ns)
         self.state = STATE_INACTIVE
         self._held = False
+        self._const_dist = True
         self._first = True
 
     def step(self, arc_voltage: float, enable: bool, cornerlock_enable: bool = False, current_velocity: float = 0.0,
              feed_upm: float = 0.0, voidlock_enable: bool = False, z_command: float = 0.0,
-             z_actual: float = 0.0, set_dist: float | None = None, dryrun: bool | None = None) -> dict:
+             z_actual: float = 0.0, set_dist: float | None = None, dryrun: bool | None = None,
+             mode: int | None = None, set_pos: float | None = None) -> dict:
         c = self.c
         set_dist = c.set_dist if set_dist is None else set_dist
         dryrun = c.dryrun if dryrun is None else dryrun
+        mode = MODES[c.mode] if mode is None else mode
+        set_pos = c.set_pos if set_pos is None else set_pos
         d = (arc_voltage - c.arc_v0) * (1.0 / c.arc_k)
         locked = self.locks.step(arc_voltage, self.state, self._held, enable, cornerlock_enable, current_velocity,
                                  feed_upm, voidlock_enable)
         inp = CycleInput(programmed_position=z_command, actual_position=z_actual, sensor_variable=d,
-                         cyclic_set_dist=set_dist)
+                         cyclic_set_dist=set_dist, cyclic_set_pos=set_pos)
         cmds = inp.commands
         if self._first:                              # the distance comes from the PLC (a V.E. variable)
             cmds.append(Command(Action.NONE, sensor_source=SensorSource.VARIABLE, source=CommandSource.PLC))
             self._first = False
         st = self.state
-        on = Command(Action.ON, const_dist=True, set_dist=set_dist, source=CommandSource.PLC)
         freeze = False
+        if st == STATE_INACTIVE and enable:          # the select: mode and dryrun are read here
+            self._const_dist = mode != MODES["SET_POS"]
+
+        def select(action: Action) -> Command:
+            if self._const_dist:
+                return Command(action, const_dist=True, set_dist=set_dist, source=CommandSource.PLC)
+            return Command(action, const_dist=False, set_pos=set_pos, source=CommandSource.PLC)
+
         if not enable:
-            if st in (STATE_ACTIVE_CONST_DIST, STATE_FREEZE, STATE_ERROR, STATE_DRYRUN_CONST_DIST):
+            if st in _OFF_FROM:
                 cmds.append(Command(Action.OFF, source=CommandSource.PLC))
-        elif st == STATE_INACTIVE and dryrun:        # DRYRUN with SET_DIST (HLI CONST_DIST); no lock freezes it
-            cmds.append(Command(Action.DRYRUN, const_dist=True, set_dist=set_dist, source=CommandSource.PLC))
+        elif st == STATE_INACTIVE and dryrun:        # DRYRUN (HLI CONST_DIST / DRYRUN); no lock freezes it
+            cmds.append(select(Action.DRYRUN))
         elif st == STATE_INACTIVE:
-            cmds.append(on)
+            cmds.append(select(Action.ON))
             if locked:
                 cmds.append(Command(Action.FREEZE, source=CommandSource.PLC))
                 freeze = True
-        elif st == STATE_ACTIVE_CONST_DIST and locked:
+        elif st in _TRACKING and locked:
             cmds.append(Command(Action.FREEZE, source=CommandSource.PLC))
             freeze = True
-        elif st == STATE_FREEZE and self._held and not locked:   # the hold releases only its own FREEZE
-            cmds.append(on)
+        elif st == STATE_FREEZE and self._held and not locked:   # the hold releases only its own FREEZE,
+            cmds.append(select(Action.ON))                      # into the mode it froze
+
         out = CycleOutput()
         self.ctrl.update(inp, out)
         self.state = out.hli_state

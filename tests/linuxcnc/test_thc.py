@@ -44,9 +44,9 @@ NAN_AT = 720
 N = 900
 
 
-def _row(v, enable, cl, vel, feed_upm, vl, zc, za, sd, dryrun=False):
+def _row(v, enable, cl, vel, feed_upm, vl, zc, za, sd, dryrun=False, mode=0, sp=0.0):
     return (float(v), bool(enable), bool(cl), float(vel), float(feed_upm), bool(vl), float(zc), float(za), float(sd),
-            bool(dryrun))
+            bool(dryrun), int(mode), float(sp))
 
 
 def _law_inputs():
@@ -190,15 +190,48 @@ LIMITS = {
                                               sw_limit_max=40.0,
                                               filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=4)),
 }
+
+
+def _setpos_inputs():
+    """SET_POS (mode 1): the surface a - d held at set-pos. The head moves (a), the surface drops by 2 mm
+    (+12 V) for 40 periods, set-pos changes while ACTIVE (the PLC's cyclic D_Position), a corner (FREEZE,
+    released into SET_POS); the THC off, on in CONST_DIST (mode 0), off, on in DRYRUN SET_POS, off, on in
+    SET_POS, off, on with a NaN set-pos (ON refused: 900005), off and on in SET_POS again."""
+    rng = np.random.default_rng(43)
+    rows = []
+    for k in range(N):
+        t = k * 0.001
+        v = 104.0 + 1.0 * math.sin(2 * math.pi * 50 * t) + 0.2 * rng.standard_normal()
+        if 100 <= k < 140 or 500 <= k < 540:
+            v += 12.0 * min(1.0, (k - 100) % 400 / 10.0, (139 - k) % 400 / 10.0)
+        za = 30.0 + 0.3 * math.sin(2 * math.pi * 5 * t)
+        vel = 40.0 if 230 <= k < 260 else 80.0
+        enable = not (k < 10 or 300 <= k < 310 or 400 <= k < 410 or 600 <= k < 610 or 700 <= k < 710
+                      or 800 <= k < 810)
+        mode = 0 if 300 <= k < 400 else 1
+        sp = 28.5 if k < 200 else 28.2
+        if 700 <= k < 790:
+            sp = math.nan
+        rows.append(_row(v, enable, True, vel, 4800.0, False, 30.0, za, 1.5, 400 <= k < 600, mode, sp))
+    return rows
+
+
+SETPOS = {
+    "SET_POS PI": ThcConfig(kp=0.5, i_tn=0.05, mode="SET_POS", set_pos=28.5),
+    "SET_POS PD moving average, adaptive, plasmac's corner lock": ThcConfig(
+        kp=0.4, d_tv=0.005, filter=FilterConfig(FilterType.MOVING_AVERAGE, n_cycles=5), use_adaptive_acceleration=True,
+        a_min=400.0, cornerlock_mode="plasmac", mode="SET_POS", set_pos=28.5),
+}
 GROUPS = [(list(LAW), [LAW[n] for n in LAW], _law_inputs),
           (list(ERRORS), [c for c, _ in ERRORS.values()], _error_inputs),
           (list(COMMANDS), list(COMMANDS.values()), _command_inputs),
           (list(LOCKS), list(LOCKS.values()), _lock_inputs),
-          (list(LIMITS), list(LIMITS.values()), _limit_inputs)]
+          (list(LIMITS), list(LIMITS.values()), _limit_inputs),
+          (list(SETPOS), list(SETPOS.values()), _setpos_inputs)]
 _IN = {"arc": ("arc-voltage-in", "f"), "enable": ("thc-enable", "b"), "cl-enable": ("cornerlock-enable", "b"),
        "vel": ("current-velocity", "f"), "feed-upm": ("feed-upm", "f"), "vl-enable": ("voidlock-enable", "b"),
        "zc": ("axis-z-command", "f"), "za": ("axis-z-position", "f"), "sd": ("set-dist", "f"),
-       "dryrun": ("dryrun", "b")}
+       "dryrun": ("dryrun", "b"), "mode": ("mode", "s"), "sp": ("set-pos", "f")}
 _OUT = {"offset": ("offset", "f"), "filtered": ("filtered", "f"), "velocity": ("velocity", "f"),
         "distance": ("distance", "f"), "counts": ("z-offset-counts", "s"), "state": ("state", "s"),
         "error_id": ("error-id", "s"), "cl": ("cornerlock-is-locked", "b"), "vl": ("voidlock-is-locked", "b"),
@@ -290,8 +323,8 @@ def _compare(cfg, rows, got, first_set_dist):
     ref.step(0.0, False, set_dist=first_set_dist)      # period 1: the pins' start values (outputs skipped)
     states = []
     for k, row in enumerate(rows):
-        v, en, cl, vel, feed, vl, zc, za, sd, dry = row
-        r = ref.step(v, en, cl, vel, feed, vl, zc, za, sd, dry)
+        v, en, cl, vel, feed, vl, zc, za, sd, dry, mode, sp = row
+        r = ref.step(v, en, cl, vel, feed, vl, zc, za, sd, dry, mode, sp)
         g = got[k]
         states.append(r["state"])
         assert (g["state"], g["error_id"]) == (r["state"], r["error_id"]), (k, "state, error id")
@@ -445,3 +478,26 @@ def test_thc_config_refuses_limits_weights_and_adaptive_settings_outside_the_doc
         ThcConfig(check_sw_limit_switch=True, sw_limit_min=31.0, sw_limit_max=30.0).check(0.001)
     lines = ThcConfig(check_sw_limit_switch=True, sw_limit_max=12.5, dryrun=True).setp_lines(0.001)
     assert "setp distctrl-thc.0.sw-limit-max 12.5" in lines and "setp distctrl-thc.0.dryrun 1" in lines
+
+
+@pytest.mark.parametrize("name", list(SETPOS))
+def test_the_component_runs_the_cores_set_pos_cycle_bit_for_bit(streamed, name):
+    """mode 1: ON (SET_POS) with set-pos, the surface a - d as the filter's input, the cyclic D_Position, a
+    FREEZE released into SET_POS, DRYRUN_SETPOS, 900005 for a NaN set-pos; mode 0 between: CONST_DIST."""
+    cfg, rows, got = streamed[0][name]
+    states = _compare(cfg, rows, got, cfg.set_dist)
+    seq = _changes(states)
+    assert states[11] == 1 and 2 in states[230:262] and states[290] == 1, seq        # ACTIVE, FREEZE, ACTIVE
+    assert 4 in states[300:400] and 7 in states[400:600] and 1 in states[610:700], seq   # CONST_DIST, DRYRUN
+    assert {g["error_id"] for g in got[700:800]} == {0, 900005} and states[-1] == 1, seq   # NaN refused; SET_POS
+    # SET_POS follows the surface: the offset goes to (the surface a - d, filtered) - set-pos; the 2 mm drop
+    # moves it down
+    assert min(g["offset"] for g in got[100:160]) < -1.0
+    for k in (290, 690):                             # (the surface oscillates with a at 5 Hz: a lag remains)
+        assert abs(got[k]["offset"] - (got[k]["filtered"] - 28.2)) < 0.35, (k, got[k])
+
+
+def test_thc_config_refuses_an_unknown_mode():
+    with pytest.raises(LinuxCNCError, match="mode = 'REF' unknown"):
+        ThcConfig(mode="REF").check(0.001)
+    assert "setp distctrl-thc.0.mode 1" in ThcConfig(mode="SET_POS").setp_lines(0.001)

@@ -74,6 +74,8 @@ pin in bit use_adaptive_acceleration "P-AXIS-00501: the acceleration by the cont
 pin in float a_min = 500.0 "P-AXIS-00502: the acceleration up to dist-error-a-min (mm/s^2)";
 pin in float dist_error_a_min = 0.1 "P-AXIS-00504 (mm)";
 pin in float dist_error_a_max = 0.5 "P-AXIS-00505 (mm): a-max from this control error on";
+pin in s32 mode "0: CONST_DIST (the height set-dist above the plate); 1: SET_POS (the surface at set-pos); read at the select";
+pin in float set_pos "SET_POS (mm, axis-z-command's coordinates): the surface position; read every period while ACTIVE (cyclic D_Position)";
 pin in bit dryrun "on: thc-enable selects DRYRUN (CONST_DIST): the cycle runs, the offset stands (target-deviation, wanted-step)";
 pin in float resolution = 0.001 "mm per offset count (wire plasmac.offset-scale to it; 0: no counts)";
 pin in float fc-###[135] "the law's filter coefficients (design_coefficients)";
@@ -109,6 +111,8 @@ variable int errv;
 variable int seeded;
 variable int has_last_s;
 variable int mode_cd;
+variable int sel_cd;
+variable double sp;
 variable double vbuf[100];
 variable double vmean[100];
 variable double vsum;
@@ -164,6 +168,8 @@ author "distctrl";
 #define S_FREEZE 2
 #define S_TURNING_OFF 3
 #define S_ACTIVE_CD 4
+#define S_ACTIVE 1
+#define S_DRY_SP 7
 #define S_ERROR 5
 #define S_DRY_CD 6
 #define E_SW_LIMIT 900002
@@ -472,7 +478,7 @@ FUNCTION(_) {
     /* the locks: distctrl's corner_lock and void_lock process functions (distctrl/plc/process/corner_lock.py,
        void_lock.py, their step) as distctrl's PLC runs them on an axis: state_r.actual_state is the state of
        the last period (hli), the hold is ours in a FREEZE the locks commanded (held); a switch resets */
-    tracking = hli == S_ACTIVE_CD || (hli == S_FREEZE && held);
+    tracking = hli == S_ACTIVE_CD || hli == S_ACTIVE || (hli == S_FREEZE && held);
     if (cornerlock_mode == 1) {                 /* plasmac 1.235's rule (plasmac.comp, CUT_MODE_01) */
         double vc = current_velocity * 60.0;
         if (!cornerlock_enable || !thc_enable)
@@ -614,46 +620,55 @@ FUNCTION(_) {
     s = s_now;
     /* 3. the PLC's commands from the state of the last period and the locks of this one */
     st0 = hli;
+    if (st0 == S_INACTIVE && thc_enable)                         /* the select reads the mode */
+        sel_cd = mode != 1;
     if (!thc_enable) {
-        if (st0 == S_ACTIVE_CD || st0 == S_FREEZE || st0 == S_ERROR || st0 == S_DRY_CD) {
+        if (st0 == S_ACTIVE_CD || st0 == S_ACTIVE || st0 == S_FREEZE || st0 == S_ERROR || st0 == S_DRY_CD
+                || st0 == S_DRY_SP) {
             hli = S_TURNING_OFF;                                 /* OFF */
             pend_dry = 0;
         }
     } else if (st0 == S_INACTIVE || (st0 == S_FREEZE && held && !locked)) {
-        if (!FINITE(set_dist)) {                                 /* ON_CONST_DIST refused: 900005 */
+        if (!FINITE(sel_cd ? set_dist : set_pos)) {              /* ON refused: 900005 */
             hli = S_ERROR;
             errv = E_VALUE_OUT_OF_RANGE;
-        } else {                                                 /* ON_CONST_DIST with SET_DIST */
-            sd = set_dist;
-            if (st0 == S_INACTIVE || !mode_cd) {
+        } else {                                                 /* ON_CONST_DIST with SET_DIST, ON with SET_POS */
+            if (sel_cd)
+                sd = set_dist;
+            else
+                sp = set_pos;
+            if (st0 == S_INACTIVE || mode_cd != sel_cd) {
                 seeded = 0;
                 integral = 0.0;
             }
-            mode_cd = 1;
-            if (st0 == S_INACTIVE && dryrun) {                   /* DRYRUN with SET_DIST (HLI CONST_DIST) */
-                hli = S_DRY_CD;
+            mode_cd = sel_cd;
+            if (st0 == S_INACTIVE && dryrun) {                   /* DRYRUN (HLI CONST_DIST / DRYRUN) */
+                hli = sel_cd ? S_DRY_CD : S_DRY_SP;
                 if (vel != 0.0) {                                /* the offset still moves: FREEZE until it stands */
+                    pend_dry = hli;
                     hli = S_FREEZE;
-                    pend_dry = 1;
                 }
             } else
-                hli = S_ACTIVE_CD;
+                hli = sel_cd ? S_ACTIVE_CD : S_ACTIVE;
         }
         if (st0 == S_INACTIVE && locked && !dryrun) {            /* FREEZE at once */
             freeze = 1;
-            if (hli == S_ACTIVE_CD)
+            if (hli == S_ACTIVE_CD || hli == S_ACTIVE)
                 hli = S_FREEZE;
             else
                 errv = E_INVALID_TRANSITION;
         }
-    } else if (st0 == S_ACTIVE_CD && locked) {
+    } else if ((st0 == S_ACTIVE_CD || st0 == S_ACTIVE) && locked) {
         hli = S_FREEZE;                                          /* FREEZE */
         freeze = 1;
     }
-    running = hli == S_ACTIVE_CD || hli == S_DRY_CD;
+    running = hli == S_ACTIVE_CD || hli == S_ACTIVE || hli == S_DRY_CD || hli == S_DRY_SP;
     if (running) {
-        if (FINITE(set_dist))                                    /* the PLC's cyclic D_Distance */
-            sd = set_dist;
+        if (mode_cd) {                                           /* the PLC's cyclic D_Distance / D_Position */
+            if (FINITE(set_dist))
+                sd = set_dist;
+        } else if (FINITE(set_pos))
+            sp = set_pos;
         /* 4. monitoring */
         if (!finite_inputs) {
             hli = S_ERROR;
@@ -668,7 +683,7 @@ FUNCTION(_) {
             hli = S_ERROR;
             errv = E_RUN_OUT_MIN;
         }
-        running = hli == S_ACTIVE_CD || hli == S_DRY_CD;
+        running = hli == S_ACTIVE_CD || hli == S_ACTIVE || hli == S_DRY_CD || hli == S_DRY_SP;
     }
     if (sensor_ok) {
         last_s = s;
@@ -682,7 +697,7 @@ FUNCTION(_) {
         fb = use_both_encoders ? d + (prog + o_prev) - act : d;
     else
         fb = act - d;
-    if (hli == S_ACTIVE_CD || hli == S_FREEZE || hli == S_DRY_CD) {
+    if (hli == S_ACTIVE_CD || hli == S_ACTIVE || hli == S_FREEZE || hli == S_DRY_CD || hli == S_DRY_SP) {
         if (!seeded) {
             filter_seed(cf, fs, buf, fb);
             seeded = 1;
@@ -690,7 +705,7 @@ FUNCTION(_) {
         }
         y = filter_step(cf, fs, buf, fb);
         if (hli == S_FREEZE)
-            m_prev = -y;                                         /* no D kick when tracking resumes */
+            m_prev = mode_cd ? -y : y;                           /* no D kick when tracking resumes */
     } else {
         y = fb;
         seeded = 0;
@@ -701,9 +716,15 @@ FUNCTION(_) {
     tdev = 0.0;
     integral0 = ic = integral;
     if (running) {
-        tdev = y - sd;                                           /* law.mode_error, CONST_DIST */
-        e = sd - y;
-        m = -y;
+        if (mode_cd) {                                           /* law.mode_error, CONST_DIST */
+            tdev = y - sd;
+            e = sd - y;
+            m = -y;
+        } else {                                                 /* SET_POS: the surface against SET_POS */
+            tdev = y - sp;
+            e = tdev - o_prev;
+            m = y;
+        }
         ic = integral + kp * i_gain * e;                         /* law.pid_step */
         u = kp * e + ic + dg * (m - m_prev);
         m_prev = m;
@@ -716,10 +737,10 @@ FUNCTION(_) {
         u = -o_prev;
     }
     /* 6. slope limiter and bounds */
-    hold = !(hli == S_ACTIVE_CD || hli == S_TURNING_OFF);
+    hold = !(hli == S_ACTIVE_CD || hli == S_ACTIVE || hli == S_TURNING_OFF);
     v_lim = v_max * 1.0;
     a_lim = a_brake = a_base;
-    if (use_adaptive_acceleration && hli == S_ACTIVE_CD) {      /* Fig. 31 on the remaining error e */
+    if (use_adaptive_acceleration && (hli == S_ACTIVE_CD || hli == S_ACTIVE)) {      /* Fig. 31 on the remaining error e */
         double e_abs = fabs(e);
         a_lim = adaptive_acceleration(e_abs, a_min, a_base, dist_error_a_min, dist_error_a_max);
         a_brake = adaptive_braking_acceleration(e_abs, a_min, a_base, dist_error_a_min, dist_error_a_max);
@@ -760,7 +781,7 @@ FUNCTION(_) {
             hli = S_ERROR;
             errv = lo <= -max_deviation + LAND ? E_MAX_DEVIATION : E_SW_LIMIT;
         }
-        if (hli == S_ACTIVE_CD) {                                /* law.integrator_after_limiter */
+        if (hli == S_ACTIVE_CD || hli == S_ACTIVE) {            /* law.integrator_after_limiter */
             clipped = u_lim - v * T;
             integral = (fabs(clipped) <= 1e-12 || (clipped > 0.0) != (e > 0.0)) ? ic : integral0;
         }
@@ -772,7 +793,7 @@ FUNCTION(_) {
         if (hli != S_FREEZE)
             pend_dry = 0;
         else if (v_real == 0.0) {
-            hli = S_DRY_CD;
+            hli = pend_dry;
             pend_dry = 0;
         }
     }
