@@ -4,13 +4,16 @@
 I_TN P-AXIS-00764 0..50 s, D_TV P-AXIS-00765 0..2 s, the filter of P-AXIS-00782/00413/00784/00783/00507/00508
 through :class:`distctrl.control.filters.FilterConfig`, v_max P-AXIS-00415, a_max P-AXIS-00416,
 max_deviation P-AXIS-00414, the monitoring's max_act_value_change P-AXIS-00417 and sensor window
-max_pos/min_pos/tolerance P-AXIS-00419/00420/00421) and gives them as ``setp`` lines (:meth:`ThcConfig.setp_lines`), the filter
+max_pos/min_pos/tolerance P-AXIS-00419/00420/00421, the software limits P-AXIS-00428/00177/00178, the
+lowering weights P-AXIS-00533/00534 and the adaptive acceleration P-AXIS-00501..00505 through
+:class:`distctrl.params.AxisParameters`' own checks, the locks through distctrl's corner_lock and void_lock
+functions' keys) and gives them as ``setp`` lines (:meth:`ThcConfig.setp_lines`), the filter
 coefficients designed by distctrl's own design (:func:`distctrl.control.filters.design_coefficients`).
 
 :class:`ThcCore` is the component's period in Python with distctrl's cycle core
 (:class:`distctrl.control.controller.AxisDistanceController`, whose numbers are :mod:`distctrl.control.law`'s,
 the only copy of the law) as its law: the pins become the core's inputs and the PLC's commands (ON,
-FREEZE while a lock holds, OFF). :class:`ThcLocks` is the corner lock and void lock, the PLC's part:
+ON_CONST_DIST or DRYRUN by ``mode`` and ``dryrun``, FREEZE while a lock holds, OFF). :class:`ThcLocks` is the corner lock and void lock, the PLC's part:
 distctrl's own CornerLock and VoidLock process functions, stepped on the pins.
 tests/linuxcnc/test_thc.py streams inputs through the C component in halrun and checks its outputs
 (offset, velocity, filtered value, HLI state, error ID, counts, locks, the void lock's rate and mean)
@@ -336,17 +339,18 @@ class ThcCore:
     The pins become what a PLC gives the core (HLI DistanceControl, PLC-commanded): the distance
     ``(arc-voltage-in - arc-v0) * (1 / arc-k)`` as the sensor variable (the reading ``s = -distance``,
     SPEC §1), ``axis-z-command`` as the programmed position p (the core adds its own offset: c = p + o),
-    ``axis-z-position`` as a, ``set-dist`` as the cyclic D_Distance; and from the state of the previous
+    ``axis-z-position`` as a, ``set-dist`` and ``set-pos`` as the cyclic D_Distance and D_Position; and from the state of the previous
     period and this period's locks (:class:`ThcLocks`: distctrl's corner_lock and void_lock functions, which
     see that state as ``state_r.actual_state``) the commands:
 
-    * thc-enable on and INACTIVE: ON_CONST_DIST with SET_DIST (and FREEZE at once if a lock holds); with
-      ``dryrun`` on, DRYRUN with SET_DIST (HLI CONST_DIST: the cycle runs, the offset stands; a DRYRUN
-      selected while the offset still moves is a FREEZE until it stands, the core's rule);
-    * thc-enable on, ACTIVE_CONST_DIST and a lock holds: FREEZE; the FREEZE the locks commanded and no
-      lock: ON_CONST_DIST;
-    * thc-enable off in ACTIVE_CONST_DIST, DRYRUN_CONST_DIST, FREEZE or ERROR: OFF (TURNING_OFF runs the
-      offset out to 0, then INACTIVE). ERROR is left only this way (FCT-M3 §8.1): thc-enable off, then on.
+    * thc-enable on and INACTIVE: the select, by ``mode`` read now: ON_CONST_DIST with SET_DIST (mode 0) or
+      ON with SET_POS (mode 1), and FREEZE at once if a lock holds; with ``dryrun`` on, DRYRUN with the
+      mode's set value (HLI CONST_DIST / DRYRUN: the cycle runs, the offset stands; a DRYRUN selected while
+      the offset still moves is a FREEZE until it stands, the core's rule), which no lock freezes;
+    * thc-enable on, ACTIVE or ACTIVE_CONST_DIST and a lock holds: FREEZE; the FREEZE the locks commanded
+      and no lock: ON into the mode of the select;
+    * thc-enable off in ACTIVE(_CONST_DIST), DRYRUN, FREEZE or ERROR: OFF (TURNING_OFF runs the offset out
+      to 0, then INACTIVE). ERROR is left only this way (FCT-M3 §8.1): thc-enable off, then on.
 
     hal/distctrl_thc.comp is this class in C; tests/linuxcnc/test_thc.py checks it bit for bit."""
 

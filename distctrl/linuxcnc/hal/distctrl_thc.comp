@@ -1,23 +1,25 @@
 component distctrl_thc "distctrl's distance-control law as a torch height control in the servo thread (docs/linuxcnc.md)";
 description """
-distctrl's cycle core for CONST_DIST (distctrl/control/controller.py, AxisDistanceController.update, with the
-law of distctrl/control/law.py: filter, PID with derivative on the measurement and anti-windup, slope
-limiter with braking, max_deviation bound; the HLI states; the monitoring errors) translated operation for
+distctrl's cycle core (distctrl/control/controller.py, AxisDistanceController.update, with the law of
+distctrl/control/law.py: filter, PID with derivative on the measurement and anti-windup, slope limiter with
+braking and the lowering weights, the adaptive acceleration, the max_deviation bound and the software
+limits; CONST_DIST and SET_POS (mode), DRYRUN; the HLI states; the monitoring errors) translated operation for
 operation into C, so that its outputs equal the Python core's bit for bit (tests/linuxcnc/test_thc.py checks
 it in halrun for every filter type, the state transitions and every monitoring error, against
 distctrl.linuxcnc.thc.ThcCore). The arc voltage is linearised into the distance as distctrl's PLC does
 (distance = (arc-voltage-in - arc-v0) * (1 / arc-k)); the core sees it as the sensor variable (reading
 s = -distance). Pins are named like plasmac's where they mean the same.
 
-States (state, HLI DistanceControl's numbers): 0 INACTIVE, 4 ACTIVE_CONST_DIST, 2 FREEZE, 3 TURNING_OFF,
-5 ERROR. The pins give the commands a PLC would: thc-enable on in INACTIVE = ON_CONST_DIST with set-dist
-(entering seeds the filter with the current distance: no jump); a lock (corner or void) in
-ACTIVE_CONST_DIST = FREEZE (the wanted step is 0, the offset brakes within the acceleration limit and
-stays, the integrator holds), the lock open again = ON_CONST_DIST; thc-enable off = OFF: TURNING_OFF runs
-the offset out to 0 within the limits, then INACTIVE. Monitoring while ACTIVE_CONST_DIST (error-id, the
+States (state, HLI DistanceControl's numbers): 0 INACTIVE, 1 ACTIVE, 4 ACTIVE_CONST_DIST, 2 FREEZE,
+3 TURNING_OFF, 5 ERROR, 6 DRYRUN_CONST_DIST, 7 DRYRUN_SETPOS. The pins give the commands a PLC would:
+thc-enable on in INACTIVE = ON_CONST_DIST with set-dist (mode 0) or ON with set-pos (mode 1), DRYRUN with
+the mode's set value if dryrun is on (entering seeds the filter with the current feedback: no jump); a lock
+(corner or void) in ACTIVE(_CONST_DIST) = FREEZE (the wanted step is 0, the offset brakes within the
+acceleration limit and stays, the integrator holds), the lock open again = ON into the frozen mode;
+thc-enable off = OFF: TURNING_OFF runs the offset out to 0 within the limits, then INACTIVE. Monitoring while ACTIVE(_CONST_DIST) or DRYRUN (error-id, the
 documents' IDs): 70329 the reading changed by more than max-act-value-change * period, 70330 / 70576 the
 reading left the window max-pos - tolerance / min-pos + tolerance, 70331 the offset at max-deviation and
-the law wants beyond, 900001 a non-finite input. ERROR holds the offset (it brakes and stays) and is left
+the law wants beyond, 900002 the same at a software limit (check-sw-limit-switch), 900001 a non-finite input. ERROR holds the offset (it brakes and stays) and is left
 only by thc-enable off (TURNING_OFF, the run-out) and on again.
 Corner lock (cornerlock-mode 0, the default): distctrl's corner_lock process function
 (distctrl/plc/process/corner_lock.py, its ST): while tracking (ACTIVE_CONST_DIST, or the FREEZE it
