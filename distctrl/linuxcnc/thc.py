@@ -133,6 +133,7 @@ class ThcConfig:
                                 + ", ".join(f"{k} ({v})" for k, v in CORNERLOCK_MODES.items()))
         if self.cornerlock_mode == "plasmac":
             _check("cornerlock-threshold", self.cornerlock_threshold, 0.0, 100.0, pid="% of feed-upm, plasmac")
+        _check("cornerlock-hysteresis", self.cornerlock_hysteresis, 0.0, 50.0, pid="%, corner_lock.hysteresis * 100")
         _check("voidlock-window", self.voidlock_window, cycle_time, 100 * cycle_time, pid="s, 1..100 periods")
         # distctrl's own functions check their keys (docs/process.md): corner_lock.share 0 < s <= 1,
         # hysteresis 0..0.5 with share + hysteresis <= 1; void_lock's threshold, window, cycles, band

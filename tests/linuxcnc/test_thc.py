@@ -429,6 +429,8 @@ def test_thc_config_refuses_lock_settings_outside_the_process_functions_ranges()
     with pytest.raises(LinuxCNCError, match="voidlock-on-cycles: void_lock.on_cycles"):
         ThcConfig(voidlock_on_cycles=0).check(0.001)
     ThcConfig(cornerlock_mode="plasmac", cornerlock_threshold=0.0).check(0.001)   # plasmac: 0 % never locks
+    with pytest.raises(LinuxCNCError, match="cornerlock-hysteresis = nan out of range"):
+        ThcConfig(cornerlock_mode="plasmac", cornerlock_hysteresis=math.nan).check(0.001)   # a pin, even unused
 
 
 @pytest.mark.parametrize("name", list(LIMITS))
