@@ -243,8 +243,7 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
     comp.newpin("seq", hal.HAL_U32, hal.HAL_IN)
     comp.newpin("ack", hal.HAL_U32, hal.HAL_OUT)
     if thc is not None:
-        for name, t in (("dthc-enable", hal.HAL_BIT), ("z-cmd", hal.HAL_FLOAT),
-                        ("req-vel", hal.HAL_FLOAT)):
+        for name, t in (("dthc-enable", hal.HAL_BIT), ("z-cmd", hal.HAL_FLOAT)):
             comp.newpin(name, t, hal.HAL_OUT)
         for name, t in (("dthc-counts", hal.HAL_S32), ("dthc-scale", hal.HAL_FLOAT), ("dthc-state", hal.HAL_S32),
                         ("dthc-error", hal.HAL_S32), ("dthc-cl", hal.HAL_BIT), ("dthc-vl", hal.HAL_BIT)):
@@ -262,7 +261,7 @@ def _run_plasmac(hs: HalSession, job: PlateJob, cornerlock: bool, voidlock: bool
                      f"net dp-voidlock-enable {t0}.voidlock-enable",
                      f"net dt-enable distctrl-plant.dthc-enable => {t0}.thc-enable",
                      f"net dt-zc distctrl-plant.z-cmd => {t0}.axis-z-command",
-                     f"net dt-req distctrl-plant.req-vel => {t0}.requested-velocity",
+                     f"net dp-feed-upm {t0}.feed-upm",
                      f"net dt-counts {t0}.z-offset-counts => distctrl-plant.dthc-counts",
                      f"net dt-scale {t0}.offset-scale => distctrl-plant.dthc-scale",
                      f"net dt-state {t0}.state => distctrl-plant.dthc-state",
@@ -308,8 +307,6 @@ def _loop(hs, comp, job: PlateJob, settings: dict, limits: dict, cornerlock: boo
     comp["z-pos"] = drive.actual
     comp["x-pos"], comp["y-pos"] = path.x, path.y
     comp["feed-upm"] = job.cut_feed * 60.0
-    if thc is not None:
-        comp["req-vel"] = job.cut_feed
     thc_delay = int(round(float(settings["thc-delay"]) / T))     # plasmac's THC delay, for distctrl_thc too
     in_cut = 0
     last_dthc_error = 0

@@ -4,20 +4,26 @@
 I_TN P-AXIS-00764 0..50 s, D_TV P-AXIS-00765 0..2 s, the filter of P-AXIS-00782/00413/00784/00783/00507/00508
 through :class:`distctrl.control.filters.FilterConfig`, v_max P-AXIS-00415, a_max P-AXIS-00416,
 max_deviation P-AXIS-00414, the monitoring's max_act_value_change P-AXIS-00417 and sensor window
-max_pos/min_pos/tolerance P-AXIS-00419/00420/00421) and gives them as ``setp`` lines (:meth:`ThcConfig.setp_lines`), the filter
+max_pos/min_pos/tolerance P-AXIS-00419/00420/00421, the software limits P-AXIS-00428/00177/00178, the
+lowering weights P-AXIS-00533/00534 and the adaptive acceleration P-AXIS-00501..00505 through
+:class:`distctrl.params.AxisParameters`' own checks, the locks through distctrl's corner_lock and void_lock
+functions' keys) and gives them as ``setp`` lines (:meth:`ThcConfig.setp_lines`), the filter
 coefficients designed by distctrl's own design (:func:`distctrl.control.filters.design_coefficients`).
 
 :class:`ThcCore` is the component's period in Python with distctrl's cycle core
 (:class:`distctrl.control.controller.AxisDistanceController`, whose numbers are :mod:`distctrl.control.law`'s,
 the only copy of the law) as its law: the pins become the core's inputs and the PLC's commands (ON,
-FREEZE while a lock holds, OFF). :class:`ThcLocks` is the corner lock and void lock, the PLC's part.
+ON_CONST_DIST or DRYRUN by ``mode`` and ``dryrun``, FREEZE while a lock holds, OFF). :class:`ThcLocks` is the corner lock and void lock, the PLC's part:
+distctrl's own CornerLock and VoidLock process functions, stepped on the pins.
 tests/linuxcnc/test_thc.py streams inputs through the C component in halrun and checks its outputs
-(offset, velocity, filtered value, HLI state, error ID, counts, locks) equal ThcCore's bit for bit.
+(offset, velocity, filtered value, HLI state, error ID, counts, locks, the void lock's rate and mean)
+equal ThcCore's bit for bit.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 from ..base.kinds import SensorSource
 from ..base.states import CommandSource, HliState
@@ -26,10 +32,22 @@ from ..control.controller import AxisDistanceController
 from ..control.cycle_io import CycleInput, CycleOutput
 from ..control.filters import FilterConfig, design_coefficients
 from ..errors import ParameterError
+from ..errors.config import ConfigError
 from ..params.axis import AxisParameters
+from ..plc.process.corner_lock import CornerLock
+from ..plc.process.void_lock import VoidLock
 from .hal_env import LinuxCNCError
 
-__all__ = ["ThcConfig", "ThcCore", "ThcLocks", "lround"]
+__all__ = ["ThcConfig", "ThcCore", "ThcLocks", "lround", "CORNERLOCK_MODES", "MODES"]
+
+#: cornerlock-mode: 0 distctrl's corner_lock process function (the default), 1 plasmac 1.235's rule
+CORNERLOCK_MODES = {"distctrl": 0, "plasmac": 1}
+#: the mode pin: 0 CONST_DIST (the height above the plate, the default), 1 SET_POS (the surface at set-pos)
+MODES = {"CONST_DIST": 0, "SET_POS": 1}
+#: the void lock's signal, a V.E. variable of the PLC (the arc voltage)
+_ARC = "V.E.ARC_VOLTAGE"
+#: the parameter list's defaults (software limits, adaptive acceleration, lowering weights)
+_AXIS = AxisParameters()
 
 
 def lround(x: float) -> int:
@@ -61,7 +79,9 @@ class ThcConfig:
     arc_v0: float = 95.0
     arc_k: float = 6.0
     resolution: float = 0.001
-    cornerlock_threshold: float = 90.0
+    cornerlock_mode: str = "distctrl"          # CORNERLOCK_MODES
+    cornerlock_threshold: float = 90.0         # % of feed-upm: corner_lock.share * 100 (plasmac's threshold)
+    cornerlock_hysteresis: float = 5.0         # %: corner_lock.hysteresis * 100 (mode distctrl)
     voidlock_slope: float = 500.0
     voidlock_window: float = 0.02
     voidlock_on_cycles: int = 3
@@ -71,6 +91,18 @@ class ThcConfig:
     max_pos: float = 50000.0               # P-AXIS-00419, mm: the window of the reading s = -distance (70330)
     min_pos: float = -50000.0              # P-AXIS-00420, mm (70576)
     tolerance: float = 0.0                 # P-AXIS-00421, mm
+    check_sw_limit_switch: bool = False    # P-AXIS-00428: the offset bounded by the software limits
+    sw_limit_max: float = _AXIS.sw_limit_max   # P-AXIS-00177 swe_pos, mm (of axis-z-command's coordinates)
+    sw_limit_min: float = _AXIS.sw_limit_min   # P-AXIS-00178 swe_neg, mm
+    v_weight_down: float = 0.0             # P-AXIS-00533, fraction (0 = off): v_max of a lowering move
+    a_weight_down: float = 0.0             # P-AXIS-00534, fraction (0 = off): a_max of a lowering move
+    use_adaptive_acceleration: bool = False    # P-AXIS-00501 (Fig. 31)
+    a_min: float = _AXIS.a_min             # P-AXIS-00502, mm/s²
+    dist_error_a_min: float = _AXIS.dist_error_a_min   # P-AXIS-00504, mm
+    dist_error_a_max: float = _AXIS.dist_error_a_max   # P-AXIS-00505, mm
+    dryrun: bool = False                   # the dryrun pin's setting: thc-enable selects DRYRUN
+    mode: str = "CONST_DIST"               # the mode pin's setting (MODES), read at the select
+    set_pos: float = 0.0                   # SET_POS (mm, axis-z-command's coordinates): the surface position
 
     def check(self, cycle_time: float) -> None:
         """Raise :class:`LinuxCNCError` naming the parameter and its range unless every value is allowed."""
@@ -89,19 +121,52 @@ class ThcConfig:
         _check("a-max", self.a_max, 0.0, 1e7, lo_open=True, pid="P-AXIS-00416")
         _check("max-deviation", self.max_deviation, 0.0, 1e4, lo_open=True, pid="P-AXIS-00414")
         _check("set-dist", self.set_dist, 0.0, 100.0, lo_open=True, pid="SET_DIST")
+        if self.mode not in MODES:
+            raise LinuxCNCError(f"distctrl_thc mode = {self.mode!r} unknown; allowed: "
+                                + ", ".join(f"{k} ({v})" for k, v in MODES.items()))
+        _check("set-pos", self.set_pos, -1e6, 1e6, pid="SET_POS, mm")
         _check("arc-k", self.arc_k, 0.5, 50.0, pid="V/mm")
         _check("arc-v0", self.arc_v0, 0.0, 400.0, pid="V")
         _check("resolution", self.resolution, 0.0, 1.0, lo_open=True, pid="mm per count")
-        _check("cornerlock-threshold", self.cornerlock_threshold, 0.0, 100.0, pid="%")
-        _check("voidlock-slope", self.voidlock_slope, 0.0, 1e6, lo_open=True, pid="V/s")
+        if self.cornerlock_mode not in CORNERLOCK_MODES:
+            raise LinuxCNCError(f"distctrl_thc cornerlock-mode = {self.cornerlock_mode!r} unknown; allowed: "
+                                + ", ".join(f"{k} ({v})" for k, v in CORNERLOCK_MODES.items()))
+        if self.cornerlock_mode == "plasmac":
+            _check("cornerlock-threshold", self.cornerlock_threshold, 0.0, 100.0, pid="% of feed-upm, plasmac")
+        _check("cornerlock-hysteresis", self.cornerlock_hysteresis, 0.0, 50.0, pid="%, corner_lock.hysteresis * 100")
         _check("voidlock-window", self.voidlock_window, cycle_time, 100 * cycle_time, pid="s, 1..100 periods")
-        _check("voidlock-on-cycles", self.voidlock_on_cycles, 0, 1e6, pid="periods")
-        _check("voidlock-off-cycles", self.voidlock_off_cycles, 0, 1e6, pid="periods")
-        _check("voidlock-release-band", self.voidlock_release_band, 0.0, 1e4, pid="V")
+        # distctrl's own functions check their keys (docs/process.md): corner_lock.share 0 < s <= 1,
+        # hysteresis 0..0.5 with share + hysteresis <= 1; void_lock's threshold, window, cycles, band
+        pins = {"corner_lock.share": "cornerlock-threshold / 100", "corner_lock.hysteresis": "cornerlock-hysteresis / 100",
+                "void_lock.threshold": "voidlock-slope", "void_lock.window": "voidlock-window",
+                "void_lock.on_cycles": "voidlock-on-cycles", "void_lock.off_cycles": "voidlock-off-cycles",
+                "void_lock.release_band": "voidlock-release-band"}
+        try:
+            if self.cornerlock_mode == "distctrl":
+                CornerLock("Z", share=self.cornerlock_share, hysteresis=self.cornerlock_hysteresis_share)
+            VoidLock("Z", cycle_time, self.voidlock_slope, window=self.voidlock_window,
+                     on_cycles=self.voidlock_on_cycles, off_cycles=self.voidlock_off_cycles,
+                     release_band=self.voidlock_release_band)
+        except ConfigError as exc:
+            raise LinuxCNCError(f"distctrl_thc {pins.get(exc.key, exc.key)}: {exc}") from None
         try:
             self.filter.check(cycle_time)
         except ParameterError as exc:
             raise LinuxCNCError(f"distctrl_thc filter: {exc}") from None
+        try:                                         # the parameter list's own checks (ranges, swe_neg < swe_pos)
+            self.axis_parameters()
+        except ParameterError as exc:
+            raise LinuxCNCError(f"distctrl_thc: {exc}") from None
+
+    @property
+    def cornerlock_share(self) -> float:
+        """corner_lock.share: ``cornerlock-threshold`` % as a share (the component computes the same)."""
+        return self.cornerlock_threshold * 0.01
+
+    @property
+    def cornerlock_hysteresis_share(self) -> float:
+        """corner_lock.hysteresis: ``cornerlock-hysteresis`` % as a share."""
+        return self.cornerlock_hysteresis * 0.01
 
     def coefficients(self, cycle_time: float) -> list[float]:
         self.check(cycle_time)
@@ -111,20 +176,24 @@ class ThcConfig:
     def from_params(cls, p, **kw) -> "ThcConfig":
         """From an axis parameter list (:class:`distctrl.params.AxisParameters`): KP, I_TN, D_TV, both
         encoders, the filter, v_max, a_max (0: the axis's), max_deviation, the monitoring's
-        max_act_value_change, max_pos, min_pos, tolerance; ``kw`` sets the rest."""
+        max_act_value_change, max_pos, min_pos, tolerance, the software limits, the lowering weights and
+        the adaptive acceleration; ``kw`` sets the rest."""
         fields = dict(kp=p.kp, i_tn=p.i_tn, d_tv=p.d_tv, use_both_encoders=bool(p.use_both_encoders),
                       filter=FilterConfig(p.filter_type, p.n_cycles, p.smoothing_factor, p.kalman_sigma,
                                           p.low_pass_filter_order, p.low_pass_filter_fg_f0),
                       v_max=p.v_max, a_max=p.a_max if p.a_max > 0 else p.axis_a_max,
                       max_deviation=p.max_deviation, max_act_value_change=p.max_act_value_change,
-                      max_pos=p.max_pos, min_pos=p.min_pos, tolerance=p.tolerance)
+                      max_pos=p.max_pos, min_pos=p.min_pos, tolerance=p.tolerance,
+                      check_sw_limit_switch=bool(p.check_sw_limit_switch), sw_limit_max=p.sw_limit_max,
+                      sw_limit_min=p.sw_limit_min, v_weight_down=p.v_weight_down, a_weight_down=p.a_weight_down,
+                      use_adaptive_acceleration=bool(p.use_adaptive_acceleration), a_min=p.a_min,
+                      dist_error_a_min=p.dist_error_a_min, dist_error_a_max=p.dist_error_a_max)
         fields.update(kw)
         return cls(**fields)
 
     def axis_parameters(self) -> AxisParameters:
         """The axis parameter list the cycle core runs the component's law with (:class:`ThcCore`): these
-        settings, the sensor absolute (no REF), optimized scheduling (the reading of this period), no
-        adaptive acceleration, no lowering weights, no software limits (LinuxCNC's motion keeps them)."""
+        settings, the sensor absolute (no REF), optimized scheduling (the reading of this period)."""
         f = self.filter
         return AxisParameters(enabled=True, kp=self.kp, i_tn=self.i_tn, d_tv=self.d_tv,
                               use_both_encoders=self.use_both_encoders, filter_type=f.filter_type,
@@ -133,8 +202,11 @@ class ThcConfig:
                               a_max=self.a_max, max_deviation=self.max_deviation,
                               max_act_value_change=self.max_act_value_change, max_pos=self.max_pos,
                               min_pos=self.min_pos, tolerance=self.tolerance, sensor_absolute=True,
-                              optimized_scheduling=True, use_adaptive_acceleration=False, v_weight_down=0.0,
-                              a_weight_down=0.0, check_sw_limit_switch=False)
+                              optimized_scheduling=True, use_adaptive_acceleration=self.use_adaptive_acceleration,
+                              a_min=self.a_min, dist_error_a_min=self.dist_error_a_min,
+                              dist_error_a_max=self.dist_error_a_max, v_weight_down=self.v_weight_down,
+                              a_weight_down=self.a_weight_down, check_sw_limit_switch=self.check_sw_limit_switch,
+                              sw_limit_max=self.sw_limit_max, sw_limit_min=self.sw_limit_min)
 
     def setp_lines(self, cycle_time: float, name: str = "distctrl-thc.0") -> list[str]:
         """halcmd ``setp`` lines for the component instance ``name`` (exact: repr of each double)."""
@@ -142,87 +214,112 @@ class ThcConfig:
         pins = {"use-both-encoders": int(self.use_both_encoders), "kp": self.kp, "i-tn": self.i_tn, "d-tv": self.d_tv, "v-max": self.v_max, "a-max": self.a_max,
                 "max-deviation": self.max_deviation, "set-dist": self.set_dist, "arc-v0": self.arc_v0,
                 "arc-k": self.arc_k, "resolution": self.resolution,
-                "cornerlock-threshold": self.cornerlock_threshold, "voidlock-slope": self.voidlock_slope,
+                "cornerlock-mode": CORNERLOCK_MODES.get(self.cornerlock_mode, -1),
+                "cornerlock-threshold": self.cornerlock_threshold,
+                "cornerlock-hysteresis": self.cornerlock_hysteresis, "voidlock-slope": self.voidlock_slope,
                 "voidlock-window": self.voidlock_window, "voidlock-on-cycles": int(self.voidlock_on_cycles),
                 "voidlock-off-cycles": int(self.voidlock_off_cycles),
                 "voidlock-release-band": self.voidlock_release_band,
                 "max-act-value-change": self.max_act_value_change, "max-pos": self.max_pos,
-                "min-pos": self.min_pos, "tolerance": self.tolerance}
+                "min-pos": self.min_pos, "tolerance": self.tolerance,
+                "check-sw-limit-switch": int(self.check_sw_limit_switch), "sw-limit-max": self.sw_limit_max,
+                "sw-limit-min": self.sw_limit_min, "v-weight-down": self.v_weight_down,
+                "a-weight-down": self.a_weight_down,
+                "use-adaptive-acceleration": int(self.use_adaptive_acceleration), "a-min": self.a_min,
+                "dist-error-a-min": self.dist_error_a_min, "dist-error-a-max": self.dist_error_a_max,
+                "dryrun": int(self.dryrun), "mode": MODES.get(self.mode, -1), "set-pos": self.set_pos}
         lines = [f"setp {name}.{k} {v!r}" for k, v in pins.items()]
         lines += [f"setp {name}.fc-{i:03d} {float(c)!r}" for i, c in enumerate(fc)]
         return lines
 
 
-class ThcLocks:
-    """The component's corner lock and void lock in Python (hal/distctrl_thc.comp runs the same).
+class _Hold:
+    """The component's FREEZE hold as the process functions see it (:class:`distctrl.plc.process.hold.
+    FreezeHold`'s face to them): ``held_by_us`` while the component is in a FREEZE its locks commanded,
+    the requests of this period. The sequence itself is :class:`ThcCore`'s commands (FREEZE while a lock
+    requests it, ON_CONST_DIST when none does), as in the component."""
 
-    These are the PLC's part, not the cycle core's: the corner lock is plasmac's (current-velocity below
-    cornerlock-threshold % of requested-velocity, no arming or hysteresis, so that the pin means what
-    plasmac's does), the void lock is distctrl's void_lock function (distctrl/plc/process/void_lock.py,
-    its ST) on the arc voltage. A closed lock is a FREEZE command to the core (:class:`ThcCore`)."""
+    def __init__(self) -> None:
+        self.held_by_us = False
+        self.requests: set[str] = set()
+
+    def request(self, who: str) -> None:
+        self.requests.add(who)
+
+
+class ThcLocks:
+    """The component's corner lock and void lock: distctrl's own process functions, stepped once a period.
+
+    These are the PLC's part, not the cycle core's. :meth:`step` runs distctrl's
+    :class:`~distctrl.plc.process.corner_lock.CornerLock` and :class:`~distctrl.plc.process.void_lock.VoidLock`
+    (their ``step``, not a copy) on the component's pins, as distctrl's PLC program runs them on an axis:
+    ``state_r.actual_state`` is the HLI state of the previous period, the hold is ours while the component
+    is in a FREEZE its locks commanded, the path is ``current-velocity`` · 60 against ``feed-upm`` (F times
+    the override, units/min, plasmac's pins; the override is in ``feed-upm``, so the function's own override
+    is 1), the void lock's V.E. variable is ``arc-voltage-in``, and switching ``cornerlock-enable`` or
+    ``voidlock-enable`` resets the function as distctrl's program switch does. A closed lock is a FREEZE
+    request to the core (:class:`ThcCore`). hal/distctrl_thc.comp runs the same in C; tests/linuxcnc/test_thc.py
+    checks it period for period (the locks and the void lock's rate and mean bit for bit).
+
+    ``cornerlock-mode`` 1 (plasmac) selects plasmac 1.235's rule instead of the function: locked while
+    ``current-velocity`` · 60 is below ``cornerlock-threshold`` % of ``feed-upm``, open again above 99 %
+    (plasmac.comp, CUT_MODE_01), while ``thc-enable`` is on, without arming."""
 
     def __init__(self, config: ThcConfig, period_ns: int = 1_000_000):
         self.T = period_ns * 1e-9                    # as halcompile's fperiod
         self.c = config
-        self.vbuf = [0.0] * 100
-        self.vmean = [0.0] * 100
-        self.vsum = self.vlevel = 0.0
-        self.vi = self.nfill = self.nmfill = self.non = self.noff = 0
+        self.plasmac = config.cornerlock_mode == "plasmac"
+        self.hold = _Hold()
+        self.corner = CornerLock("Z", share=config.cornerlock_share, hysteresis=config.cornerlock_hysteresis_share)
+        self.void = VoidLock("Z", self.T, config.voidlock_slope, variable=_ARC, window=config.voidlock_window,
+                             on_cycles=config.voidlock_on_cycles, off_cycles=config.voidlock_off_cycles,
+                             release_band=config.voidlock_release_band)
+        self.corner.bind(self.hold)
+        self.void.bind(self.hold)
+        self._state_r = SimpleNamespace(actual_state=STATE_INACTIVE)
+        self._path = SimpleNamespace(D_CommandFeed=0.0, D_ActiveFeed=0.0, override=1.0)
+        self.machine = SimpleNamespace(hli={"Z": SimpleNamespace(state_r=self._state_r)}, variables={},
+                                       channel_path=self._path)
+        self._cl_on = self._vl_on = False
+        self.cycle = 0
         self.cornerlock = self.voidlock = False
 
-    def _void_lock(self, x: float, on: bool) -> None:
-        """distctrl's void_lock (its ST, distctrl/plc/process/void_lock.py) as the component runs it."""
-        c, T = self.c, self.T
-        if not on:
-            self.nfill = self.nmfill = self.non = self.noff = 0
-            self.vsum = 0.0
-            self.voidlock = False
-            return
-        N = min(100, max(1, lround(c.voidlock_window / T)))
-        if self.vi >= N:
-            self.vi = 0
-        vi = self.vi
-        old = self.vbuf[vi]
-        full = self.nfill >= N
-        mean_old = self.vmean[vi]
-        mfull = self.nmfill >= N
-        self.vbuf[vi] = x
-        self.vsum = self.vsum + x - (old if full else 0.0)
-        if not full:
-            self.nfill += 1
-        mean = 0.0
-        if self.nfill >= N:
-            mean = self.vsum / N
-            self.vmean[vi] = mean
-            if self.nmfill < N:
-                self.nmfill += 1
-        self.vi = (vi + 1) % N
-        if not full:
-            self.voidlock = False
-            self.non = self.noff = 0
-            return
-        rate = (x - old) / (N * T)
-        if not self.voidlock:
-            self.non = self.non + 1 if abs(rate) > c.voidlock_slope else 0
-            if self.non >= c.voidlock_on_cycles:
-                self.voidlock = True
-                self.vlevel = mean_old if mfull else old
-                self.noff = 0
-        else:
-            if abs(rate) <= c.voidlock_slope and mean - self.vlevel <= c.voidlock_release_band:
-                self.noff += 1
-            else:
-                self.noff = 0
-            if self.noff >= c.voidlock_off_cycles:
-                self.voidlock = False
-                self.non = 0
+    @staticmethod
+    def _switch(fn, on: bool, was: bool) -> bool:
+        if on != was:
+            fn.reset()                               # distctrl's program switch: a change resets the function
+        return on
 
-    def step(self, arc_voltage: float, enable: bool, cornerlock_enable: bool, current_velocity: float,
-             requested_velocity: float, voidlock_enable: bool) -> bool:
-        """One period of both locks; True if either holds."""
-        c = self.c
-        self.cornerlock = bool(cornerlock_enable and current_velocity < requested_velocity * c.cornerlock_threshold * 0.01)
-        self._void_lock(arc_voltage, bool(voidlock_enable and enable))
+    def step(self, arc_voltage: float, state: int, held: bool, enable: bool, cornerlock_enable: bool,
+             current_velocity: float, feed_upm: float, voidlock_enable: bool) -> bool:
+        """One period of both locks; ``state`` the HLI state of the previous period, ``held`` it is a FREEZE
+        the locks commanded. True if either lock requests the hold."""
+        self.cycle += 1
+        self._state_r.actual_state = state
+        self.hold.held_by_us = held
+        self.hold.requests.clear()
+        m = self.machine
+        if self.plasmac:
+            thr = self.c.cornerlock_threshold
+            v = current_velocity * 60.0
+            if not (cornerlock_enable and enable):
+                self.cornerlock = False
+            elif v < feed_upm * thr * 0.01:
+                self.cornerlock = True
+            elif self.cornerlock and v > feed_upm * 0.99:
+                self.cornerlock = False
+        else:
+            self._cl_on = self._switch(self.corner, bool(cornerlock_enable), self._cl_on)
+            if self._cl_on:
+                self._path.D_CommandFeed = feed_upm
+                self._path.D_ActiveFeed = current_velocity * 60.0
+                self.corner.step(m, self.cycle)
+            self.cornerlock = self._cl_on and self.corner.armed and self.corner.locked
+        self._vl_on = self._switch(self.void, bool(voidlock_enable), self._vl_on)
+        if self._vl_on:
+            m.variables[_ARC] = arc_voltage
+            self.void.step(m, self.cycle)
+        self.voidlock = self._vl_on and self.void.locked
         return self.cornerlock or self.voidlock
 
 
@@ -230,6 +327,11 @@ class ThcLocks:
 STATE_INACTIVE, STATE_FREEZE, STATE_TURNING_OFF, STATE_ACTIVE_CONST_DIST, STATE_ERROR = (
     int(HliState.INACTIVE), int(HliState.FREEZE), int(HliState.TURNING_OFF), int(HliState.ACTIVE_CONST_DIST),
     int(HliState.ERROR))
+STATE_ACTIVE, STATE_DRYRUN_CONST_DIST, STATE_DRYRUN_SETPOS = (
+    int(HliState.ACTIVE), int(HliState.DRYRUN_CONST_DIST), int(HliState.DRYRUN_SETPOS))
+_TRACKING = (STATE_ACTIVE, STATE_ACTIVE_CONST_DIST)
+_OFF_FROM = (STATE_ACTIVE, STATE_ACTIVE_CONST_DIST, STATE_FREEZE, STATE_ERROR, STATE_DRYRUN_CONST_DIST,
+             STATE_DRYRUN_SETPOS)
 
 
 class ThcCore:
@@ -238,13 +340,18 @@ class ThcCore:
     The pins become what a PLC gives the core (HLI DistanceControl, PLC-commanded): the distance
     ``(arc-voltage-in - arc-v0) * (1 / arc-k)`` as the sensor variable (the reading ``s = -distance``,
     SPEC §1), ``axis-z-command`` as the programmed position p (the core adds its own offset: c = p + o),
-    ``axis-z-position`` as a, ``set-dist`` as the cyclic D_Distance; and from the state of the previous
-    period and this period's locks (:class:`ThcLocks`) the commands:
+    ``axis-z-position`` as a, ``set-dist`` and ``set-pos`` as the cyclic D_Distance and D_Position; and from the state of the previous
+    period and this period's locks (:class:`ThcLocks`: distctrl's corner_lock and void_lock functions, which
+    see that state as ``state_r.actual_state``) the commands:
 
-    * thc-enable on and INACTIVE: ON_CONST_DIST with SET_DIST (and FREEZE at once if a lock holds);
-    * thc-enable on, ACTIVE_CONST_DIST and a lock holds: FREEZE; FREEZE and no lock: ON_CONST_DIST;
-    * thc-enable off in ACTIVE_CONST_DIST, FREEZE or ERROR: OFF (TURNING_OFF runs the offset out to 0,
-      then INACTIVE). ERROR is left only this way (FCT-M3 §8.1): thc-enable off, then on again.
+    * thc-enable on and INACTIVE: the select, by ``mode`` read now: ON_CONST_DIST with SET_DIST (mode 0) or
+      ON with SET_POS (mode 1), and FREEZE at once if a lock holds; with ``dryrun`` on, DRYRUN with the
+      mode's set value (HLI CONST_DIST / DRYRUN: the cycle runs, the offset stands; a DRYRUN selected while
+      the offset still moves is a FREEZE until it stands, the core's rule), which no lock freezes;
+    * thc-enable on, ACTIVE or ACTIVE_CONST_DIST and a lock holds: FREEZE; the FREEZE the locks commanded
+      and no lock: ON into the mode of the select;
+    * thc-enable off in ACTIVE(_CONST_DIST), DRYRUN, FREEZE or ERROR: OFF (TURNING_OFF runs the offset out
+      to 0, then INACTIVE). ERROR is left only this way (FCT-M3 §8.1): thc-enable off, then on.
 
     hal/distctrl_thc.comp is this class in C; tests/linuxcnc/test_thc.py checks it bit for bit."""
 
@@ -255,43 +362,66 @@ class ThcCore:
         self.ctrl = AxisDistanceController(config.axis_parameters(), self.T)
         self.locks = ThcLocks(config, period_ns)
         self.state = STATE_INACTIVE
+        self._held = False
+        self._const_dist = True
         self._first = True
 
     def step(self, arc_voltage: float, enable: bool, cornerlock_enable: bool = False, current_velocity: float = 0.0,
-             requested_velocity: float = 0.0, voidlock_enable: bool = False, z_command: float = 0.0,
-             z_actual: float = 0.0, set_dist: float | None = None) -> dict:
+             feed_upm: float = 0.0, voidlock_enable: bool = False, z_command: float = 0.0,
+             z_actual: float = 0.0, set_dist: float | None = None, dryrun: bool | None = None,
+             mode: int | None = None, set_pos: float | None = None) -> dict:
         c = self.c
         set_dist = c.set_dist if set_dist is None else set_dist
+        dryrun = c.dryrun if dryrun is None else dryrun
+        mode = MODES[c.mode] if mode is None else mode
+        set_pos = c.set_pos if set_pos is None else set_pos
         d = (arc_voltage - c.arc_v0) * (1.0 / c.arc_k)
-        locked = self.locks.step(arc_voltage, enable, cornerlock_enable, current_velocity, requested_velocity,
-                                 voidlock_enable)
+        locked = self.locks.step(arc_voltage, self.state, self._held, enable, cornerlock_enable, current_velocity,
+                                 feed_upm, voidlock_enable)
         inp = CycleInput(programmed_position=z_command, actual_position=z_actual, sensor_variable=d,
-                         cyclic_set_dist=set_dist)
+                         cyclic_set_dist=set_dist, cyclic_set_pos=set_pos)
         cmds = inp.commands
         if self._first:                              # the distance comes from the PLC (a V.E. variable)
             cmds.append(Command(Action.NONE, sensor_source=SensorSource.VARIABLE, source=CommandSource.PLC))
             self._first = False
         st = self.state
-        on = Command(Action.ON, const_dist=True, set_dist=set_dist, source=CommandSource.PLC)
+        freeze = False
+        if st == STATE_INACTIVE and enable:          # the select: mode and dryrun are read here
+            self._const_dist = mode != MODES["SET_POS"]
+
+        def select(action: Action) -> Command:
+            if self._const_dist:
+                return Command(action, const_dist=True, set_dist=set_dist, source=CommandSource.PLC)
+            return Command(action, const_dist=False, set_pos=set_pos, source=CommandSource.PLC)
+
         if not enable:
-            if st in (STATE_ACTIVE_CONST_DIST, STATE_FREEZE, STATE_ERROR):
+            if st in _OFF_FROM:
                 cmds.append(Command(Action.OFF, source=CommandSource.PLC))
+        elif st == STATE_INACTIVE and dryrun:        # DRYRUN (HLI CONST_DIST / DRYRUN); no lock freezes it
+            cmds.append(select(Action.DRYRUN))
         elif st == STATE_INACTIVE:
-            cmds.append(on)
+            cmds.append(select(Action.ON))
             if locked:
                 cmds.append(Command(Action.FREEZE, source=CommandSource.PLC))
-        elif st == STATE_ACTIVE_CONST_DIST and locked:
+                freeze = True
+        elif st in _TRACKING and locked:
             cmds.append(Command(Action.FREEZE, source=CommandSource.PLC))
-        elif st == STATE_FREEZE and not locked:
-            cmds.append(on)
+            freeze = True
+        elif st == STATE_FREEZE and self._held and not locked:   # the hold releases only its own FREEZE,
+            cmds.append(select(Action.ON))                      # into the mode it froze
+
         out = CycleOutput()
         self.ctrl.update(inp, out)
         self.state = out.hli_state
+        # the hold is ours while the component stays in the FREEZE its locks commanded
+        self._held = self.state == STATE_FREEZE and (freeze or self._held)
         err = self.ctrl.state.error
         o = out.offset
         r = c.resolution
         return {"distance": d, "state": out.hli_state, "error_id": err.id if err is not None else 0,
                 "offset": o, "velocity": out.offset_velocity, "filtered": out.filtered_feedback,
                 "counts": lround(o / r) if r > 0.0 else 0, "cornerlock_is_locked": self.locks.cornerlock,
-                "voidlock_is_locked": self.locks.voidlock,
+                "voidlock_is_locked": self.locks.voidlock, "voidlock_rate": self.locks.void.rate,
+                "voidlock_mean": self.locks.void.mean, "target_deviation": out.target_deviation,
+                "wanted_step": out.delta_deviation_pre_limiter,
                 "events": [ev.id for ev in out.events]}

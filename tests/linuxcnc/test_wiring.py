@@ -47,6 +47,10 @@ def test_the_docs_qtplasmac_snippets_load_in_halrun(tmp_path):
         assert hs.getp("distctrl-thc.0.kp") == "0.1"
         pins = hs.cmd("show pin axis.z.eoffset-counts")
         assert "dthc:z-offset-counts" in pins
+        # the corner lock's reference: F times the override (motion.feed-upm, as plasmac's), not
+        # motion.requested-vel, which does not reflect the override (motion(9))
+        assert "plasmac:feed-upm" in hs.cmd("show pin distctrl-thc.0.feed-upm")
+        assert hs.getp("distctrl-thc.0.cornerlock-mode") == "0"
         thread = hs.cmd("show thread servo-thread")
         funcs = [ln.split()[-1] for ln in thread.splitlines() if re.match(r"\s+\d+\s+\S", ln)]
         assert funcs.index("distctrl-thc.0") > funcs.index("plasmac")
