@@ -109,7 +109,9 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
     n_sets, n = distance.shape
     T = float(cycle_time)
     k0 = min(n, int(k_on) + int(round(skip / T)))
-    wanted = np.ascontiguousarray(np.broadcast_to(np.asarray(wanted, dtype=np.float64), (n,))) \
+    # np.array copies: a read-only view (broadcast_to) is another numba type, which the warm-up did not
+    # compile (tests/batch/test_warm.py)
+    wanted = np.array(np.broadcast_to(np.asarray(wanted, dtype=np.float64), (n,)), order="C") \
         if np.ndim(wanted) else np.full(n, float(wanted))
     m = n - k0
     if m == 0 or offset.shape != distance.shape:
@@ -121,10 +123,10 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
         z = np.zeros(n_sets)
         lim = (False, z, z, z, z, np.zeros(n_sets, np.bool_), z, z, z)
     else:
-        col = [np.ascontiguousarray(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)))
+        col = [np.array(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)), order="C")
                for k in ("v_lim", "a_lim", "w_v", "w_a")]
-        ad = np.ascontiguousarray(np.broadcast_to(np.asarray(limits["adaptive"], dtype=np.bool_), (n_sets,)))
-        rest = [np.ascontiguousarray(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)))
+        ad = np.array(np.broadcast_to(np.asarray(limits["adaptive"], dtype=np.bool_), (n_sets,)), order="C")
+        rest = [np.array(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)), order="C")
                 for k in ("a_min", "dev_a_min", "dev_a_max")]
         lim = (True, *col, ad, *rest)
     fig = np.empty((n_sets, MK.N_FIG))
