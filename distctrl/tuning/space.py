@@ -312,29 +312,11 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
 
     With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin); at kp >= 1
     d_tv is 0 (:data:`D_NO_EFFECT_KP`). Values are rounded to :func:`resolution` (what the tuner prints is what it evaluated).
+    Drawn for all points at once (:func:`distctrl.tuning.columns.random_columns`).
     """
-    if n < 0:
-        raise SpaceError(f"random sample size {n}: must be >= 0")
-    rng = np.random.default_rng(seed)
-    dims = {d.field: d for d in space}
-    draws = {f: d.sample(rng, n) for f, d in dims.items()}
-    points = []
-    for i in range(n):
-        p: dict = {}
-        ft = draws["filter_type"][i] if "filter_type" in dims else None
-        for f, d in dims.items():
-            if f in NC_WORDS and f not in ("kp", "i_tn", "d_tv", "filter_type") and ft is not None \
-                    and f not in filter_fields(ft):
-                continue
-            v = draws[f][i]
-            v = FilterType(v) if f == "filter_type" else (int(v) if d.kind == "int" else float(v))
-            if f == "low_pass_filter_fg_f0" and cycle_time:
-                v = min(v, 0.45 / cycle_time)
-            p[f] = v
-        if "kp" in p and "d_tv" in p and not d_tv_applies(round_value("kp", p["kp"])):
-            p["d_tv"] = 0.0                   # no D part at kp >= 1: not a dimension to search there
-        points.append(round_point(p))
-    return points
+    from .columns import random_columns   # (columns imports this module)
+
+    return random_columns(n, seed, space, cycle_time=cycle_time).to_points()
 
 
 # ----------------------------------------------------------------------------- points -> sets
