@@ -21,7 +21,8 @@ import numpy as np
 from ..base.kinds import FilterType
 from ..control.filters import FILTER_KINDS
 
-__all__ = ["PointColumns", "random_columns", "drop_inert_columns", "round_column"]
+__all__ = ["PointColumns", "random_columns", "drop_inert_columns", "round_column", "columns_of", "check_columns",
+           "full_column", "COLUMN_FIELDS"]
 
 _INT_FIELDS = {"n_cycles", "low_pass_filter_order"}
 _BOOL_FIELDS = {"optimized_scheduling"}
@@ -202,3 +203,91 @@ def columns_of(points: list[dict], names: list | None = None) -> PointColumns | 
         cols[f] = full
         present[f] = None if mask.all() else mask
     return PointColumns(n, cols, present)
+
+
+#: the fields the columnar check and packing take from columns (distctrl.batch.closed_loop.PACKED_COLUMN_FIELDS)
+COLUMN_FIELDS = frozenset({"kp", "i_tn", "d_tv", "filter_type", "n_cycles", "smoothing_factor", "kalman_sigma",
+                           "low_pass_filter_order", "low_pass_filter_fg_f0", "v_max", "a_max"})
+#: the filter configuration's fields, in FilterConfig's order
+_FILTER_FIELDS = ("filter_type", "n_cycles", "smoothing_factor", "kalman_sigma", "low_pass_filter_order",
+                  "low_pass_filter_fg_f0")
+
+
+def full_column(base, pc: PointColumns, field: str) -> np.ndarray:
+    """The value of ``field`` in every set: the point's where it sets it, else ``base``'s."""
+    b = getattr(base, field)
+    b = int(b) if isinstance(b, FilterType) else b
+    if field not in pc.cols:
+        return np.full(pc.n, b, dtype=np.asarray(b).dtype)
+    m = pc.present.get(field)
+    c = pc.cols[field]
+    return c if m is None else np.where(m, c, np.asarray(b, dtype=c.dtype))
+
+
+def check_columns(base, pc: PointColumns, cycle_time: float):
+    """:func:`~distctrl.tuning.space.build_sets` for columns: ``(kept points, their filter coefficient rows
+    (n_kept, law.FC_LEN), rejected [(point, message)])`` with the same sets, rows and messages, checked per
+    field over the columns (the parameter table's ranges) and designed per distinct filter
+    (:func:`distctrl.batch.design.design_rows`). None when the columns hold a field outside
+    :data:`COLUMN_FIELDS` or of another type than ``base``'s, or a point fails the vectorised check but
+    :func:`~distctrl.tuning.space.to_params` accepts it: the caller then takes the per-set way."""
+    from ..batch.design import check_cycle_time, design_rows
+    from ..errors import ParameterError
+    from .space import BY_FIELD, SpaceError, point_label, to_params
+
+    if set(pc.cols) - COLUMN_FIELDS:
+        return None
+    for f, c in pc.cols.items():
+        b = getattr(base, f)
+        want = "i" if isinstance(b, (int, FilterType)) and not isinstance(b, bool) else "f"
+        if c.dtype.kind != want or isinstance(b, bool):
+            return None
+    try:
+        check_cycle_time(cycle_time)
+    except (ParameterError, ValueError, TypeError):
+        return None
+    n = pc.n
+    bad = np.zeros(n, dtype=bool)
+    rotary = base.rotary
+    for f, c in pc.cols.items():
+        m = pc.mask(f)
+        if f == "filter_type":
+            good = np.isin(c, [int(t) for t in FilterType if t != FilterType.PASS])
+        else:
+            spec = BY_FIELD[f]
+            x = c.astype(np.float64)
+            good = np.isfinite(x)
+            with np.errstate(invalid="ignore"):
+                iv = x / spec.scale_for(rotary)
+                slack = 1e-9 * np.maximum(1.0, np.abs(iv))
+                if spec.choices:
+                    good &= np.isin(iv, np.asarray(spec.choices, dtype=np.float64))
+                else:
+                    if spec.lo is not None:
+                        good &= (iv > spec.lo) if spec.lo_open else (iv >= spec.lo - slack)
+                    if spec.hi is not None:
+                        good &= (iv < spec.hi) if spec.hi_open else (iv <= spec.hi + slack)
+        bad |= m & ~good
+    rejected: dict = {}
+    for i in np.nonzero(bad)[0].tolist():
+        pt = pc.point(i)
+        try:
+            to_params(base, pt, cycle_time)
+        except SpaceError as exc:
+            rejected[i] = (pt, str(exc))
+            continue
+        return None                       # the per-set check accepts what this one refuses
+    good_rows = np.nonzero(~bad)[0]
+    cfg = np.stack([full_column(base, pc, f)[good_rows].astype(np.float64) for f in _FILTER_FIELDS], axis=1)
+    uniq, inv = np.unique(cfg, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    fc_u, errors = design_rows(*(uniq[:, j] for j in range(len(_FILTER_FIELDS))), cycle_time)
+    failed = np.zeros(len(uniq), dtype=bool)
+    failed[list(errors)] = True
+    for r in np.nonzero(failed[inv])[0].tolist():
+        i = int(good_rows[r])
+        pt = pc.point(i)
+        rejected[i] = (pt, f"parameter set {point_label(pt)} is not valid: {errors[int(inv[r])]}")
+    keep_rows = good_rows[~failed[inv]]
+    fc = fc_u[inv[~failed[inv]]]
+    return pc.take(keep_rows), fc, [rejected[i] for i in sorted(rejected)]

@@ -88,3 +88,50 @@ def test_columns_of_refuses_points_it_cannot_hold():
     assert columns_of([{"kp": 0.5}, {"kp": 1}]) is None            # int and float in one field
     assert columns_of([{"kp": 0.5, "d_tv": 0.0}, {"d_tv": 0.0, "kp": 0.5}]) is None   # two key orders
     assert columns_of([{"kp": "0.5"}]) is None
+
+
+def _grid_points():
+    from distctrl.tuning.space import grid_points, parse_grid
+
+    return grid_points(parse_grid("kp=0.3,0.8,1.2,filter_type=LOWPASS,order=1,2,4,fg_f0=100,490,800"))
+
+
+@pytest.mark.parametrize("case", ["random0", "random1", "random7", "grid", "random_t05"])
+def test_check_and_pack_columns_give_build_sets_and_pack_sets_rows_bit_for_bit(case):
+    pytest.importorskip("numba")
+    from pathlib import Path
+
+    from distctrl.batch import closed_loop as CL
+    from distctrl.tuning.columns import COLUMN_FIELDS, check_columns
+    from distctrl.tuning.space import build_sets
+
+    assert COLUMN_FIELDS == CL.PACKED_COLUMN_FIELDS
+    inputs = CL.prepare(Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "tune_sheet.toml",
+                        cycles=20)
+    T = inputs.cycle_time if case != "random_t05" else 0.0005
+    if case == "grid":
+        pc = columns_of(_grid_points())
+    else:
+        pc = random_columns(3000, int(case[6:]) if case[6:].isdigit() else 5, cycle_time=T)
+    pc, _ = drop_inert_columns(pc)
+    points = pc.to_points()
+    sets, kept, rejected = build_sets(inputs.params, points, T)
+    kept_pc, fc, rej2 = check_columns(inputs.params, pc, T)
+    assert rej2 == rejected
+    _same(kept_pc.to_points(), kept)
+    if T == inputs.cycle_time:
+        want = CL.pack_sets(inputs, sets)
+        got = CL.pack_columns(inputs, inputs.params, kept_pc.cols, kept_pc.present, fc)
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_check_columns_leaves_what_it_does_not_cover_to_build_sets():
+    from distctrl.params import AxisParameters
+    from distctrl.tuning.columns import check_columns
+
+    base = AxisParameters(enabled=True)
+    assert columns_of([{"kp": 0.5, "optimized_scheduling": True}]) is None     # a bool value
+    pc = columns_of([{"kp": 0.5, "max_deviation": 3.0}])
+    assert check_columns(base, pc, 0.001) is None                 # a field the columns do not pack
+    pc = columns_of([{"kp": 0.5, "n_cycles": 4.0}])
+    assert check_columns(base, pc, 0.001) is None                 # a float n_cycles: the per-set way
