@@ -46,6 +46,9 @@ __all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "TuningRunE
 PARAM_COLUMNS = tuple(NC_WORDS)
 DEFAULT_CHUNK = 256
 DEFAULT_CHUNK_BYTES = 256 * 2**20
+#: FilterType value -> name, indexable by an array of values (DEFAULT = -1 is the last entry)
+_FILTER_NAMES = np.array([FilterType(v).name if v in {int(t) for t in FilterType} else str(v)
+                          for v in list(range(max(FilterType) + 1)) + [-1]], dtype=object)
 
 
 class TuningRunError(DistCtrlError, RuntimeError):
@@ -127,7 +130,7 @@ class SweepResult:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         # column by column (tolist: the values of rows(), without a dict per row; 10 000 rows took seconds)
-        cols = [[_csv(_plain(x)) for x in (v if isinstance(v, list) else v.tolist())] for v in self.data.values()]
+        cols = [_csv_column(v) for v in self.data.values()]
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(self.columns)
@@ -307,6 +310,19 @@ def _plain(x):
     return x
 
 
+def _csv_column(v) -> list:
+    """A column's CSV fields: what ``_csv(_plain(x))`` gives for every value, by the column's type (the csv
+    module writes a float as its repr, a NaN as an empty field)."""
+    if isinstance(v, list):
+        return [_csv(_plain(x)) for x in v]
+    vals = v.tolist()
+    if v.dtype.kind == "f":
+        return [x if x == x else "" for x in vals]
+    if v.dtype.kind in "iub":
+        return vals
+    return [_csv(_plain(x)) for x in vals]
+
+
 def _csv(x):
     if isinstance(x, float):
         return "" if math.isnan(x) else repr(x)
@@ -477,6 +493,27 @@ class Evaluator:
         if not param_sets:
             return SweepResult(self._table([], [], {}))
         packed = pack_sets(self.inputs, param_sets)
+        return self._evaluate_packed(packed, lambda m: self._table(param_sets, points, m), param_sets, description)
+
+    def evaluate_columns(self, base, points, fc: np.ndarray, *, description: str = "sweep") -> SweepResult:
+        """:meth:`evaluate` of the sets ``base`` with the values of ``points`` (a
+        :class:`~distctrl.tuning.columns.PointColumns` that :func:`~distctrl.tuning.columns.check_columns`
+        kept, ``fc`` its filter rows), without a parameter object per set (issue 27): the same table."""
+        # numba (optional: [fast], [tune]) loads only when a batch runs
+        from ..batch.closed_loop import pack_columns
+        from .columns import full_column
+
+        if not points.n:
+            return SweepResult(self._table([], [], {}))
+        packed = pack_columns(self.inputs, base, points.cols, points.present, fc)
+        params = {}
+        for f in PARAM_COLUMNS:
+            col = full_column(base, points, f)
+            params[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
+        return self._evaluate_packed(packed, lambda m: {**params, **self._metric_columns(m)}, [], description)
+
+    def _evaluate_packed(self, packed, table, params, description) -> SweepResult:
+        n_sets = len(packed)
         chunks = [packed[i:i + self.chunk_size] for i in range(0, len(packed), self.chunk_size)]
         self.prepare_kernels(packed[:1])
         t0 = time.perf_counter()
@@ -487,14 +524,13 @@ class Evaluator:
             parts = self._run_cluster(chunks, description)
         merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         dt = time.perf_counter() - t0
-        self.stats["sets"] += len(param_sets)
-        self.stats["set_cycles"] += len(param_sets) * self.n_cycles
+        self.stats["sets"] += n_sets
+        self.stats["set_cycles"] += n_sets * self.n_cycles
         self.stats["seconds"] += dt
         self.stats["chunks"] += len(chunks)
-        res = SweepResult(self._table(param_sets, points, merged), params=param_sets,
-                          info={"seconds": dt, "sets": len(param_sets), "cycles": self.n_cycles,
-                                "mode": self.mode, "workers": self.n_workers if self.mode == "cluster" else 1})
-        return res
+        return SweepResult(table(merged), params=params,
+                           info={"seconds": dt, "sets": n_sets, "cycles": self.n_cycles,
+                                 "mode": self.mode, "workers": self.n_workers if self.mode == "cluster" else 1})
 
     def prepare_kernels(self, packed_one=None) -> None:
         """Compile the batch kernels once, before the sets run, and say so (the first use on a machine,
@@ -557,12 +593,16 @@ class Evaluator:
             vals = [getattr(p, f) for p in sets]
             data[f] = [v.name for v in vals] if f == "filter_type" else np.asarray(vals)
         if sets:
-            data["cost"] = cost(m, self.osc_weight, **self.cost_weights)
-            for name in METRIC_NAMES:
-                data[name] = m[name]
-            data["failed"] = m["failed"]
-            data["error_cycle"] = m["error_cycle"]
-            data["error_id"] = m["error_id"]
+            data.update(self._metric_columns(m))
+        return data
+
+    def _metric_columns(self, m) -> dict:
+        data = {"cost": cost(m, self.osc_weight, **self.cost_weights)}
+        for name in METRIC_NAMES:
+            data[name] = m[name]
+        data["failed"] = m["failed"]
+        data["error_cycle"] = m["error_cycle"]
+        data["error_id"] = m["error_id"]
         return data
 
     def _bar(self, total: int, description: str):

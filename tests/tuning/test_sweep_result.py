@@ -55,12 +55,12 @@ def test_sweep_json_prints_the_results_to_dict(tmp_path, monkeypatch):
     from distctrl.cli.tune import sweep
 
     seen = []
-    evaluate = Evaluator.evaluate
+    evaluate = Evaluator._evaluate_packed          # under evaluate and evaluate_columns (the sweep's sets as columns)
 
     def keep(self, *a, **k):
         seen.append(evaluate(self, *a, **k))
         return seen[-1]
-    monkeypatch.setattr(Evaluator, "evaluate", keep)
+    monkeypatch.setattr(Evaluator, "_evaluate_packed", keep)
     r = CliRunner().invoke(sweep, [str(SCN), "--grid", "kp=0.2,0.8,n_cycles=2,8", "--local", "--cycles", "1000",
                                    "--out", str(tmp_path / "s.csv"), "--top", "3", "--metric", "cost", "--json"])
     assert r.exit_code == 0, r.output
