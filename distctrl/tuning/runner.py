@@ -70,12 +70,22 @@ def slim_inputs(inputs):
 def evaluate_chunk(inputs, packed: np.ndarray, cycles: int | None, metric_options: dict,
                    threads: int | None = None) -> dict[str, np.ndarray]:
     """Run the kernel for the packed rows and return their metrics (a pure function of its arguments)."""
-    from ..batch.closed_loop import run_batch  # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (optional: [fast], [tune]) loads only when a batch runs
+    import numba
 
-    offset, distance, errors = run_batch(inputs, packed, cycles=cycles, threads=threads, return_errors=True)
-    n = distance.shape[1]
-    m = compute_metrics(offset, distance, wanted_distance(inputs, n), inputs.cycle_time, inputs.k_on,
-                        limits_from_packed(packed), **metric_options)
+    from ..batch.closed_loop import run_batch
+
+    old = numba.get_num_threads()
+    if threads is not None:                  # the kernel's and the metrics pass's threads
+        numba.set_num_threads(int(threads))
+    try:
+        offset, distance, errors = run_batch(inputs, packed, cycles=cycles, return_errors=True)
+        n = distance.shape[1]
+        m = compute_metrics(offset, distance, wanted_distance(inputs, n), inputs.cycle_time, inputs.k_on,
+                            limits_from_packed(packed), **metric_options)
+    finally:
+        if threads is not None:
+            numba.set_num_threads(old)
     m["error_cycle"] = errors[:, 0].copy()
     m["error_id"] = errors[:, 1].copy()
     return m

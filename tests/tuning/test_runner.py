@@ -161,3 +161,26 @@ def test_cluster_worker_killed_mid_sweep_loses_only_its_chunk(inputs, sets, loca
     # the chunks fetched before the death were released at once, so none of them runs again
     # (without the release, those held by the dying worker would be recomputed)
     assert all(len(r) == 1 for c, r in runs.items() if c != victim), runs
+
+
+def test_a_chunk_runs_its_metrics_pass_on_the_chunks_threads_too(monkeypatch):
+    """The metrics pass is parallel over the sets (numba threads): a worker's chunk (threads=1) must not
+    start more threads than the worker has (issue 27)."""
+    numba = pytest.importorskip("numba")
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one numba thread only")
+    from distctrl.batch import closed_loop as CL
+    from distctrl.tuning import runner
+
+    inputs = CL.prepare(SCN, cycles=300)
+    seen = []
+    real = runner.compute_metrics
+
+    def spy(*a, **k):
+        seen.append(numba.get_num_threads())
+        return real(*a, **k)
+    monkeypatch.setattr(runner, "compute_metrics", spy)
+    before = numba.get_num_threads()
+    runner.evaluate_chunk(runner.slim_inputs(inputs), CL.pack_sets(inputs, [inputs.params] * 2), None, {}, 1)
+    assert seen == [1]
+    assert numba.get_num_threads() == before
