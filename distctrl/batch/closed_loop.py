@@ -376,7 +376,7 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
 
 # ----------------------------------------------------------------------------- packing
 
-def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
+def pack_sets(inputs: LoopInputs, param_sets, probe=None) -> np.ndarray:
     """``(n_sets, PACKED_LEN)`` rows ``[fc | prm]`` for a list of :class:`AxisParameters`.
 
     The law's constants are those of :meth:`AxisDistanceController._derive
@@ -388,7 +388,8 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
     resolution and sign reversal (as the machine builds it), once per distinct pair. Columns of
     ``prm`` (offset ``law.FC_LEN``) that are plain numbers (``Q_KP``, ``Q_I_GAIN`` = T/i_tn,
     ``Q_D_GAIN`` = law.derivative_gain(kp, d_tv, T): edit it with Q_KP, ``Q_V_MAX``, ``Q_A_BASE`` ...)
-    may be edited in the array for a sweep; the filter (``fc``) only through this function.
+    may be edited in the array for a sweep; the filter (``fc``) only through this function. ``probe``: the
+    probe constants of every set when known (a worker's inputs have no scenario to build them from).
     """
     T = inputs.cycle_time
     sets = list(param_sets)
@@ -425,7 +426,7 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
         found: dict = {}
         for i, p in enumerate(sets):
             key = (p.encoder_resolution_num, p.encoder_resolution_denom, p.sensor_sign_reversal)
-            pr = found.get(key)
+            pr = found.get(key) if probe is None else probe
             if pr is None:
                 pr = found[key] = _probe_constants(inputs, p)
             q[i, Q_PROBE_IPM], q[i, Q_PROBE_REF] = pr
@@ -439,14 +440,15 @@ PACKED_COLUMN_FIELDS = frozenset({"kp", "i_tn", "d_tv", "filter_type", "n_cycles
                                   "low_pass_filter_order", "low_pass_filter_fg_f0", "v_max", "a_max"})
 
 
-def pack_columns(inputs: LoopInputs, base: AxisParameters, columns: dict, present: dict, fc: np.ndarray
-                 ) -> np.ndarray:
+def pack_columns(inputs: LoopInputs, base: AxisParameters, columns: dict, present: dict, fc: np.ndarray,
+                 probe=None) -> np.ndarray:
     """:func:`pack_sets` of the sets ``base`` with the values of ``columns`` (field -> array of the sets'
     values; ``present[field]``: a bool mask of the sets that take it, None: all), without a parameter
     object per set (issue 27): ``fc`` are the sets' filter coefficient rows
     (:func:`distctrl.batch.design.design_rows`). Only the fields of :data:`PACKED_COLUMN_FIELDS` may be
     columns; the rows are those :func:`pack_sets` builds for the same sets, bit for bit
-    (tests/batch/test_pack.py)."""
+    (tests/batch/test_pack.py). ``probe``: the base set's probe constants (increments per mm, reference
+    offset) when known (a worker's inputs have no scenario to build it from)."""
     unknown = set(columns) - PACKED_COLUMN_FIELDS
     if unknown:
         raise ClosedLoopError(f"pack_columns: fields {sorted(unknown)} are not packed from columns (pack_sets)")
@@ -471,7 +473,7 @@ def pack_columns(inputs: LoopInputs, base: AxisParameters, columns: dict, presen
         return np.full(n, bool(getattr(base, name)))
 
     def probes(q):
-        q[:, Q_PROBE_IPM], q[:, Q_PROBE_REF] = _probe_constants(inputs, base)
+        q[:, Q_PROBE_IPM], q[:, Q_PROBE_REF] = probe if probe is not None else _probe_constants(inputs, base)
 
     _fill_prm(inputs, rows[:, law.FC_LEN:], col, flag, probes)
     return rows

@@ -13,7 +13,7 @@ import click
 from ..errors import DistCtrlError
 from ..tuning.metrics import METRIC_NAMES
 from ..tuning.runner import DEFAULT_CHUNK, Evaluator
-from ..tuning.columns import check_columns, columns_of, drop_inert_columns, random_columns
+from ..tuning.columns import COLUMN_FIELDS, columns_of, drop_inert_columns, random_columns
 from ..tuning.space import build_sets, drop_inert_d_tv, grid_points, parse_grid
 from ..tuning.tune import tune
 from .common import SEED, Finite, check_writable, emit_json, fail
@@ -96,31 +96,32 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
         # the cluster starts (in the background) while the sets are built
         with Evaluator(inputs, cycles=cycles, n_workers=workers, chunk_size=chunk, log=_say,
                        progress=False if as_json else None, cost_weights=weights, **opts) as ev:
-            # the sets as columns (issue 27: no Python per set); what the columns do not cover goes set by set
+            # the sets as columns (issue 27: no Python per set; checked, designed and packed chunk by chunk
+            # where the chunks run); what the columns do not cover goes set by set
             pc = columns_of(grid_points(parse_grid(grid))) if grid is not None else \
                 random_columns(n_random, seed, cycle_time=inputs.cycle_time)
-            checked = None
-            if pc is not None:
+            columnar = pc is not None and not set(pc.cols) - COLUMN_FIELDS
+            if columnar:
                 pc, merged = drop_inert_columns(pc)
-                checked = check_columns(inputs.params, pc, inputs.cycle_time)
-            if checked is None:
+            else:
                 points = pc.to_points() if pc is not None else grid_points(parse_grid(grid))
                 points, merged = drop_inert_d_tv(points)
             if merged:
                 _say(f"{merged} grid combinations differ only in d_tv at kp >= 1, where the D part has no "
                      f"effect (docs/control-law.md): run once each, with d_tv 0")
-            if checked is None:
+            if columnar:
+                res = ev.evaluate_points(inputs.params, pc)
+                rejected, n_sets = res.rejected, len(res)
+            else:
                 sets, points, rejected = build_sets(inputs.params, points, inputs.cycle_time)
                 n_sets = len(sets)
-            else:
-                kept, fc, rejected = checked
-                n_sets = kept.n
             if rejected:
                 _say(f"warning: {len(rejected)} of {len(rejected) + n_sets} combinations rejected; "
                      f"first: {rejected[0][1]}")
             if not n_sets:
                 raise DistCtrlError("no valid parameter set to evaluate")
-            res = ev.evaluate(sets, points) if checked is None else ev.evaluate_columns(inputs.params, kept, fc)
+            if not columnar:
+                res = ev.evaluate(sets, points)
             compile_s = ev.stats["compile_s"]
         path = res.write(out)
         if plot_path:

@@ -40,6 +40,7 @@ class PointColumns:
     n: int
     cols: dict
     present: dict
+    index: np.ndarray | None = None       # the points' numbers in the list they were taken from (take)
 
     def mask(self, field: str) -> np.ndarray:
         m = self.present.get(field)
@@ -49,8 +50,9 @@ class PointColumns:
         """The points ``idx`` (an index array or a bool mask), in that order."""
         idx = np.asarray(idx)
         n = int(idx.sum()) if idx.dtype == bool else len(idx)
+        base = np.arange(self.n) if self.index is None else self.index
         return PointColumns(n, {f: v[idx] for f, v in self.cols.items()},
-                            {f: (None if m is None else m[idx]) for f, m in self.present.items()})
+                            {f: (None if m is None else m[idx]) for f, m in self.present.items()}, base[idx])
 
     def to_points(self) -> list[dict]:
         """The points as dicts (Python int / float / FilterType values, the fields in column order)."""
@@ -290,4 +292,6 @@ def check_columns(base, pc: PointColumns, cycle_time: float):
         rejected[i] = (pt, f"parameter set {point_label(pt)} is not valid: {errors[int(inv[r])]}")
     keep_rows = good_rows[~failed[inv]]
     fc = fc_u[inv[~failed[inv]]]
-    return pc.take(keep_rows), fc, [rejected[i] for i in sorted(rejected)]
+    kept = pc.take(keep_rows)
+    kept.index = keep_rows                # the kept points' numbers in ``pc``
+    return kept, fc, [rejected[i] for i in sorted(rejected)]

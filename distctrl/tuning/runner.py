@@ -39,7 +39,7 @@ from ..workbench.tables import render_table
 from .metrics import METRIC_NAMES, METRIC_UNITS, compute_metrics, cost, limits_from_packed, wanted_distance
 from .space import D_TV_NOTE, NC_WORDS, d_tv_applies, filter_fields
 
-__all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "TuningRunError", "PARAM_COLUMNS",
+__all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "evaluate_points_chunk", "TuningRunError", "PARAM_COLUMNS",
            "plot_sweep"]
 
 #: the parameter columns of every result table (AxisParameters fields)
@@ -89,6 +89,104 @@ def evaluate_chunk(inputs, packed: np.ndarray, cycles: int | None, metric_option
     m["error_cycle"] = errors[:, 0].copy()
     m["error_id"] = errors[:, 1].copy()
     return m
+
+
+class _PointChunk:
+    """A slice of points, the index of its first point and the most sets run at once (len(): its size, for
+    the progress bar)."""
+
+    def __init__(self, points, start: int, block: int):
+        self.points = points
+        self.start = start
+        self.block = block
+
+    def __len__(self) -> int:
+        return self.points.n
+
+
+def _probe_of(inputs, base):
+    """The probe's (increments per mm, reference offset) of the base set (None: the distance sensor)."""
+    from ..batch.closed_loop import SENSOR_PROBE, _probe_constants
+    from ..batch.layout import PL_SENSOR
+
+    return _probe_constants(inputs, base) if inputs.plant[PL_SENSOR] == SENSOR_PROBE else None
+
+
+_LOCAL = threading.local()
+
+
+def _outputs(n_sets: int, n: int):
+    """Trace arrays of this shape, reused by the next chunk of the same shape in this thread (fresh memory
+    costs page faults: docs/batch.md)."""
+    cached = getattr(_LOCAL, "out", None)
+    if cached is None or cached[0].shape != (n_sets, n):
+        cached = _LOCAL.out = (np.empty((n_sets, n)), np.empty((n_sets, n)))
+    return cached
+
+
+def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metric_options: dict,
+                          threads: int | None, base, probe) -> dict:
+    """Check, design, pack, run and measure one chunk of points (a pure function of its arguments; on a
+    cluster it runs on the worker, which gets only the points' columns), ``chunk.block`` sets at a time
+    (their traces in arrays reused from block to block): the metrics of the kept points,
+    ``_kept`` their indices, ``_rejected`` ``(point, message)`` of the others, ``_kernel_s`` the time in
+    the kernel and the metrics pass, ``_task_s`` the whole chunk's."""
+    t_task = time.perf_counter()
+    # numba (optional: [fast], [tune]) loads only when a batch runs
+    import numba
+
+    from ..batch.closed_loop import pack_columns, pack_sets, run_batch
+    from .columns import check_columns
+    from .space import build_sets
+
+    pts = chunk.points
+    checked = check_columns(base, pts, inputs.cycle_time)
+    if checked is not None:
+        kept, fc, rejected = checked
+        index = kept.index
+
+        def pack(a, b):
+            part = kept.take(np.arange(a, b))
+            return pack_columns(inputs, base, part.cols, part.present, fc[a:b], probe=probe)
+    else:                                    # what the columns do not cover: set by set
+        points = pts.to_points()
+        sets, kept_points, rejected = build_sets(base, points, inputs.cycle_time)
+        ids = {id(p): i for i, p in enumerate(points)}
+        index = np.array([ids[id(p)] for p in kept_points], dtype=np.int64)
+
+        def pack(a, b):
+            return pack_sets(inputs, sets[a:b], probe=probe)
+    out = {"_kept": index + chunk.start, "_rejected": rejected}
+    n = inputs.n_cycles if cycles is None else int(cycles)
+    wanted = wanted_distance(inputs, n)
+    kernel_s = 0.0
+    parts = []
+    old = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(int(threads))
+    try:
+        # blocks of at most chunk.block sets: a task may be far larger than the traces it holds at once
+        for a in range(0, len(index), chunk.block):
+            packed = pack(a, min(a + chunk.block, len(index)))
+            t0 = time.perf_counter()
+            offset, distance, errors = run_batch(inputs, packed, cycles=cycles, return_errors=True,
+                                                 out=_outputs(len(packed), n))
+            m = compute_metrics(offset, distance, wanted, inputs.cycle_time, inputs.k_on,
+                                limits_from_packed(packed), **metric_options)
+            kernel_s += time.perf_counter() - t0
+            m["error_cycle"] = errors[:, 0].copy()
+            m["error_id"] = errors[:, 1].copy()
+            parts.append(m)
+    finally:
+        if threads is not None:
+            numba.set_num_threads(old)
+    if parts:
+        out.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]})
+    else:
+        out["failed"] = np.zeros(0, dtype=bool)
+    out["_kernel_s"] = kernel_s
+    out["_task_s"] = time.perf_counter() - t_task
+    return out
 
 
 # ----------------------------------------------------------------------------- results
@@ -522,6 +620,60 @@ class Evaluator:
             params[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
         return self._evaluate_packed(packed, lambda m: {**params, **self._metric_columns(m)}, [], description)
 
+    def evaluate_points(self, base, points, *, description: str = "sweep") -> SweepResult:
+        """:meth:`evaluate` of the sets ``base`` with the values of ``points`` (a
+        :class:`~distctrl.tuning.columns.PointColumns`), checked, designed, packed, run and measured chunk by
+        chunk where the chunks run (:func:`evaluate_points_chunk`: on the workers of a cluster), so that only
+        the points' columns travel (issue 27). The points a check refuses are left out of the table and
+        listed in ``result.rejected`` as ``(point, message)``, in order; ``result.info["kept"]``: the indices
+        of the points in the table. The same table as :meth:`evaluate_columns` of what
+        :func:`~distctrl.tuning.columns.check_columns` keeps."""
+        from .columns import COLUMN_FIELDS, full_column
+
+        if set(points.cols) - COLUMN_FIELDS:
+            raise TuningRunError(f"evaluate_points: fields {sorted(set(points.cols) - COLUMN_FIELDS)} are not "
+                                 "evaluated as columns (use evaluate)")
+        n = points.n
+        block = self.chunk_size
+        # a cluster's tasks: about four per worker (load balance), each at least a block; every task runs its
+        # points block by block (the traces of a block at a time), so a task can be seconds of kernel
+        size = block if self.mode == "local" else max(block, -(-n // (4 * self.n_workers)))
+        chunks = [_PointChunk(points.take(np.arange(a, min(a + size, n))), a, block) for a in range(0, n, size)]
+        if not chunks:
+            return SweepResult(self._table([], [], {}))
+        probe = _probe_of(self.inputs, base)
+        self.prepare_kernels()
+        t0 = time.perf_counter()
+        extra = (base, probe)
+        if self.mode == "local":
+            parts = self._run_local(chunks, description, evaluate_points_chunk, extra)
+        else:
+            self.open()
+            parts = self._run_cluster(chunks, description, evaluate_points_chunk, extra)
+        kept = np.concatenate([p.pop("_kept") for p in parts])
+        rejected = [r for p in parts for r in p.pop("_rejected")]
+        for p in parts:
+            self.stats["kernel_s"] = self.stats.get("kernel_s", 0.0) + float(p.pop("_kernel_s"))
+            self.stats["task_s"] = self.stats.get("task_s", 0.0) + float(p.pop("_task_s"))
+        parts = [p for p in parts if len(p["failed"])]
+        dt = time.perf_counter() - t0
+        n_sets = len(kept)
+        self.stats["sets"] += n_sets
+        self.stats["set_cycles"] += n_sets * self.n_cycles
+        self.stats["seconds"] += dt
+        self.stats["chunks"] += len(chunks)
+        if not n_sets:
+            return SweepResult(self._table([], [], {}), rejected=rejected, info={"kept": kept})
+        merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        sel = points.take(kept)
+        params = {}
+        for f in PARAM_COLUMNS:
+            col = full_column(base, sel, f)
+            params[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
+        return SweepResult({**params, **self._metric_columns(merged)}, params=[], rejected=rejected,
+                           info={"seconds": dt, "sets": n_sets, "cycles": self.n_cycles, "mode": self.mode,
+                                 "workers": self.n_workers if self.mode == "cluster" else 1, "kept": kept})
+
     def _evaluate_packed(self, packed, table, params, description) -> SweepResult:
         n_sets = len(packed)
         chunks = [packed[i:i + self.chunk_size] for i in range(0, len(packed), self.chunk_size)]
@@ -628,14 +780,17 @@ class Evaluator:
         bar.add_task(description, total=total)
         return bar
 
-    def _run_local(self, chunks, description) -> list[dict]:
+    def _run_local(self, chunks, description, fn=None, extra=None) -> list[dict]:
+        """``fn(inputs, chunk, cycles, metric_options, threads, *extra)`` of every chunk (default: chunk_fn)."""
+        fn = fn or self.chunk_fn
+        extra = tuple(extra or ())
         bar = self._bar(sum(len(c) for c in chunks), description)
         parts = []
         try:
             for c in chunks:
                 for attempt in range(self.retries + 1):
                     try:
-                        parts.append(self.chunk_fn(self._slim, c, self.cycles, self.metric_options, self.threads))
+                        parts.append(fn(self._slim, c, self.cycles, self.metric_options, self.threads, *extra))
                         break
                     except Exception as exc:          # noqa: BLE001 - retried, then reported
                         if attempt == self.retries:
@@ -649,14 +804,16 @@ class Evaluator:
                 bar.stop()
         return parts
 
-    def _run_cluster(self, chunks, description) -> list[dict]:
+    def _run_cluster(self, chunks, description, fn=None, extra=None) -> list[dict]:
         # dask.distributed (the [batch] extra, seconds of import): only for a cluster sweep
         from distributed import as_completed
 
+        fn = fn or self.chunk_fn
+        extra = tuple(extra or ())
         client = self._client
         threads = self.threads if self.threads is not None else (1 if not self.scheduler else None)
-        futures = [client.submit(self.chunk_fn, self._remote_inputs, c, self.cycles, self.metric_options,
-                                 threads, retries=self.retries, pure=False) for c in chunks]
+        futures = [client.submit(fn, self._remote_inputs, c, self.cycles, self.metric_options,
+                                 threads, *extra, retries=self.retries, pure=False) for c in chunks]
         index = {f.key: i for i, f in enumerate(futures)}
         running = {f.key: f for f in futures}
         done = as_completed(futures)

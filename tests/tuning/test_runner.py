@@ -184,3 +184,57 @@ def test_a_chunk_runs_its_metrics_pass_on_the_chunks_threads_too(monkeypatch):
     runner.evaluate_chunk(runner.slim_inputs(inputs), CL.pack_sets(inputs, [inputs.params] * 2), None, {}, 1)
     assert seen == [1]
     assert numba.get_num_threads() == before
+
+
+def _points_case(inputs):
+    from distctrl.tuning.columns import columns_of, drop_inert_columns, random_columns
+
+    pc, _ = drop_inert_columns(random_columns(700, 11, cycle_time=inputs.cycle_time))
+    grid = columns_of(grid_points(parse_grid("kp=0.3,1.2,filter_type=LOWPASS,order=1,4,fg_f0=100,800")))
+    return pc, grid
+
+
+def _same_tables(a, b):
+    assert a.columns == b.columns
+    for c in a.columns:
+        x, y = a[c], b[c]
+        if isinstance(x, list) or isinstance(y, list):
+            assert list(x) == list(y), c
+        else:
+            assert x.dtype == y.dtype, c
+            assert np.array_equal(x, y, equal_nan=True), c
+
+
+def test_evaluate_points_checks_packs_and_runs_in_the_chunks_and_gives_evaluates_table(inputs, monkeypatch):
+    """Issue 27: the chunks get points (columns), not packed rows, and check, design and pack them
+    themselves; the table is that of build_sets + evaluate, the rejected points and messages too."""
+    from distctrl.tuning import runner
+
+    seen = []
+    real = runner.evaluate_points_chunk
+
+    def spy(inputs_, chunk, *a):
+        assert not any(isinstance(v, np.ndarray) and v.ndim == 2 for v in vars(chunk).values())
+        seen.append(len(chunk))
+        return real(inputs_, chunk, *a)
+    monkeypatch.setattr(runner, "evaluate_points_chunk", spy)
+    for pc in _points_case(inputs):
+        sets, pts, rejected = build_sets(inputs.params, pc.to_points(), inputs.cycle_time)
+        with Evaluator(inputs, mode="local", chunk_size=128, progress=False) as ev:
+            want = ev.evaluate(sets, pts)
+            seen.clear()
+            got = ev.evaluate_points(inputs.params, pc)
+        assert seen and sum(seen) == pc.n and max(seen) <= 128
+        assert got.rejected == rejected
+        _same_tables(got, want)
+
+
+def test_evaluate_points_on_a_cluster_gives_the_local_table(inputs):
+    pytest.importorskip("distributed")
+    pc, grid = _points_case(inputs)
+    with Evaluator(inputs, mode="local", chunk_size=256, progress=False) as ev:
+        want = ev.evaluate_points(inputs.params, pc)
+    with Evaluator(inputs, mode="cluster", n_workers=2, chunk_size=256, progress=False) as ev:
+        got = ev.evaluate_points(inputs.params, pc)
+        assert ev.stats["kernel_s"] > 0 and ev.stats["task_s"] >= ev.stats["kernel_s"]
+    _same_tables(got, want)
