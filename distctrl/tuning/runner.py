@@ -115,13 +115,27 @@ def _probe_of(inputs, base):
 _LOCAL = threading.local()
 
 
-def _outputs(n_sets: int, n: int):
-    """Trace arrays of this shape, reused by the next chunk of the same shape in this thread (fresh memory
-    costs page faults: docs/batch.md)."""
-    cached = getattr(_LOCAL, "out", None)
+def _outputs(n_sets: int, n: int, slot: int = 0):
+    """Trace arrays of this shape, reused by the next block of the same shape and slot (two slots: one
+    block's kernel runs while the other's metrics are taken) in this process (fresh memory costs page faults:
+    docs/batch.md). Per calling thread of a worker that runs several tasks at once."""
+    store = getattr(_LOCAL, "out", None)
+    if store is None:
+        store = _LOCAL.out = {}
+    cached = store.get(slot)
     if cached is None or cached[0].shape != (n_sets, n):
-        cached = _LOCAL.out = (np.empty((n_sets, n)), np.empty((n_sets, n)))
+        cached = store[slot] = (np.empty((n_sets, n)), np.empty((n_sets, n)))
     return cached
+
+
+def _concurrent_numba() -> bool:
+    """Whether numba's threading layer may run parallel kernels called from two threads at once."""
+    import numba
+
+    try:
+        return numba.threading_layer() in ("tbb", "omp")
+    except ValueError:                      # no parallel kernel has run yet: not known
+        return False
 
 
 def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metric_options: dict,
@@ -159,27 +173,58 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
     out = {"_kept": index + chunk.start, "_rejected": rejected}
     n = inputs.n_cycles if cycles is None else int(cycles)
     wanted = wanted_distance(inputs, n)
-    kernel_s = 0.0
+    blocks = [(a, min(a + chunk.block, len(index))) for a in range(0, len(index), chunk.block)]
+    kernel_s = [0.0]
+
+    def buffers(j):
+        return _outputs(blocks[j][1] - blocks[j][0], n, j % 2)     # (taken in the task's own thread)
+
+    def run(j, out):
+        """Pack and run block j into ``out`` (numba's thread count is per calling thread)."""
+        if threads is not None:
+            numba.set_num_threads(int(threads))
+        packed = pack(*blocks[j])
+        t0 = time.perf_counter()
+        res = run_batch(inputs, packed, cycles=cycles, return_errors=True, out=out)
+        kernel_s[0] += time.perf_counter() - t0
+        return packed, res
+
+    def measure(packed, res):
+        offset, distance, errors = res
+        t0 = time.perf_counter()
+        m = compute_metrics(offset, distance, wanted, inputs.cycle_time, inputs.k_on, limits_from_packed(packed),
+                            **metric_options)
+        kernel_s[0] += time.perf_counter() - t0
+        m["error_cycle"] = errors[:, 0].copy()
+        m["error_id"] = errors[:, 1].copy()
+        return m
+
     parts = []
     old = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(int(threads))
     try:
-        # blocks of at most chunk.block sets: a task may be far larger than the traces it holds at once
-        for a in range(0, len(index), chunk.block):
-            packed = pack(a, min(a + chunk.block, len(index)))
-            t0 = time.perf_counter()
-            offset, distance, errors = run_batch(inputs, packed, cycles=cycles, return_errors=True,
-                                                 out=_outputs(len(packed), n))
-            m = compute_metrics(offset, distance, wanted, inputs.cycle_time, inputs.k_on,
-                                limits_from_packed(packed), **metric_options)
-            kernel_s += time.perf_counter() - t0
-            m["error_cycle"] = errors[:, 0].copy()
-            m["error_id"] = errors[:, 1].copy()
-            parts.append(m)
+        # blocks of at most chunk.block sets: a task may be far larger than the traces it holds at once. On
+        # all cores (threads None) the next block's kernel runs (nogil) while this block's metrics are taken
+        # (numpy's FFT holds the GIL and one core): pipelined, where numba's threading layer allows calls
+        # from two threads at once (tbb, omp; not workqueue)
+        if threads is None and len(blocks) > 1 and _concurrent_numba():
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(1, thread_name_prefix="distctrl-kernel") as pool:
+                fut = pool.submit(run, 0, buffers(0))
+                for j in range(len(blocks)):
+                    done = fut.result()
+                    if j + 1 < len(blocks):
+                        fut = pool.submit(run, j + 1, buffers(j + 1))
+                    parts.append(measure(*done))
+        else:
+            for j in range(len(blocks)):
+                parts.append(measure(*run(j, buffers(j))))
     finally:
         if threads is not None:
             numba.set_num_threads(old)
+    kernel_s = kernel_s[0]
     if parts:
         out.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]})
     else:
@@ -637,7 +682,8 @@ class Evaluator:
         block = self.chunk_size
         # a cluster's tasks: about four per worker (load balance), each at least a block; every task runs its
         # points block by block (the traces of a block at a time), so a task can be seconds of kernel
-        size = block if self.mode == "local" else max(block, -(-n // (4 * self.n_workers)))
+        # in this process: about eight chunks (the progress bar's steps), each pipelined block by block
+        size = max(block, -(-n // (8 if self.mode == "local" else 4 * self.n_workers)))
         chunks = [_PointChunk(points.take(np.arange(a, min(a + size, n))), a, block) for a in range(0, n, size)]
         if not chunks:
             return SweepResult(self._table([], [], {}))
