@@ -41,6 +41,9 @@ MAX_ENTRIES = 1 << 16
 _FIELDS = tuple(f.name for f in dataclasses.fields(FilterConfig))
 _CACHE: dict = {}
 _STATS = {"designs": 0, "hits": 0}
+#: design_rows' Kalman predictions per (kind, n, alpha): (prediction variance, coefficients); they do not
+#: depend on sigma
+_KALMAN: dict = {}
 
 
 def filter_config(p) -> FilterConfig:
@@ -126,6 +129,7 @@ def _store(key, value) -> None:
 
 def clear_cache() -> None:
     _CACHE.clear()
+    _KALMAN.clear()
     _STATS.update(designs=0, hits=0)
 
 
@@ -254,10 +258,16 @@ def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> 
         kinv = kinv.reshape(-1)
         v = np.empty(len(keys))
         for j, (kk, nn, a) in enumerate(keys.tolist()):
-            kd = kalman_design(int(kk), int(nn), a, 1.0)
-            v[j] = kd.prediction_variance
+            key = (int(kk), int(nn), a)
+            kd = _KALMAN.get(key)
+            if kd is None:                       # kept for the next call (a worker's next chunk)
+                if len(_KALMAN) >= MAX_ENTRIES:
+                    _KALMAN.clear()
+                d = kalman_design(int(kk), int(nn), a, 1.0)
+                kd = _KALMAN[key] = (d.prediction_variance, d.coefficients)
+            v[j] = kd[0]
             sel = kal[kinv == j]
-            fc[sel, law.FC_PRED:law.FC_PRED + int(nn)] = kd.coefficients
+            fc[sel, law.FC_PRED:law.FC_PRED + int(nn)] = kd[1]
         p_prior = v[kinv] * sigma[kal] + KALMAN_PROCESS_VARIANCE
         fc[kal, law.FC_GAIN] = p_prior / (p_prior + sigma[kal])
         fc[kal, law.FC_P_PRIOR] = p_prior

@@ -683,7 +683,7 @@ class Evaluator:
         # a cluster's tasks: about four per worker (load balance), each at least a block; every task runs its
         # points block by block (the traces of a block at a time), so a task can be seconds of kernel
         # in this process: about eight chunks (the progress bar's steps), each pipelined block by block
-        size = max(block, -(-n // (8 if self.mode == "local" else 4 * self.n_workers)))
+        size = max(block, -(-n // (8 if self.mode == "local" else 8 * self.n_workers)))
         chunks = [_PointChunk(points.take(np.arange(a, min(a + size, n))), a, block) for a in range(0, n, size)]
         if not chunks:
             return SweepResult(self._table([], [], {}))
