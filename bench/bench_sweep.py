@@ -10,10 +10,11 @@ The kernel's cost in the same run: the same 10 000 sets, packed, through
 runs), best of 3; and the steps of a sweep timed one by one in this process (sampling, checking the
 sets, packing, the kernel, the metrics) so the table says where the rest goes.
 
-Dask: the same sweep's evaluation (:class:`distctrl.tuning.runner.Evaluator`) over an embedded
-LocalCluster of 1 and of 2 single-threaded workers, ``--dask-sets`` sets (default 100 000; the
-issue's 10^6 with ``--dask-sets 1000000``), scaling and the share of the time outside the kernels
-(1 - kernel time / (workers x wall time)).
+Dask: a random sweep of ``--dask-sets`` points (make bench: 10^6; default 10^5) the way the CLI runs it
+(:meth:`distctrl.tuning.runner.Evaluator.evaluate_points`: the workers check, design, pack, run and measure
+their points) over an embedded LocalCluster of 1 and of 2 single-threaded workers, timed from the sampling
+to the merged table: scaling, and the share of the time outside the kernels, 1 - kernel time / (workers x
+wall time), with the kernel time measured in the tasks (the closed-loop kernel and the metrics pass).
 
 The kernel per core beside the SIMD C anchor (``--simd-sets``, bench/batch_c/closed_loop_simd.c, the
 law vectorised across sets by gcc) and the scalar C reference, 1 thread each, checked bit for bit.
@@ -69,26 +70,27 @@ def cli_sweep(n: int, tmp: pathlib.Path) -> tuple[float, dict]:
 
 
 def steps(n: int, repeats: int = 3) -> dict:
-    """The steps of a sweep of n random sets, timed one by one in this process (best of ``repeats``)."""
+    """The steps of a sweep of n random sets as the CLI runs them (the sets as columns), timed one by one in
+    this process: sampling, checking the sets (with their filter designs), packing, the kernel (best of
+    ``repeats``), the metrics pass, writing the table."""
     from distctrl.batch import closed_loop as CL
-    from distctrl.batch import design
+    from distctrl.tuning.columns import check_columns, drop_inert_columns, random_columns
     from distctrl.tuning.metrics import compute_metrics, limits_from_packed, wanted_distance
-    from distctrl.tuning.space import build_sets, drop_inert_d_tv, random_sample
+    from distctrl.tuning.runner import Evaluator
 
     t0 = time.perf_counter()
     inputs = CL.prepare(SCENARIO)
     out = {"prepare_s": time.perf_counter() - t0}
     T = inputs.cycle_time
     t0 = time.perf_counter()
-    points, _ = drop_inert_d_tv(random_sample(n, 0, cycle_time=T))
+    pc, _ = drop_inert_columns(random_columns(n, 0, cycle_time=T))
     out["sample_s"] = time.perf_counter() - t0
-    design.clear_cache()                     # the designs are part of a fresh process's cost
     t0 = time.perf_counter()
-    sets, points, _ = build_sets(inputs.params, points, T)
+    kept, fc, _ = check_columns(inputs.params, pc, T)
     out["build_sets_s"] = time.perf_counter() - t0
-    out["filter_designs"] = design.cache_info()["designs"]
+    out["filter_designs"] = int(len(np.unique(fc, axis=0)))
     t0 = time.perf_counter()
-    packed = CL.pack_sets(inputs, sets)
+    packed = CL.pack_columns(inputs, inputs.params, kept.cols, kept.present, fc)
     out["pack_s"] = time.perf_counter() - t0
     CL.run_batch(inputs, packed[:64])         # loaded from the cache
     offset = np.empty((len(packed), inputs.n_cycles))
@@ -106,9 +108,15 @@ def steps(n: int, repeats: int = 3) -> dict:
         compute_metrics(offset[a:a + chunk], distance[a:a + chunk], wanted, T, inputs.k_on,
                         limits_from_packed(packed[a:a + chunk]))
     out["metrics_s"] = time.perf_counter() - t0
-    out["sets"] = len(sets)
+    with Evaluator(inputs, mode="local", progress=False) as ev:
+        res = ev.evaluate_points(inputs.params, pc)
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        res.write(pathlib.Path(tmp) / "sweep.csv")
+        out["write_s"] = time.perf_counter() - t0
+    out["sets"] = kept.n
     out["cycles"] = inputs.n_cycles
-    out["kernel_ns_per_set_cycle"] = best / (len(sets) * inputs.n_cycles) * 1e9
+    out["kernel_ns_per_set_cycle"] = best / (kept.n * inputs.n_cycles) * 1e9
     return out
 
 
@@ -224,10 +232,11 @@ def main(argv=None) -> dict:
              f"| kernel `run_batch` on the same sets, default threads, best of {args.repeats} | "
              f"{st['kernel_ns_per_set_cycle']:.2f} ns ({1e3 / st['kernel_ns_per_set_cycle']:.0f} M set-cycles/s) | – |",
              f"| marginal / kernel | {ratio:.1f}× | ≤ {TARGET_MARGINAL_RATIO:g}× ({ok(ratio <= TARGET_MARGINAL_RATIO)}) |",
-             "", f"Steps of a {st['sets']}-set sweep in one process: recording the scenario {st['prepare_s']:.2f} s, "
+             "", f"Steps of a {st['sets']}-set sweep in one process (the CLI's columns): recording the scenario "
+             f"{st['prepare_s']:.2f} s, "
              f"sampling {st['sample_s']:.2f} s, checking the sets {st['build_sets_s']:.2f} s "
              f"({st['filter_designs']} distinct filter designs), packing {st['pack_s']:.2f} s, kernel "
-             f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s.", ""]
+             f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s, writing the table {st['write_s']:.2f} s.", ""]
     if sd:
         lines += [f"Kernel per core vs the SIMD C anchor (bench/batch_c/closed_loop_simd.c, `gcc {sd['cflags']}`), "
                   f"{sd['sets']} MOVING_AVERAGE sets × {sd['cycles']} cycles, 1 thread: numba "
@@ -236,7 +245,9 @@ def main(argv=None) -> dict:
                   f"(target ≤ 1.5×: {ok(sd['numba_over_simd_c'] <= 1.5)}); bit for bit equal: {sd['bit_identical']}.",
                   ""]
     if dk:
-        lines += [f"Dask, {dk['sets']} sets × {dk['cycles']} cycles, embedded LocalCluster: 1 worker "
+        lines += [f"Dask, a random sweep of {dk['sets']} sets × {dk['cycles']} cycles (evaluate_points: sampled "
+                  f"here, checked, designed, packed, run and measured on the workers, blocks of {dk['chunk']}), "
+                  f"embedded LocalCluster: 1 worker "
                   f"{dk['wall_s_1']:.1f} s ({dk['outside_share_1']:.0%} outside the kernel), 2 workers "
                   f"{dk['wall_s_2']:.1f} s ({dk['outside_share_2']:.0%} outside); scaling {dk['scaling']:.2f}× "
                   f"(target ≥ {TARGET_DASK_SCALING:g}×: {ok(dk['scaling'] >= TARGET_DASK_SCALING)}; outside ≤ "

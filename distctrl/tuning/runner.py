@@ -29,6 +29,7 @@ import os
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +38,8 @@ from ..base.kinds import FilterType
 from ..errors import DistCtrlError
 from ..workbench.tables import render_table
 from .metrics import METRIC_NAMES, METRIC_UNITS, compute_metrics, cost, limits_from_packed, wanted_distance
-from .space import D_TV_NOTE, NC_WORDS, d_tv_applies, filter_fields
+from .columns import COLUMN_FIELDS, check_columns, full_column
+from .space import D_TV_NOTE, NC_WORDS, build_sets, d_tv_applies, filter_fields
 
 __all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "evaluate_points_chunk", "TuningRunError", "PARAM_COLUMNS",
            "plot_sweep"]
@@ -106,6 +108,7 @@ class _PointChunk:
 
 def _probe_of(inputs, base):
     """The probe's (increments per mm, reference offset) of the base set (None: the distance sensor)."""
+    # numba (optional: [fast], [tune]) loads only when a batch runs
     from ..batch.closed_loop import SENSOR_PROBE, _probe_constants
     from ..batch.layout import PL_SENSOR
 
@@ -130,6 +133,7 @@ def _outputs(n_sets: int, n: int, slot: int = 0):
 
 def _concurrent_numba() -> bool:
     """Whether numba's threading layer may run parallel kernels called from two threads at once."""
+    # numba (optional: [fast], [tune]) loads only when a batch runs
     import numba
 
     try:
@@ -150,8 +154,6 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
     import numba
 
     from ..batch.closed_loop import pack_columns, pack_sets, run_batch
-    from .columns import check_columns
-    from .space import build_sets
 
     pts = chunk.points
     checked = check_columns(base, pts, inputs.cycle_time)
@@ -209,8 +211,6 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
         # (numpy's FFT holds the GIL and one core): pipelined, where numba's threading layer allows calls
         # from two threads at once (tbb, omp; not workqueue)
         if threads is None and len(blocks) > 1 and _concurrent_numba():
-            from concurrent.futures import ThreadPoolExecutor
-
             with ThreadPoolExecutor(1, thread_name_prefix="distctrl-kernel") as pool:
                 fut = pool.submit(run, 0, buffers(0))
                 for j in range(len(blocks)):
@@ -654,7 +654,6 @@ class Evaluator:
         kept, ``fc`` its filter rows), without a parameter object per set (issue 27): the same table."""
         # numba (optional: [fast], [tune]) loads only when a batch runs
         from ..batch.closed_loop import pack_columns
-        from .columns import full_column
 
         if not points.n:
             return SweepResult(self._table([], [], {}))
@@ -673,8 +672,6 @@ class Evaluator:
         listed in ``result.rejected`` as ``(point, message)``, in order; ``result.info["kept"]``: the indices
         of the points in the table. The same table as :meth:`evaluate_columns` of what
         :func:`~distctrl.tuning.columns.check_columns` keeps."""
-        from .columns import COLUMN_FIELDS, full_column
-
         if set(points.cols) - COLUMN_FIELDS:
             raise TuningRunError(f"evaluate_points: fields {sorted(set(points.cols) - COLUMN_FIELDS)} are not "
                                  "evaluated as columns (use evaluate)")
