@@ -70,7 +70,8 @@ _CHATTER_HELP = "Weight of offset_hf_rms, the offset's motion above 20 Hz, in th
 @click.option("--scheduler", help="Address of an existing dask scheduler (tcp://host:8786).")
 @click.option("--local", is_flag=True, help="Run in this process without dask.")
 @click.option("--workers", type=click.IntRange(1, 1024), help="Workers of the embedded LocalCluster (default: all cores).")
-@click.option("--chunk", default=256, show_default=True, type=click.IntRange(1, 10**7), help="Parameter sets per chunk.")
+@click.option("--chunk", default=256, show_default=True, type=click.IntRange(1, 10**7),
+              help="Parameter sets run at once (a cluster task runs several such blocks, docs/tuning.md).")
 @click.option("--top", default=10, show_default=True, type=click.IntRange(1, 10**6), help="Rows of the summary table.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (the best --top rows with units, throughput, files) instead of the table.")
