@@ -34,7 +34,7 @@ from ..control.filters import (FILTER_KINDS, FILTER_PARAMS, KALMAN_PROCESS_VARIA
                                design_coefficients, kalman_design)
 from ..params.axis import AxisParameters
 
-__all__ = ["filter_coefficients", "filter_config", "design_many", "design_rows", "check_cycle_time", "clear_cache", "cache_info"]
+__all__ = ["filter_coefficients", "filter_config", "design_many", "design_rows", "unique_rows", "check_cycle_time", "clear_cache", "cache_info"]
 
 #: at most this many designs are kept (a tuner's long run with continuous values cannot grow it without bound)
 MAX_ENTRIES = 1 << 16
@@ -230,9 +230,7 @@ def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> 
     fc[rows, law.FC_SIGMA] = sigma[rows]
     fc[rows, law.FC_WSUM] = 1.0
     # rho^n (and the EXPO_MEAN sums): math per distinct (n, alpha), as design_coefficients does
-    pairs, inv = np.unique(np.stack((eff_n[rows].astype(np.float64), alpha[rows]), axis=1), axis=0,
-                           return_inverse=True)
-    inv = inv.reshape(-1)
+    pairs, inv = unique_rows(np.stack((eff_n[rows].astype(np.float64), alpha[rows]), axis=1))
     decay = np.empty(len(pairs))
     wsum = np.empty(len(pairs))
     older = np.empty(len(pairs))
@@ -252,11 +250,10 @@ def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> 
     # Kalman: the prediction per distinct (kind, n, alpha), the gain over the sigmas
     kal = rows[np.isin(kind[rows], [law.KALMAN_MA, law.KALMAN_EXPO])]
     if len(kal):
-        keys, kinv = np.unique(np.stack((kind[kal].astype(np.float64), eff_n[kal].astype(np.float64),
-                                         np.where(kind[kal] == law.KALMAN_EXPO, alpha[kal], 0.0)), axis=1),
-                               axis=0, return_inverse=True)
-        kinv = kinv.reshape(-1)
+        keys, kinv = unique_rows(np.stack((kind[kal].astype(np.float64), eff_n[kal].astype(np.float64),
+                                           np.where(kind[kal] == law.KALMAN_EXPO, alpha[kal], 0.0)), axis=1))
         v = np.empty(len(keys))
+        pred = np.zeros((len(keys), law.MAX_N))          # the coefficients, zero beyond n
         for j, (kk, nn, a) in enumerate(keys.tolist()):
             key = (int(kk), int(nn), a)
             kd = _KALMAN.get(key)
@@ -266,8 +263,8 @@ def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> 
                 d = kalman_design(int(kk), int(nn), a, 1.0)
                 kd = _KALMAN[key] = (d.prediction_variance, d.coefficients)
             v[j] = kd[0]
-            sel = kal[kinv == j]
-            fc[sel, law.FC_PRED:law.FC_PRED + int(nn)] = kd[1]
+            pred[j, :int(nn)] = kd[1]
+        fc[kal, law.FC_PRED:law.FC_PRED + law.MAX_N] = pred[kinv]
         p_prior = v[kinv] * sigma[kal] + KALMAN_PROCESS_VARIANCE
         fc[kal, law.FC_GAIN] = p_prior / (p_prior + sigma[kal])
         fc[kal, law.FC_P_PRIOR] = p_prior
@@ -281,6 +278,23 @@ def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> 
         fc[sel, law.FC_SOS:law.FC_SOS + 6 * n_sec] = sos.reshape(len(sel), 6 * n_sec)
         fc[sel, law.FC_ZI:law.FC_ZI + 2 * n_sec] = zi.reshape(len(sel), 2 * n_sec)
     return fc, errors
+
+
+def unique_rows(mat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of a float matrix (sorted) and, per row, the index of its distinct row: what
+    ``np.unique(mat, axis=0, return_inverse=True)`` gives, by a lexsort of the columns (np.unique sorts
+    the rows as structured values, several times slower)."""
+    k = len(mat)
+    if not k:
+        return mat[:0], np.zeros(0, dtype=np.int64)
+    order = np.lexsort(mat.T[::-1])
+    srt = mat[order]
+    new = np.empty(k, dtype=bool)
+    new[0] = True
+    new[1:] = np.any(srt[1:] != srt[:-1], axis=1)
+    inv = np.empty(k, dtype=np.int64)
+    inv[order] = np.cumsum(new) - 1
+    return srt[new], inv
 
 
 def _config(ft, n, alpha, sigma, order, fg) -> FilterConfig:

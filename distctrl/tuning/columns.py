@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..base.kinds import FilterType
-from ..batch.design import check_cycle_time, design_rows
+from ..batch.design import check_cycle_time, design_rows, unique_rows
 from ..errors import ParameterError
 from .space import (BY_FIELD, D_NO_EFFECT_KP, PointColumns, SpaceError, drop_inert_d_tv, point_label,
                     random_columns, round_column, to_params)
@@ -156,8 +156,7 @@ def check_columns(base, pc: PointColumns, cycle_time: float):
         return None                       # the per-set check accepts what this one refuses
     good_rows = np.nonzero(~bad)[0]
     cfg = np.stack([full_column(base, pc, f)[good_rows].astype(np.float64) for f in _FILTER_FIELDS], axis=1)
-    uniq, inv = np.unique(cfg, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
+    uniq, inv = unique_rows(cfg)
     fc_u, errors = design_rows(*(uniq[:, j] for j in range(len(_FILTER_FIELDS))), cycle_time)
     failed = np.zeros(len(uniq), dtype=bool)
     failed[list(errors)] = True

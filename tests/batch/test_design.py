@@ -57,3 +57,16 @@ def test_design_rows_of_the_tuners_grid():
             cfg = FilterConfig(ft, int(cols[1][i]), float(cols[2][i]), float(cols[3][i]), int(cols[4][i]), float(fg[i]))
             want = np.asarray(design_coefficients(cfg, T), dtype=np.float64)
             assert np.array_equal(fc[i].view(np.int64), want.view(np.int64)), cfg
+
+
+def test_unique_rows_is_np_unique_of_the_rows():
+    from distctrl.batch.design import unique_rows
+
+    rng = np.random.default_rng(2)
+    for k in (0, 1, 7, 5000):
+        mat = np.stack([rng.integers(0, 4, k).astype(float), np.round(rng.uniform(0, 1, k), 1),
+                        rng.choice([0.5, 1.5, 2.5], k)], axis=1)
+        u, inv = unique_rows(mat)
+        u2, inv2 = np.unique(mat, axis=0, return_inverse=True)
+        assert np.array_equal(u, u2.reshape(-1, 3)) and np.array_equal(inv, inv2.reshape(-1))
+        assert np.array_equal(u[inv], mat)
