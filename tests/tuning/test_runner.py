@@ -239,3 +239,38 @@ def test_evaluate_points_on_a_cluster_gives_the_local_table(inputs):
         got = ev.evaluate_points(inputs.params, pc)
         assert ev.stats["kernel_s"] > 0 and ev.stats["task_s"] >= ev.stats["kernel_s"]
     _same_tables(got, want)
+
+
+def test_evaluate_points_pipelined_blocks_give_the_sequential_table(inputs, monkeypatch):
+    """In this process the next block's kernel runs while this block's metrics are taken (threading layers
+    tbb / omp): the same table as one block after the other."""
+    import numba
+
+    from distctrl.tuning import runner
+    from distctrl.tuning.columns import drop_inert_columns, random_columns
+
+    run_batch(inputs, inputs_packed_one(inputs), cycles=8)          # a parallel kernel ran: the layer is known
+    if numba.threading_layer() not in ("tbb", "omp"):
+        pytest.skip(f"threading layer {numba.threading_layer()}: no pipelining")
+    pc, _ = drop_inert_columns(random_columns(300, 4, cycle_time=inputs.cycle_time))
+    pools = []
+    real_pool = runner.ThreadPoolExecutor
+
+    def pool(*a, **k):
+        pools.append(1)
+        return real_pool(*a, **k)
+    monkeypatch.setattr(runner, "ThreadPoolExecutor", pool)
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
+        piped = ev.evaluate_points(inputs.params, pc)
+        assert pools                                                  # the pipelined path ran
+        monkeypatch.setattr(runner, "_concurrent_numba", lambda: False)
+        pools.clear()
+        sequential = ev.evaluate_points(inputs.params, pc)
+        assert not pools
+    _same_tables(piped, sequential)
+
+
+def inputs_packed_one(inputs):
+    from distctrl.batch.closed_loop import pack_sets
+
+    return pack_sets(inputs, [inputs.params])
