@@ -48,6 +48,8 @@ __all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "evaluate_p
 PARAM_COLUMNS = tuple(NC_WORDS)
 DEFAULT_CHUNK = 256
 DEFAULT_CHUNK_BYTES = 256 * 2**20
+#: the most blocks (``chunk_size`` sets each) one chunk of :meth:`Evaluator.evaluate_points` runs
+MAX_TASK_BLOCKS = 64
 #: FilterType value -> name, indexable by an array of values (DEFAULT = -1 is the last entry)
 _FILTER_NAMES = np.array([FilterType(v).name if v in {int(t) for t in FilterType} else str(v)
                           for v in list(range(max(FilterType) + 1)) + [-1]], dtype=object)
@@ -677,10 +679,13 @@ class Evaluator:
                                  "evaluated as columns (use evaluate)")
         n = points.n
         block = self.chunk_size
-        # a cluster's tasks: about four per worker (load balance), each at least a block; every task runs its
-        # points block by block (the traces of a block at a time), so a task can be seconds of kernel
-        # in this process: about eight chunks (the progress bar's steps), each pipelined block by block
-        size = max(block, -(-n // (8 if self.mode == "local" else 8 * self.n_workers)))
+        # a cluster's tasks: about eight per worker (load balance: the last task's tail), in this process
+        # about eight chunks (the progress bar's steps); each at least a block and at most MAX_TASK_BLOCKS
+        # blocks (a chunk's filter rows and table parts stay tens of MB; 64 blocks of 256 sets are about
+        # 2 s of kernel on one core). Every chunk runs its points block by block (the traces of a block
+        # at a time; in this process pipelined)
+        per = -(-n // (8 if self.mode == "local" else 8 * self.n_workers))
+        size = max(block, min(per, MAX_TASK_BLOCKS * block))
         chunks = [_PointChunk(points.take(np.arange(a, min(a + size, n))), a, block) for a in range(0, n, size)]
         if not chunks:
             return SweepResult(self._table([], [], {}))
