@@ -650,30 +650,14 @@ class Evaluator:
         packed = pack_sets(self.inputs, param_sets)
         return self._evaluate_packed(packed, lambda m: self._table(param_sets, points, m), param_sets, description)
 
-    def evaluate_columns(self, base, points, fc: np.ndarray, *, description: str = "sweep") -> SweepResult:
-        """:meth:`evaluate` of the sets ``base`` with the values of ``points`` (a
-        :class:`~distctrl.tuning.columns.PointColumns` that :func:`~distctrl.tuning.columns.check_columns`
-        kept, ``fc`` its filter rows), without a parameter object per set (issue 27): the same table."""
-        # numba (optional: [fast], [tune]) loads only when a batch runs
-        from ..batch.closed_loop import pack_columns
-
-        if not points.n:
-            return SweepResult(self._table([], [], {}))
-        packed = pack_columns(self.inputs, base, points.cols, points.present, fc)
-        params = {}
-        for f in PARAM_COLUMNS:
-            col = full_column(base, points, f)
-            params[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
-        return self._evaluate_packed(packed, lambda m: {**params, **self._metric_columns(m)}, [], description)
-
     def evaluate_points(self, base, points, *, description: str = "sweep") -> SweepResult:
         """:meth:`evaluate` of the sets ``base`` with the values of ``points`` (a
         :class:`~distctrl.tuning.columns.PointColumns`), checked, designed, packed, run and measured chunk by
         chunk where the chunks run (:func:`evaluate_points_chunk`: on the workers of a cluster), so that only
         the points' columns travel (issue 27). The points a check refuses are left out of the table and
         listed in ``result.rejected`` as ``(point, message)``, in order; ``result.info["kept"]``: the indices
-        of the points in the table. The same table as :meth:`evaluate_columns` of what
-        :func:`~distctrl.tuning.columns.check_columns` keeps."""
+        of the points in the table. The same table as :meth:`evaluate` of what
+        :func:`~distctrl.tuning.space.build_sets` keeps (tests/tuning/test_runner.py)."""
         if set(points.cols) - COLUMN_FIELDS:
             raise TuningRunError(f"evaluate_points: fields {sorted(set(points.cols) - COLUMN_FIELDS)} are not "
                                  "evaluated as columns (use evaluate)")
