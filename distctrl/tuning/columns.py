@@ -45,12 +45,34 @@ def drop_inert_columns(pc: PointColumns) -> tuple[PointColumns, int]:
     mat = np.empty((pc.n, len(cols)))
     for j, (f, v) in enumerate(cols.items()):
         mat[:, j] = np.where(pc.mask(f), np.asarray(v, dtype=np.float64) + 0.0, np.nan)
-    rows = np.ascontiguousarray(mat).view(np.dtype((np.void, mat.dtype.itemsize * mat.shape[1])))[:, 0]
-    _, first = np.unique(rows, return_index=True)
+    first = _first_of_equal_rows(mat)
     if len(first) == pc.n:
         return pc, 0
     keep = np.sort(first)
     return pc.take(keep), pc.n - len(keep)
+
+
+_H1 = np.uint64(0x9E3779B97F4A7C15)
+_H2 = np.uint64(0xBF58476D1CE4E5B9)
+
+
+def _first_of_equal_rows(mat: np.ndarray) -> np.ndarray:
+    """The index of the first row of every group of equal rows of ``mat`` (bit for bit; no -0.0). Rows are
+    grouped by a 64-bit hash of their bits, then every row is compared with its group's first row; a
+    collision (a group of unequal rows) falls back to np.unique over the rows' bytes (several times
+    slower: 1.3 s for 10^6 points)."""
+    bits = np.ascontiguousarray(mat).view(np.uint64)
+    h = np.zeros(len(mat), dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        for j in range(mat.shape[1]):
+            h = (h ^ bits[:, j]) * _H1
+            h ^= h >> np.uint64(31)
+            h *= _H2
+    _, first, inv = np.unique(h, return_index=True, return_inverse=True)
+    if np.array_equal(bits, bits[first[inv.reshape(-1)]]):
+        return first
+    rows = bits.view(np.dtype((np.void, 8 * mat.shape[1])))[:, 0]
+    return np.unique(rows, return_index=True)[1]
 
 
 def columns_of(points: list[dict], names: list | None = None) -> PointColumns | None:

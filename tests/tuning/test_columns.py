@@ -135,3 +135,16 @@ def test_check_columns_leaves_what_it_does_not_cover_to_build_sets():
     assert check_columns(base, pc, 0.001) is None                 # a field the columns do not pack
     pc = columns_of([{"kp": 0.5, "n_cycles": 4.0}])
     assert check_columns(base, pc, 0.001) is None                 # a float n_cycles: the per-set way
+
+
+def test_first_of_equal_rows_finds_the_first_of_every_group_and_survives_a_hash_collision(monkeypatch):
+    from distctrl.tuning import columns as C
+
+    rng = np.random.default_rng(3)
+    mat = np.stack([rng.choice([0.0, 0.5, 1.5, np.nan], 5000), rng.integers(0, 3, 5000).astype(float),
+                    rng.choice([1e-3, 2e-3], 5000)], axis=1)
+    rows = np.ascontiguousarray(mat).view(np.dtype((np.void, 24)))[:, 0]
+    want = np.unique(rows, return_index=True)[1]
+    assert np.array_equal(np.sort(C._first_of_equal_rows(mat)), np.sort(want))
+    monkeypatch.setattr(C, "_H1", np.uint64(0))                   # every row the same hash: the fallback
+    assert np.array_equal(np.sort(C._first_of_equal_rows(mat)), np.sort(want))
