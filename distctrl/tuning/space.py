@@ -401,13 +401,17 @@ def random_columns(n: int, seed: int = 0, space=None, *, cycle_time: float | Non
         raise SpaceError(f"random sample size {n}: must be >= 0")
     rng = np.random.default_rng(seed)
     dims = {d.field: d for d in space}
-    draws = {f: d.sample(rng, n) for f, d in dims.items()}       # the same stream, the same order
+    draws = {}
+    for f, d in dims.items():                # the same stream, the same order as Dim.sample
+        if f == "filter_type" and d.kind == "choice":
+            # Dim.sample's draw (the index of a choice), as the filter types' values, without objects
+            codes = np.array([int(FilterType(c)) for c in d.choices], dtype=np.int64)
+            draws[f] = codes[rng.integers(0, len(d.choices), n)]
+        else:
+            draws[f] = d.sample(rng, n)
     cols: dict = {}
     present: dict = {}
-    ft = None
-    if "filter_type" in dims:
-        members = {t: int(t) for t in FilterType}
-        ft = np.fromiter((members[FilterType(v)] for v in draws["filter_type"]), dtype=np.int64, count=n)
+    ft = draws["filter_type"] if "filter_type" in dims else None
     for f, d in dims.items():
         v = draws[f]
         if f == "filter_type":
