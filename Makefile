@@ -78,7 +78,7 @@ test: $(STAMP) $(WARM_STAMP) chromium $(NODE_STAMP) linuxcnc
 bench: $(STAMP) $(WARM_STAMP)
 	$(PY) bench/bench_core.py
 	$(PY) bench/bench_batch.py
-	$(PY) bench/bench_sweep.py
+	$(PY) bench/bench_sweep.py --dask-sets 1000000
 	$(PY) bench/bench_run.py
 	$(PY) bench/bench_ads.py
 	$(PY) bench/bench_identify.py

@@ -10,10 +10,11 @@ The kernel's cost in the same run: the same 10 000 sets, packed, through
 runs), best of 3; and the steps of a sweep timed one by one in this process (sampling, checking the
 sets, packing, the kernel, the metrics) so the table says where the rest goes.
 
-Dask: the same sweep's evaluation (:class:`distctrl.tuning.runner.Evaluator`) over an embedded
-LocalCluster of 1 and of 2 single-threaded workers, ``--dask-sets`` sets (default 100 000; the
-issue's 10^6 with ``--dask-sets 1000000``), scaling and the share of the time outside the kernels
-(1 - kernel time / (workers x wall time)).
+Dask: a random sweep of ``--dask-sets`` points (make bench: 10^6; default 10^5) the way the CLI runs it
+(:meth:`distctrl.tuning.runner.Evaluator.evaluate_points`: the workers check, design, pack, run and measure
+their points) over an embedded LocalCluster of 1 and of 2 single-threaded workers, timed from the sampling
+to the merged table: scaling, and the share of the time outside the kernels, 1 - kernel time / (workers x
+wall time), with the kernel time measured in the tasks (the closed-loop kernel and the metrics pass).
 
 The kernel per core beside the SIMD C anchor (``--simd-sets``, bench/batch_c/closed_loop_simd.c, the
 law vectorised across sets by gcc) and the scalar C reference, 1 thread each, checked bit for bit.
@@ -69,26 +70,27 @@ def cli_sweep(n: int, tmp: pathlib.Path) -> tuple[float, dict]:
 
 
 def steps(n: int, repeats: int = 3) -> dict:
-    """The steps of a sweep of n random sets, timed one by one in this process (best of ``repeats``)."""
+    """The steps of a sweep of n random sets as the CLI runs them (the sets as columns), timed one by one in
+    this process: sampling, checking the sets (with their filter designs), packing, the kernel (best of
+    ``repeats``), the metrics pass, writing the table."""
     from distctrl.batch import closed_loop as CL
-    from distctrl.batch import design
+    from distctrl.tuning.columns import check_columns, drop_inert_columns, random_columns
     from distctrl.tuning.metrics import compute_metrics, limits_from_packed, wanted_distance
-    from distctrl.tuning.space import build_sets, drop_inert_d_tv, random_sample
+    from distctrl.tuning.runner import Evaluator
 
     t0 = time.perf_counter()
     inputs = CL.prepare(SCENARIO)
     out = {"prepare_s": time.perf_counter() - t0}
     T = inputs.cycle_time
     t0 = time.perf_counter()
-    points, _ = drop_inert_d_tv(random_sample(n, 0, cycle_time=T))
+    pc, _ = drop_inert_columns(random_columns(n, 0, cycle_time=T))
     out["sample_s"] = time.perf_counter() - t0
-    design.clear_cache()                     # the designs are part of a fresh process's cost
     t0 = time.perf_counter()
-    sets, points, _ = build_sets(inputs.params, points, T)
+    kept, fc, _ = check_columns(inputs.params, pc, T)
     out["build_sets_s"] = time.perf_counter() - t0
-    out["filter_designs"] = design.cache_info()["designs"]
+    out["filter_designs"] = int(len(np.unique(fc, axis=0)))
     t0 = time.perf_counter()
-    packed = CL.pack_sets(inputs, sets)
+    packed = CL.pack_columns(inputs, inputs.params, kept.cols, kept.present, fc)
     out["pack_s"] = time.perf_counter() - t0
     CL.run_batch(inputs, packed[:64])         # loaded from the cache
     offset = np.empty((len(packed), inputs.n_cycles))
@@ -106,9 +108,15 @@ def steps(n: int, repeats: int = 3) -> dict:
         compute_metrics(offset[a:a + chunk], distance[a:a + chunk], wanted, T, inputs.k_on,
                         limits_from_packed(packed[a:a + chunk]))
     out["metrics_s"] = time.perf_counter() - t0
-    out["sets"] = len(sets)
+    with Evaluator(inputs, mode="local", progress=False) as ev:
+        res = ev.evaluate_points(inputs.params, pc)
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        res.write(pathlib.Path(tmp) / "sweep.csv")
+        out["write_s"] = time.perf_counter() - t0
+    out["sets"] = kept.n
     out["cycles"] = inputs.n_cycles
-    out["kernel_ns_per_set_cycle"] = best / (len(sets) * inputs.n_cycles) * 1e9
+    out["kernel_ns_per_set_cycle"] = best / (kept.n * inputs.n_cycles) * 1e9
     return out
 
 
@@ -139,34 +147,38 @@ def simd_anchor(n_sets: int, n_cycles: int = 4000, repeats: int = 3) -> dict:
             "cflags": " ".join(BB.CFLAGS_SIMD)}
 
 
-def dask_scaling(n_sets: int, chunk: int = 2048) -> dict:
-    """Evaluator over LocalClusters of 1 and 2 workers: wall time, scaling, share outside the kernels."""
+def dask_scaling(n_sets: int, chunk: int | None = None) -> dict:
+    """A random sweep of ``n_sets`` points (the CLI's path: columns, checked, designed, packed, run and measured
+    on the workers, :meth:`Evaluator.evaluate_points`) over LocalClusters of 1 and 2 single-threaded workers:
+    wall time from the sampling to the merged table, scaling, and the share outside the kernels, honestly:
+    kernel = the time the workers spent in the closed-loop kernel and the metrics pass (measured in the tasks),
+    outside = everything else (sampling, checking, designing, packing, scheduling, transfer, merging) of
+    workers x wall time."""
     from distctrl.batch import closed_loop as CL
+    from distctrl.tuning.columns import drop_inert_columns, random_columns
     from distctrl.tuning.runner import Evaluator
-    from distctrl.tuning.space import build_sets, drop_inert_d_tv, random_sample
 
     inputs = CL.prepare(SCENARIO)
     T = inputs.cycle_time
-    points, _ = drop_inert_d_tv(random_sample(min(n_sets, 20_000), 0, cycle_time=T))
-    base_sets, _, _ = build_sets(inputs.params, points, T)
-    sets = [base_sets[i % len(base_sets)] for i in range(n_sets)]
-    packed = CL.pack_sets(inputs, sets[:4096])
-    offset = np.empty((len(packed), inputs.n_cycles))
-    distance = np.empty_like(offset)
-    CL.run_batch(inputs, packed, threads=1, out=(offset, distance))
-    t0 = time.perf_counter()
-    CL.run_batch(inputs, packed, threads=1, out=(offset, distance))
-    kernel_per_set = (time.perf_counter() - t0) / len(packed)      # 1 thread, as a worker runs
-    out = {"sets": n_sets, "cycles": inputs.n_cycles, "kernel_s_per_set_1_thread": kernel_per_set}
+    out = {"sets": n_sets, "cycles": inputs.n_cycles}
+    warm, _ = drop_inert_columns(random_columns(512, 1, cycle_time=T))
     for workers in (1, 2):
-        with Evaluator(inputs, mode="cluster", n_workers=workers, chunk_size=chunk, progress=False) as ev:
-            ev.evaluate(sets[:workers * chunk])                    # workers up, kernels loaded
+        kw = {} if chunk is None else {"chunk_size": chunk}
+        with Evaluator(inputs, mode="cluster", n_workers=workers, progress=False, **kw) as ev:
+            ev.evaluate_points(inputs.params, warm)              # workers up, kernels loaded
+            k0, t0_task = ev.stats.get("kernel_s", 0.0), ev.stats.get("task_s", 0.0)
             t0 = time.perf_counter()
-            ev.evaluate(sets)
+            pc, _ = drop_inert_columns(random_columns(n_sets, 0, cycle_time=T))
+            res = ev.evaluate_points(inputs.params, pc)
             wall = time.perf_counter() - t0
-        outside = 1.0 - kernel_per_set * n_sets / (workers * wall)
+            kernel = ev.stats["kernel_s"] - k0
+            task = ev.stats["task_s"] - t0_task
+            out["chunk"] = ev.chunk_size
         out[f"wall_s_{workers}"] = wall
-        out[f"outside_share_{workers}"] = outside
+        out[f"kernel_s_{workers}"] = kernel
+        out[f"task_s_{workers}"] = task
+        out[f"outside_share_{workers}"] = 1.0 - kernel / (workers * wall)
+        out[f"sets_run_{workers}"] = len(res)
     out["scaling"] = out["wall_s_1"] / out["wall_s_2"]
     return out
 
@@ -179,6 +191,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--dask-sets", type=int, default=100_000,
                     help="sets of the dask scaling measurement (the issue's 10^6: --dask-sets 1000000; 0: none)")
+    ap.add_argument("--dask-chunk", type=int, default=None,
+                    help="sets per dask task (default: the Evaluator's, traces of at most 256 MiB per task)")
     ap.add_argument("--simd-sets", type=int, default=512, help="sets of numba vs the SIMD C anchor (0: none)")
     ap.add_argument("--quick", action="store_true", help="small sizes, a smoke test")
     args = ap.parse_args(argv)
@@ -204,7 +218,7 @@ def main(argv=None) -> dict:
         res["sweep_simd"] = sd
     dk = None
     if args.dask_sets:
-        dk = dask_scaling(args.dask_sets)
+        dk = dask_scaling(args.dask_sets, args.dask_chunk)
         res["sweep_dask"] = dk
     res["sweep_load_after"] = load()
     ok = lambda b: "met" if b else "**missed**"  # noqa: E731
@@ -218,10 +232,11 @@ def main(argv=None) -> dict:
              f"| kernel `run_batch` on the same sets, default threads, best of {args.repeats} | "
              f"{st['kernel_ns_per_set_cycle']:.2f} ns ({1e3 / st['kernel_ns_per_set_cycle']:.0f} M set-cycles/s) | – |",
              f"| marginal / kernel | {ratio:.1f}× | ≤ {TARGET_MARGINAL_RATIO:g}× ({ok(ratio <= TARGET_MARGINAL_RATIO)}) |",
-             "", f"Steps of a {st['sets']}-set sweep in one process: recording the scenario {st['prepare_s']:.2f} s, "
+             "", f"Steps of a {st['sets']}-set sweep in one process (the CLI's columns): recording the scenario "
+             f"{st['prepare_s']:.2f} s, "
              f"sampling {st['sample_s']:.2f} s, checking the sets {st['build_sets_s']:.2f} s "
              f"({st['filter_designs']} distinct filter designs), packing {st['pack_s']:.2f} s, kernel "
-             f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s.", ""]
+             f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s, writing the table {st['write_s']:.2f} s.", ""]
     if sd:
         lines += [f"Kernel per core vs the SIMD C anchor (bench/batch_c/closed_loop_simd.c, `gcc {sd['cflags']}`), "
                   f"{sd['sets']} MOVING_AVERAGE sets × {sd['cycles']} cycles, 1 thread: numba "
@@ -230,7 +245,9 @@ def main(argv=None) -> dict:
                   f"(target ≤ 1.5×: {ok(sd['numba_over_simd_c'] <= 1.5)}); bit for bit equal: {sd['bit_identical']}.",
                   ""]
     if dk:
-        lines += [f"Dask, {dk['sets']} sets × {dk['cycles']} cycles, embedded LocalCluster: 1 worker "
+        lines += [f"Dask, a random sweep of {dk['sets']} sets × {dk['cycles']} cycles (evaluate_points: sampled "
+                  f"here, checked, designed, packed, run and measured on the workers, blocks of {dk['chunk']}), "
+                  f"embedded LocalCluster: 1 worker "
                   f"{dk['wall_s_1']:.1f} s ({dk['outside_share_1']:.0%} outside the kernel), 2 workers "
                   f"{dk['wall_s_2']:.1f} s ({dk['outside_share_2']:.0%} outside); scaling {dk['scaling']:.2f}× "
                   f"(target ≥ {TARGET_DASK_SCALING:g}×: {ok(dk['scaling'] >= TARGET_DASK_SCALING)}; outside ≤ "

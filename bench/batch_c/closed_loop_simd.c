@@ -16,6 +16,11 @@
  * (tests/batch/test_c_simd.py). -fno-math-errno only lets sqrt and floor compile to their vector
  * instructions (both correctly rounded either way).
  *
+ * The rare paths (adaptive acceleration, the slope limiter's lowering pass, braking near a bound) run
+ * for a block of lanes only when one of its lanes needs them: a test over the lanes (`any`), then the
+ * selects for all lanes, as a C programmer would write it (distctrl.batch.soa tests per lane and runs the
+ * rare path per set); a lane that does not need a path gets the same value either way.
+ *
  * Scope: as closed_loop.c (MOVING_AVERAGE, the encoder probe), without a modulo encoder. A block
  * with a set outside it runs its sets through closed_loop_one. A set that raises a controller error
  * keeps computing in its lane; its outputs are NaN from the error cycle on, written when the block
@@ -62,19 +67,30 @@ static inline double band_sel(double v_wanted, double v_prev, double v_lim, doub
     return lo > hi ? stuck : r;
 }
 
-static inline double slope_limit_sel(double u, double e, double v_prev, double T, double v_lim,
-                                     double a_lim, double a_brake, double w_v, double w_a)
+/* law.slope_limit as selects, in two passes, so that a block skips the lowering pass (a second square root and band)
+ * when none of its lanes needs it: the first pass, and whether the lowering pass decides the result ... */
+static inline double slope_first(double u, double e, double v_prev, double T, double v_lim, double a_lim,
+                                 double a_brake, double w_v, double w_a, int64_t *down)
 {
     double v_lim_down = v_lim * w_v, a_lim_down = a_lim * w_a;
     double v_wanted = u * (1.0 / T);
     double vb = sqrt(2.0 * a_brake * fabs(e));
     double v = band_sel((-vb <= v_wanted & v_wanted <= vb) ? v_wanted : (v_wanted > 0.0 ? vb : -vb),
                         v_prev, v_lim, a_lim * T);
+    *down = !(v >= 0.0 | (v_lim_down == v_lim & a_lim_down == a_lim));
+    return v;
+}
+
+/* ... and the lowering pass (the result where *down) */
+static inline double slope_down(double u, double e, double v_prev, double T, double v_lim, double a_lim,
+                                double a_brake, double w_v, double w_a)
+{
+    double v_lim_down = v_lim * w_v, a_lim_down = a_lim * w_a;
+    double v_wanted = u * (1.0 / T);
     double vb2 = sqrt(2.0 * (a_brake * w_a) * fabs(e));
     double v2 = band_sel((-vb2 <= v_wanted & v_wanted <= vb2) ? v_wanted : (v_wanted > 0.0 ? vb2 : -vb2),
                          v_prev, v_lim_down, a_lim_down * T);
-    double down = v2 <= 0.0 ? v2 : 0.0;
-    return (v >= 0.0 | (v_lim_down == v_lim & a_lim_down == a_lim)) ? v : down;
+    return v2 <= 0.0 ? v2 : 0.0;
 }
 
 static inline double bound_velocity_sel(double v, double o, double T, double lo, double hi, double a_floor)
@@ -90,6 +106,14 @@ static inline double bound_velocity_sel(double v, double o, double T, double lo,
     double dn = (room_lo < thr_lo & v < v_lo) ? v_lo : v;
     double r = v > 0.0 ? up : (v < 0.0 ? dn : v);
     return a_floor <= 0.0 ? no_floor : r;
+}
+
+/* whether bound_velocity_sel can return anything but v: braking near a bound (or no floor) */
+static inline int64_t bound_needed(double v, double o, double T, double lo, double hi, double a_floor)
+{
+    double thr_hi = (v * v / (2.0 * a_floor) + 0.5 * v * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) + 1e-300;
+    double thr_lo = (v * v / (2.0 * a_floor) - 0.5 * v * T + 0.125 * a_floor * T * T) * (1.0 + 1e-12) + 1e-300;
+    return (a_floor <= 0.0) | (v > 0.0 & hi - o < thr_hi) | (v < 0.0 & o - lo < thr_lo);
 }
 
 static inline double advance_offset_sel(double o, double v, double T, double lo, double hi)
@@ -154,7 +178,7 @@ static void block_simd(const int64_t *rows, int nl, const double *packed, const 
     double s_delayed[LANES], last_s[LANES], f_total[LANES];
     double y[LANES], fb[LANES];
     int f_idx[LANES], resum[LANES];
-    int64_t err_k[LANES], err_id[LANES], run_l[LANES], adapt_l[LANES], leid[LANES];
+    int64_t err_k[LANES], err_id[LANES], run_l[LANES], adapt_l[LANES], leid[LANES], ldown[LANES];
     double le[LANES], lu[LANES], lic[LANES], la[LANES], lab[LANES], lv[LANES], llo[LANES], lhi[LANES];
     double ring[64][LANES], dline[64][LANES];
     rings_t rg;                        /* on the stack (a thread-local copy is not 64-byte aligned) */
@@ -277,14 +301,35 @@ static void block_simd(const int64_t *rows, int nl, const double *packed, const 
             lic[b] = run ? i_r : integral[b];
             m_prev[b] = run ? m : m_prev[b];
         }
-        for (int b = 0; b < LANES; b++) {        /* adaptive acceleration */
-            double a_here = adaptive_acceleration_sel(fabs(le[b]), a_min[b], a_base[b], dev_a_min[b], dev_a_max[b]);
-            double a_brk = a_min[b] < a_here ? a_min[b] : a_here;
-            la[b] = adapt_l[b] ? a_here : a_base[b];
-            lab[b] = adapt_l[b] ? a_brk : a_base[b];
+        /* the rare paths run for a block only when one of its lanes needs them (an `any` over the lanes, as
+         * a C programmer writes it; the other lanes take the same values as without the test) */
+        int64_t any_adapt = 0;
+        for (int b = 0; b < LANES; b++)
+            any_adapt |= adapt_l[b];
+        if (any_adapt) {
+            for (int b = 0; b < LANES; b++) {    /* adaptive acceleration */
+                double a_here = adaptive_acceleration_sel(fabs(le[b]), a_min[b], a_base[b], dev_a_min[b],
+                                                          dev_a_max[b]);
+                double a_brk = a_min[b] < a_here ? a_min[b] : a_here;
+                la[b] = adapt_l[b] ? a_here : a_base[b];
+                lab[b] = adapt_l[b] ? a_brk : a_base[b];
+            }
+        } else {
+            for (int b = 0; b < LANES; b++)
+                la[b] = lab[b] = a_base[b];
         }
-        for (int b = 0; b < LANES; b++)          /* law.slope_limit (u_lim, e_lim: 0 before the select) */
-            lv[b] = slope_limit_sel(lu[b], le[b], vel[b], T_[b], v_max[b] * 1.0, la[b], lab[b], w_v[b], w_a[b]);
+        int64_t any_down = 0;
+        for (int b = 0; b < LANES; b++) {        /* law.slope_limit (u_lim, e_lim: 0 before the select) */
+            lv[b] = slope_first(lu[b], le[b], vel[b], T_[b], v_max[b] * 1.0, la[b], lab[b], w_v[b], w_a[b],
+                                &ldown[b]);
+            any_down |= ldown[b];
+        }
+        if (any_down)                            /* its lowering pass */
+            for (int b = 0; b < LANES; b++) {
+                double dn = slope_down(lu[b], le[b], vel[b], T_[b], v_max[b] * 1.0, la[b], lab[b], w_v[b], w_a[b]);
+                lv[b] = ldown[b] ? dn : lv[b];
+            }
+        int64_t any_bound = 0;
         for (int b = 0; b < LANES; b++) {        /* the offset's bounds, law.bound_velocity */
             double lo = -max_dev[b], hi = max_dev[b];
             double lo_sw = sw_min[b] - pr, hi_sw = sw_max[b] - pr;
@@ -295,8 +340,11 @@ static void block_simd(const int64_t *rows, int nl, const double *packed, const 
             a_bound_state[b] = a_bound;
             llo[b] = lo;
             lhi[b] = hi;
-            lv[b] = bound_velocity_sel(lv[b], o[b], T_[b], lo, hi, a_bound);
+            any_bound |= bound_needed(lv[b], o[b], T_[b], lo, hi, a_bound);
         }
+        if (any_bound)                           /* braking near a bound */
+            for (int b = 0; b < LANES; b++)
+                lv[b] = bound_velocity_sel(lv[b], o[b], T_[b], llo[b], lhi[b], a_bound_state[b]);
         for (int b = 0; b < LANES; b++) {        /* law.advance_offset, 70331 / SW limit, anti-windup */
             const double T = T_[b];
             double v = lv[b], lo = llo[b], hi = lhi[b];

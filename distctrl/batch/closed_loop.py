@@ -94,7 +94,7 @@ from .layout import (Q_T, Q_KP, Q_I_GAIN, Q_D_GAIN, Q_V_MAX, Q_A_BASE, Q_W_V, Q_
                      _E_JUMP, _E_RUN_MAX, _E_RUN_MIN, _E_MAX_DEV, _E_SW, _LAND, plant_constants,
                      sensor_constants, resonance_constants)
 
-__all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "closed_loop", "run_batch",
+__all__ = ["ClosedLoopError", "LoopInputs", "prepare", "pack_sets", "pack_columns", "closed_loop", "run_batch",
            "Q_LEN", "PACKED_LEN"]
 
 
@@ -376,7 +376,7 @@ def prepare(scenario, cycles: int | None = None) -> LoopInputs:
 
 # ----------------------------------------------------------------------------- packing
 
-def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
+def pack_sets(inputs: LoopInputs, param_sets, probe=None) -> np.ndarray:
     """``(n_sets, PACKED_LEN)`` rows ``[fc | prm]`` for a list of :class:`AxisParameters`.
 
     The law's constants are those of :meth:`AxisDistanceController._derive
@@ -388,7 +388,8 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
     resolution and sign reversal (as the machine builds it), once per distinct pair. Columns of
     ``prm`` (offset ``law.FC_LEN``) that are plain numbers (``Q_KP``, ``Q_I_GAIN`` = T/i_tn,
     ``Q_D_GAIN`` = law.derivative_gain(kp, d_tv, T): edit it with Q_KP, ``Q_V_MAX``, ``Q_A_BASE`` ...)
-    may be edited in the array for a sweep; the filter (``fc``) only through this function.
+    may be edited in the array for a sweep; the filter (``fc``) only through this function. ``probe``: the
+    probe constants of every set when known (a worker's inputs have no scenario to build them from).
     """
     T = inputs.cycle_time
     sets = list(param_sets)
@@ -421,7 +422,86 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
     def flag(name):
         return np.fromiter((bool(getattr(p, name)) for p in sets), dtype=bool, count=n)
 
-    q = rows[:, law.FC_LEN:]
+    def probes(q):
+        found: dict = {}
+        for i, p in enumerate(sets):
+            key = (p.encoder_resolution_num, p.encoder_resolution_denom, p.sensor_sign_reversal)
+            pr = found.get(key) if probe is None else probe
+            if pr is None:
+                pr = found[key] = _probe_constants(inputs, p)
+            q[i, Q_PROBE_IPM], q[i, Q_PROBE_REF] = pr
+
+    _fill_prm(inputs, rows[:, law.FC_LEN:], col, flag, probes)
+    return rows
+
+
+#: the AxisParameters fields :func:`pack_columns` takes from columns (the rest from the base set)
+PACKED_COLUMN_FIELDS = frozenset({"kp", "i_tn", "d_tv", "filter_type", "n_cycles", "smoothing_factor", "kalman_sigma",
+                                  "low_pass_filter_order", "low_pass_filter_fg_f0", "v_max", "a_max"})
+
+
+def pack_columns(inputs: LoopInputs, base: AxisParameters, columns: dict, present: dict, fc: np.ndarray,
+                 probe=None) -> np.ndarray:
+    """:func:`pack_sets` of the sets ``base`` with the values of ``columns`` (field -> array of the sets'
+    values; ``present[field]``: a bool mask of the sets that take it, None: all), without a parameter
+    object per set (issue 27): ``fc`` are the sets' filter coefficient rows
+    (:func:`distctrl.batch.design.design_rows`). Only the fields of :data:`PACKED_COLUMN_FIELDS` may be
+    columns; the rows are those :func:`pack_sets` builds for the same sets, bit for bit
+    (tests/batch/test_pack.py). ``probe``: the base set's probe constants (increments per mm, reference
+    offset) when known (a worker's inputs have no scenario to build it from)."""
+    unknown = set(columns) - PACKED_COLUMN_FIELDS
+    if unknown:
+        raise ClosedLoopError(f"pack_columns: fields {sorted(unknown)} are not packed from columns (pack_sets)")
+    if not base.enabled:
+        raise ClosedLoopError("param_sets: distance control not enabled (P-AXIS-00328)")
+    n = len(fc)
+    rows = np.zeros((n, PACKED_LEN))
+    if not n:
+        return rows
+    check_cycle_time(inputs.cycle_time)
+    rows[:, :law.FC_LEN] = fc
+
+    def col(name, dtype=np.float64):
+        v = getattr(base, name)
+        if name in columns:
+            m = present.get(name)
+            c = np.asarray(columns[name], dtype=dtype)
+            return c.copy() if m is None else np.where(m, c, np.asarray(v, dtype=dtype))
+        return np.full(n, v, dtype=dtype)
+
+    def flag(name):
+        return np.full(n, bool(getattr(base, name)))
+
+    def probes(q):
+        q[:, Q_PROBE_IPM], q[:, Q_PROBE_REF] = probe if probe is not None else _probe_constants(inputs, base)
+
+    _fill_prm(inputs, rows[:, law.FC_LEN:], col, flag, probes)
+    return rows
+
+
+def _probe_constants(inputs: LoopInputs, p) -> tuple[float, float]:
+    """The probe the machine builds for the set ``p``: (increments per mm, reference offset)."""
+    probe = inputs.scenario.sensor.make_sensor(inputs.cycle_time, p)
+    return probe.increments_per_mm, probe.ref_offset
+
+
+def derivative_gains(kp: np.ndarray, d_tv: np.ndarray, T: float) -> np.ndarray:
+    """:func:`law.derivative_gain` of every (kp, d_tv), with its operations (bit for bit, tests/batch/test_pack.py)."""
+    kp = np.asarray(kp, dtype=np.float64)
+    d_tv = np.asarray(d_tv, dtype=np.float64)
+    g_max = law.D_ROOM_SHARE * (1.0 - kp)
+    use = (d_tv > 0.0) & (g_max > 0.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        x = kp * d_tv / T
+        g = x / (1.0 + x / g_max)
+    return np.where(use, g, 0.0)
+
+
+def _fill_prm(inputs: LoopInputs, q: np.ndarray, col, flag, probes) -> None:
+    """The ``prm`` columns of the sets from their parameters' columns (``col(name)``, ``flag(name)``):
+    the law's constants of :meth:`AxisDistanceController._derive` and ``law_constants()``, operation for
+    operation, for all sets at once; ``probes(q)`` fills the probe's two columns."""
+    T = inputs.cycle_time
     kp, i_tn, d_tv = col("kp"), col("i_tn"), col("d_tv")
     a_max, axis_a_max = col("a_max"), col("axis_a_max")
     adaptive = flag("use_adaptive_acceleration")
@@ -430,14 +510,7 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
     a_base = np.where(a_max > 0, a_max, axis_a_max)
     with np.errstate(divide="ignore", invalid="ignore"):
         i_gain = np.where(i_tn > 0, np.minimum(T / np.where(i_tn > 0, i_tn, 1.0), _MAX_I_GAIN), 0.0)
-    gains: dict = {}
-    d_gain = np.empty(n)
-    for i, p in enumerate(sets):                # law.derivative_gain itself, once per distinct (kp, d_tv)
-        key = (p.kp, p.d_tv)
-        g = gains.get(key)
-        if g is None:
-            g = gains[key] = law.derivative_gain(p.kp, p.d_tv, T)
-        d_gain[i] = g
+    d_gain = derivative_gains(kp, d_tv, T)
     v_wd, a_wd = col("v_weight_down"), col("a_weight_down")
     w_v = np.where(v_wd > 0, v_wd, 1.0)
     w_a = np.where(a_wd > 0, a_wd, 1.0)
@@ -472,15 +545,7 @@ def pack_sets(inputs: LoopInputs, param_sets) -> np.ndarray:
     q[:, Q_MIN_POS] = min_pos
     q[:, Q_MAX_POS] = max_pos
     if inputs.plant[PL_SENSOR] == SENSOR_PROBE:          # (the distance sensor delivers mm)
-        probes: dict = {}
-        for i, p in enumerate(sets):
-            key = (p.encoder_resolution_num, p.encoder_resolution_denom, p.sensor_sign_reversal)
-            pr = probes.get(key)
-            if pr is None:
-                probe = inputs.scenario.sensor.make_sensor(T, p)
-                pr = probes[key] = (probe.increments_per_mm, probe.ref_offset)
-            q[i, Q_PROBE_IPM], q[i, Q_PROBE_REF] = pr
-    return rows
+        probes(q)
 
 
 def _types(cfg) -> tuple:

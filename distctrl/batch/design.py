@@ -10,8 +10,12 @@ configuration that the design refuses (the low-pass cut-off above Nyquist, ...) 
 
 The tuner rounds the low-pass cut-off to 0.1 Hz, which still leaves thousands of distinct (order, fg_f0) in a
 random sweep: :func:`design_many` designs all low-passes of a list of sets at once
-(:func:`distctrl.control.butter.butter_lowpass`, vectorised over the cut-offs of one order, the same numbers
+(:func:`distctrl.control.butter.butter_lowpass_many`, vectorised over the cut-offs of one order, the same numbers
 as the controller's own design) and fills the cache before the sets are checked one by one.
+
+:func:`design_rows` is the design of many configurations given as arrays (a sweep's columns,
+:mod:`distctrl.tuning.columns`): the coefficient rows of all of them at once, without a configuration
+object per set; the tests compare every row with :func:`~distctrl.control.filters.design_coefficients`.
 
 Importing this module imports neither numba nor scipy.
 """
@@ -24,18 +28,22 @@ import numpy as np
 
 from ..base.kinds import FilterType
 from ..control import law
-from ..control.butter import butter_lowpass
+from ..control.butter import butter_lowpass_many
 from ..control.controller import AxisDistanceController
-from ..control.filters import FilterConfig, design_coefficients
+from ..control.filters import (FILTER_KINDS, FILTER_PARAMS, KALMAN_PROCESS_VARIANCE, FilterConfig,
+                               design_coefficients, kalman_design)
 from ..params.axis import AxisParameters
 
-__all__ = ["filter_coefficients", "filter_config", "design_many", "check_cycle_time", "clear_cache", "cache_info"]
+__all__ = ["filter_coefficients", "filter_config", "design_many", "design_rows", "unique_rows", "check_cycle_time", "clear_cache", "cache_info"]
 
 #: at most this many designs are kept (a tuner's long run with continuous values cannot grow it without bound)
 MAX_ENTRIES = 1 << 16
 _FIELDS = tuple(f.name for f in dataclasses.fields(FilterConfig))
 _CACHE: dict = {}
 _STATS = {"designs": 0, "hits": 0}
+#: design_rows' Kalman predictions per (kind, n, alpha): (prediction variance, coefficients); they do not
+#: depend on sigma
+_KALMAN: dict = {}
 
 
 def filter_config(p) -> FilterConfig:
@@ -99,7 +107,7 @@ def design_many(configs, cycle_time: float) -> int:
         by_order.setdefault(int(c.order), []).append((key, c))
     for order, items in by_order.items():
         try:
-            sos, zi = butter_lowpass(order, [float(c.fg_f0) for _, c in items], 1.0 / cycle_time)
+            sos, zi = butter_lowpass_many(order, [float(c.fg_f0) for _, c in items], 1.0 / cycle_time)
         except (ValueError, TypeError):     # pragma: no cover - check() refuses these first
             continue
         for i, (key, c) in enumerate(items):
@@ -121,6 +129,7 @@ def _store(key, value) -> None:
 
 def clear_cache() -> None:
     _CACHE.clear()
+    _KALMAN.clear()
     _STATS.update(designs=0, hits=0)
 
 
@@ -137,3 +146,159 @@ def check_cycle_time(cycle_time) -> None:
 
     AxisDistanceController(AxisParameters(), cycle_time)       # raises the controller's own ParameterError
     raise AssertionError("the controller accepted a cycle time this check refuses")  # pragma: no cover
+
+
+#: the filter types :func:`design_rows` designs itself (others: one by one through design_coefficients)
+_ROW_TYPES = frozenset(int(t) for t in (FilterType.DEFAULT, FilterType.MOVING_AVERAGE, FilterType.EXPO_MEAN,
+                                         FilterType.LOWPASS, FilterType.KALMAN_MA, FilterType.KALMAN_EXPO))
+
+
+def _field_errors(name: str, values: np.ndarray) -> dict:
+    """FILTER_PARAMS[name].check of every distinct value: value -> the exception it raises."""
+    out = {}
+    for v in np.unique(values).tolist():
+        try:
+            FILTER_PARAMS[name].check(v)
+        except Exception as exc:             # noqa: BLE001 - the message of the one-by-one check
+            out[v] = exc
+    return out
+
+
+def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> tuple[np.ndarray, dict]:
+    """The coefficient rows ``fc`` of K filter configurations given as arrays (filter type values, n_cycles,
+    smoothing factor, Kalman sigma, low-pass order, cut-off), as :func:`design_coefficients` computes them
+    one by one, bit for bit: ``(fc (K, law.FC_LEN), {row: exception})`` for the rows the check refuses
+    (the exception :meth:`FilterConfig.check` raises for the first bad value, in its order).
+
+    Per distinct value, not per row: the checks of every parameter, ``rho^n`` and the EXPO_MEAN sums (per
+    distinct (n, alpha)) and the Kalman coefficients (per distinct (kind, n, alpha)); the low-passes over
+    arrays (:func:`~distctrl.control.butter.butter_lowpass_many`), the Kalman gain over the sigmas."""
+    ft = np.asarray(ftype, dtype=np.int64)
+    n = np.asarray(n_cycles, dtype=np.int64)
+    alpha = np.asarray(alpha, dtype=np.float64)
+    sigma = np.asarray(sigma, dtype=np.float64)
+    order = np.asarray(order, dtype=np.int64)
+    fg = np.asarray(fg, dtype=np.float64)
+    k_n = len(ft)
+    fc = np.zeros((k_n, law.FC_LEN))
+    errors: dict = {}
+    if not k_n:
+        return fc, errors
+    # the checks of FilterConfig.check, in its order
+    bad = np.zeros(k_n, dtype=bool)
+    valid_type = np.isin(ft, [int(t) for t in FilterType if t != FilterType.PASS])
+    for i in np.nonzero(~valid_type)[0].tolist():
+        try:
+            FilterConfig(FilterType(int(ft[i])) if int(ft[i]) in {int(t) for t in FilterType} else int(ft[i])
+                         ).check(cycle_time)
+        except Exception as exc:             # noqa: BLE001
+            errors[i] = exc
+    bad |= ~valid_type
+    for name, vals in (("n_cycles", n), ("smoothing_factor", alpha), ("kalman_sigma", sigma), ("order", order)):
+        errs = _field_errors(name, vals)
+        if errs:
+            for i in np.nonzero(~bad & np.isin(vals, list(errs)))[0].tolist():
+                errors[i] = errs[vals[i].item()]
+                bad[i] = True
+    lowpass = (ft == int(FilterType.LOWPASS)) & (order > 0)
+    nyquist = 0.5 / cycle_time
+    for i in np.nonzero(~bad & lowpass & ~((0.0 < fg) & (fg < nyquist)))[0].tolist():
+        try:
+            _config(ft[i], n[i], alpha[i], sigma[i], order[i], fg[i]).check(cycle_time)
+        except Exception as exc:             # noqa: BLE001
+            errors[i] = exc
+            bad[i] = True
+    ok = ~bad
+    other = ok & ~np.isin(ft, list(_ROW_TYPES))
+    for i in np.nonzero(other)[0].tolist():      # a type this function does not know: one by one
+        fc[i] = design_coefficients(_config(ft[i], n[i], alpha[i], sigma[i], order[i], fg[i]), cycle_time)
+    ok &= ~other
+    # the law's code in force (FILTER_KINDS[...].code) and n
+    windowed = np.isin(ft, [int(FilterType.MOVING_AVERAGE), int(FilterType.KALMAN_MA), int(FilterType.KALMAN_EXPO)])
+    kind = np.where(ft == int(FilterType.DEFAULT), law.MOVING_AVERAGE,
+                    np.where(windowed, np.where(n <= 1, law.PASS, ft),
+                             np.where(ft == int(FilterType.EXPO_MEAN),
+                                      np.where((n <= 1) | (alpha >= 1.0), law.PASS, law.EXPO_MEAN),
+                                      np.where(lowpass, law.LOWPASS, law.PASS))))
+    eff_n = np.where(ft == int(FilterType.DEFAULT), 4, n)
+    rows = np.nonzero(ok)[0]
+    fc[rows, law.FC_KIND] = kind[rows]
+    fc[rows, law.FC_N] = eff_n[rows]
+    with np.errstate(divide="ignore"):
+        fc[rows, law.FC_INV_N] = np.where(eff_n[rows] > 0, 1.0 / eff_n[rows], 0.0)
+    fc[rows, law.FC_ALPHA] = alpha[rows]
+    fc[rows, law.FC_SIGMA] = sigma[rows]
+    fc[rows, law.FC_WSUM] = 1.0
+    # rho^n (and the EXPO_MEAN sums): math per distinct (n, alpha), as design_coefficients does
+    pairs, inv = unique_rows(np.stack((eff_n[rows].astype(np.float64), alpha[rows]), axis=1))
+    decay = np.empty(len(pairs))
+    wsum = np.empty(len(pairs))
+    older = np.empty(len(pairs))
+    for j, (nn, a) in enumerate(pairs.tolist()):
+        nn = int(nn)
+        log_rho = math.log1p(-a) if a < 1.0 else -math.inf
+        decay[j] = math.exp(nn * log_rho)
+        if nn >= 2 and a < 1.0:
+            wsum[j] = -math.expm1(nn * log_rho) / a
+            older[j] = a / -math.expm1((nn - 1) * log_rho)
+        else:
+            wsum[j] = older[j] = np.nan
+    fc[rows, law.FC_DECAY_N] = decay[inv]
+    expo = kind[rows] == law.EXPO_MEAN
+    fc[rows[expo], law.FC_WSUM] = wsum[inv[expo]]
+    fc[rows[expo], law.FC_EXPO_OLDER] = older[inv[expo]]
+    # Kalman: the prediction per distinct (kind, n, alpha), the gain over the sigmas
+    kal = rows[np.isin(kind[rows], [law.KALMAN_MA, law.KALMAN_EXPO])]
+    if len(kal):
+        keys, kinv = unique_rows(np.stack((kind[kal].astype(np.float64), eff_n[kal].astype(np.float64),
+                                           np.where(kind[kal] == law.KALMAN_EXPO, alpha[kal], 0.0)), axis=1))
+        v = np.empty(len(keys))
+        pred = np.zeros((len(keys), law.MAX_N))          # the coefficients, zero beyond n
+        for j, (kk, nn, a) in enumerate(keys.tolist()):
+            key = (int(kk), int(nn), a)
+            kd = _KALMAN.get(key)
+            if kd is None:                       # kept for the next call (a worker's next chunk)
+                if len(_KALMAN) >= MAX_ENTRIES:
+                    _KALMAN.clear()
+                d = kalman_design(int(kk), int(nn), a, 1.0)
+                kd = _KALMAN[key] = (d.prediction_variance, d.coefficients)
+            v[j] = kd[0]
+            pred[j, :int(nn)] = kd[1]
+        fc[kal, law.FC_PRED:law.FC_PRED + law.MAX_N] = pred[kinv]
+        p_prior = v[kinv] * sigma[kal] + KALMAN_PROCESS_VARIANCE
+        fc[kal, law.FC_GAIN] = p_prior / (p_prior + sigma[kal])
+        fc[kal, law.FC_P_PRIOR] = p_prior
+    # the low-passes, per order over the cut-offs
+    lp = rows[kind[rows] == law.LOWPASS]
+    for o in np.unique(order[lp]).tolist():
+        sel = lp[order[lp] == o]
+        sos, zi = butter_lowpass_many(o, fg[sel], 1.0 / cycle_time)
+        n_sec = sos.shape[1]
+        fc[sel, law.FC_NSEC] = float(n_sec)
+        fc[sel, law.FC_SOS:law.FC_SOS + 6 * n_sec] = sos.reshape(len(sel), 6 * n_sec)
+        fc[sel, law.FC_ZI:law.FC_ZI + 2 * n_sec] = zi.reshape(len(sel), 2 * n_sec)
+    return fc, errors
+
+
+def unique_rows(mat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of a float matrix (sorted) and, per row, the index of its distinct row: what
+    ``np.unique(mat, axis=0, return_inverse=True)`` gives, by a lexsort of the columns (np.unique sorts
+    the rows as structured values, several times slower)."""
+    k = len(mat)
+    if not k:
+        return mat[:0], np.zeros(0, dtype=np.int64)
+    order = np.lexsort(mat.T[::-1])
+    srt = mat[order]
+    new = np.empty(k, dtype=bool)
+    new[0] = True
+    new[1:] = np.any(srt[1:] != srt[:-1], axis=1)
+    inv = np.empty(k, dtype=np.int64)
+    inv[order] = np.cumsum(new) - 1
+    return srt[new], inv
+
+
+def _config(ft, n, alpha, sigma, order, fg) -> FilterConfig:
+    """One row as a FilterConfig (Python values, as a point gives them)."""
+    t = int(ft)
+    return FilterConfig(FilterType(t) if t in {int(x) for x in FilterType} else t, int(n), float(alpha),
+                        float(sigma), int(order), float(fg))

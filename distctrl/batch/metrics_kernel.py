@@ -18,7 +18,7 @@ Importing this module imports numba.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["pairwise_sum", "chunk_metrics", "N_FIG", "F_FAILED", "F_CNT", "F_RMS", "F_MAX", "F_OVERSHOOT",
            "F_OSC", "F_SETTLE", "F_SAT"]
@@ -122,7 +122,7 @@ def row_sum(a):
     return 0.0 + pairwise_sum(a, 0, a.size)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits, v_lim, a_lim, w_v, w_a,
                   adaptive, a_min, dev_a_min, dev_a_max, fig, ex, ox):
     """The figures of :func:`distctrl.tuning.metrics.compute_metrics` but the FFT ones, for every row.
@@ -131,17 +131,18 @@ def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits
     (``m = n - k0 >= 1`` cycles); ``h``, ``ow``: the hold and overshoot windows in cycles; the limits
     per set (ignored without ``has_limits``: ``sat_share`` NaN). Writes ``fig`` ``(n_sets, N_FIG)``
     and the FFT inputs ``ex`` (error) and ``ox`` (offset), ``(n_sets, m)``: zero where the error is
-    NaN, minus the window's mean where it is not."""
+    NaN, minus the window's mean where it is not. The rows run in parallel over numba's threads (each row's
+    numbers do not depend on the others)."""
     n_sets, n = distance.shape
     m = n - k0
     tol = 1.0 - 1e-3
     s = max(k0 - 2, 0)
     n_a = n - s - 2                      # length of the acceleration series (np.diff twice)
-    ez = np.empty(m)
-    oz = np.empty(m)
-    vb = np.empty(m, dtype=np.bool_)
-    sq = np.empty(m)
-    for i in range(n_sets):
+    for i in prange(n_sets):             # the sets in parallel (numba's threads): each row is its own
+        ez = np.empty(m)
+        oz = np.empty(m)
+        vb = np.empty(m, dtype=np.bool_)
+        sq = np.empty(m)
         cnt = 0
         failed = False
         for j in range(m):

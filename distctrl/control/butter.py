@@ -173,3 +173,101 @@ def _step_states(sos: np.ndarray) -> np.ndarray:
         zi[:, s] = scale[:, None] * zi[:, s]
         scale = scale * (b[:, s].sum(axis=1) / a[:, s].sum(axis=1))
     return zi
+
+
+def butter_lowpass_many(order: int, fg, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`butter_lowpass` with the pairing of step 4 done over all designs at once as well (no Python
+    per design but a power per design): the same numbers bit for bit (tests/control/test_butter.py
+    compares them over thousands of random orders, cut-offs and sampling rates).
+
+    The pairing of :func:`_sections`, over arrays: the poles are listed as there (the upper half-plane
+    poles sorted by real part and |imag|, then the real ones, with a pole at 0 for an odd order); taking
+    the pole closest to the unit circle first, again and again, is the stable sort of that list by the
+    distance; a real pole takes the other real one (there are exactly two or none), a complex one its
+    conjugate. The zeros are -1 (and 0 for an odd order): a section takes the 0 while it is left and
+    strictly nearer to its pole than -1 (the -1 come first in the list, so a tie takes -1), or when no -1
+    is left."""
+    order = int(order)
+    fg = np.atleast_1d(np.asarray(fg, dtype=np.float64))
+    fs = float(fs)
+    if not 1 <= order <= MAX_ORDER:
+        raise ValueError(f"Butterworth order {order}: 1..{MAX_ORDER}")
+    wn = fg / (fs / 2)
+    if np.any(wn <= 0) or np.any(wn >= 1):
+        raise ValueError(f"cut-off must be 0 < fg < fs/2 (fs={fs})")
+    k_n = len(fg)
+    proto = _prototype(order)
+    warped = 2 * 2.0 * np.tan(np.pi * wn / 2.0)
+    p_lp = warped[:, None] * proto[None, :]
+    # a Python power per design: numpy's vectorised power is not libm's pow
+    k_lp = np.array([1.0 * wo ** order for wo in warped.tolist()])
+    p_z = (4.0 + p_lp) / (4.0 - p_lp)
+    den = np.prod(4.0 - p_lp, axis=1)              # (numpy's reduction: not the same as a loop of products)
+    k_z = k_lp * np.real(np.float64(1.0) / den)
+    n_sec = (order + 1) // 2
+    # the list of _sections: complex representatives (imag > 0) by (real, |imag|), then the reals
+    up = np.nonzero(proto.imag > 0)[0]             # the upper half-plane poles (the same for every design)
+    cp = p_z[:, up]
+    srt = np.lexsort((np.abs(cp.imag), cp.real), axis=-1)
+    cp = np.take_along_axis(cp, srt, axis=1)
+    lst_re = [cp.real]
+    lst_im = [cp.imag]
+    if order % 2:
+        mid = p_z[:, order // 2].real              # the real pole
+        reals = np.sort(np.stack((mid, np.zeros(k_n)), axis=1), axis=1)
+        lst_re.append(reals)
+        lst_im.append(np.zeros((k_n, 2)))
+    re = np.concatenate(lst_re, axis=1)
+    im = np.concatenate(lst_im, axis=1)
+    n_c = cp.shape[1]
+    is_real = np.zeros(re.shape[1], dtype=bool)
+    is_real[n_c:] = True
+    dist = np.abs(1.0 - np.hypot(re, im))
+    pop = np.argsort(dist, axis=1, kind="stable")
+    # in pop order, drop the second real (it goes with the first)
+    taken = np.zeros(k_n, dtype=np.int64)
+    sec_idx = np.empty((k_n, n_sec), dtype=np.int64)
+    real_seen = np.zeros(k_n, dtype=bool)
+    rows = np.arange(k_n)
+    for j in range(re.shape[1]):
+        c = pop[:, j]
+        r = is_real[c]
+        use = ~(r & real_seen)
+        real_seen |= r
+        sel = rows[use]
+        # sections are filled from the last one backwards
+        sec_idx[sel, n_sec - 1 - taken[sel]] = c[sel]
+        taken[sel] += 1
+    assert np.all(taken == n_sec)
+    other_real = np.zeros(k_n, dtype=np.int64) + n_c   # for a real section: the other real pole
+    sos = np.zeros((k_n, n_sec, 6))
+    zero_left = np.full(k_n, bool(order % 2))
+    minus_left = np.full(k_n, order, dtype=np.int64)
+    polys = {}
+    for si in range(n_sec - 1, -1, -1):            # in pop order
+        c = sec_idx[:, si]
+        p1r = re[rows, c]
+        p1i = im[rows, c]
+        r = is_real[c]
+        o = np.where(c == n_c, n_c + 1, other_real)
+        p2r = np.where(r, re[rows, np.minimum(o, re.shape[1] - 1)], p1r)
+        p2i = np.where(r, 0.0, -p1i)
+        d_minus = np.hypot(-1.0 - p1r, 0.0 - p1i)
+        d_zero = np.hypot(0.0 - p1r, 0.0 - p1i)
+        zs = []
+        for _ in range(2):
+            take_zero = zero_left & ((d_zero < d_minus) | (minus_left == 0))
+            zs.append(np.where(take_zero, 0.0, -1.0))
+            zero_left &= ~take_zero
+            minus_left -= ~take_zero
+        z1, z2 = zs
+        for key in {(a, b) for a, b in zip(z1.tolist(), z2.tolist())}:
+            if key not in polys:
+                polys[key] = _zeros_poly(key)
+            m = (z1 == key[0]) & (z2 == key[1])
+            sos[m, si, :3] = polys[key]
+        sos[:, si, 3] = 1.0
+        sos[:, si, 4] = 0.0 + ((-p1r) + (-p2r))
+        sos[:, si, 5] = 0.0 + ((-p1r) * (-p2r) - (-p1i) * (-p2i))
+    sos[:, 0, :3] *= k_z[:, None]
+    return sos, _step_states(sos)

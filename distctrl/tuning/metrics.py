@@ -38,6 +38,8 @@ from the cycles before it and ``failed = True``; the tuner treats it as infinite
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ..batch import numba_available
@@ -109,7 +111,9 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
     n_sets, n = distance.shape
     T = float(cycle_time)
     k0 = min(n, int(k_on) + int(round(skip / T)))
-    wanted = np.ascontiguousarray(np.broadcast_to(np.asarray(wanted, dtype=np.float64), (n,))) \
+    # np.array copies: a read-only view (broadcast_to) is another numba type, which the warm-up did not
+    # compile (tests/batch/test_warm.py)
+    wanted = np.array(np.broadcast_to(np.asarray(wanted, dtype=np.float64), (n,)), order="C") \
         if np.ndim(wanted) else np.full(n, float(wanted))
     m = n - k0
     if m == 0 or offset.shape != distance.shape:
@@ -121,15 +125,14 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
         z = np.zeros(n_sets)
         lim = (False, z, z, z, z, np.zeros(n_sets, np.bool_), z, z, z)
     else:
-        col = [np.ascontiguousarray(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)))
+        col = [np.array(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)), order="C")
                for k in ("v_lim", "a_lim", "w_v", "w_a")]
-        ad = np.ascontiguousarray(np.broadcast_to(np.asarray(limits["adaptive"], dtype=np.bool_), (n_sets,)))
-        rest = [np.ascontiguousarray(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)))
+        ad = np.array(np.broadcast_to(np.asarray(limits["adaptive"], dtype=np.bool_), (n_sets,)), order="C")
+        rest = [np.array(np.broadcast_to(np.asarray(limits[k], dtype=np.float64), (n_sets,)), order="C")
                 for k in ("a_min", "dev_a_min", "dev_a_max")]
         lim = (True, *col, ad, *rest)
     fig = np.empty((n_sets, MK.N_FIG))
-    ex = np.empty((n_sets, m))
-    ox = np.empty((n_sets, m))
+    ex, ox, spec, a = _scratch(n_sets, m)
     MK.chunk_metrics(offset, distance, wanted, k0, int(k_on), T, float(band), h, ow, *lim, fig, ex, ox)
     cnt = fig[:, MK.F_CNT].astype(np.int64)
     out: dict[str, np.ndarray] = {"failed": fig[:, MK.F_FAILED] != 0.0}
@@ -137,8 +140,8 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
                     ("osc_index", MK.F_OSC)):
         out[name] = fig[:, c].copy()
     w = _hf_weights(m, T, f_osc)
-    out["hf_rms"] = _hf_rms(ex, w, m, cnt)
-    out["offset_hf_rms"] = _hf_rms(ox, w, m, cnt)
+    out["hf_rms"] = _hf_rms(ex, w, m, cnt, spec, a)
+    out["offset_hf_rms"] = _hf_rms(ox, w, m, cnt, spec, a)
     out["settle_time_50um"] = fig[:, MK.F_SETTLE].copy()
     out["sat_share"] = fig[:, MK.F_SAT].copy()
     return out
@@ -154,10 +157,30 @@ def _hf_weights(m: int, T: float, f_osc: float) -> np.ndarray:
     return w
 
 
-def _hf_rms(x: np.ndarray, w: np.ndarray, m: int, cnt: np.ndarray) -> np.ndarray:
-    """RMS of the part of the rows of ``x`` (mean-free, zero where not valid) above ``f_osc``."""
-    spec = np.fft.rfft(x, axis=1)
-    power = (np.abs(spec) ** 2 * w[None, :]).sum(axis=1) / (m * m)
+_SCRATCH = threading.local()
+
+
+def _scratch(n_sets: int, m: int):
+    """The pass's work arrays (FFT inputs, spectrum, its power) for this shape, reused from call to call in
+    this thread: a sweep's chunks have one shape, and fresh arrays of megabytes cost page faults (allocating
+    them took about as long as the FFTs)."""
+    key = (n_sets, m)
+    got = getattr(_SCRATCH, "arrays", None)
+    if got is None or got[0] != key:
+        k = m // 2 + 1
+        got = _SCRATCH.arrays = (key, (np.empty((n_sets, m)), np.empty((n_sets, m)),
+                                       np.empty((n_sets, k), dtype=np.complex128), np.empty((n_sets, k))))
+    return got[1]
+
+
+def _hf_rms(x: np.ndarray, w: np.ndarray, m: int, cnt: np.ndarray, spec=None, a=None) -> np.ndarray:
+    """RMS of the part of the rows of ``x`` (mean-free, zero where not valid) above ``f_osc`` (``spec``,
+    ``a``: work arrays for the spectrum and its power, or None)."""
+    spec = np.fft.rfft(x, axis=1, out=spec)
+    a = np.abs(spec, out=a)
+    np.square(a, out=a)                      # (np.abs(spec) ** 2 * w).sum(axis=1), without the temporaries
+    a *= w[None, :]
+    power = a.sum(axis=1) / (m * m)
     return np.sqrt(power * m / np.maximum(cnt, 1))
 
 

@@ -29,6 +29,7 @@ import os
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -37,15 +38,21 @@ from ..base.kinds import FilterType
 from ..errors import DistCtrlError
 from ..workbench.tables import render_table
 from .metrics import METRIC_NAMES, METRIC_UNITS, compute_metrics, cost, limits_from_packed, wanted_distance
-from .space import D_TV_NOTE, NC_WORDS, d_tv_applies, filter_fields
+from .columns import COLUMN_FIELDS, check_columns, full_column
+from .space import D_TV_NOTE, NC_WORDS, build_sets, d_tv_applies, filter_fields
 
-__all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "TuningRunError", "PARAM_COLUMNS",
+__all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "evaluate_points_chunk", "TuningRunError", "PARAM_COLUMNS",
            "plot_sweep"]
 
 #: the parameter columns of every result table (AxisParameters fields)
 PARAM_COLUMNS = tuple(NC_WORDS)
 DEFAULT_CHUNK = 256
 DEFAULT_CHUNK_BYTES = 256 * 2**20
+#: the most blocks (``chunk_size`` sets each) one chunk of :meth:`Evaluator.evaluate_points` runs
+MAX_TASK_BLOCKS = 64
+#: FilterType value -> name, indexable by an array of values (DEFAULT = -1 is the last entry)
+_FILTER_NAMES = np.array([FilterType(v).name if v in {int(t) for t in FilterType} else str(v)
+                          for v in list(range(max(FilterType) + 1)) + [-1]], dtype=object)
 
 
 class TuningRunError(DistCtrlError, RuntimeError):
@@ -67,15 +74,166 @@ def slim_inputs(inputs):
 def evaluate_chunk(inputs, packed: np.ndarray, cycles: int | None, metric_options: dict,
                    threads: int | None = None) -> dict[str, np.ndarray]:
     """Run the kernel for the packed rows and return their metrics (a pure function of its arguments)."""
-    from ..batch.closed_loop import run_batch  # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (optional: [fast], [tune]) loads only when a batch runs
+    import numba
 
-    offset, distance, errors = run_batch(inputs, packed, cycles=cycles, threads=threads, return_errors=True)
-    n = distance.shape[1]
-    m = compute_metrics(offset, distance, wanted_distance(inputs, n), inputs.cycle_time, inputs.k_on,
-                        limits_from_packed(packed), **metric_options)
+    from ..batch.closed_loop import run_batch
+
+    old = numba.get_num_threads()
+    if threads is not None:                  # the kernel's and the metrics pass's threads
+        numba.set_num_threads(int(threads))
+    try:
+        offset, distance, errors = run_batch(inputs, packed, cycles=cycles, return_errors=True)
+        n = distance.shape[1]
+        m = compute_metrics(offset, distance, wanted_distance(inputs, n), inputs.cycle_time, inputs.k_on,
+                            limits_from_packed(packed), **metric_options)
+    finally:
+        if threads is not None:
+            numba.set_num_threads(old)
     m["error_cycle"] = errors[:, 0].copy()
     m["error_id"] = errors[:, 1].copy()
     return m
+
+
+class _PointChunk:
+    """A slice of points, the index of its first point and the most sets run at once (len(): its size, for
+    the progress bar)."""
+
+    def __init__(self, points, start: int, block: int):
+        self.points = points
+        self.start = start
+        self.block = block
+
+    def __len__(self) -> int:
+        return self.points.n
+
+
+def _probe_of(inputs, base):
+    """The probe's (increments per mm, reference offset) of the base set (None: the distance sensor)."""
+    # numba (optional: [fast], [tune]) loads only when a batch runs
+    from ..batch.closed_loop import SENSOR_PROBE, _probe_constants
+    from ..batch.layout import PL_SENSOR
+
+    return _probe_constants(inputs, base) if inputs.plant[PL_SENSOR] == SENSOR_PROBE else None
+
+
+_LOCAL = threading.local()
+
+
+def _outputs(n_sets: int, n: int, slot: int = 0):
+    """Trace arrays of this shape, reused by the next block of the same shape and slot (two slots: one
+    block's kernel runs while the other's metrics are taken) in this process (fresh memory costs page faults:
+    docs/batch.md). Per calling thread of a worker that runs several tasks at once."""
+    store = getattr(_LOCAL, "out", None)
+    if store is None:
+        store = _LOCAL.out = {}
+    cached = store.get(slot)
+    if cached is None or cached[0].shape != (n_sets, n):
+        cached = store[slot] = (np.empty((n_sets, n)), np.empty((n_sets, n)))
+    return cached
+
+
+def _concurrent_numba() -> bool:
+    """Whether numba's threading layer may run parallel kernels called from two threads at once."""
+    # numba (optional: [fast], [tune]) loads only when a batch runs
+    import numba
+
+    try:
+        return numba.threading_layer() in ("tbb", "omp")
+    except ValueError:                      # no parallel kernel has run yet: not known
+        return False
+
+
+def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metric_options: dict,
+                          threads: int | None, base, probe) -> dict:
+    """Check, design, pack, run and measure one chunk of points (a pure function of its arguments; on a
+    cluster it runs on the worker, which gets only the points' columns), ``chunk.block`` sets at a time
+    (their traces in arrays reused from block to block): the metrics of the kept points,
+    ``_kept`` their indices, ``_rejected`` ``(point, message)`` of the others, ``_kernel_s`` the time in
+    the kernel and the metrics pass, ``_task_s`` the whole chunk's."""
+    t_task = time.perf_counter()
+    # numba (optional: [fast], [tune]) loads only when a batch runs
+    import numba
+
+    from ..batch.closed_loop import pack_columns, pack_sets, run_batch
+
+    pts = chunk.points
+    checked = check_columns(base, pts, inputs.cycle_time)
+    if checked is not None:
+        kept, fc, rejected = checked
+        index = kept.index
+
+        def pack(a, b):
+            part = kept.take(np.arange(a, b))
+            return pack_columns(inputs, base, part.cols, part.present, fc[a:b], probe=probe)
+    else:                                    # what the columns do not cover: set by set
+        points = pts.to_points()
+        sets, kept_points, rejected = build_sets(base, points, inputs.cycle_time)
+        ids = {id(p): i for i, p in enumerate(points)}
+        index = np.array([ids[id(p)] for p in kept_points], dtype=np.int64)
+
+        def pack(a, b):
+            return pack_sets(inputs, sets[a:b], probe=probe)
+    out = {"_kept": index + chunk.start, "_rejected": rejected}
+    n = inputs.n_cycles if cycles is None else int(cycles)
+    wanted = wanted_distance(inputs, n)
+    blocks = [(a, min(a + chunk.block, len(index))) for a in range(0, len(index), chunk.block)]
+    kernel_s = [0.0]
+
+    def buffers(j):
+        return _outputs(blocks[j][1] - blocks[j][0], n, j % 2)     # (taken in the task's own thread)
+
+    def run(j, out):
+        """Pack and run block j into ``out`` (numba's thread count is per calling thread)."""
+        if threads is not None:
+            numba.set_num_threads(int(threads))
+        packed = pack(*blocks[j])
+        t0 = time.perf_counter()
+        res = run_batch(inputs, packed, cycles=cycles, return_errors=True, out=out)
+        kernel_s[0] += time.perf_counter() - t0
+        return packed, res
+
+    def measure(packed, res):
+        offset, distance, errors = res
+        t0 = time.perf_counter()
+        m = compute_metrics(offset, distance, wanted, inputs.cycle_time, inputs.k_on, limits_from_packed(packed),
+                            **metric_options)
+        kernel_s[0] += time.perf_counter() - t0
+        m["error_cycle"] = errors[:, 0].copy()
+        m["error_id"] = errors[:, 1].copy()
+        return m
+
+    parts = []
+    old = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(int(threads))
+    try:
+        # blocks of at most chunk.block sets: a task may be far larger than the traces it holds at once. On
+        # all cores (threads None) the next block's kernel runs (nogil) while this block's metrics are taken
+        # (numpy's FFT holds the GIL and one core): pipelined, where numba's threading layer allows calls
+        # from two threads at once (tbb, omp; not workqueue)
+        if threads is None and len(blocks) > 1 and _concurrent_numba():
+            with ThreadPoolExecutor(1, thread_name_prefix="distctrl-kernel") as pool:
+                fut = pool.submit(run, 0, buffers(0))
+                for j in range(len(blocks)):
+                    done = fut.result()
+                    if j + 1 < len(blocks):
+                        fut = pool.submit(run, j + 1, buffers(j + 1))
+                    parts.append(measure(*done))
+        else:
+            for j in range(len(blocks)):
+                parts.append(measure(*run(j, buffers(j))))
+    finally:
+        if threads is not None:
+            numba.set_num_threads(old)
+    kernel_s = kernel_s[0]
+    if parts:
+        out.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]})
+    else:
+        out["failed"] = np.zeros(0, dtype=bool)
+    out["_kernel_s"] = kernel_s
+    out["_task_s"] = time.perf_counter() - t_task
+    return out
 
 
 # ----------------------------------------------------------------------------- results
@@ -127,7 +285,7 @@ class SweepResult:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         # column by column (tolist: the values of rows(), without a dict per row; 10 000 rows took seconds)
-        cols = [[_csv(_plain(x)) for x in (v if isinstance(v, list) else v.tolist())] for v in self.data.values()]
+        cols = [_csv_column(v) for v in self.data.values()]
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(self.columns)
@@ -307,6 +465,19 @@ def _plain(x):
     return x
 
 
+def _csv_column(v) -> list:
+    """A column's CSV fields: what ``_csv(_plain(x))`` gives for every value, by the column's type (the csv
+    module writes a float as its repr, a NaN as an empty field)."""
+    if isinstance(v, list):
+        return [_csv(_plain(x)) for x in v]
+    vals = v.tolist()
+    if v.dtype.kind == "f":
+        return [x if x == x else "" for x in vals]
+    if v.dtype.kind in "iub":
+        return vals
+    return [_csv(_plain(x)) for x in vals]
+
+
 def _csv(x):
     if isinstance(x, float):
         return "" if math.isnan(x) else repr(x)
@@ -477,6 +648,66 @@ class Evaluator:
         if not param_sets:
             return SweepResult(self._table([], [], {}))
         packed = pack_sets(self.inputs, param_sets)
+        return self._evaluate_packed(packed, lambda m: self._table(param_sets, points, m), param_sets, description)
+
+    def evaluate_points(self, base, points, *, description: str = "sweep") -> SweepResult:
+        """:meth:`evaluate` of the sets ``base`` with the values of ``points`` (a
+        :class:`~distctrl.tuning.columns.PointColumns`), checked, designed, packed, run and measured chunk by
+        chunk where the chunks run (:func:`evaluate_points_chunk`: on the workers of a cluster), so that only
+        the points' columns travel (issue 27). The points a check refuses are left out of the table and
+        listed in ``result.rejected`` as ``(point, message)``, in order; ``result.info["kept"]``: the indices
+        of the points in the table. The same table as :meth:`evaluate` of what
+        :func:`~distctrl.tuning.space.build_sets` keeps (tests/tuning/test_runner.py)."""
+        if set(points.cols) - COLUMN_FIELDS:
+            raise TuningRunError(f"evaluate_points: fields {sorted(set(points.cols) - COLUMN_FIELDS)} are not "
+                                 "evaluated as columns (use evaluate)")
+        n = points.n
+        block = self.chunk_size
+        # a cluster's tasks: about eight per worker (load balance: the last task's tail), in this process
+        # about eight chunks (the progress bar's steps); each at least a block and at most MAX_TASK_BLOCKS
+        # blocks (a chunk's filter rows and table parts stay tens of MB; 64 blocks of 256 sets are about
+        # 2 s of kernel on one core). Every chunk runs its points block by block (the traces of a block
+        # at a time; in this process pipelined)
+        per = -(-n // (8 if self.mode == "local" else 8 * self.n_workers))
+        size = max(block, min(per, MAX_TASK_BLOCKS * block))
+        chunks = [_PointChunk(points.take(np.arange(a, min(a + size, n))), a, block) for a in range(0, n, size)]
+        if not chunks:
+            return SweepResult(self._table([], [], {}))
+        probe = _probe_of(self.inputs, base)
+        self.prepare_kernels()
+        t0 = time.perf_counter()
+        extra = (base, probe)
+        if self.mode == "local":
+            parts = self._run_local(chunks, description, evaluate_points_chunk, extra)
+        else:
+            self.open()
+            parts = self._run_cluster(chunks, description, evaluate_points_chunk, extra)
+        kept = np.concatenate([p.pop("_kept") for p in parts])
+        rejected = [r for p in parts for r in p.pop("_rejected")]
+        for p in parts:
+            self.stats["kernel_s"] = self.stats.get("kernel_s", 0.0) + float(p.pop("_kernel_s"))
+            self.stats["task_s"] = self.stats.get("task_s", 0.0) + float(p.pop("_task_s"))
+        parts = [p for p in parts if len(p["failed"])]
+        dt = time.perf_counter() - t0
+        n_sets = len(kept)
+        self.stats["sets"] += n_sets
+        self.stats["set_cycles"] += n_sets * self.n_cycles
+        self.stats["seconds"] += dt
+        self.stats["chunks"] += len(chunks)
+        if not n_sets:
+            return SweepResult(self._table([], [], {}), rejected=rejected, info={"kept": kept})
+        merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        sel = points.take(kept)
+        params = {}
+        for f in PARAM_COLUMNS:
+            col = full_column(base, sel, f)
+            params[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
+        return SweepResult({**params, **self._metric_columns(merged)}, params=[], rejected=rejected,
+                           info={"seconds": dt, "sets": n_sets, "cycles": self.n_cycles, "mode": self.mode,
+                                 "workers": self.n_workers if self.mode == "cluster" else 1, "kept": kept})
+
+    def _evaluate_packed(self, packed, table, params, description) -> SweepResult:
+        n_sets = len(packed)
         chunks = [packed[i:i + self.chunk_size] for i in range(0, len(packed), self.chunk_size)]
         self.prepare_kernels(packed[:1])
         t0 = time.perf_counter()
@@ -487,14 +718,13 @@ class Evaluator:
             parts = self._run_cluster(chunks, description)
         merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         dt = time.perf_counter() - t0
-        self.stats["sets"] += len(param_sets)
-        self.stats["set_cycles"] += len(param_sets) * self.n_cycles
+        self.stats["sets"] += n_sets
+        self.stats["set_cycles"] += n_sets * self.n_cycles
         self.stats["seconds"] += dt
         self.stats["chunks"] += len(chunks)
-        res = SweepResult(self._table(param_sets, points, merged), params=param_sets,
-                          info={"seconds": dt, "sets": len(param_sets), "cycles": self.n_cycles,
-                                "mode": self.mode, "workers": self.n_workers if self.mode == "cluster" else 1})
-        return res
+        return SweepResult(table(merged), params=params,
+                           info={"seconds": dt, "sets": n_sets, "cycles": self.n_cycles,
+                                 "mode": self.mode, "workers": self.n_workers if self.mode == "cluster" else 1})
 
     def prepare_kernels(self, packed_one=None) -> None:
         """Compile the batch kernels once, before the sets run, and say so (the first use on a machine,
@@ -557,12 +787,16 @@ class Evaluator:
             vals = [getattr(p, f) for p in sets]
             data[f] = [v.name for v in vals] if f == "filter_type" else np.asarray(vals)
         if sets:
-            data["cost"] = cost(m, self.osc_weight, **self.cost_weights)
-            for name in METRIC_NAMES:
-                data[name] = m[name]
-            data["failed"] = m["failed"]
-            data["error_cycle"] = m["error_cycle"]
-            data["error_id"] = m["error_id"]
+            data.update(self._metric_columns(m))
+        return data
+
+    def _metric_columns(self, m) -> dict:
+        data = {"cost": cost(m, self.osc_weight, **self.cost_weights)}
+        for name in METRIC_NAMES:
+            data[name] = m[name]
+        data["failed"] = m["failed"]
+        data["error_cycle"] = m["error_cycle"]
+        data["error_id"] = m["error_id"]
         return data
 
     def _bar(self, total: int, description: str):
@@ -578,14 +812,17 @@ class Evaluator:
         bar.add_task(description, total=total)
         return bar
 
-    def _run_local(self, chunks, description) -> list[dict]:
+    def _run_local(self, chunks, description, fn=None, extra=None) -> list[dict]:
+        """``fn(inputs, chunk, cycles, metric_options, threads, *extra)`` of every chunk (default: chunk_fn)."""
+        fn = fn or self.chunk_fn
+        extra = tuple(extra or ())
         bar = self._bar(sum(len(c) for c in chunks), description)
         parts = []
         try:
             for c in chunks:
                 for attempt in range(self.retries + 1):
                     try:
-                        parts.append(self.chunk_fn(self._slim, c, self.cycles, self.metric_options, self.threads))
+                        parts.append(fn(self._slim, c, self.cycles, self.metric_options, self.threads, *extra))
                         break
                     except Exception as exc:          # noqa: BLE001 - retried, then reported
                         if attempt == self.retries:
@@ -599,14 +836,16 @@ class Evaluator:
                 bar.stop()
         return parts
 
-    def _run_cluster(self, chunks, description) -> list[dict]:
+    def _run_cluster(self, chunks, description, fn=None, extra=None) -> list[dict]:
         # dask.distributed (the [batch] extra, seconds of import): only for a cluster sweep
         from distributed import as_completed
 
+        fn = fn or self.chunk_fn
+        extra = tuple(extra or ())
         client = self._client
         threads = self.threads if self.threads is not None else (1 if not self.scheduler else None)
-        futures = [client.submit(self.chunk_fn, self._remote_inputs, c, self.cycles, self.metric_options,
-                                 threads, retries=self.retries, pure=False) for c in chunks]
+        futures = [client.submit(fn, self._remote_inputs, c, self.cycles, self.metric_options,
+                                 threads, *extra, retries=self.retries, pure=False) for c in chunks]
         index = {f.key: i for i, f in enumerate(futures)}
         running = {f.key: f for f in futures}
         done = as_completed(futures)

@@ -40,7 +40,7 @@ from ..params.table import BY_FIELD, BY_NC_WORD, short_key_fields
 __all__ = ["SpaceError", "Dim", "DEFAULT_SPACE", "ALIASES", "NC_WORDS", "canonical", "parse_grid",
            "grid_points", "random_sample", "to_params", "build_sets", "point_label", "filter_fields",
            "REAL_RESOLUTION", "resolution", "round_value", "round_point", "D_NO_EFFECT_KP", "D_TV_NOTE",
-           "d_tv_applies", "drop_inert_d_tv"]
+           "d_tv_applies", "drop_inert_d_tv", "PointColumns", "random_columns", "round_column"]
 
 
 class SpaceError(DistCtrlError, ValueError):
@@ -312,29 +312,131 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
 
     With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin); at kp >= 1
     d_tv is 0 (:data:`D_NO_EFFECT_KP`). Values are rounded to :func:`resolution` (what the tuner prints is what it evaluated).
+    Drawn for all points at once (:func:`random_columns`).
     """
+    return random_columns(n, seed, space, cycle_time=cycle_time).to_points()
+
+
+# ----------------------------------------------------------------------------- points as columns
+
+#: decimal steps whose rounding :func:`round_column` does without Python (k / 10**d, see there)
+_DECIMAL_STEPS = {0.1: 10.0, 0.01: 100.0, 0.001: 1000.0, 0.0001: 10000.0}
+#: above this magnitude round(x, 10) may no longer be the decimal k / 10**d: rounded in Python
+_FAST_ROUND_LIMIT = 1e5
+
+
+@dataclass
+class PointColumns:
+    """``n`` points as columns: ``cols`` field -> values (in the points' key order), ``present`` field ->
+    bool mask of the points that set the field (None: all do)."""
+
+    n: int
+    cols: dict
+    present: dict
+    index: np.ndarray | None = None       # the points' numbers in the list they were taken from (take)
+
+    def mask(self, field: str) -> np.ndarray:
+        m = self.present.get(field)
+        return np.ones(self.n, dtype=bool) if m is None else m
+
+    def take(self, idx) -> "PointColumns":
+        """The points ``idx`` (an index array or a bool mask), in that order."""
+        idx = np.asarray(idx)
+        n = int(idx.sum()) if idx.dtype == bool else len(idx)
+        base = np.arange(self.n) if self.index is None else self.index
+        return PointColumns(n, {f: v[idx] for f, v in self.cols.items()},
+                            {f: (None if m is None else m[idx]) for f, m in self.present.items()}, base[idx])
+
+    def to_points(self) -> list[dict]:
+        """The points as dicts (Python int / float / FilterType values, the fields in column order)."""
+        names = list(self.cols)
+        values = []
+        for f in names:
+            v = self.cols[f].tolist()
+            if f == "filter_type":
+                members = {int(t): t for t in FilterType}
+                v = [members[c] for c in v]
+            values.append(v)
+        masks = [self.present.get(f) for f in names]
+        if all(m is None for m in masks):
+            return [dict(zip(names, row)) for row in zip(*values)]
+        masks = [[True] * self.n if m is None else m.tolist() for m in masks]
+        out = []
+        for i in range(self.n):
+            out.append({f: v[i] for f, v, m in zip(names, values, masks) if m[i]})
+        return out
+
+    def point(self, i: int) -> dict:
+        """Point ``i`` as a dict (for messages)."""
+        return self.take(np.array([i])).to_points()[0]
+
+
+def round_column(field: str, x: np.ndarray) -> np.ndarray:
+    """:func:`~distctrl.tuning.space.round_value` of every value of a float column.
+
+    ``round(round(v / step) * step, 10)`` for a decimal step ``10**-d`` is the double nearest to the
+    decimal ``k / 10**d`` (k = round(v / step), half to even as Python's round): the product is within a
+    few units of the last place of it, far inside the 10th decimal for values below 1e5, and IEEE
+    division of the exact integers k and 10**d is correctly rounded. Other steps, larger values: Python."""
+    step = resolution(field)
+    if step is None or field in _INT_FIELDS or field in _BOOL_FIELDS:
+        return x
+    x = np.asarray(x, dtype=np.float64)
+    scale = _DECIMAL_STEPS.get(step)
+    if scale is None or not len(x) or not np.all(np.abs(x) < _FAST_ROUND_LIMIT):
+        return np.fromiter((round_value(field, float(v)) for v in x), dtype=np.float64, count=len(x))
+    k = np.rint(x / step)
+    r = k / scale
+    spec = BY_FIELD.get(field)
+    if spec is not None and spec.lo_open and spec.lo is not None:
+        up = (r <= spec.lo * spec.scale) & (x > r)
+        r = np.where(up, (k + 1.0) / scale, r)
+    return r
+
+
+def random_columns(n: int, seed: int = 0, space=None, *, cycle_time: float | None = None) -> PointColumns:
+    """:func:`~distctrl.tuning.space.random_sample` as columns: the same points, drawn for all at once."""
+    space = DEFAULT_SPACE if space is None else space
     if n < 0:
         raise SpaceError(f"random sample size {n}: must be >= 0")
     rng = np.random.default_rng(seed)
     dims = {d.field: d for d in space}
-    draws = {f: d.sample(rng, n) for f, d in dims.items()}
-    points = []
-    for i in range(n):
-        p: dict = {}
-        ft = draws["filter_type"][i] if "filter_type" in dims else None
-        for f, d in dims.items():
-            if f in NC_WORDS and f not in ("kp", "i_tn", "d_tv", "filter_type") and ft is not None \
-                    and f not in filter_fields(ft):
-                continue
-            v = draws[f][i]
-            v = FilterType(v) if f == "filter_type" else (int(v) if d.kind == "int" else float(v))
-            if f == "low_pass_filter_fg_f0" and cycle_time:
-                v = min(v, 0.45 / cycle_time)
-            p[f] = v
-        if "kp" in p and "d_tv" in p and not d_tv_applies(round_value("kp", p["kp"])):
-            p["d_tv"] = 0.0                   # no D part at kp >= 1: not a dimension to search there
-        points.append(round_point(p))
-    return points
+    draws = {}
+    for f, d in dims.items():                # the same stream, the same order as Dim.sample
+        if f == "filter_type" and d.kind == "choice":
+            # Dim.sample's draw (the index of a choice), as the filter types' values, without objects
+            codes = np.array([int(FilterType(c)) for c in d.choices], dtype=np.int64)
+            draws[f] = codes[rng.integers(0, len(d.choices), n)]
+        else:
+            draws[f] = d.sample(rng, n)
+    cols: dict = {}
+    present: dict = {}
+    ft = draws["filter_type"] if "filter_type" in dims else None
+    for f, d in dims.items():
+        v = draws[f]
+        if f == "filter_type":
+            v = ft
+        elif d.kind == "choice":
+            raise SpaceError(f"random_columns: a choice dimension other than filter_type ({f})")
+        elif d.kind == "int":
+            v = np.asarray(v, dtype=np.int64)
+        else:
+            v = np.asarray(v, dtype=np.float64)
+        mask = None
+        if f in NC_WORDS and f not in ("kp", "i_tn", "d_tv", "filter_type") and ft is not None:
+            users = [int(t) for t, k in FILTER_KINDS.items() if f in k.fields]
+            mask = np.isin(ft, users)
+        if f == "low_pass_filter_fg_f0" and cycle_time:
+            v = np.minimum(v, 0.45 / cycle_time)                 # (min(v, c): v unless c < v)
+        cols[f] = v
+        present[f] = mask
+    if "kp" in cols and "d_tv" in cols:
+        inert = ~(round_column("kp", cols["kp"]) < D_NO_EFFECT_KP)    # not d_tv_applies(round_value(kp))
+        cols["d_tv"] = np.where(inert, 0.0, cols["d_tv"])         # no D part at kp >= 1
+    for f in cols:
+        if f != "filter_type" and dims[f].kind != "int":
+            cols[f] = round_column(f, cols[f])
+    return PointColumns(n, cols, present)
 
 
 # ----------------------------------------------------------------------------- points -> sets

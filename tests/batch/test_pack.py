@@ -115,3 +115,14 @@ def test_pack_sets_refuses_what_it_refused(inputs):
         CL.pack_sets(inputs, [inputs.params, {"kp": 1}])
     with pytest.raises(CL.ClosedLoopError, match=r"param_sets\[0\]: distance control not enabled"):
         CL.pack_sets(inputs, [inputs.params.replace(enabled=False)])
+
+
+def test_derivative_gains_is_law_derivative_gain_bit_for_bit():
+    rng = np.random.default_rng(4)
+    kp = np.concatenate([rng.uniform(0, 2.5, 20000), [0.0, 1.0, 0.999, 1.5, -0.1]])
+    d_tv = np.concatenate([np.where(rng.random(20000) < 0.2, 0.0, np.exp(rng.uniform(-12, 1, 20000))),
+                           [0.01, 0.01, 0.05, 0.01, 0.01]])
+    for T in (0.001, 0.0005, 0.0037):
+        got = CL.derivative_gains(kp, d_tv, T)
+        want = np.array([law.derivative_gain(a, b, T) for a, b in zip(kp.tolist(), d_tv.tolist())])
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))

@@ -59,3 +59,21 @@ def test_lowpass_design_does_not_import_scipy_signal():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_vectorised_pairing_gives_the_per_design_numbers_bit_for_bit(seed):
+    """butter_lowpass_many (issue 27: no Python per design) against butter_lowpass over thousands of random
+    (order, fg, fs), and the tuner's whole 0.1 Hz grid."""
+    from distctrl.control.butter import butter_lowpass_many
+
+    rng = np.random.default_rng(seed)
+    for order in range(1, 7):
+        fs = float(rng.choice([1000.0, 2000.0, 500.0, 4000.0, rng.uniform(100.0, 20000.0)]))
+        fgs = np.concatenate([rng.uniform(1e-4, 0.4999, 400) * fs, np.exp(rng.uniform(-6, 0, 100)) * 0.499 * fs,
+                              np.round(np.arange(5.0, min(200.0, 0.45 * fs), 0.1), 1) if seed == 0 else []])
+        sos, zi = butter_lowpass(order, fgs, fs)
+        sos2, zi2 = butter_lowpass_many(order, fgs, fs)
+        assert sos2.shape == sos.shape
+        assert np.array_equal(sos.view(np.int64), sos2.view(np.int64)), order
+        assert np.array_equal(zi.view(np.int64), zi2.view(np.int64)), order

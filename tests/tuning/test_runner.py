@@ -161,3 +161,116 @@ def test_cluster_worker_killed_mid_sweep_loses_only_its_chunk(inputs, sets, loca
     # the chunks fetched before the death were released at once, so none of them runs again
     # (without the release, those held by the dying worker would be recomputed)
     assert all(len(r) == 1 for c, r in runs.items() if c != victim), runs
+
+
+def test_a_chunk_runs_its_metrics_pass_on_the_chunks_threads_too(monkeypatch):
+    """The metrics pass is parallel over the sets (numba threads): a worker's chunk (threads=1) must not
+    start more threads than the worker has (issue 27)."""
+    numba = pytest.importorskip("numba")
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one numba thread only")
+    from distctrl.batch import closed_loop as CL
+    from distctrl.tuning import runner
+
+    inputs = CL.prepare(SCN, cycles=300)
+    seen = []
+    real = runner.compute_metrics
+
+    def spy(*a, **k):
+        seen.append(numba.get_num_threads())
+        return real(*a, **k)
+    monkeypatch.setattr(runner, "compute_metrics", spy)
+    before = numba.get_num_threads()
+    runner.evaluate_chunk(runner.slim_inputs(inputs), CL.pack_sets(inputs, [inputs.params] * 2), None, {}, 1)
+    assert seen == [1]
+    assert numba.get_num_threads() == before
+
+
+def _points_case(inputs):
+    from distctrl.tuning.columns import columns_of, drop_inert_columns, random_columns
+
+    pc, _ = drop_inert_columns(random_columns(700, 11, cycle_time=inputs.cycle_time))
+    grid = columns_of(grid_points(parse_grid("kp=0.3,1.2,filter_type=LOWPASS,order=1,4,fg_f0=100,800")))
+    return pc, grid
+
+
+def _same_tables(a, b):
+    assert a.columns == b.columns
+    for c in a.columns:
+        x, y = a[c], b[c]
+        if isinstance(x, list) or isinstance(y, list):
+            assert list(x) == list(y), c
+        else:
+            assert x.dtype == y.dtype, c
+            assert np.array_equal(x, y, equal_nan=True), c
+
+
+def test_evaluate_points_checks_packs_and_runs_in_the_chunks_and_gives_evaluates_table(inputs, monkeypatch):
+    """Issue 27: the chunks get points (columns), not packed rows, and check, design and pack them
+    themselves; the table is that of build_sets + evaluate, the rejected points and messages too."""
+    from distctrl.tuning import runner
+
+    seen = []
+    real = runner.evaluate_points_chunk
+
+    def spy(inputs_, chunk, *a):
+        assert not any(isinstance(v, np.ndarray) and v.ndim == 2 for v in vars(chunk).values())
+        assert chunk.block == 128
+        seen.append(len(chunk))
+        return real(inputs_, chunk, *a)
+    monkeypatch.setattr(runner, "evaluate_points_chunk", spy)
+    for pc in _points_case(inputs):
+        sets, pts, rejected = build_sets(inputs.params, pc.to_points(), inputs.cycle_time)
+        with Evaluator(inputs, mode="local", chunk_size=128, progress=False) as ev:
+            want = ev.evaluate(sets, pts)
+            seen.clear()
+            got = ev.evaluate_points(inputs.params, pc)
+        assert sum(seen) == pc.n and (pc.n <= 128 or len(seen) > 1)
+        assert got.rejected == rejected
+        _same_tables(got, want)
+
+
+def test_evaluate_points_on_a_cluster_gives_the_local_table(inputs):
+    pytest.importorskip("distributed")
+    pc, grid = _points_case(inputs)
+    with Evaluator(inputs, mode="local", chunk_size=256, progress=False) as ev:
+        want = ev.evaluate_points(inputs.params, pc)
+    with Evaluator(inputs, mode="cluster", n_workers=2, chunk_size=256, progress=False) as ev:
+        got = ev.evaluate_points(inputs.params, pc)
+        assert ev.stats["kernel_s"] > 0 and ev.stats["task_s"] >= ev.stats["kernel_s"]
+    _same_tables(got, want)
+
+
+def test_evaluate_points_pipelined_blocks_give_the_sequential_table(inputs, monkeypatch):
+    """In this process the next block's kernel runs while this block's metrics are taken (threading layers
+    tbb / omp): the same table as one block after the other."""
+    import numba
+
+    from distctrl.tuning import runner
+    from distctrl.tuning.columns import drop_inert_columns, random_columns
+
+    run_batch(inputs, inputs_packed_one(inputs), cycles=8)          # a parallel kernel ran: the layer is known
+    if numba.threading_layer() not in ("tbb", "omp"):
+        pytest.skip(f"threading layer {numba.threading_layer()}: no pipelining")
+    pc, _ = drop_inert_columns(random_columns(300, 4, cycle_time=inputs.cycle_time))
+    pools = []
+    real_pool = runner.ThreadPoolExecutor
+
+    def pool(*a, **k):
+        pools.append(1)
+        return real_pool(*a, **k)
+    monkeypatch.setattr(runner, "ThreadPoolExecutor", pool)
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
+        piped = ev.evaluate_points(inputs.params, pc)
+        assert pools                                                  # the pipelined path ran
+        monkeypatch.setattr(runner, "_concurrent_numba", lambda: False)
+        pools.clear()
+        sequential = ev.evaluate_points(inputs.params, pc)
+        assert not pools
+    _same_tables(piped, sequential)
+
+
+def inputs_packed_one(inputs):
+    from distctrl.batch.closed_loop import pack_sets
+
+    return pack_sets(inputs, [inputs.params])

@@ -43,3 +43,21 @@ def test_rejected_grid_sets_are_reported_as_before(tmp_path):
     assert ("warning: 9 of 27 combinations rejected; first: parameter set kp=0.3 filter_type=LOWPASS "
             "low_pass_filter_order=1 low_pass_filter_fg_f0=800 is not valid: P-AXIS-00508 low_pass_filter_fg_f0 = "
             "800.0 Hz out of range for cycle time 0.001 s; allowed: 0 < fg_f0 < 500 Hz (Nyquist)") in res.stderr
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_the_sweep_packs_its_sets_as_columns_without_a_parameter_object_per_set(tmp_path, name, monkeypatch):
+    """Issue 27: the CLI's sets go through the columns (check_columns, pack_columns), not build_sets /
+    pack_sets, and give the golden table."""
+    import distctrl.batch.closed_loop as CL
+    import distctrl.cli.tune as cli_tune
+
+    def refuse(*a, **k):
+        raise AssertionError("a per-set path was taken")
+    monkeypatch.setattr(cli_tune, "build_sets", refuse)
+    monkeypatch.setattr(CL, "pack_sets", refuse)
+    out = tmp_path / name
+    res = CliRunner().invoke(main, ["sweep", str(SCN / "tune_sheet.toml"), *CASES[name], "--local",
+                                    "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.read_text() == (DATA / name).read_text()

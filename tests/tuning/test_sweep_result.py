@@ -55,12 +55,11 @@ def test_sweep_json_prints_the_results_to_dict(tmp_path, monkeypatch):
     from distctrl.cli.tune import sweep
 
     seen = []
-    evaluate = Evaluator.evaluate
-
-    def keep(self, *a, **k):
-        seen.append(evaluate(self, *a, **k))
-        return seen[-1]
-    monkeypatch.setattr(Evaluator, "evaluate", keep)
+    for name in ("evaluate", "evaluate_points"):       # the sweep's sets as columns: evaluate_points
+        def keep(self, *a, _f=getattr(Evaluator, name), **k):
+            seen.append(_f(self, *a, **k))
+            return seen[-1]
+        monkeypatch.setattr(Evaluator, name, keep)
     r = CliRunner().invoke(sweep, [str(SCN), "--grid", "kp=0.2,0.8,n_cycles=2,8", "--local", "--cycles", "1000",
                                    "--out", str(tmp_path / "s.csv"), "--top", "3", "--metric", "cost", "--json"])
     assert r.exit_code == 0, r.output
