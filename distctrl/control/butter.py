@@ -112,11 +112,9 @@ def _poly(roots) -> np.ndarray:
     return a
 
 
-def butter_lowpass(order: int, fg, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """Second-order sections and their step initial states of the digital Butterworth low-pass of
-    ``order`` (1..6) at the cut-offs ``fg`` (Hz, array of K, each in (0, fs/2)) at sampling rate ``fs``
-    (Hz): ``sos`` (K, n_sections, 6) and ``zi`` (K, n_sections, 2), bit for bit
-    ``scipy.signal.butter(order, fg, fs=fs, output="sos")`` and ``scipy.signal.sosfilt_zi`` of it."""
+def _checked_prototype(order, fg, fs):
+    """The arguments checked and converted, the analog prototype's poles and the pre-warped cut-offs
+    (bilinear transform with fs = 2: ``4 tan(pi wn / 2)``), as scipy.signal.butter computes them."""
     order = int(order)
     fg = np.atleast_1d(np.asarray(fg, dtype=np.float64))
     fs = float(fs)
@@ -125,9 +123,16 @@ def butter_lowpass(order: int, fg, fs: float) -> tuple[np.ndarray, np.ndarray]:
     wn = fg / (fs / 2)
     if np.any(wn <= 0) or np.any(wn >= 1):
         raise ValueError(f"cut-off must be 0 < fg < fs/2 (fs={fs})")
+    return order, fg, fs, _prototype(order), 2 * 2.0 * np.tan(np.pi * wn / 2.0)
+
+
+def butter_lowpass(order: int, fg, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """Second-order sections and their step initial states of the digital Butterworth low-pass of
+    ``order`` (1..6) at the cut-offs ``fg`` (Hz, array of K, each in (0, fs/2)) at sampling rate ``fs``
+    (Hz): ``sos`` (K, n_sections, 6) and ``zi`` (K, n_sections, 2), bit for bit
+    ``scipy.signal.butter(order, fg, fs=fs, output="sos")`` and ``scipy.signal.sosfilt_zi`` of it."""
+    order, fg, fs, proto, warped = _checked_prototype(order, fg, fs)
     k_n = len(fg)
-    proto = _prototype(order)
-    warped = 2 * 2.0 * np.tan(np.pi * wn / 2.0)
     # lp2lp: poles scaled by wo (a python float times a complex array: complex multiplication)
     p_lp = np.empty((k_n, order), dtype=np.complex128)
     k_lp = np.empty(k_n)
@@ -187,17 +192,8 @@ def butter_lowpass_many(order: int, fg, fs: float) -> tuple[np.ndarray, np.ndarr
     conjugate. The zeros are -1 (and 0 for an odd order): a section takes the 0 while it is left and
     strictly nearer to its pole than -1 (the -1 come first in the list, so a tie takes -1), or when no -1
     is left."""
-    order = int(order)
-    fg = np.atleast_1d(np.asarray(fg, dtype=np.float64))
-    fs = float(fs)
-    if not 1 <= order <= MAX_ORDER:
-        raise ValueError(f"Butterworth order {order}: 1..{MAX_ORDER}")
-    wn = fg / (fs / 2)
-    if np.any(wn <= 0) or np.any(wn >= 1):
-        raise ValueError(f"cut-off must be 0 < fg < fs/2 (fs={fs})")
+    order, fg, fs, proto, warped = _checked_prototype(order, fg, fs)
     k_n = len(fg)
-    proto = _prototype(order)
-    warped = 2 * 2.0 * np.tan(np.pi * wn / 2.0)
     p_lp = warped[:, None] * proto[None, :]
     # a Python power per design: numpy's vectorised power is not libm's pow
     k_lp = np.array([1.0 * wo ** order for wo in warped.tolist()])
