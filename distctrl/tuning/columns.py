@@ -21,8 +21,8 @@ import numpy as np
 from ..base.kinds import FilterType
 from ..batch.design import check_cycle_time, design_rows, unique_rows
 from ..errors import ParameterError
-from .space import (BY_FIELD, D_NO_EFFECT_KP, PointColumns, SpaceError, drop_inert_d_tv, point_label,
-                    random_columns, round_column, to_params)
+from .space import (BY_FIELD, D_NO_EFFECT_KP, PointColumns, SpaceError, drop_inert_d_tv, in_table_range,
+                    point_label, random_columns, round_column, to_params)
 
 __all__ = ["PointColumns", "random_columns", "drop_inert_columns", "round_column", "columns_of", "check_columns",
            "full_column", "COLUMN_FIELDS"]
@@ -153,19 +153,7 @@ def check_columns(base, pc: PointColumns, cycle_time: float):
         if f == "filter_type":
             good = np.isin(c, [int(t) for t in FilterType if t != FilterType.PASS])
         else:
-            spec = BY_FIELD[f]
-            x = c.astype(np.float64)
-            good = np.isfinite(x)
-            with np.errstate(invalid="ignore"):
-                iv = x / spec.scale_for(rotary)
-                slack = 1e-9 * np.maximum(1.0, np.abs(iv))
-                if spec.choices:
-                    good &= np.isin(iv, np.asarray(spec.choices, dtype=np.float64))
-                else:
-                    if spec.lo is not None:
-                        good &= (iv > spec.lo) if spec.lo_open else (iv >= spec.lo - slack)
-                    if spec.hi is not None:
-                        good &= (iv < spec.hi) if spec.hi_open else (iv <= spec.hi + slack)
+            good = in_table_range(BY_FIELD[f], c.astype(np.float64), rotary)
         bad |= m & ~good
     rejected: dict = {}
     for i in np.nonzero(bad)[0].tolist():

@@ -519,6 +519,24 @@ def _with(base: AxisParameters, pt: dict) -> AxisParameters:
 _CROSS_FIELDS = frozenset({"min_pos", "max_pos", "tolerance", "sw_limit_min", "sw_limit_max", "axis_type"})
 
 
+
+def in_table_range(spec, x: np.ndarray, rotary: bool) -> np.ndarray:
+    """Which of the values ``x`` (in the NC's units, floats) the parameter table's ``spec`` accepts: one of
+    its choices, or within its bounds (open or closed, a closed bound with a relative slack of 1e-9 for
+    the unit conversion), as the table's check says for a single value. NaN is refused."""
+    good = np.isfinite(x)
+    with np.errstate(invalid="ignore"):
+        iv = x / spec.scale_for(rotary)
+        slack = 1e-9 * np.maximum(1.0, np.abs(iv))
+        if spec.choices:
+            good &= np.isin(iv, np.asarray(spec.choices, dtype=np.float64))
+        else:
+            if spec.lo is not None:
+                good &= (iv > spec.lo) if spec.lo_open else (iv >= spec.lo - slack)
+            if spec.hi is not None:
+                good &= (iv < spec.hi) if spec.hi_open else (iv <= spec.hi + slack)
+    return good
+
 def _fast_ok(base: AxisParameters, points: list[dict]) -> np.ndarray:
     """Per point: every value passes check_internal's rule for its field (vectorised over the points)."""
     n = len(points)
@@ -545,17 +563,11 @@ def _fast_ok(base: AxisParameters, points: list[dict]) -> np.ndarray:
         x = np.fromiter((float(v) if t else np.nan for (_, v), t in zip(items, typed)), dtype=np.float64,
                         count=len(items))
         good = typed & np.isfinite(x)
-        with np.errstate(invalid="ignore"):
-            iv = x / spec.scale_for(rotary)
-            slack = 1e-9 * np.maximum(1.0, np.abs(iv))
-            if spec.type == "BOOLEAN":
-                good &= (iv == 0.0) | (iv == 1.0)
-            elif spec.choices:
-                good &= np.isin(iv, np.asarray(spec.choices, dtype=np.float64))
-            else:
-                if spec.lo is not None:
-                    good &= (iv > spec.lo) if spec.lo_open else (iv >= spec.lo - slack)
-                if spec.hi is not None:
-                    good &= (iv < spec.hi) if spec.hi_open else (iv <= spec.hi + slack)
+        if spec.type == "BOOLEAN":
+            with np.errstate(invalid="ignore"):
+                iv = x / spec.scale_for(rotary)
+            good &= (iv == 0.0) | (iv == 1.0)
+        else:
+            good &= in_table_range(spec, x, rotary)
         ok[idx[~good]] = False
     return ok
