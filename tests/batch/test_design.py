@@ -70,3 +70,26 @@ def test_unique_rows_is_np_unique_of_the_rows():
         u2, inv2 = np.unique(mat, axis=0, return_inverse=True)
         assert np.array_equal(u, u2.reshape(-1, 3)) and np.array_equal(inv, inv2.reshape(-1))
         assert np.array_equal(u[inv], mat)
+
+
+def test_a_type_without_vectorised_rows_is_designed_one_by_one(monkeypatch):
+    # a new filter type needs no edit in design_rows (docs/architecture.md "A filter type"): a type it has
+    # no rows for goes through design_coefficients; here EXPO_MEAN and LOWPASS play the unknown types
+    import distctrl.batch.design as design
+    monkeypatch.setattr(design, "_ROW_TYPES", design._ROW_TYPES - {int(FilterType.EXPO_MEAN), int(FilterType.LOWPASS)})
+    calls = []
+    monkeypatch.setattr(design, "design_coefficients", lambda cfg, T: calls.append(cfg) or design_coefficients(cfg, T))
+    rng = np.random.default_rng(7)
+    cycle_time = 0.001
+    cols = _random_configs(rng, 400, cycle_time)
+    fc, errors = design.design_rows(*cols, cycle_time)
+    seen = 0
+    for i in range(len(cols[0])):
+        if i in errors or int(cols[0][i]) not in (int(FilterType.EXPO_MEAN), int(FilterType.LOWPASS)):
+            continue
+        cfg = FilterConfig(FilterType(int(cols[0][i])), int(cols[1][i]), float(cols[2][i]), float(cols[3][i]),
+                           int(cols[4][i]), float(cols[5][i]))
+        want = np.asarray(design_coefficients(cfg, cycle_time), dtype=np.float64)
+        assert fc[i].tobytes() == want.tobytes(), cfg
+        seen += 1
+    assert seen > 50 and len(calls) == seen       # each of them, and only they, one by one
