@@ -61,9 +61,11 @@ stroke or distance sensor range, characteristic and resolution, noise, dead time
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -801,6 +803,21 @@ def run_blocks(packed, lanes, counts, rest, plant, prog, surface, noise, out_off
                     out_distance[i], out_error[i])
 
 
+@contextmanager
+def numba_threads(threads: int | None):
+    """numba's thread count for the parallel kernels called in this block by this thread (numba keeps it per
+    calling thread), restored afterwards; ``None``: leave it as it is."""
+    if threads is None:
+        yield
+        return
+    old = numba.get_num_threads()
+    numba.set_num_threads(int(threads))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(old)
+
+
 def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, threads: int | None = None,
               return_errors: bool = False, vectorised: bool = True, out=None):
     """Run the closed loop of ``inputs`` for every parameter set, in parallel over the sets.
@@ -819,9 +836,6 @@ def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, thre
     into and return instead of new ones. A caller that runs many batches can reuse them: fresh
     memory costs the operating system a page fault and zeroing on first touch (docs/batch.md).
     """
-    # numba (the [batch] extra): loaded only where a kernel is compiled or run
-    import numba
-
     if isinstance(param_sets, np.ndarray):
         packed = np.ascontiguousarray(param_sets, dtype=np.float64)
         if packed.ndim != 2 or packed.shape[1] != PACKED_LEN:
@@ -847,19 +861,13 @@ def run_batch(inputs: LoopInputs, param_sets, *, cycles: int | None = None, thre
             raise ClosedLoopError("out: the offset and distance arrays overlap")
     out_error = np.empty((n_sets, 2), dtype=np.int64)
     lanes, counts, rest = soa.plan_blocks(packed)
-    old = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(int(threads))
-    try:
+    with numba_threads(threads):
         if vectorised:
             run_blocks(packed, lanes, counts, rest, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
-                           out_offset, out_distance, out_error)
+                       out_offset, out_distance, out_error)
         else:
             _closed_loop_batch(packed, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
                                out_offset, out_distance, out_error)
-    finally:
-        if threads is not None:
-            numba.set_num_threads(old)
     if return_errors:
         return out_offset, out_distance, out_error
     return out_offset, out_distance

@@ -41,8 +41,8 @@ from .metrics import METRIC_NAMES, METRIC_UNITS, compute_metrics, cost, limits_f
 from .columns import COLUMN_FIELDS, check_columns, full_column
 from .space import D_TV_NOTE, NC_WORDS, build_sets, d_tv_applies, filter_fields
 
-__all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "evaluate_points_chunk", "TuningRunError", "PARAM_COLUMNS",
-           "plot_sweep"]
+__all__ = ["Evaluator", "SweepResult", "evaluate", "evaluate_chunk", "evaluate_points_chunk", "TuningRunError",
+           "PARAM_COLUMNS", "plot_sweep"]
 
 #: the parameter columns of every result table (AxisParameters fields)
 PARAM_COLUMNS = tuple(NC_WORDS)
@@ -75,21 +75,19 @@ def evaluate_chunk(inputs, packed: np.ndarray, cycles: int | None, metric_option
                    threads: int | None = None) -> dict[str, np.ndarray]:
     """Run the kernel for the packed rows and return their metrics (a pure function of its arguments)."""
     # numba (optional: [fast], [tune]) loads only when a batch runs
-    import numba
+    from ..batch.closed_loop import numba_threads, run_batch
 
-    from ..batch.closed_loop import run_batch
+    with numba_threads(threads):             # the kernel's and the metrics pass's threads
+        res = run_batch(inputs, packed, cycles=cycles, return_errors=True)
+        return _measure(inputs, packed, res, wanted_distance(inputs, res[1].shape[1]), metric_options)
 
-    old = numba.get_num_threads()
-    if threads is not None:                  # the kernel's and the metrics pass's threads
-        numba.set_num_threads(int(threads))
-    try:
-        offset, distance, errors = run_batch(inputs, packed, cycles=cycles, return_errors=True)
-        n = distance.shape[1]
-        m = compute_metrics(offset, distance, wanted_distance(inputs, n), inputs.cycle_time, inputs.k_on,
-                            limits_from_packed(packed), **metric_options)
-    finally:
-        if threads is not None:
-            numba.set_num_threads(old)
+
+def _measure(inputs, packed: np.ndarray, res, wanted, metric_options: dict) -> dict[str, np.ndarray]:
+    """The metrics of a kernel run ``res`` = ``(offset, distance, errors)`` of the rows ``packed``, and the
+    cycle and ID of each set's first error."""
+    offset, distance, errors = res
+    m = compute_metrics(offset, distance, wanted, inputs.cycle_time, inputs.k_on, limits_from_packed(packed),
+                        **metric_options)
     m["error_cycle"] = errors[:, 0].copy()
     m["error_id"] = errors[:, 1].copy()
     return m
@@ -153,9 +151,7 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
     the kernel and the metrics pass, ``_task_s`` the whole chunk's."""
     t_task = time.perf_counter()
     # numba (optional: [fast], [tune]) loads only when a batch runs
-    import numba
-
-    from ..batch.closed_loop import pack_columns, pack_sets, run_batch
+    from ..batch.closed_loop import numba_threads, pack_columns, pack_sets, run_batch
 
     pts = chunk.points
     checked = check_columns(base, pts, inputs.cycle_time)
@@ -184,9 +180,8 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
         return _outputs(blocks[j][1] - blocks[j][0], n, j % 2)     # (taken in the task's own thread)
 
     def run(j, out):
-        """Pack and run block j into ``out`` (numba's thread count is per calling thread)."""
-        if threads is not None:
-            numba.set_num_threads(int(threads))
+        """Pack and run block j into ``out`` (with ``threads`` given it runs in this thread, whose numba
+        thread count is set below; the pipelined kernel thread runs only with ``threads`` None)."""
         packed = pack(*blocks[j])
         t0 = time.perf_counter()
         res = run_batch(inputs, packed, cycles=cycles, return_errors=True, out=out)
@@ -194,20 +189,13 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
         return packed, res
 
     def measure(packed, res):
-        offset, distance, errors = res
         t0 = time.perf_counter()
-        m = compute_metrics(offset, distance, wanted, inputs.cycle_time, inputs.k_on, limits_from_packed(packed),
-                            **metric_options)
+        m = _measure(inputs, packed, res, wanted, metric_options)
         kernel_s[0] += time.perf_counter() - t0
-        m["error_cycle"] = errors[:, 0].copy()
-        m["error_id"] = errors[:, 1].copy()
         return m
 
     parts = []
-    old = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(int(threads))
-    try:
+    with numba_threads(threads):
         # blocks of at most chunk.block sets: a task may be far larger than the traces it holds at once. On
         # all cores (threads None) the next block's kernel runs (nogil) while this block's metrics are taken
         # (numpy's FFT holds the GIL and one core): pipelined, where numba's threading layer allows calls
@@ -223,9 +211,6 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
         else:
             for j in range(len(blocks)):
                 parts.append(measure(*run(j, buffers(j))))
-    finally:
-        if threads is not None:
-            numba.set_num_threads(old)
     kernel_s = kernel_s[0]
     if parts:
         out.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]})
@@ -688,12 +673,8 @@ class Evaluator:
             self.stats["kernel_s"] = self.stats.get("kernel_s", 0.0) + float(p.pop("_kernel_s"))
             self.stats["task_s"] = self.stats.get("task_s", 0.0) + float(p.pop("_task_s"))
         parts = [p for p in parts if len(p["failed"])]
-        dt = time.perf_counter() - t0
         n_sets = len(kept)
-        self.stats["sets"] += n_sets
-        self.stats["set_cycles"] += n_sets * self.n_cycles
-        self.stats["seconds"] += dt
-        self.stats["chunks"] += len(chunks)
+        info = self._account(n_sets, time.perf_counter() - t0, len(chunks))
         if not n_sets:
             return SweepResult(self._table([], [], {}), rejected=rejected, info={"kept": kept})
         merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
@@ -703,8 +684,7 @@ class Evaluator:
             col = full_column(base, sel, f)
             params[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
         return SweepResult({**params, **self._metric_columns(merged)}, params=[], rejected=rejected,
-                           info={"seconds": dt, "sets": n_sets, "cycles": self.n_cycles, "mode": self.mode,
-                                 "workers": self.n_workers if self.mode == "cluster" else 1, "kept": kept})
+                           info={**info, "kept": kept})
 
     def _evaluate_packed(self, packed, table, params, description) -> SweepResult:
         n_sets = len(packed)
@@ -717,14 +697,17 @@ class Evaluator:
             self.open()
             parts = self._run_cluster(chunks, description)
         merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-        dt = time.perf_counter() - t0
+        info = self._account(n_sets, time.perf_counter() - t0, len(chunks))
+        return SweepResult(table(merged), params=params, info=info)
+
+    def _account(self, n_sets: int, seconds: float, n_chunks: int) -> dict:
+        """Add an evaluation to :attr:`stats`; its result's ``info``."""
         self.stats["sets"] += n_sets
         self.stats["set_cycles"] += n_sets * self.n_cycles
-        self.stats["seconds"] += dt
-        self.stats["chunks"] += len(chunks)
-        return SweepResult(table(merged), params=params,
-                           info={"seconds": dt, "sets": n_sets, "cycles": self.n_cycles,
-                                 "mode": self.mode, "workers": self.n_workers if self.mode == "cluster" else 1})
+        self.stats["seconds"] += seconds
+        self.stats["chunks"] += n_chunks
+        return {"seconds": seconds, "sets": n_sets, "cycles": self.n_cycles, "mode": self.mode,
+                "workers": self.n_workers if self.mode == "cluster" else 1}
 
     def prepare_kernels(self, packed_one=None) -> None:
         """Compile the batch kernels once, before the sets run, and say so (the first use on a machine,
