@@ -39,6 +39,7 @@ from the cycles before it and ``failed = True``; the tuner treats it as infinite
 from __future__ import annotations
 
 import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -132,7 +133,7 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
                 for k in ("a_min", "dev_a_min", "dev_a_max")]
         lim = (True, *col, ad, *rest)
     fig = np.empty((n_sets, MK.N_FIG))
-    ex, ox, spec, a = _scratch(n_sets, m)
+    ex, ox, spec, a, ospec, oa = _scratch(n_sets, m)
     MK.chunk_metrics(offset, distance, wanted, k0, int(k_on), T, float(band), h, ow, *lim, fig, ex, ox)
     cnt = fig[:, MK.F_CNT].astype(np.int64)
     out: dict[str, np.ndarray] = {"failed": fig[:, MK.F_FAILED] != 0.0}
@@ -140,8 +141,16 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
                     ("osc_index", MK.F_OSC)):
         out[name] = fig[:, c].copy()
     w = _hf_weights(m, T, f_osc)
-    out["hf_rms"] = _hf_rms(ex, w, m, cnt, spec, a)
-    out["offset_hf_rms"] = _hf_rms(ox, w, m, cnt, spec, a)
+    if n_sets >= _FFT_SPLIT_ROWS and MK.thread_count() >= 2:
+        # the two transforms at once, the offset's in a second thread (numpy's FFT releases the GIL): they were
+        # a third of a sweep's time beside the kernel, on one core; numba's thread count is the budget (1 on a
+        # single-threaded cluster worker: no second thread there)
+        offset_part = _fft_pool().submit(_hf_rms, ox, w, m, cnt, ospec, oa)
+        out["hf_rms"] = _hf_rms(ex, w, m, cnt, spec, a)
+        out["offset_hf_rms"] = offset_part.result()
+    else:
+        out["hf_rms"] = _hf_rms(ex, w, m, cnt, spec, a)
+        out["offset_hf_rms"] = _hf_rms(ox, w, m, cnt, ospec, oa)
     out["settle_time_50um"] = fig[:, MK.F_SETTLE].copy()
     out["sat_share"] = fig[:, MK.F_SAT].copy()
     return out
@@ -159,16 +168,31 @@ def _hf_weights(m: int, T: float, f_osc: float) -> np.ndarray:
 
 _SCRATCH = threading.local()
 
+#: below this many rows the two FFTs run one after the other (a thread's hand-over costs more than it saves)
+_FFT_SPLIT_ROWS = 16
+_FFT_POOL: list = []
+_FFT_POOL_LOCK = threading.Lock()
+
+
+def _fft_pool() -> ThreadPoolExecutor:
+    """The one thread that transforms the offset while the calling thread transforms the error (made on first
+    use; shared by the calling threads of this process, a task waits for it only when two pass at once)."""
+    with _FFT_POOL_LOCK:
+        if not _FFT_POOL:
+            _FFT_POOL.append(ThreadPoolExecutor(1, thread_name_prefix="distctrl-fft"))
+        return _FFT_POOL[0]
+
 
 def _scratch(n_sets: int, m: int):
-    """The pass's work arrays (FFT inputs, spectrum, its power) for this shape, reused from call to call in
-    this thread: a sweep's chunks have one shape, and fresh arrays of megabytes cost page faults (allocating
-    them took about as long as the FFTs)."""
+    """The pass's work arrays (FFT inputs ``ex``, ``ox``; the spectrum and its power of each) for this shape,
+    reused from call to call in this thread: a sweep's chunks have one shape, and fresh arrays of megabytes
+    cost page faults (allocating them took about as long as the FFTs)."""
     key = (n_sets, m)
     got = getattr(_SCRATCH, "arrays", None)
     if got is None or got[0] != key:
         k = m // 2 + 1
         got = _SCRATCH.arrays = (key, (np.empty((n_sets, m)), np.empty((n_sets, m)),
+                                       np.empty((n_sets, k), dtype=np.complex128), np.empty((n_sets, k)),
                                        np.empty((n_sets, k), dtype=np.complex128), np.empty((n_sets, k))))
     return got[1]
 

@@ -107,3 +107,24 @@ def test_compiled_metrics_load_from_the_disk_cache():
     for _ in range(2):                   # the first may compile and cache, the second loads
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
         assert done.returncode == 0 and done.stdout.strip() == "ok", (done.returncode, done.stderr[-2000:])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_two_transforms_in_two_threads_give_the_same_bits(threads, monkeypatch):
+    """With numba's thread count at 2 the offset's FFT runs in a second thread (tuning.metrics._fft_pool),
+    at 1 in the calling thread: the figures are the numpy definition's either way."""
+    from distctrl.batch.closed_loop import numba_threads
+    from distctrl.tuning import metrics as M
+
+    used = []
+    real = M._fft_pool
+    monkeypatch.setattr(M, "_fft_pool", lambda: used.append(1) or real())
+    rng = np.random.default_rng(11)
+    offset, distance = _chunk(rng, 64, 2031)
+    limits = _limits(rng, 64)
+    with numba_threads(threads):
+        got = compute_metrics(offset, distance, 1.0, 1e-3, 5, limits)
+    ref = reference_metrics(offset, distance, 1.0, 1e-3, 5, limits)
+    assert bool(used) == (threads >= 2)
+    for name in ("hf_rms", "offset_hf_rms", "rms_error", "sat_share"):
+        assert np.array_equal(_bits(got[name]), _bits(ref[name])), name
