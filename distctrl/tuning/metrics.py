@@ -184,17 +184,18 @@ def _fft_pool() -> ThreadPoolExecutor:
 
 
 def _scratch(n_sets: int, m: int):
-    """The pass's work arrays (FFT inputs ``ex``, ``ox``; the spectrum and its power of each) for this shape,
-    reused from call to call in this thread: a sweep's chunks have one shape, and fresh arrays of megabytes
-    cost page faults (allocating them took about as long as the FFTs)."""
-    key = (n_sets, m)
+    """The pass's work arrays (FFT inputs ``ex``, ``ox``; the spectrum and its power of each) for this shape:
+    the first ``n_sets`` rows of arrays reused from call to call in this thread, made again only for a longer
+    window or more rows. A sweep's blocks have one window and at most one number of rows, but a chunk's last
+    block is shorter: arrays made to its exact shape were made again twice per chunk, and fresh arrays of
+    megabytes cost page faults (allocating them took about as long as the FFTs)."""
     got = getattr(_SCRATCH, "arrays", None)
-    if got is None or got[0] != key:
+    if got is None or got[0][1] != m or got[0][0] < n_sets:
         k = m // 2 + 1
-        got = _SCRATCH.arrays = (key, (np.empty((n_sets, m)), np.empty((n_sets, m)),
-                                       np.empty((n_sets, k), dtype=np.complex128), np.empty((n_sets, k)),
-                                       np.empty((n_sets, k), dtype=np.complex128), np.empty((n_sets, k))))
-    return got[1]
+        got = _SCRATCH.arrays = ((n_sets, m), (np.empty((n_sets, m)), np.empty((n_sets, m)),
+                                               np.empty((n_sets, k), dtype=np.complex128), np.empty((n_sets, k)),
+                                               np.empty((n_sets, k), dtype=np.complex128), np.empty((n_sets, k))))
+    return tuple(a[:n_sets] for a in got[1])
 
 
 def _hf_rms(x: np.ndarray, w: np.ndarray, m: int, cnt: np.ndarray, spec=None, a=None) -> np.ndarray:
