@@ -118,100 +118,86 @@ def _probe_of(inputs, base):
 _LOCAL = threading.local()
 
 
-def _outputs(n_sets: int, n: int, slot: int = 0):
-    """Trace arrays of this shape, reused by the next block of the same shape and slot (two slots: one
-    block's kernel runs while the other's metrics are taken) in this process (fresh memory costs page faults:
-    docs/batch.md). Per calling thread of a worker that runs several tasks at once."""
-    store = getattr(_LOCAL, "out", None)
-    if store is None:
-        store = _LOCAL.out = {}
-    cached = store.get(slot)
-    if cached is None or cached[0].shape != (n_sets, n):
-        cached = store[slot] = (np.empty((n_sets, n)), np.empty((n_sets, n)))
-    return cached
+def _outputs(n_sets: int, n: int):
+    """Trace arrays for ``n_sets`` rows of ``n`` cycles: the first rows of arrays reused from block to block in
+    this process, made again only for more rows or another length (fresh memory costs page faults:
+    docs/batch.md; a chunk's shorter last block takes the first rows). Per calling thread of a worker that
+    runs several tasks at once."""
+    got = getattr(_LOCAL, "out", None)
+    if got is None or got[0].shape[1] != n or got[0].shape[0] < n_sets:
+        got = _LOCAL.out = (np.empty((n_sets, n)), np.empty((n_sets, n)))
+    return got[0][:n_sets], got[1][:n_sets]
 
 
-def _concurrent_numba() -> bool:
-    """Whether numba's threading layer may run parallel kernels called from two threads at once."""
+class _CheckedChunk:
+    """A chunk's points after the check: ``index`` (the kept points, in the chunk), ``rejected``
+    ``(point, message)`` and ``pack(a, b)``, the packed rows of the kept points a .. b."""
+
+    def __init__(self, index: np.ndarray, rejected: list, pack):
+        self.index = index
+        self.rejected = rejected
+        self.pack = pack
+
+
+def check_points_chunk(inputs, chunk: "_PointChunk", base, probe) -> _CheckedChunk:
+    """Check and design a chunk's points (columns: :func:`~distctrl.tuning.columns.check_columns`; what the
+    columns do not cover, set by set through :func:`~distctrl.tuning.space.build_sets`): the first half of
+    :func:`evaluate_points_chunk`, which a local sweep runs for the next chunk while this one runs."""
     # numba (optional: [fast], [tune]) loads only when a batch runs
-    import numba
-
-    try:
-        return numba.threading_layer() in ("tbb", "omp")
-    except ValueError:                      # no parallel kernel has run yet: not known
-        return False
-
-
-def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metric_options: dict,
-                          threads: int | None, base, probe) -> dict:
-    """Check, design, pack, run and measure one chunk of points (a pure function of its arguments; on a
-    cluster it runs on the worker, which gets only the points' columns), ``chunk.block`` sets at a time
-    (their traces in arrays reused from block to block): the metrics of the kept points,
-    ``_kept`` their indices, ``_rejected`` ``(point, message)`` of the others, ``_kernel_s`` the time in
-    the kernel and the metrics pass, ``_task_s`` the whole chunk's."""
-    t_task = time.perf_counter()
-    # numba (optional: [fast], [tune]) loads only when a batch runs
-    from ..batch.closed_loop import numba_threads, pack_columns, pack_sets, run_batch
+    from ..batch.closed_loop import pack_columns, pack_sets
 
     pts = chunk.points
     checked = check_columns(base, pts, inputs.cycle_time)
     if checked is not None:
         kept, fc, rejected = checked
-        index = kept.index
 
         def pack(a, b):
             part = kept.take(np.arange(a, b))
             return pack_columns(inputs, base, part.cols, part.present, fc[a:b], probe=probe)
-    else:                                    # what the columns do not cover: set by set
-        points = pts.to_points()
-        sets, kept_points, rejected = build_sets(base, points, inputs.cycle_time)
-        ids = {id(p): i for i, p in enumerate(points)}
-        index = np.array([ids[id(p)] for p in kept_points], dtype=np.int64)
+        return _CheckedChunk(kept.index, rejected, pack)
+    points = pts.to_points()                 # what the columns do not cover: set by set
+    sets, kept_points, rejected = build_sets(base, points, inputs.cycle_time)
+    ids = {id(p): i for i, p in enumerate(points)}
 
-        def pack(a, b):
-            return pack_sets(inputs, sets[a:b], probe=probe)
-    out = {"_kept": index + chunk.start, "_rejected": rejected}
+    def pack(a, b):
+        return pack_sets(inputs, sets[a:b], probe=probe)
+    return _CheckedChunk(np.array([ids[id(p)] for p in kept_points], dtype=np.int64), rejected, pack)
+
+
+def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metric_options: dict,
+                          threads: int | None, base, probe, checked: _CheckedChunk | None = None) -> dict:
+    """Check, design, pack, run and measure one chunk of points (a pure function of its arguments; on a
+    cluster it runs on the worker, which gets only the points' columns), ``chunk.block`` sets at a time
+    (their traces in arrays reused from block to block): the metrics of the kept points,
+    ``_kept`` their indices, ``_rejected`` ``(point, message)`` of the others, ``_kernel_s`` the time in
+    the kernel and the metrics pass, ``_task_s`` the whole chunk's. ``checked``: the chunk's
+    :func:`check_points_chunk`, when done already.
+
+    Block after block, each on all of numba's threads: the kernel, then the metrics pass and the two FFTs
+    (:func:`~distctrl.tuning.metrics.compute_metrics`). Running the next block's kernel in a second thread
+    while this block's metrics were taken was tried (until issue 27's last step): on two cores the two
+    stages then share them, and it was no faster than one after the other (2.11 s against 2.06 s, the
+    best of six 10 000-set sweeps each, docs/tuning.md)."""
+    t_task = time.perf_counter()
+    # numba (optional: [fast], [tune]) loads only when a batch runs
+    from ..batch.closed_loop import numba_threads, run_batch
+
+    if checked is None:
+        checked = check_points_chunk(inputs, chunk, base, probe)
+    index = checked.index
+    out = {"_kept": index + chunk.start, "_rejected": checked.rejected}
     n = inputs.n_cycles if cycles is None else int(cycles)
     wanted = wanted_distance(inputs, n)
-    blocks = [(a, min(a + chunk.block, len(index))) for a in range(0, len(index), chunk.block)]
-    kernel_s = [0.0]
-
-    def buffers(j):
-        return _outputs(blocks[j][1] - blocks[j][0], n, j % 2)     # (taken in the task's own thread)
-
-    def run(j, out):
-        """Pack and run block j into ``out`` (with ``threads`` given it runs in this thread, whose numba
-        thread count is set below; the pipelined kernel thread runs only with ``threads`` None)."""
-        packed = pack(*blocks[j])
-        t0 = time.perf_counter()
-        res = run_batch(inputs, packed, cycles=cycles, return_errors=True, out=out)
-        kernel_s[0] += time.perf_counter() - t0
-        return packed, res
-
-    def measure(packed, res):
-        t0 = time.perf_counter()
-        m = _measure(inputs, packed, res, wanted, metric_options)
-        kernel_s[0] += time.perf_counter() - t0
-        return m
-
+    kernel_s = 0.0
     parts = []
     with numba_threads(threads):
-        # blocks of at most chunk.block sets: a task may be far larger than the traces it holds at once. On
-        # all cores (threads None) the next block's kernel runs (nogil) while this block's metrics are taken
-        # (numpy's FFT holds the GIL and one core): pipelined, where numba's threading layer allows calls
-        # from two threads at once (tbb, omp; not workqueue)
-        if threads is None and len(blocks) > 1 and _concurrent_numba():
-            with ThreadPoolExecutor(1, thread_name_prefix="distctrl-kernel") as pool:
-                fut = pool.submit(run, 0, buffers(0))
-                for j in range(len(blocks)):
-                    done = fut.result()
-                    if j + 1 < len(blocks):
-                        fut = pool.submit(run, j + 1, buffers(j + 1))
-                    parts.append(measure(*done))
-        else:
-            for j in range(len(blocks)):
-                parts.append(measure(*run(j, buffers(j))))
-    kernel_s = kernel_s[0]
+        for a in range(0, len(index), chunk.block):
+            b = min(a + chunk.block, len(index))
+            packed = checked.pack(a, b)
+            t0 = time.perf_counter()
+            res = run_batch(inputs, packed, cycles=cycles, return_errors=True, out=_outputs(b - a, n))
+            parts.append(_measure(inputs, packed, res, wanted, metric_options))
+            kernel_s += time.perf_counter() - t0
     if parts:
         out.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]})
     else:
@@ -652,7 +638,7 @@ class Evaluator:
         # about eight chunks (the progress bar's steps); each at least a block and at most MAX_TASK_BLOCKS
         # blocks (a chunk's filter rows and table parts stay tens of MB; 64 blocks of 256 sets are about
         # 2 s of kernel on one core). Every chunk runs its points block by block (the traces of a block
-        # at a time; in this process pipelined)
+        # at a time); in this process the next chunk is checked while one runs (_run_local)
         per = -(-n // (8 if self.mode == "local" else 8 * self.n_workers))
         size = max(block, min(per, MAX_TASK_BLOCKS * block))
         chunks = [_PointChunk(points.take(np.arange(a, min(a + size, n))), a, block) for a in range(0, n, size)]
@@ -663,7 +649,7 @@ class Evaluator:
         t0 = time.perf_counter()
         extra = (base, probe)
         if self.mode == "local":
-            parts = self._run_local(chunks, description, evaluate_points_chunk, extra)
+            parts = self._run_local(chunks, description, evaluate_points_chunk, extra, ahead=check_points_chunk)
         else:
             self.open()
             parts = self._run_cluster(chunks, description, evaluate_points_chunk, extra)
@@ -795,17 +781,32 @@ class Evaluator:
         bar.add_task(description, total=total)
         return bar
 
-    def _run_local(self, chunks, description, fn=None, extra=None) -> list[dict]:
-        """``fn(inputs, chunk, cycles, metric_options, threads, *extra)`` of every chunk (default: chunk_fn)."""
+    def _run_local(self, chunks, description, fn=None, extra=None, ahead=None) -> list[dict]:
+        """``fn(inputs, chunk, cycles, metric_options, threads, *extra)`` of every chunk (default: chunk_fn).
+
+        ``ahead(inputs, chunk, *extra)``: the first part of ``fn`` (checking the points), run for the next
+        chunk in a second thread while ``fn`` runs this one, and handed to it as ``checked=`` (it is Python
+        and numpy, mostly holding the GIL, which the kernel and the FFTs do not: so it fills what they leave
+        of the cores instead of running alone); a retry runs ``fn`` whole."""
         fn = fn or self.chunk_fn
         extra = tuple(extra or ())
         bar = self._bar(sum(len(c) for c in chunks), description)
         parts = []
+        pool = ThreadPoolExecutor(1, thread_name_prefix="distctrl-check") if ahead and len(chunks) > 1 else None
         try:
-            for c in chunks:
+            upcoming = pool.submit(ahead, self._slim, chunks[0], *extra) if pool else None
+            for k, c in enumerate(chunks):
+                checked = None
+                if upcoming is not None:
+                    try:
+                        checked = upcoming.result()
+                    except Exception:                 # noqa: BLE001 - fn checks again and reports it
+                        checked = None
+                    upcoming = pool.submit(ahead, self._slim, chunks[k + 1], *extra) if k + 1 < len(chunks) else None
                 for attempt in range(self.retries + 1):
                     try:
-                        parts.append(fn(self._slim, c, self.cycles, self.metric_options, self.threads, *extra))
+                        kw = {"checked": checked} if checked is not None and attempt == 0 else {}
+                        parts.append(fn(self._slim, c, self.cycles, self.metric_options, self.threads, *extra, **kw))
                         break
                     except Exception as exc:          # noqa: BLE001 - retried, then reported
                         if attempt == self.retries:
@@ -815,6 +816,8 @@ class Evaluator:
                 if bar is not None:
                     bar.advance(0, len(c))
         finally:
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
             if bar is not None:
                 bar.stop()
         return parts

@@ -241,33 +241,62 @@ def test_evaluate_points_on_a_cluster_gives_the_local_table(inputs):
     _same_tables(got, want)
 
 
-def test_evaluate_points_pipelined_blocks_give_the_sequential_table(inputs, monkeypatch):
-    """In this process the next block's kernel runs while this block's metrics are taken (threading layers
-    tbb / omp): the same table as one block after the other."""
-    import numba
-
+def test_evaluate_points_checks_the_next_chunk_ahead_and_gives_the_same_table(inputs, monkeypatch):
+    """In this process the next chunk's points are checked in a second thread while one chunk runs
+    (Evaluator._run_local's ``ahead``): the same table, the same rejected points, as checking each chunk
+    in its own task."""
     from distctrl.tuning import runner
     from distctrl.tuning.columns import drop_inert_columns, random_columns
 
-    run_batch(inputs, inputs_packed_one(inputs), cycles=8)          # a parallel kernel ran: the layer is known
-    if numba.threading_layer() not in ("tbb", "omp"):
-        pytest.skip(f"threading layer {numba.threading_layer()}: no pipelining")
     pc, _ = drop_inert_columns(random_columns(300, 4, cycle_time=inputs.cycle_time))
-    pools = []
-    real_pool = runner.ThreadPoolExecutor
+    pc.cols["kp"][::7] = 50.0                                        # out of range: rejected, in order
+    handed = []
+    real = runner.evaluate_points_chunk
 
-    def pool(*a, **k):
-        pools.append(1)
-        return real_pool(*a, **k)
-    monkeypatch.setattr(runner, "ThreadPoolExecutor", pool)
+    def chunk_fn(*a, checked=None, **k):
+        handed.append(checked is not None)
+        return real(*a, checked=checked, **k)
+    monkeypatch.setattr(runner, "evaluate_points_chunk", chunk_fn)
     with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
-        piped = ev.evaluate_points(inputs.params, pc)
-        assert pools                                                  # the pipelined path ran
-        monkeypatch.setattr(runner, "_concurrent_numba", lambda: False)
-        pools.clear()
-        sequential = ev.evaluate_points(inputs.params, pc)
-        assert not pools
-    _same_tables(piped, sequential)
+        ahead = ev.evaluate_points(inputs.params, pc)
+        assert len(handed) > 1 and all(handed)                       # every chunk came checked
+        handed.clear()
+        monkeypatch.setattr(ev, "_run_local", _without_ahead(ev._run_local))
+        alone = ev.evaluate_points(inputs.params, pc)
+        assert handed and not any(handed)
+    _same_tables(ahead, alone)
+    assert [m for _, m in ahead.rejected] == [m for _, m in alone.rejected] and ahead.rejected
+    assert np.array_equal(ahead.info["kept"], alone.info["kept"])
+
+
+def _without_ahead(run_local):
+    def run(chunks, description, fn=None, extra=None, ahead=None):
+        return run_local(chunks, description, fn, extra)
+    return run
+
+
+def test_a_chunk_whose_check_ahead_fails_is_run_whole(inputs, monkeypatch):
+    """An exception in the check ahead is not the sweep's end: the chunk's own task checks again (and
+    would report what is wrong)."""
+    from distctrl.tuning import runner
+    from distctrl.tuning.columns import drop_inert_columns, random_columns
+
+    pc, _ = drop_inert_columns(random_columns(64, 5, cycle_time=inputs.cycle_time))
+    calls = []
+    real = runner.check_points_chunk
+
+    def flaky(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("check ahead lost")
+        return real(*a, **k)
+    monkeypatch.setattr(runner, "check_points_chunk", flaky)
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
+        got = ev.evaluate_points(inputs.params, pc)
+    monkeypatch.setattr(runner, "check_points_chunk", real)
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
+        want = ev.evaluate_points(inputs.params, pc)
+    _same_tables(got, want)
 
 
 def inputs_packed_one(inputs):
