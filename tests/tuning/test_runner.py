@@ -257,6 +257,7 @@ def test_evaluate_points_checks_the_next_chunk_ahead_and_gives_the_same_table(in
         handed.append(checked is not None)
         return real(*a, checked=checked, **k)
     monkeypatch.setattr(runner, "evaluate_points_chunk", chunk_fn)
+    monkeypatch.setattr(runner, "_side_by_side_cores", lambda: 1)     # one chunk after the other
     with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
         ahead = ev.evaluate_points(inputs.params, pc)
         assert len(handed) > 1 and all(handed)                       # every chunk came checked
@@ -291,12 +292,74 @@ def test_a_chunk_whose_check_ahead_fails_is_run_whole(inputs, monkeypatch):
             raise RuntimeError("check ahead lost")
         return real(*a, **k)
     monkeypatch.setattr(runner, "check_points_chunk", flaky)
+    monkeypatch.setattr(runner, "_side_by_side_cores", lambda: 1)
     with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
         got = ev.evaluate_points(inputs.params, pc)
     monkeypatch.setattr(runner, "check_points_chunk", real)
     with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
         want = ev.evaluate_points(inputs.params, pc)
     _same_tables(got, want)
+
+
+def test_chunks_side_by_side_give_the_table_of_chunks_in_turn(inputs, monkeypatch):
+    """Where numba runs parallel kernels from several threads (tbb, omp), a local sweep runs one chunk per
+    core, each on one numba thread: the same table, the same rejected points, as one chunk after the other."""
+    import numba
+
+    from distctrl.tuning import runner
+    from distctrl.tuning.columns import drop_inert_columns, random_columns
+
+    run_batch(inputs, inputs_packed_one(inputs), cycles=8)          # a parallel kernel ran: the layer is known
+    pc, _ = drop_inert_columns(random_columns(300, 6, cycle_time=inputs.cycle_time))
+    pc.cols["kp"][::11] = 50.0
+    cores = runner._side_by_side_cores
+    used = []
+    real = runner.ThreadPoolExecutor
+
+    def pool(n, thread_name_prefix=""):
+        used.append(thread_name_prefix)
+        return real(n, thread_name_prefix=thread_name_prefix)
+    monkeypatch.setattr(runner, "ThreadPoolExecutor", pool)
+    monkeypatch.setattr(runner, "_side_by_side_cores", lambda: 2)
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
+        side = ev.evaluate_points(inputs.params, pc)
+    assert "distctrl-chunk" in used
+    monkeypatch.setattr(runner, "_side_by_side_cores", lambda: 1)
+    used.clear()
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
+        turn = ev.evaluate_points(inputs.params, pc)
+    assert "distctrl-chunk" not in used
+    _same_tables(side, turn)
+    assert [m for _, m in side.rejected] == [m for _, m in turn.rejected] and side.rejected
+    if numba.threading_layer() in ("tbb", "omp"):
+        assert cores() == numba.get_num_threads()
+    else:
+        assert cores() == 1
+
+
+def test_a_failing_chunk_side_by_side_is_retried_then_reported(inputs, monkeypatch):
+    from distctrl.tuning import runner
+    from distctrl.tuning.columns import drop_inert_columns, random_columns
+
+    pc, _ = drop_inert_columns(random_columns(64, 7, cycle_time=inputs.cycle_time))
+    monkeypatch.setattr(runner, "_side_by_side_cores", lambda: 2)
+    calls = []
+    real = runner.evaluate_points_chunk
+
+    def flaky(*a, **k):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("lost")
+        return real(*a, **k)
+    monkeypatch.setattr(runner, "evaluate_points_chunk", flaky)
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
+        got = ev.evaluate_points(inputs.params, pc)
+        assert ev.stats["retried"] == 1
+    monkeypatch.setattr(runner, "evaluate_points_chunk", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("gone")))
+    with Evaluator(inputs, mode="local", chunk_size=16, progress=False, retries=1) as ev:
+        with pytest.raises(TuningRunError, match="failed after 1 retries: RuntimeError: gone"):
+            ev.evaluate_points(inputs.params, pc)
+    assert len(got) == 64
 
 
 def inputs_packed_one(inputs):
