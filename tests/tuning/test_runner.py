@@ -213,11 +213,11 @@ def test_evaluate_points_checks_packs_and_runs_in_the_chunks_and_gives_evaluates
     seen = []
     real = runner.evaluate_points_chunk
 
-    def spy(inputs_, chunk, *a):
+    def spy(inputs_, chunk, *a, **k):
         assert not any(isinstance(v, np.ndarray) and v.ndim == 2 for v in vars(chunk).values())
         assert chunk.block == 128
         seen.append(len(chunk))
-        return real(inputs_, chunk, *a)
+        return real(inputs_, chunk, *a, **k)
     monkeypatch.setattr(runner, "evaluate_points_chunk", spy)
     for pc in _points_case(inputs):
         sets, pts, rejected = build_sets(inputs.params, pc.to_points(), inputs.cycle_time)
@@ -271,8 +271,8 @@ def test_evaluate_points_checks_the_next_chunk_ahead_and_gives_the_same_table(in
 
 
 def _without_ahead(run_local):
-    def run(chunks, description, fn=None, extra=None, ahead=None):
-        return run_local(chunks, description, fn, extra)
+    def run(chunks, description, fn=None, extra=None, ahead=None, options=None):
+        return run_local(chunks, description, fn, extra, options=options)
     return run
 
 

@@ -69,3 +69,34 @@ def test_sweep_json_prints_the_results_to_dict(tmp_path, monkeypatch):
     assert {k: printed[k] for k in d} == d
     res.to_csv(tmp_path / "again.csv")
     assert (tmp_path / "again.csv").read_text() == (tmp_path / "s.csv").read_text()
+
+
+def test_float_fields_are_what_the_csv_module_writes_for_the_floats():
+    import csv
+    import io
+
+    from distctrl.tuning.runner import _csv_column, float_fields
+
+    v = np.array([0.1, -0.0, 0.0, np.nan, np.inf, -np.inf, 1e-5, 1e16, 123456.789, 5e-324, -1.5])
+    plain = io.StringIO()
+    csv.writer(plain).writerows([[x] for x in _csv_column(v)])
+    made = io.StringIO()
+    csv.writer(made).writerows([[x] for x in float_fields(v)])
+    assert made.getvalue() == plain.getvalue()
+
+
+def test_fields_made_beforehand_are_written_only_for_the_column_they_were_made_for(tmp_path):
+    """evaluate_points hands the table the CSV fields its chunks made; a column replaced afterwards is
+    formatted from its values."""
+    from distctrl.tuning.runner import SweepResult, float_fields
+
+    col = np.array([0.5, np.nan, 2.0])
+    res = SweepResult({"a": col, "b": np.array([1.0, 2.0, 3.0])}, fields={"a": (col, float_fields(col))})
+    res.write(tmp_path / "one.csv")
+    assert (tmp_path / "one.csv").read_text().splitlines() == ["a,b", "0.5,1.0", ",2.0", "2.0,3.0"]
+    res.data["a"] = np.array([7.0, 8.0, 9.0])                      # replaced: the old fields are not used
+    res.write(tmp_path / "two.csv")
+    assert (tmp_path / "two.csv").read_text().splitlines() == ["a,b", "7.0,1.0", "8.0,2.0", "9.0,3.0"]
+    stale = SweepResult({"a": col}, fields={"a": (np.array([1.0, 2.0, 3.0]), ["1.0", "2.0", "3.0"])})
+    stale.write(tmp_path / "three.csv")                            # fields of another array: not taken
+    assert (tmp_path / "three.csv").read_text().splitlines() == ["a", "0.5", '""', "2.0"]   # (csv quotes a lone empty field)
