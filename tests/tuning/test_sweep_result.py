@@ -100,3 +100,19 @@ def test_fields_made_beforehand_are_written_only_for_the_column_they_were_made_f
     stale = SweepResult({"a": col}, fields={"a": (np.array([1.0, 2.0, 3.0]), ["1.0", "2.0", "3.0"])})
     stale.write(tmp_path / "three.csv")                            # fields of another array: not taken
     assert (tmp_path / "three.csv").read_text().splitlines() == ["a", "0.5", '""', "2.0"]   # (csv quotes a lone empty field)
+
+
+def test_csv_fields_of_integers_and_booleans_are_what_the_csv_module_writes():
+    import csv
+    import io
+
+    from distctrl.tuning.runner import _csv_column, csv_fields
+
+    for v in (np.array([0, -3, 2**40]), np.array([True, False]), np.array([1, 7], dtype=np.uint8),
+              np.array([0.25, np.nan])):
+        plain, made = io.StringIO(), io.StringIO()
+        csv.writer(plain).writerow(_csv_column(v))
+        csv.writer(made).writerow(csv_fields(v))
+        assert made.getvalue() == plain.getvalue()
+    with pytest.raises(TypeError):
+        csv_fields(np.array(["a"], dtype=object))
