@@ -133,7 +133,10 @@ def expo_weights(n: int, alpha: float) -> np.ndarray:
     rho = 1.0 - alpha
     older = np.power(rho, age - 1.0)
     older *= (1.0 - alpha) / older.sum() if older.sum() > 0.0 else 0.0
-    return np.r_[older, alpha]
+    weights = np.empty(n)                 # [older..., alpha]: np.r_ cost more than the rest (a sweep designs
+    weights[:-1] = older                  # thousands of these)
+    weights[-1] = alpha
+    return weights
 
 
 @dataclass(frozen=True)

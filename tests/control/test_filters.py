@@ -364,3 +364,19 @@ def test_filter_object_state_is_public_and_apply_starts_fresh():
     assert f.last == 4.0 and f.buf[:3] == [3.0, 3.0, 6.0] or sorted(f.buf[:3]) == [3.0, 3.0, 6.0]
     np.testing.assert_allclose(f.apply([1.0, 1.0, 4.0]), [1.0, 1.0, 2.0])
     assert f.last == 4.0                                # apply() did not touch this filter's state
+
+
+def test_expo_weights_are_the_older_geometric_weights_then_alpha_bit_for_bit():
+    """The weights, oldest first: rho^(age-1) scaled to 1 - alpha, then alpha (SPEC §4), as the
+    formula gives them element by element (the array is built without np.r_, issue 27)."""
+    from distctrl.control.filters import expo_weights
+
+    rng = np.random.default_rng(3)
+    for n in [2, 3, 7, 40] + [int(v) for v in rng.integers(2, 60, 40)]:
+        for alpha in [1e-9, 0.01, 0.5, 0.99, 1.0] + list(rng.random(5)):
+            older = np.power(1.0 - alpha, np.arange(n - 1, 0, -1, dtype=np.float64) - 1.0)
+            older *= (1.0 - alpha) / older.sum() if older.sum() > 0.0 else 0.0
+            want = np.concatenate([older, [alpha]])
+            got = expo_weights(n, alpha)
+            assert got.shape == (n,) and np.array_equal(got.view(np.int64), want.view(np.int64)), (n, alpha)
+    assert np.array_equal(expo_weights(1, 0.3), [1.0])
