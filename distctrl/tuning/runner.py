@@ -3,8 +3,9 @@
 :class:`Evaluator` holds the recorded scenario (:class:`~distctrl.batch.closed_loop.LoopInputs`)
 and where the work runs:
 
-* ``mode="local"``: in this process, one chunk after the other, each on all cores (numba threads);
-  a chunk that raises is retried up to ``retries`` times;
+* ``mode="local"``: in this process, a sweep's chunks one per core side by side on one numba thread
+  each (where numba's threading layer allows it), other work one chunk after the other on all cores
+  (:meth:`Evaluator._run_local`); a chunk that raises is retried up to ``retries`` times;
 * ``mode="cluster"`` (the default): an embedded ``LocalCluster(n_workers=os.cpu_count(),
   threads_per_worker=1, processes=True)`` started on entry and closed on exit, or, with
   ``scheduler="tcp://host:8786"``, a ``Client`` of an existing cluster (not closed).
