@@ -25,6 +25,8 @@ from __future__ import annotations
 import csv
 import dataclasses
 import functools
+import hashlib
+import io
 import logging
 import math
 import os
@@ -180,16 +182,17 @@ def check_points_chunk(inputs, chunk: "_PointChunk", base, probe) -> _CheckedChu
 
 
 def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metric_options: dict,
-                          threads: int | None, base, probe, texts: bool = False,
+                          threads: int | None, base, probe, csv_options: dict | None = None,
                           checked: _CheckedChunk | None = None) -> dict:
     """Check, design, pack, run and measure one chunk of points (a pure function of its arguments; on a
     cluster it runs on the worker, which gets only the points' columns), ``chunk.block`` sets at a time
     (their traces in arrays reused from block to block): the metrics of the kept points,
     ``_kept`` their indices, ``_rejected`` ``(point, message)`` of the others, ``_kernel_s`` the time in
     the kernel and the metrics pass, ``_task_s`` the whole chunk's. ``checked``: the chunk's
-    :func:`check_points_chunk`, when done already. ``texts``: also ``_texts``, the CSV fields of the metric
-    and parameter columns (:func:`csv_fields`), made here beside the other chunks' kernels instead of all at
-    once when the table is written (a local sweep's 10 000 rows took 0.08 s to format, on one core).
+    :func:`check_points_chunk`, when done already. ``csv_options`` (``osc_weight``, ``cost_weights``): also
+    ``_csv``, the chunk's rows of the table as :meth:`SweepResult.to_csv` writes them (:func:`csv_rows` of
+    :func:`points_table`), made here beside the other chunks' kernels instead of all at once when the table
+    is written (a local sweep's 10 000 rows took 0.08 s to format, on one core).
 
     Block after block, each on all of ``threads``: the kernel, then the metrics pass and the two FFTs
     (:func:`~distctrl.tuning.metrics.compute_metrics`). Running the next block's kernel in a second thread
@@ -220,10 +223,8 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
         out.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]})
     else:
         out["failed"] = np.zeros(0, dtype=bool)
-    if texts and parts:
-        sel = chunk.points.take(index)
-        out["_texts"] = {name: float_fields(out[name]) for name in METRIC_NAMES}
-        out["_texts"].update({f: csv_fields(full_column(base, sel, f)) for f in PARAM_COLUMNS if f != "filter_type"})
+    if csv_options is not None and parts:
+        out["_csv"] = csv_rows(points_table(base, chunk.points.take(index), out, **csv_options))
     out["_kernel_s"] = kernel_s
     out["_task_s"] = time.perf_counter() - t_task
     return out
@@ -235,14 +236,14 @@ class SweepResult:
     """A table: ``columns`` (names) and ``data`` (name -> numpy array or list), one row per set."""
 
     def __init__(self, data: dict[str, object], params: list | None = None, rejected: list | None = None,
-                 info: dict | None = None, fields: dict | None = None):
+                 info: dict | None = None, csv_body: str | None = None):
         self.data = {k: (v if isinstance(v, list) else np.asarray(v)) for k, v in data.items()}
         self.params = params or []
         self.rejected = rejected or []
         self.info = info or {}
-        # name -> (column, its CSV fields) made beforehand (evaluate_points); used while that column is in data
-        self._fields = {k: (col, f) for k, (col, f) in (fields or {}).items()
-                        if k in self.data and self.data[k] is col and len(f) == len(col)}
+        # the CSV rows of this table made beforehand (evaluate_points), with the digest of the table they
+        # were made from: written only while the table is the same (a column changed in place is not)
+        self._csv_body = (_digest(self.data), csv_body) if csv_body is not None else None
 
     @property
     def columns(self) -> list[str]:
@@ -281,12 +282,11 @@ class SweepResult:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         # column by column (tolist: the values of rows(), without a dict per row; 10 000 rows took seconds)
-        cols = [self._fields[k][1] if k in self._fields and self._fields[k][0] is v else _csv_column(v)
-                for k, v in self.data.items()]
+        made = self._csv_body
+        body = made[1] if made is not None and made[0] == _digest(self.data) else csv_rows(self.data)
         with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(self.columns)
-            w.writerows(zip(*cols))
+            csv.writer(fh).writerow(self.columns)
+            fh.write(body)
         return path
 
     def to_parquet(self, path) -> Path:
@@ -462,23 +462,49 @@ def _plain(x):
     return x
 
 
-def float_fields(v: np.ndarray) -> list[str]:
-    """The CSV fields of a float column: what the csv module writes for ``_csv_column(v)`` (a float's repr,
-    an empty field for NaN), as strings."""
-    out = list(map(repr, v.tolist()))
-    for i in np.flatnonzero(np.isnan(v)).tolist():
-        out[i] = ""
-    return out
+def csv_rows(data: dict) -> str:
+    """The rows of a table (name -> column) as :meth:`SweepResult.to_csv` writes them below the header (the
+    csv module's: a float as its repr, NaN as an empty field, ``\\r\\n`` after each row)."""
+    buf = io.StringIO()
+    csv.writer(buf).writerows(zip(*[_csv_column(v) for v in data.values()]))
+    return buf.getvalue()
 
 
-def csv_fields(v: np.ndarray) -> list[str]:
-    """The CSV fields of a numeric column (:func:`float_fields`; integers and booleans as ``str``, as the csv
-    module writes them)."""
-    if v.dtype.kind == "f":
-        return float_fields(v)
-    if v.dtype.kind in "iub":
-        return list(map(str, v.tolist()))
-    raise TypeError(f"csv_fields: a numeric column, not {v.dtype}")
+def _digest(data: dict) -> bytes:
+    """A digest of a table's names and values (about a millisecond for 10 000 rows of 21 columns)."""
+    h = hashlib.blake2b(digest_size=16)
+    for k, v in data.items():
+        h.update(k.encode() + b"\0")
+        if isinstance(v, list):
+            h.update(repr(v).encode())
+        else:
+            a = np.ascontiguousarray(v)
+            h.update(f"{a.dtype.str}{a.shape}".encode())
+            h.update(a.tobytes() if a.dtype.kind != "O" else repr(a.tolist()).encode())
+    return h.digest()
+
+
+def metric_columns(m: dict, osc_weight: float = 1.0, cost_weights: dict | None = None) -> dict:
+    """The metric columns of a result table: ``cost`` (:func:`~distctrl.tuning.metrics.cost`), the metrics,
+    ``failed`` and the first error's cycle and ID."""
+    data = {"cost": cost(m, osc_weight, **(cost_weights or {}))}
+    for name in METRIC_NAMES:
+        data[name] = m[name]
+    data["failed"] = m["failed"]
+    data["error_cycle"] = m["error_cycle"]
+    data["error_id"] = m["error_id"]
+    return data
+
+
+def points_table(base, sel, m: dict, osc_weight: float = 1.0, cost_weights: dict | None = None) -> dict:
+    """The table of points ``sel`` (:class:`~distctrl.tuning.space.PointColumns`) over ``base`` with their
+    metrics ``m``: the parameter columns, then :func:`metric_columns`."""
+    data: dict[str, object] = {}
+    for f in PARAM_COLUMNS:
+        col = full_column(base, sel, f)
+        data[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
+    data.update(metric_columns(m, osc_weight, cost_weights))
+    return data
 
 
 def _csv_column(v) -> list:
@@ -695,7 +721,8 @@ class Evaluator:
         extra = (base, probe)
         if self.mode == "local":
             parts = self._run_local(chunks, description, evaluate_points_chunk, extra, ahead=check_points_chunk,
-                                    options={"texts": True})
+                                    options={"csv_options": {"osc_weight": self.osc_weight,
+                                                             "cost_weights": self.cost_weights}})
         else:
             self.open()
             parts = self._run_cluster(chunks, description, evaluate_points_chunk, extra)
@@ -705,22 +732,16 @@ class Evaluator:
             self.stats["kernel_s"] = self.stats.get("kernel_s", 0.0) + float(p.pop("_kernel_s"))
             self.stats["task_s"] = self.stats.get("task_s", 0.0) + float(p.pop("_task_s"))
         parts = [p for p in parts if len(p["failed"])]
-        texts = [p.pop("_texts", None) for p in parts]
+        texts = [p.pop("_csv", None) for p in parts]
         n_sets = len(kept)
         info = self._account(n_sets, time.perf_counter() - t0, len(chunks))
         if not n_sets:
             return SweepResult(self._table([], [], {}), rejected=rejected, info={"kept": kept})
         merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-        sel = points.take(kept)
-        params = {}
-        for f in PARAM_COLUMNS:
-            col = full_column(base, sel, f)
-            params[f] = _FILTER_NAMES[col].tolist() if f == "filter_type" else col
-        table = {**params, **self._metric_columns(merged)}
-        fields = None
-        if all(t is not None for t in texts):     # the chunks formatted their columns (a local sweep)
-            fields = {name: (table[name], [f for t in texts for f in t[name]]) for name in texts[0]}
-        return SweepResult(table, params=[], rejected=rejected, info={**info, "kept": kept}, fields=fields)
+        table = points_table(base, points.take(kept), merged, self.osc_weight, self.cost_weights)
+        # the chunks' rows of the CSV, in order (a local sweep made them beside the kernels)
+        body = "".join(texts) if all(t is not None for t in texts) else None
+        return SweepResult(table, params=[], rejected=rejected, info={**info, "kept": kept}, csv_body=body)
 
     def _evaluate_packed(self, packed, table, params, description) -> SweepResult:
         n_sets = len(packed)
@@ -810,13 +831,7 @@ class Evaluator:
         return data
 
     def _metric_columns(self, m) -> dict:
-        data = {"cost": cost(m, self.osc_weight, **self.cost_weights)}
-        for name in METRIC_NAMES:
-            data[name] = m[name]
-        data["failed"] = m["failed"]
-        data["error_cycle"] = m["error_cycle"]
-        data["error_id"] = m["error_id"]
-        return data
+        return metric_columns(m, self.osc_weight, self.cost_weights)
 
     def _bar(self, total: int, description: str):
         if not self.progress:

@@ -71,48 +71,44 @@ def test_sweep_json_prints_the_results_to_dict(tmp_path, monkeypatch):
     assert (tmp_path / "again.csv").read_text() == (tmp_path / "s.csv").read_text()
 
 
-def test_float_fields_are_what_the_csv_module_writes_for_the_floats():
-    import csv
-    import io
+def test_rows_made_beforehand_are_written_only_while_the_table_is_the_one_they_were_made_from(tmp_path):
+    """evaluate_points hands the table the CSV rows its chunks made (csv_rows); written while the table's
+    names and values are those they were made from, else the table is formatted as it is."""
+    from distctrl.tuning.runner import SweepResult, csv_rows
 
-    from distctrl.tuning.runner import _csv_column, float_fields
-
-    v = np.array([0.1, -0.0, 0.0, np.nan, np.inf, -np.inf, 1e-5, 1e16, 123456.789, 5e-324, -1.5])
-    plain = io.StringIO()
-    csv.writer(plain).writerows([[x] for x in _csv_column(v)])
-    made = io.StringIO()
-    csv.writer(made).writerows([[x] for x in float_fields(v)])
-    assert made.getvalue() == plain.getvalue()
-
-
-def test_fields_made_beforehand_are_written_only_for_the_column_they_were_made_for(tmp_path):
-    """evaluate_points hands the table the CSV fields its chunks made; a column replaced afterwards is
-    formatted from its values."""
-    from distctrl.tuning.runner import SweepResult, float_fields
-
-    col = np.array([0.5, np.nan, 2.0])
-    res = SweepResult({"a": col, "b": np.array([1.0, 2.0, 3.0])}, fields={"a": (col, float_fields(col))})
+    data = {"a": np.array([0.5, np.nan, -0.0]), "b": np.array([1, 2, 3]), "c": ["x", "y,z", 'q"']}
+    assert csv_rows(data) == '0.5,1,x\r\n,2,"y,z"\r\n-0.0,3,"q"""\r\n'
+    res = SweepResult({k: (v.copy() if isinstance(v, np.ndarray) else list(v)) for k, v in data.items()},
+                      csv_body="made,beforehand,1\r\n")
     res.write(tmp_path / "one.csv")
-    assert (tmp_path / "one.csv").read_text().splitlines() == ["a,b", "0.5,1.0", ",2.0", "2.0,3.0"]
-    res.data["a"] = np.array([7.0, 8.0, 9.0])                      # replaced: the old fields are not used
+    assert (tmp_path / "one.csv").read_text().splitlines() == ["a,b,c", "made,beforehand,1"]
+    res.data["b"][1] = 7                                            # changed in place: formatted now
     res.write(tmp_path / "two.csv")
-    assert (tmp_path / "two.csv").read_text().splitlines() == ["a,b", "7.0,1.0", "8.0,2.0", "9.0,3.0"]
-    stale = SweepResult({"a": col}, fields={"a": (np.array([1.0, 2.0, 3.0]), ["1.0", "2.0", "3.0"])})
-    stale.write(tmp_path / "three.csv")                            # fields of another array: not taken
-    assert (tmp_path / "three.csv").read_text().splitlines() == ["a", "0.5", '""', "2.0"]   # (csv quotes a lone empty field)
+    assert (tmp_path / "two.csv").read_text().splitlines() == ["a,b,c", "0.5,1,x", ',7,"y,z"', '-0.0,3,"q"""']
+    plain = SweepResult(dict(data))
+    plain.write(tmp_path / "three.csv")
+    assert (tmp_path / "three.csv").read_text().splitlines()[1:] == ["0.5,1,x", ',2,"y,z"', '-0.0,3,"q"""']
 
 
-def test_csv_fields_of_integers_and_booleans_are_what_the_csv_module_writes():
-    import csv
-    import io
+def test_a_table_changed_in_place_after_the_sweep_is_written_as_it_is_now(tmp_path):
+    """The CSV text a local sweep's chunks made beforehand is written only while the table is unchanged:
+    a value changed in place afterwards is in the file."""
+    from distctrl.batch.closed_loop import prepare
+    from distctrl.tuning.columns import drop_inert_columns, random_columns
 
-    from distctrl.tuning.runner import _csv_column, csv_fields
-
-    for v in (np.array([0, -3, 2**40]), np.array([True, False]), np.array([1, 7], dtype=np.uint8),
-              np.array([0.25, np.nan])):
-        plain, made = io.StringIO(), io.StringIO()
-        csv.writer(plain).writerow(_csv_column(v))
-        csv.writer(made).writerow(csv_fields(v))
-        assert made.getvalue() == plain.getvalue()
-    with pytest.raises(TypeError):
-        csv_fields(np.array(["a"], dtype=object))
+    inputs = prepare(SCN, cycles=300)
+    pc, _ = drop_inert_columns(random_columns(40, 2, cycle_time=inputs.cycle_time))
+    with Evaluator(inputs, mode="local", chunk_size=8, progress=False) as ev:
+        res = ev.evaluate_points(inputs.params, pc)
+    res.write(tmp_path / "before.csv")
+    res.data["rms_error"][3] = 123.25
+    res.data["kp"][5] = 0.625
+    res.data["filter_type"][0] = "PASS"
+    res.write(tmp_path / "after.csv")
+    before = (tmp_path / "before.csv").read_text().splitlines()
+    after = (tmp_path / "after.csv").read_text().splitlines()
+    cols = before[0].split(",")
+    assert after[4].split(",")[cols.index("rms_error")] == "123.25"
+    assert after[6].split(",")[cols.index("kp")] == "0.625"
+    assert after[1].split(",")[cols.index("filter_type")] == "PASS"
+    assert [a for a, b in zip(after, before) if a != b] == [after[1], after[4], after[6]]
