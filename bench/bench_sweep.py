@@ -239,7 +239,8 @@ def main(argv=None) -> dict:
              f"{st['prepare_s']:.2f} s, "
              f"sampling {st['sample_s']:.2f} s, checking the sets {st['build_sets_s']:.2f} s "
              f"({st['filter_designs']} distinct filter designs), packing {st['pack_s']:.2f} s, kernel "
-             f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s, writing the table {st['write_s']:.2f} s.", ""]
+             f"{st['kernel_s']:.2f} s, metrics {st['metrics_s']:.2f} s, writing the table {st['write_s']:.2f} s (its rows "
+             f"formatted in the chunks beside the kernels since 2026-11-28).", ""]
     if sd:
         lines += [f"Kernel per core vs the SIMD C anchor (bench/batch_c/closed_loop_simd.c, `gcc {sd['cflags']}`), "
                   f"{sd['sets']} MOVING_AVERAGE sets × {sd['cycles']} cycles, 1 thread: numba "
