@@ -283,15 +283,8 @@ def test_a_chunk_whose_check_ahead_fails_is_run_whole(inputs, monkeypatch):
     from distctrl.tuning.columns import drop_inert_columns, random_columns
 
     pc, _ = drop_inert_columns(random_columns(64, 5, cycle_time=inputs.cycle_time))
-    calls = []
     real = runner.check_points_chunk
-
-    def flaky(*a, **k):
-        calls.append(1)
-        if len(calls) == 2:
-            raise RuntimeError("check ahead lost")
-        return real(*a, **k)
-    monkeypatch.setattr(runner, "check_points_chunk", flaky)
+    monkeypatch.setattr(runner, "check_points_chunk", _failing_on_call(real, 2, "check ahead lost"))
     monkeypatch.setattr(runner, "_side_by_side_cores", lambda: 1)
     with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
         got = ev.evaluate_points(inputs.params, pc)
@@ -343,15 +336,7 @@ def test_a_failing_chunk_side_by_side_is_retried_then_reported(inputs, monkeypat
 
     pc, _ = drop_inert_columns(random_columns(64, 7, cycle_time=inputs.cycle_time))
     monkeypatch.setattr(runner, "_side_by_side_cores", lambda: 2)
-    calls = []
-    real = runner.evaluate_points_chunk
-
-    def flaky(*a, **k):
-        calls.append(1)
-        if len(calls) == 1:
-            raise RuntimeError("lost")
-        return real(*a, **k)
-    monkeypatch.setattr(runner, "evaluate_points_chunk", flaky)
+    monkeypatch.setattr(runner, "evaluate_points_chunk", _failing_on_call(runner.evaluate_points_chunk, 1, "lost"))
     with Evaluator(inputs, mode="local", chunk_size=16, progress=False) as ev:
         got = ev.evaluate_points(inputs.params, pc)
         assert ev.stats["retried"] == 1
@@ -360,6 +345,18 @@ def test_a_failing_chunk_side_by_side_is_retried_then_reported(inputs, monkeypat
         with pytest.raises(TuningRunError, match="failed after 1 retries: RuntimeError: gone"):
             ev.evaluate_points(inputs.params, pc)
     assert len(got) == 64
+
+
+def _failing_on_call(real, k: int, message: str):
+    """``real``, but its k-th call raises RuntimeError(message)."""
+    calls = []
+
+    def flaky(*a, **kw):
+        calls.append(1)
+        if len(calls) == k:
+            raise RuntimeError(message)
+        return real(*a, **kw)
+    return flaky
 
 
 def inputs_packed_one(inputs):
