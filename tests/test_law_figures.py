@@ -1,17 +1,15 @@
 """docs/control-law.md shows the figures tools/law_figures.py measures (regenerate: `make docs`)."""
 from __future__ import annotations
 
-import importlib.util
 import pathlib
+
+from tests.scripts import load_script
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("law_figures", ROOT / "tools" / "law_figures.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("tools/law_figures.py")
 
 
 def test_control_law_page_shows_the_measured_figures():

@@ -3,21 +3,17 @@ implemented item has a test that exists and code that exists, the other items sa
 is the one the tables generate (tools/traceability.py)."""
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import pytest
+
+from tests.scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("traceability", ROOT / "tools" / "traceability.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod            # dataclasses look their module up while the file runs
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("tools/traceability.py", registered=True)   # (dataclasses look their module up)
 
 
 tr = _tool()

@@ -11,8 +11,6 @@ exact comparison also catches harmless-looking rewrites (``u * (1 / T)`` for ``u
 """
 from __future__ import annotations
 
-import importlib.util
-import pathlib
 import shutil
 
 import numpy as np
@@ -28,8 +26,8 @@ from distctrl.errors import ErrorId  # noqa: E402
 from distctrl.params import AxisParameters  # noqa: E402
 from distctrl.params.listfile import format_list  # noqa: E402
 from distctrl.sim.scenario import scenario_from_dict  # noqa: E402
+from tests.scripts import load_script  # noqa: E402
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
 MODES = {
     "SET_POS": ("N10 Z[DIST_CTRL ON SET_POS=29.7]", {}),
     "CONST_DIST": ("N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=0.5]", dict(use_both_encoders=False)),
@@ -39,10 +37,7 @@ PATH = "\nN20 G1 X100 Y50 F3000\nN30 G1 X0 Y0\nN999 M30\n"
 
 
 def _load_bench():
-    spec = importlib.util.spec_from_file_location("bench_batch", ROOT / "bench" / "bench_batch.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("bench/bench_batch.py")
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,6 @@
 valgrind, which only counts what the harness does), and the per-cycle arithmetic is right."""
 from __future__ import annotations
 
-import importlib.util
 import os
 import pathlib
 import subprocess
@@ -10,17 +9,12 @@ import sys
 
 import pytest
 
+from tests.scripts import load_script
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
-def _module():
-    spec = importlib.util.spec_from_file_location("compare_instructions", ROOT / "bench" / "compare_instructions.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-cmp = _module()
+cmp = load_script("bench/compare_instructions.py")
 
 
 @pytest.mark.parametrize("case", sorted(cmp.SIZES))

@@ -1,16 +1,13 @@
 """Short soak and SIGINT-interruption runs (the long soak is ``make stress``: bench/soak.py)."""
 from __future__ import annotations
 
-import importlib.util
-import pathlib
 import random
+
+from tests.scripts import load_script
 
 from .conftest import stress_scale, tally
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("distctrl_bench_soak", ROOT / "bench" / "soak.py")
-soak_module = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(soak_module)
+soak_module = load_script("bench/soak.py", "distctrl_bench_soak")
 
 
 def test_short_soak_no_drift_no_memory_growth_complete_trace():

@@ -3,25 +3,17 @@ continue where they stopped with the same result as a run never stopped, record 
 and the serve campaigns run against a real ``distctrl serve --ui`` with the page open."""
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import pathlib
-import sys
 from types import SimpleNamespace
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+from tests.scripts import load_script
 
 
 def _load(name: str):
-    if str(ROOT / "bench") not in sys.path:
-        sys.path.insert(0, str(ROOT / "bench"))
-    spec = importlib.util.spec_from_file_location(f"distctrl_bench_{name}", ROOT / "bench" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(f"bench/{name}.py", f"distctrl_bench_{name}", beside=True)
 
 
 soak = _load("soak")
