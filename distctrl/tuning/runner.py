@@ -54,6 +54,18 @@ DEFAULT_CHUNK = 256
 DEFAULT_CHUNK_BYTES = 256 * 2**20
 #: the most blocks (``chunk_size`` sets each) one chunk of :meth:`Evaluator.evaluate_points` runs
 MAX_TASK_BLOCKS = 64
+#: dask settings of the embedded LocalCluster (not of a cluster given with ``scheduler``): its scheduler and
+#: workers share the machine's cores with the chunks they run, and dask's defaults wake them 50-100 times a
+#: second (the 20 ms event-loop tick, the workers' 10 ms statistical profiler of the running task, 100-500 ms
+#: monitors): about 1 CPU-s per 10 s with nothing to do, and with 2 workers on 2 cores each task ran about 7 %
+#: longer than on 1 worker (bench/bench_sweep.py, docs/tuning.md). With these the dashboard still shows tasks,
+#: memory and progress, but no profile of the running code.
+EMBEDDED_CLUSTER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "500ms",
+}
 #: FilterType value -> name, indexable by an array of values (DEFAULT = -1 is the last entry)
 _FILTER_NAMES = np.array([FilterType(v).name if v in {int(t) for t in FilterType} else str(v)
                           for v in list(range(max(FilterType) + 1)) + [-1]], dtype=object)
@@ -643,9 +655,14 @@ class Evaluator:
             if self.scheduler:
                 self._client = Client(self.scheduler, timeout="20s")
             else:
-                self._cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1, processes=True,
-                                             dashboard_address=":0", silence_logs=logging.ERROR)
-                self._client = Client(self._cluster)
+                import dask
+
+                # while the servers are made: they read their timers then, and each nanny hands this
+                # config to the worker process it spawns (and to a worker it restarts)
+                with dask.config.set(EMBEDDED_CLUSTER_CONFIG):
+                    self._cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1, processes=True,
+                                                 dashboard_address=":0", silence_logs=logging.ERROR)
+                    self._client = Client(self._cluster)
         except OSError as exc:
             self.close()
             raise TuningRunError(f"cannot reach the dask scheduler {self.scheduler or '(local)'}: {exc}") from None

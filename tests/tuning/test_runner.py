@@ -363,3 +363,31 @@ def inputs_packed_one(inputs):
     from distctrl.batch.closed_loop import pack_sets
 
     return pack_sets(inputs, [inputs.params])
+
+
+def test_the_embedded_cluster_runs_without_the_dashboard_s_high_rate_timers(inputs):
+    """The embedded LocalCluster's processes share the machine's cores with the chunks: dask's 20 ms event-loop
+    tick, the workers' 10 ms statistical profiler and the 100-500 ms monitors kept the two workers and the
+    scheduler at about 1 CPU-s per 10 s while idle, and made each task about 7 % slower with 2 workers on 2
+    cores (bench/bench_sweep.py's dask scaling, issue 27). The workers (spawned processes) and the scheduler
+    run with the slower timers of runner.EMBEDDED_CLUSTER_CONFIG; the caller's dask config is left as it was."""
+    pytest.importorskip("distributed")
+    import dask
+
+    from distctrl.tuning import runner
+
+    keys = ("distributed.worker.profile.enabled", "distributed.admin.tick.interval",
+            "distributed.admin.system-monitor.interval", "distributed.worker.memory.monitor-interval")
+    before = {k: dask.config.get(k) for k in keys}
+    assert before["distributed.worker.profile.enabled"] is True          # dask's defaults in this process
+    with Evaluator(inputs, mode="cluster", n_workers=1, progress=False) as ev:
+        ev.open()
+        seen = ev._client.run(lambda: {k: dask.config.get(k) for k in keys})
+        tick = ev._client.run_on_scheduler(lambda dask_scheduler: dask_scheduler._tick_interval)
+        assert {k: dask.config.get(k) for k in keys} == before            # not changed for the caller
+    (worker,) = seen.values()
+    assert worker["distributed.worker.profile.enabled"] is False
+    for k in keys[1:]:
+        assert dask.utils.parse_timedelta(worker[k]) >= 0.5, (k, worker[k])
+    assert tick >= 0.5
+    assert worker == {k: runner.EMBEDDED_CLUSTER_CONFIG.get(k, before[k]) for k in keys}
