@@ -16,7 +16,7 @@ from ..tuning.runner import DEFAULT_CHUNK, Evaluator
 from ..tuning.columns import COLUMN_FIELDS, columns_of, drop_inert_columns, random_columns
 from ..tuning.space import build_sets, drop_inert_d_tv, grid_points, parse_grid
 from ..tuning.tune import tune
-from .common import SEED, Finite, check_writable, emit_json, fail
+from .common import SEED, Finite, check_writable, emit_json, fail, freeze_loaded_objects
 
 
 def _errors() -> tuple:
@@ -94,6 +94,7 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
             opts["mode"] = "local"
             _say(f"{expected} sets fit in one chunk: running in this process (no cluster to start)")
         inputs = prepare(scenario, cycles)
+        freeze_loaded_objects()              # before numba loads the kernels (its own full collections)
         # the cluster starts (in the background) while the sets are built
         with Evaluator(inputs, cycles=cycles, n_workers=workers, chunk_size=chunk, log=_say,
                        progress=False if as_json else None, cost_weights=weights, **opts) as ev:
