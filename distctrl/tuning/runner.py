@@ -30,6 +30,7 @@ import io
 import logging
 import math
 import os
+import re
 import sys
 import threading
 import time
@@ -475,11 +476,26 @@ def _plain(x):
 
 def csv_rows(data: dict) -> str:
     """The rows of a table (name -> column) as :meth:`SweepResult.to_csv` writes them below the header (the
-    csv module's: a float as its repr, NaN as an empty field, ``\\r\\n`` after each row)."""
-    buf = io.StringIO()
-    # column by column (tolist: the values of rows(), without a dict per row; 10 000 rows took seconds)
-    csv.writer(buf).writerows(zip(*[_csv_column(v) for v in data.values()]))
-    return buf.getvalue()
+    csv module's: a float as its repr, NaN and None as an empty field, a field with a comma, a quote or a line
+    break quoted, ``\r\n`` after each row)."""
+    cols = [_csv_column(v) for v in data.values()]
+    if len(cols) < 2 or any(_CSV_SPECIAL.search(f) for c, v in zip(cols, data.values()) if _is_text(v) for f in c):
+        # a text field to quote, or one column (an empty field alone on its row is written ""): the csv module
+        buf = io.StringIO()
+        csv.writer(buf).writerows(zip(*cols))
+        return buf.getvalue()
+    # no field to quote (numbers and names): the same text joined directly, a third faster than the csv
+    # module (the fields are made once, column by column: a local sweep's 10 000 rows took 0.08 s on one core)
+    return "".join([",".join(row) + "\r\n" for row in zip(*cols)])
+
+
+#: what the csv module's QUOTE_MINIMAL quotes a field for (the delimiter, the quote, a line break)
+_CSV_SPECIAL = re.compile(r'[,"\r\n]')
+
+
+def _is_text(v) -> bool:
+    """Whether a column's fields can hold text (a list, an object or string array) rather than numbers."""
+    return isinstance(v, list) or v.dtype.kind in "OUS"
 
 
 def _digest(data: dict) -> bytes:
@@ -519,23 +535,26 @@ def points_table(base, sel, m: dict, osc_weight: float = 1.0, cost_weights: dict
     return data
 
 
-def _csv_column(v) -> list:
-    """A column's CSV fields: what ``_csv(_plain(x))`` gives for every value, by the column's type (the csv
-    module writes a float as its repr, a NaN as an empty field)."""
+def _csv_column(v) -> list[str]:
+    """A column's CSV fields as text, what the csv module writes for each value (``_csv(_plain(x))``): a float
+    as its repr, a NaN or None as an empty field, anything else as ``str``; by the column's type."""
     if isinstance(v, list):
         return [_csv(_plain(x)) for x in v]
     vals = v.tolist()
     if v.dtype.kind == "f":
-        return [x if x == x else "" for x in vals]
+        out = list(map(repr, vals))
+        for i in np.flatnonzero(np.isnan(v)).tolist():
+            out[i] = ""
+        return out
     if v.dtype.kind in "iub":
-        return vals
+        return list(map(str, vals))
     return [_csv(_plain(x)) for x in vals]
 
 
-def _csv(x):
+def _csv(x) -> str:
     if isinstance(x, float):
         return "" if math.isnan(x) else repr(x)
-    return x
+    return "" if x is None else str(x)
 
 
 def _fmt_param(x) -> str:

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from click.testing import CliRunner
 
 from distctrl.cli.common import json_text
@@ -112,3 +114,38 @@ def test_a_table_changed_in_place_after_the_sweep_is_written_as_it_is_now(tmp_pa
     assert after[6].split(",")[cols.index("kp")] == "0.625"
     assert after[1].split(",")[cols.index("filter_type")] == "PASS"
     assert [a for a, b in zip(after, before) if a != b] == [after[1], after[4], after[6]]
+
+
+def _csv_module_rows(data: dict) -> str:
+    """The definition csv_rows keeps: the csv module on the table's Python values (numpy scalars as Python
+    numbers, a NaN as an empty field)."""
+    import csv
+    import io
+
+    def value(x):
+        x = x.item() if isinstance(x, np.generic) else x
+        return "" if isinstance(x, float) and x != x else x
+    buf = io.StringIO()
+    csv.writer(buf).writerows(zip(*[[value(x) for x in v] for v in data.values()]))
+    return buf.getvalue()
+
+
+_floats = st.floats(allow_nan=True, allow_infinity=True, width=64)
+_column = st.one_of(
+    st.lists(_floats, min_size=3, max_size=3).map(np.array),
+    st.lists(st.integers(-2**62, 2**62), min_size=3, max_size=3).map(np.array),
+    st.lists(st.booleans(), min_size=3, max_size=3).map(lambda v: np.array(v, dtype=bool)),
+    st.lists(st.one_of(st.text(max_size=6), st.sampled_from(["KALMAN_MA", "PT1", "a,b", 'q"', "x\r\ny", ""]),
+                       st.none(), _floats, st.integers()), min_size=3, max_size=3))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_column, min_size=1, max_size=5))
+def test_csv_rows_are_the_csv_module_s_rows_of_any_table(columns):
+    """csv_rows joins the fields itself where no field needs quoting (a third faster than the csv module over a
+    sweep's 10 000 rows): the same text as the csv module for any table of floats (NaN, infinities, -0.0),
+    integers, booleans and text (commas, quotes, line breaks, None, empty)."""
+    from distctrl.tuning.runner import csv_rows
+
+    data = {f"c{i}": c for i, c in enumerate(columns)}
+    assert csv_rows(data) == _csv_module_rows(data)
