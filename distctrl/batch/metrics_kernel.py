@@ -129,6 +129,38 @@ def row_sum(a):
     return 0.0 + pairwise_sum(a, 0, a.size)
 
 
+@njit(cache=True, nogil=True)
+def _sat_count(o, s, n_a, T, ez, k0, ramp, dev_lo, span, acc_lo, acc_hi, w_acc, v_up, v_down, tol, vel):
+    """The cycles of a set at the velocity or the acceleration limit, from its offset ``o`` (the cycles
+    ``s + 2 ..``), in the numpy definition's order of operations. The velocities first (``np.diff / T``, into
+    ``vel``), then counts without branches (selects), so that both loops vectorise (the pass over 10^4 sets
+    on one thread: 0.142 -> 0.129 s; the check had been a quarter of it, a division-bound scalar loop)."""
+    for j in range(n_a + 1):
+        vel[j] = (o[s + j + 1] - o[s + j]) / T
+    nsat = 0
+    if ramp:                                 # adaptive acceleration: the limit follows |e| (a_min .. a_lim)
+        for j in range(n_a):
+            v = vel[j + 1]
+            acc = (v - vel[j]) / T
+            frac = (abs(ez[s + j + 2 - k0]) - dev_lo) / span
+            frac = min(max(frac, 0.0), 1.0)
+            al = acc_lo + (acc_hi - acc_lo) * frac
+            down = v < 0
+            vl = v_down if down else v_up
+            al = al * w_acc if down else al
+            nsat += ((abs(v) >= vl) | (abs(acc) >= tol * al)) & (v == v) & (acc == acc)
+    else:
+        al_down = acc_hi * w_acc
+        for j in range(n_a):
+            v = vel[j + 1]
+            acc = (v - vel[j]) / T
+            down = v < 0
+            vl = v_down if down else v_up
+            al = al_down if down else acc_hi
+            nsat += ((abs(v) >= vl) | (abs(acc) >= tol * al)) & (v == v) & (acc == acc)
+    return nsat
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits, v_lim, a_lim, w_v, w_a,
                   adaptive, a_min, dev_a_min, dev_a_max, fig, ex, ox):
@@ -211,34 +243,9 @@ def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits
         # limiter saturation share (before the means are removed: the adaptive ramp reads |e|)
         nsat = 0
         if has_limits and n_a > 0:
-            # the set's limits in locals: read from the arrays in the loop they kept it from being unswitched
-            ramp = adaptive[i]
-            span = max(dev_a_max[i] - dev_a_min[i], 1e-12)
-            dev_lo = dev_a_min[i]
-            acc_lo = a_min[i]
-            acc_hi = a_lim[i]
-            w_acc = w_a[i]
-            v_up = tol * v_lim[i]
-            v_down = tol * (v_lim[i] * w_v[i])
-            v0 = (offset[i, s + 1] - offset[i, s]) / T       # the velocity of the cycle before (np.diff)
-            for j in range(n_a):
-                k = s + j
-                v = (offset[i, k + 2] - offset[i, k + 1]) / T
-                acc = (v - v0) / T
-                v0 = v
-                if ramp:
-                    frac = (abs(ez[k + 2 - k0]) - dev_lo) / span
-                    frac = min(max(frac, 0.0), 1.0)
-                    al = acc_lo + (acc_hi - acc_lo) * frac
-                else:
-                    al = acc_hi
-                if v < 0:
-                    vl = v_down
-                    al = al * w_acc
-                else:
-                    vl = v_up
-                if not (np.isnan(v) or np.isnan(acc)) and (abs(v) >= vl or abs(acc) >= tol * al):
-                    nsat += 1
+            nsat = _sat_count(offset[i], s, n_a, T, ez, k0, adaptive[i], dev_a_min[i],
+                              max(dev_a_max[i] - dev_a_min[i], 1e-12), a_min[i], a_lim[i], w_a[i],
+                              tol * v_lim[i], tol * (v_lim[i] * w_v[i]), tol, np.empty(n_a + 1))
         fig[i, F_SAT] = nsat / c1 if has_limits else np.nan
         # the FFT inputs: mean removed where valid
         me = row_sum(ez) / c1
