@@ -154,9 +154,21 @@ _ROW_TYPES = frozenset(int(t) for t in (FilterType.DEFAULT, FilterType.MOVING_AV
 
 
 def _field_errors(name: str, values: np.ndarray) -> dict:
-    """FILTER_PARAMS[name].check of every distinct value: value -> the exception it raises."""
+    """FILTER_PARAMS[name].check of every distinct value: value -> the exception it raises. The values the
+    table's range accepts are found with numpy first, only the others are checked one by one for their
+    message (a sweep's random smoothing factors are thousands of distinct values, each a Python call)."""
+    vals = np.unique(values)
+    spec = FILTER_PARAMS[name].spec
+    if not spec.choices and spec.type != "BOOLEAN" and (not spec.integer or vals.dtype.kind in "iu"):
+        with np.errstate(invalid="ignore"):
+            ok = vals == vals                                    # NaN: checked one by one (refused)
+            if spec.lo is not None:
+                ok &= (vals > spec.lo) if spec.lo_open else (vals >= spec.lo)
+            if spec.hi is not None:
+                ok &= (vals < spec.hi) if spec.hi_open else (vals <= spec.hi)
+        vals = vals[~ok]
     out = {}
-    for v in np.unique(values).tolist():
+    for v in vals.tolist():
         try:
             FILTER_PARAMS[name].check(v)
         except Exception as exc:             # noqa: BLE001 - the message of the one-by-one check
