@@ -93,3 +93,22 @@ def test_a_type_without_vectorised_rows_is_designed_one_by_one(monkeypatch):
         assert fc[i].tobytes() == want.tobytes(), cfg
         seen += 1
     assert seen > 50 and len(calls) == seen       # each of them, and only they, one by one
+
+
+@pytest.mark.parametrize("kind", [law.KALMAN_MA, law.KALMAN_EXPO])
+def test_kalman_predictions_of_many_smoothing_factors_are_kalman_design_of_each_bit_for_bit(kind):
+    """design_rows designs the Kalman filters of one (kind, n) for all their smoothing factors at once
+    (kalman_predictions: np.matmul of the stacked rows for kalman_design's np.dot): the same bits, for every
+    n the law takes, factors from 1e-9 to 1 (no slope at 1), and one group of thousands of factors."""
+    from distctrl.batch.design import kalman_predictions
+    from distctrl.control.filters import kalman_design
+
+    rng = np.random.default_rng(kind)
+    for n in list(range(2, law.MAX_N)) + [13] * 3:
+        alphas = np.unique(np.r_[np.round(rng.uniform(0, 1, 40), 3), 1.0, 1e-9, 0.5, rng.uniform(0, 1, 5)])
+        if n == 13:
+            alphas = np.unique(rng.uniform(1e-6, 1.0, 3000))
+        v, c = kalman_predictions(kind, n, alphas)
+        for i, a in enumerate(alphas.tolist()):
+            d = kalman_design(kind, n, a, 1.0)
+            assert d.prediction_variance == v[i] and np.array_equal(d.coefficients, c[i]), (kind, n, a)
