@@ -110,6 +110,29 @@ def _measure(inputs, packed: np.ndarray, res, wanted, metric_options: dict) -> d
     return m
 
 
+def chunk_bounds(n: int, block: int, parts: int, side_by_side: int = 1) -> list[tuple[int, int]]:
+    """``(start, stop)`` of the chunks of ``n`` points: about ``parts`` chunks, each at least a block and at most
+    MAX_TASK_BLOCKS blocks (a chunk's filter rows and table parts stay tens of MB; 64 blocks of 256 sets are
+    about 2 s of kernel on one core).
+
+    ``side_by_side`` threads taking the chunks in turn (:meth:`Evaluator._chunks_side_by_side`): chunks 2 ..
+    ``side_by_side`` are shorter, by 1/side_by_side of a chunk each, so that every thread's chunks end a
+    fraction of a chunk after the previous thread's. At its end a chunk formats its rows of the table and the
+    thread's next chunk checks its points: Python, which holds the GIL. Chunks of one length ended together
+    on both threads, and each thread then waited for the other's Python at every chunk (a 10 000-set sweep
+    used 1.0-1.4 of its 2 cores there, 20-40 ms per boundary)."""
+    size = max(block, min(-(-n // max(parts, 1)), MAX_TASK_BLOCKS * block))
+    sizes = [size] + [max(1, size - size * i // side_by_side) for i in range(1, max(side_by_side, 1))]
+    out, a = [], 0
+    for k in range(n):
+        if a >= n:
+            break
+        b = min(n, a + (sizes[k] if k < len(sizes) else size))
+        out.append((a, b))
+        a = b
+    return out
+
+
 class _PointChunk:
     """A slice of points, the index of its first point and the most sets run at once (len(): its size, for
     the progress bar)."""
@@ -740,19 +763,17 @@ class Evaluator:
             raise TuningRunError(f"evaluate_points: fields {sorted(set(points.cols) - COLUMN_FIELDS)} are not "
                                  "evaluated as columns (use evaluate)")
         n = points.n
-        block = self.chunk_size
-        # a cluster's tasks: about eight per worker (load balance: the last task's tail), in this process
-        # about eight chunks (the progress bar's steps); each at least a block and at most MAX_TASK_BLOCKS
-        # blocks (a chunk's filter rows and table parts stay tens of MB; 64 blocks of 256 sets are about
-        # 2 s of kernel on one core). Every chunk runs its points block by block (the traces of a block
-        # at a time); in this process the next chunk is checked while one runs (_run_local)
-        per = -(-n // (8 if self.mode == "local" else 8 * self.n_workers))
-        size = max(block, min(per, MAX_TASK_BLOCKS * block))
-        chunks = [_PointChunk(points.take(np.arange(a, min(a + size, n))), a, block) for a in range(0, n, size)]
-        if not chunks:
+        if not n:
             return SweepResult(self._table([], [], {}))
-        probe = _probe_of(self.inputs, base)
+        block = self.chunk_size
         self.prepare_kernels()
+        # a cluster's tasks: about eight per worker (load balance: the last task's tail), in this process
+        # about eight chunks (the progress bar's steps). Every chunk runs its points block by block (the
+        # traces of a block at a time); in this process the chunks run side by side where they can (_run_local)
+        side = self._local_cores() if self.mode == "local" else 1
+        bounds = chunk_bounds(n, block, 8 if self.mode == "local" else 8 * self.n_workers, side)
+        chunks = [_PointChunk(points.take(np.arange(a, b)), a, block) for a, b in bounds]
+        probe = _probe_of(self.inputs, base)
         t0 = time.perf_counter()
         extra = (base, probe)
         if self.mode == "local":
@@ -897,13 +918,18 @@ class Evaluator:
             fn = functools.partial(fn, **options)
         bar = self._bar(sum(len(c) for c in chunks), description)
         try:
-            cores = _side_by_side_cores() if ahead is not None and self.threads is None and len(chunks) > 1 else 1
+            cores = self._local_cores() if ahead is not None and len(chunks) > 1 else 1
             if cores > 1:
                 return self._chunks_side_by_side(chunks, fn, extra, cores, bar)
             return self._chunks_in_turn(chunks, fn, extra, ahead, bar)
         finally:
             if bar is not None:
                 bar.stop()
+
+    def _local_cores(self) -> int:
+        """How many chunks run side by side in this process (:meth:`_chunks_side_by_side`): numba's threads
+        where its threading layer allows it and no ``threads`` is given, else 1."""
+        return _side_by_side_cores() if self.threads is None else 1
 
     def _chunk(self, fn, chunk, extra, threads, checked=None) -> dict:
         """``fn`` of one chunk, retried up to ``retries`` times (a retry runs it whole: ``checked`` only first)."""

@@ -391,3 +391,30 @@ def test_the_embedded_cluster_runs_without_the_dashboard_s_high_rate_timers(inpu
         assert dask.utils.parse_timedelta(worker[k]) >= 0.5, (k, worker[k])
     assert tick >= 0.5
     assert worker == {k: runner.EMBEDDED_CLUSTER_CONFIG.get(k, before[k]) for k in keys}
+
+
+@pytest.mark.parametrize("n,block,parts,side", [(10000, 256, 8, 2), (9992, 256, 8, 2), (10000, 256, 8, 3),
+                                                (10**6, 256, 16, 2), (300, 256, 8, 2), (10, 256, 8, 2),
+                                                (10000, 256, 8, 1), (5000, 7, 8, 4)])
+def test_chunks_cover_the_points_in_order_and_side_by_side_threads_end_them_apart(n, block, parts, side):
+    """chunk_bounds: the chunks are the points in order, each at most MAX_TASK_BLOCKS blocks. Run side by side
+    (each thread takes the next chunk when it is free, a chunk's time its length), no two threads end a chunk
+    at the same time before the last ones: at its end a chunk formats its rows and the next one checks its
+    points, Python that holds the GIL, and threads there at once waited for each other."""
+    from distctrl.tuning.runner import MAX_TASK_BLOCKS, chunk_bounds
+
+    bounds = chunk_bounds(n, block, parts, side)
+    assert bounds[0][0] == 0 and bounds[-1][1] == n
+    assert all(a < b for a, b in bounds) and all(b == a2 for (_, b), (a2, _) in zip(bounds, bounds[1:]))
+    assert max(b - a for a, b in bounds) <= max(block, MAX_TASK_BLOCKS * block)
+    if side == 1 or len(bounds) < 2 * side:
+        return
+    free = [0.0] * side                      # when each thread is free; it takes the next chunk
+    ends = []
+    for a, b in bounds:
+        t = min(range(side), key=lambda i: free[i])
+        free[t] += b - a
+        ends.append(free[t])
+    size = bounds[0][1] - bounds[0][0]
+    inner = sorted(ends[:-side])             # the threads' last chunks may end together
+    assert all(y - x >= size // side - 1 for x, y in zip(inner, inner[1:])), inner
