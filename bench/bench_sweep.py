@@ -3,8 +3,8 @@
 End to end: fresh ``python -m distctrl sweep examples/scenarios/tune_sheet.toml --random N --local``
 processes (the kernels loaded from numba's cache, compiled beforehand by ``make``'s warm-up), wall
 time of N = 10 (the warm fixed cost: imports, the scenario's recording, writing the table) and of
-N = 10 000, each the best of ``--repeats`` (3) processes (this machine's speed wanders by tens of per cent
-from minute to minute; the best of several is the run it did not disturb); the marginal cost of a set-cycle
+N = 10 000, each the best of ``--repeats`` (3) processes, run in turn (this machine's speed wanders by tens
+of per cent from minute to minute; the best of several is the run it did not disturb); the marginal cost of a set-cycle
 is (t(10 000) - t(10)) / (9 990 sets x cycles).
 
 The kernel's cost in the same run: the same 10 000 sets, packed, through
@@ -204,8 +204,13 @@ def main(argv=None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         cli_sweep(args.small, tmp)                        # kernels loaded once from the cache (not timed)
-        small = min(cli_sweep(args.small, tmp)[0] for _ in range(args.repeats))
-        big, js = min((cli_sweep(args.sets, tmp) for _ in range(args.repeats)), key=lambda r: r[0])
+        # in turn, small and large (a drift of the machine's speed during the runs then moves both alike)
+        smalls, bigs = [], []
+        for _ in range(args.repeats):
+            smalls.append(cli_sweep(args.small, tmp)[0])
+            bigs.append(cli_sweep(args.sets, tmp))
+        small = min(smalls)
+        big, js = min(bigs, key=lambda r: r[0])
     cycles = js["cycles"]
     n_big = js["sets"]
     marginal_ns = (big - small) / ((n_big - args.small) * cycles) * 1e9
