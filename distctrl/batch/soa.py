@@ -80,6 +80,18 @@ def soa_eligible(packed: np.ndarray) -> np.ndarray:
     return (kind == law.MOVING_AVERAGE) & (modulo == 0.0)
 
 
+def kernel_order(packed: np.ndarray) -> np.ndarray:
+    """An order of packed rows that runs fastest when the rows go to the kernel a few hundred at a time
+    (a sweep's blocks): the rows of :func:`block_loop` first, by window length, then the others, each group in
+    its order. :func:`plan_blocks` fills lanes of ``BLOCK`` rows of one window length where it can; a block of
+    256 random sets held about 50 such rows, in two lanes of mixed lengths, partly empty. Every row runs on its
+    own, so the results per row do not depend on the order."""
+    if not len(packed):
+        return np.zeros(0, dtype=np.int64)
+    lane = soa_eligible(packed)
+    return np.lexsort((np.where(lane, packed[:, law.FC_N], 0.0), ~lane))      # stable: the rest in order
+
+
 def plan_blocks(packed: np.ndarray, block: int = BLOCK) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Split the rows into blocks for :func:`block_loop` and the rest for ``closed_loop``.
 

@@ -238,6 +238,7 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
     t_task = time.perf_counter()
     # numba (optional: [fast], [tune]) loads only when a batch runs
     from ..batch.closed_loop import numba_threads, run_batch
+    from ..batch.soa import kernel_order
 
     if checked is None:
         checked = check_points_chunk(inputs, chunk, base, probe)
@@ -247,16 +248,20 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
     wanted = wanted_distance(inputs, n)
     kernel_s = 0.0
     parts = []
+    packed_all = checked.pack(0, len(index))
+    order = kernel_order(packed_all)
     with numba_threads(threads):
         for a in range(0, len(index), chunk.block):
             b = min(a + chunk.block, len(index))
-            packed = checked.pack(a, b)
+            packed = packed_all[order[a:b]]
             t0 = time.perf_counter()
             res = run_batch(inputs, packed, cycles=cycles, return_errors=True, out=_outputs(b - a, n))
             parts.append(_measure(inputs, packed, res, wanted, metric_options))
             kernel_s += time.perf_counter() - t0
     if parts:
-        out.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]})
+        back = np.empty_like(order)
+        back[order] = np.arange(len(order))
+        out.update({k: np.concatenate([p[k] for p in parts])[back] for k in parts[0]})
     else:
         out["failed"] = np.zeros(0, dtype=bool)
     if csv_options is not None and parts:

@@ -244,3 +244,32 @@ def test_distance_sensor_mixed_blocks_equal_closed_loop(tmp_path, mode):
     ids = set(err[err[:, 0] >= 0, 1].tolist())
     assert int(ErrorId.SENSOR_JUMP) in ids
     assert np.nanmax(np.abs(off)) > 0.05
+
+
+def test_kernel_order_puts_the_lane_rows_first_by_window_and_any_order_gives_each_row_its_numbers():
+    """kernel_order (a sweep's blocks go through the kernel in it): the rows block_loop runs first, by window
+    length, then the others, each group in its order; the same row gives the same numbers bit for bit in any
+    order and any block (every set runs on its own), so the sweep's table does not depend on it."""
+    from pathlib import Path
+
+    from distctrl.tuning.columns import check_columns, drop_inert_columns, random_columns
+
+    inputs = CL.prepare(Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "tune_sheet.toml", 400)
+    pc, _ = drop_inert_columns(random_columns(300, 5, cycle_time=inputs.cycle_time))
+    kept, fc, _ = check_columns(inputs.params, pc, inputs.cycle_time)
+    packed = CL.pack_columns(inputs, inputs.params, kept.cols, kept.present, fc)
+    order = soa.kernel_order(packed)
+    assert sorted(order.tolist()) == list(range(len(packed)))
+    lane = soa.soa_eligible(packed)[order]
+    k = int(lane.sum())
+    assert 0 < k < len(packed) and lane[:k].all() and not lane[k:].any()
+    n = packed[order[:k], law.FC_N]
+    assert (np.diff(n) >= 0).all()
+    assert all((np.diff(order[:k][n == v]) > 0).all() for v in np.unique(n))     # in their order per length
+    assert (np.diff(order[k:]) > 0).all()
+    want = CL.run_batch(inputs, packed, return_errors=True)
+    for block in (37, 256):
+        got = [CL.run_batch(inputs, packed[order[a:a + block]], return_errors=True)
+               for a in range(0, len(packed), block)]
+        for i, name in enumerate(("offset", "distance", "errors")):
+            assert np.array_equal(np.concatenate([g[i] for g in got]), want[i][order], equal_nan=True), name
