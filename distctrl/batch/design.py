@@ -30,7 +30,7 @@ from ..base.kinds import FilterType
 from ..control import law
 from ..control.butter import butter_lowpass_many
 from ..control.controller import AxisDistanceController
-from ..control.filters import (FILTER_KINDS, FILTER_PARAMS, KALMAN_PROCESS_VARIANCE, FilterConfig,
+from ..control.filters import (FILTER_PARAMS, KALMAN_PROCESS_VARIANCE, FilterConfig,
                                design_coefficients)
 from ..params.axis import AxisParameters
 

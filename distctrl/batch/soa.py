@@ -42,7 +42,7 @@ from the error cycle on when the block is done.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..control import law
 from ..sim import physics
