@@ -694,6 +694,7 @@ class Evaluator:
     def _open_cluster(self) -> None:
         try:
             # dask.distributed (the [batch] extra, seconds of import): only for a cluster sweep
+            import dask
             from distributed import Client, LocalCluster
         except ImportError:
             raise TuningRunError("cluster mode needs dask.distributed: pip install 'dask[distributed]' "
@@ -702,8 +703,6 @@ class Evaluator:
             if self.scheduler:
                 self._client = Client(self.scheduler, timeout="20s")
             else:
-                import dask
-
                 # while the servers are made: they read their timers then, and each nanny hands this
                 # config to the worker process it spawns (and to a worker it restarts)
                 with dask.config.set(EMBEDDED_CLUSTER_CONFIG):
