@@ -34,7 +34,8 @@ from ..control.filters import (FILTER_PARAMS, KALMAN_PROCESS_VARIANCE, FilterCon
                                design_coefficients)
 from ..params.axis import AxisParameters
 
-__all__ = ["filter_coefficients", "filter_config", "design_many", "design_rows", "unique_rows", "check_cycle_time", "clear_cache", "cache_info"]
+__all__ = ["filter_coefficients", "filter_config", "design_many", "design_rows", "kalman_predictions", "unique_rows",
+           "check_cycle_time", "clear_cache", "cache_info"]
 
 #: at most this many designs are kept (a tuner's long run with continuous values cannot grow it without bound)
 MAX_ENTRIES = 1 << 16

@@ -477,9 +477,10 @@ def _spread(values: list) -> dict:
 
 def thc_config(job: PlateJob):
     """distctrl_thc's settings from the plate: its Z axis list's KP, I_TN, D_TV, filter, v_max and a_max
-    (at most the external offset's: OFFSET_AV_RATIO of the Z axis's), max_deviation and both encoders (P-AXIS-00500), the cut height as SET_DIST, the PLC's arc-voltage
-    linearisation (the sensor's plc_v0/plc_k, else its arc's v0/k; the plasma plate's for a plate without
-    an arc-voltage sensor), the void lock at distctrl's defaults for a voltage (500 V/s over 20 ms)."""
+    (at most the external offset's: OFFSET_AV_RATIO of the Z axis's), max_deviation and both encoders
+    (P-AXIS-00500), the cut height as SET_DIST, the PLC's arc-voltage linearisation (the sensor's
+    plc_v0/plc_k, else its arc's v0/k; the plasma plate's for a plate without an arc-voltage sensor), the
+    void lock at distctrl's defaults for a voltage (500 V/s over 20 ms)."""
     sc = job.scenario
     p = sc.axes["Z"].params
     sensor, _ = arc_sensor(sc, sc.cycle_time)

@@ -13,7 +13,8 @@ coefficients designed by distctrl's own design (:func:`distctrl.control.filters.
 :class:`ThcCore` is the component's period in Python with distctrl's cycle core
 (:class:`distctrl.control.controller.AxisDistanceController`, whose numbers are :mod:`distctrl.control.law`'s,
 the only copy of the law) as its law: the pins become the core's inputs and the PLC's commands (ON,
-ON_CONST_DIST or DRYRUN by ``mode`` and ``dryrun``, FREEZE while a lock holds, OFF). :class:`ThcLocks` is the corner lock and void lock, the PLC's part:
+ON_CONST_DIST or DRYRUN by ``mode`` and ``dryrun``, FREEZE while a lock holds, OFF). :class:`ThcLocks` is the
+corner lock and void lock, the PLC's part:
 distctrl's own CornerLock and VoidLock process functions, stepped on the pins.
 tests/linuxcnc/test_thc.py streams inputs through the C component in halrun and checks its outputs
 (offset, velocity, filtered value, HLI state, error ID, counts, locks, the void lock's rate and mean)
@@ -137,7 +138,8 @@ class ThcConfig:
         _check("voidlock-window", self.voidlock_window, cycle_time, 100 * cycle_time, pid="s, 1..100 periods")
         # distctrl's own functions check their keys (docs/process.md): corner_lock.share 0 < s <= 1,
         # hysteresis 0..0.5 with share + hysteresis <= 1; void_lock's threshold, window, cycles, band
-        pins = {"corner_lock.share": "cornerlock-threshold / 100", "corner_lock.hysteresis": "cornerlock-hysteresis / 100",
+        pins = {"corner_lock.share": "cornerlock-threshold / 100",
+                "corner_lock.hysteresis": "cornerlock-hysteresis / 100",
                 "void_lock.threshold": "voidlock-slope", "void_lock.window": "voidlock-window",
                 "void_lock.on_cycles": "voidlock-on-cycles", "void_lock.off_cycles": "voidlock-off-cycles",
                 "void_lock.release_band": "voidlock-release-band"}
@@ -211,7 +213,8 @@ class ThcConfig:
     def setp_lines(self, cycle_time: float, name: str = "distctrl-thc.0") -> list[str]:
         """halcmd ``setp`` lines for the component instance ``name`` (exact: repr of each double)."""
         fc = self.coefficients(cycle_time)
-        pins = {"use-both-encoders": int(self.use_both_encoders), "kp": self.kp, "i-tn": self.i_tn, "d-tv": self.d_tv, "v-max": self.v_max, "a-max": self.a_max,
+        pins = {"use-both-encoders": int(self.use_both_encoders), "kp": self.kp, "i-tn": self.i_tn, "d-tv": self.d_tv,
+                "v-max": self.v_max, "a-max": self.a_max,
                 "max-deviation": self.max_deviation, "set-dist": self.set_dist, "arc-v0": self.arc_v0,
                 "arc-k": self.arc_k, "resolution": self.resolution,
                 "cornerlock-mode": CORNERLOCK_MODES.get(self.cornerlock_mode, -1),
@@ -340,9 +343,9 @@ class ThcCore:
     The pins become what a PLC gives the core (HLI DistanceControl, PLC-commanded): the distance
     ``(arc-voltage-in - arc-v0) * (1 / arc-k)`` as the sensor variable (the reading ``s = -distance``,
     SPEC §1), ``axis-z-command`` as the programmed position p (the core adds its own offset: c = p + o),
-    ``axis-z-position`` as a, ``set-dist`` and ``set-pos`` as the cyclic D_Distance and D_Position; and from the state of the previous
-    period and this period's locks (:class:`ThcLocks`: distctrl's corner_lock and void_lock functions, which
-    see that state as ``state_r.actual_state``) the commands:
+    ``axis-z-position`` as a, ``set-dist`` and ``set-pos`` as the cyclic D_Distance and D_Position; and from the
+    state of the previous period and this period's locks (:class:`ThcLocks`: distctrl's corner_lock and
+    void_lock functions, which see that state as ``state_r.actual_state``) the commands:
 
     * thc-enable on and INACTIVE: the select, by ``mode`` read now: ON_CONST_DIST with SET_DIST (mode 0) or
       ON with SET_POS (mode 1), and FREEZE at once if a lock holds; with ``dryrun`` on, DRYRUN with the

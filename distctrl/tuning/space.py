@@ -311,7 +311,8 @@ def random_sample(n: int, seed: int = 0, space: tuple[Dim, ...] = DEFAULT_SPACE,
     """``n`` random points of ``space``; each point sets only the filter parameters its filter type uses.
 
     With ``cycle_time`` the low-pass cut-off is kept below 0.45 / cycle_time (Nyquist margin); at kp >= 1
-    d_tv is 0 (:data:`D_NO_EFFECT_KP`). Values are rounded to :func:`resolution` (what the tuner prints is what it evaluated).
+    d_tv is 0 (:data:`D_NO_EFFECT_KP`). Values are rounded to :func:`resolution` (what the tuner prints is what
+    it evaluated).
     Drawn for all points at once (:func:`random_columns`).
     """
     return random_columns(n, seed, space, cycle_time=cycle_time).to_points()
