@@ -124,10 +124,8 @@ def chunk_bounds(n: int, block: int, parts: int, side_by_side: int = 1) -> list[
     size = max(block, min(-(-n // max(parts, 1)), MAX_TASK_BLOCKS * block))
     sizes = [size] + [max(1, size - size * i // side_by_side) for i in range(1, max(side_by_side, 1))]
     out, a = [], 0
-    for k in range(n):
-        if a >= n:
-            break
-        b = min(n, a + (sizes[k] if k < len(sizes) else size))
+    while a < n:
+        b = min(n, a + (sizes[len(out)] if len(out) < len(sizes) else size))
         out.append((a, b))
         a = b
     return out
@@ -184,7 +182,7 @@ def _side_by_side_cores() -> int:
 
 class _CheckedChunk:
     """A chunk's points after the check: ``index`` (the kept points, in the chunk), ``rejected``
-    ``(point, message)`` and ``pack(a, b)``, the packed rows of the kept points a .. b."""
+    ``(point, message)`` and ``pack()``, the packed rows of the kept points."""
 
     def __init__(self, index: np.ndarray, rejected: list, pack):
         self.index = index
@@ -204,16 +202,15 @@ def check_points_chunk(inputs, chunk: "_PointChunk", base, probe) -> _CheckedChu
     if checked is not None:
         kept, fc, rejected = checked
 
-        def pack(a, b):
-            part = kept.take(np.arange(a, b))
-            return pack_columns(inputs, base, part.cols, part.present, fc[a:b], probe=probe)
+        def pack():
+            return pack_columns(inputs, base, kept.cols, kept.present, fc, probe=probe)
         return _CheckedChunk(kept.index, rejected, pack)
     points = pts.to_points()                 # what the columns do not cover: set by set
     sets, kept_points, rejected = build_sets(base, points, inputs.cycle_time)
     ids = {id(p): i for i, p in enumerate(points)}
 
-    def pack(a, b):
-        return pack_sets(inputs, sets[a:b], probe=probe)
+    def pack():
+        return pack_sets(inputs, sets, probe=probe)
     return _CheckedChunk(np.array([ids[id(p)] for p in kept_points], dtype=np.int64), rejected, pack)
 
 
@@ -248,7 +245,7 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
     wanted = wanted_distance(inputs, n)
     kernel_s = 0.0
     parts = []
-    packed_all = checked.pack(0, len(index))
+    packed_all = checked.pack()
     order = kernel_order(packed_all)
     with numba_threads(threads):
         for a in range(0, len(index), chunk.block):
