@@ -10,6 +10,9 @@ for bit, in one loop per set:
   :func:`pairwise_sum`); the tests compare the result with numpy's over thousands of random rows;
 * every other figure is a count, a maximum or one elementwise expression, written in numpy's order
   of operations (no fastmath, so no reassociation and no fused multiply-add);
+* the loops index 1-D views from 0 (``b = a[lo:lo + n]; b[i]``) rather than ``a[lo + i]``: numba handles
+  a negative index of unknown sign with a wraparound test per access, which kept LLVM from vectorising
+  them (the pass over 10^4 sets on one thread: 0.130 -> 0.094 s, the same bits);
 * the two FFT-based figures (``hf_rms``, ``offset_hf_rms``) keep numpy's FFT: the pass writes their
   inputs (the mean-free error and offset of the window) and ``compute_metrics`` transforms them.
 
@@ -40,36 +43,33 @@ def thread_count() -> int:
 @njit(cache=True, nogil=True)
 def _pairwise_leaf(a, lo, n):
     """numpy's ``pairwise_sum`` for ``n <= 128``: sequential below 8, else 8 interleaved accumulators."""
+    b = a[lo:lo + n]                      # indices from 0: no wraparound test (module docstring)
     if n < 8:
         res = 0.0
-        for i in range(lo, lo + n):
-            res += a[i]
+        for i in range(n):
+            res += b[i]
         return res
-    r0 = a[lo]
-    r1 = a[lo + 1]
-    r2 = a[lo + 2]
-    r3 = a[lo + 3]
-    r4 = a[lo + 4]
-    r5 = a[lo + 5]
-    r6 = a[lo + 6]
-    r7 = a[lo + 7]
-    i = 8
-    end = n - n % 8
-    while i < end:
-        j = lo + i
-        r0 += a[j]
-        r1 += a[j + 1]
-        r2 += a[j + 2]
-        r3 += a[j + 3]
-        r4 += a[j + 4]
-        r5 += a[j + 5]
-        r6 += a[j + 6]
-        r7 += a[j + 7]
-        i += 8
+    r0 = b[0]
+    r1 = b[1]
+    r2 = b[2]
+    r3 = b[3]
+    r4 = b[4]
+    r5 = b[5]
+    r6 = b[6]
+    r7 = b[7]
+    for q in range(1, n // 8):
+        i = 8 * q
+        r0 += b[i]
+        r1 += b[i + 1]
+        r2 += b[i + 2]
+        r3 += b[i + 3]
+        r4 += b[i + 4]
+        r5 += b[i + 5]
+        r6 += b[i + 6]
+        r7 += b[i + 7]
     res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += a[lo + i]
-        i += 1
+    for i in range(n - n % 8, n):
+        res += b[i]
     return res
 
 
@@ -135,14 +135,16 @@ def _sat_count(o, s, n_a, T, ez, k0, ramp, dev_lo, span, acc_lo, acc_hi, w_acc, 
     ``s + 2 ..``), in the numpy definition's order of operations. The velocities first (``np.diff / T``, into
     ``vel``), then counts without branches (selects), so that both loops vectorise (the pass over 10^4 sets
     on one thread: 0.142 -> 0.129 s; the check had been a quarter of it, a division-bound scalar loop)."""
+    ov = o[s:s + n_a + 2]
     for j in range(n_a + 1):
-        vel[j] = (o[s + j + 1] - o[s + j]) / T
+        vel[j] = (ov[j + 1] - ov[j]) / T
     nsat = 0
+    ev = ez[s + 2 - k0:]
     if ramp:                                 # adaptive acceleration: the limit follows |e| (a_min .. a_lim)
         for j in range(n_a):
             v = vel[j + 1]
             acc = (v - vel[j]) / T
-            frac = (abs(ez[s + j + 2 - k0]) - dev_lo) / span
+            frac = (abs(ev[j]) - dev_lo) / span
             frac = min(max(frac, 0.0), 1.0)
             al = acc_lo + (acc_hi - acc_lo) * frac
             down = v < 0
@@ -194,8 +196,11 @@ def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits
         changes = 0
         run = 0                          # settling: cycles in the band so far, the first cycle of h of them
         first = -1
+        drow = distance[i, k0:]
+        orow = offset[i, k0:]
+        wrow = wanted[k0:]
         for j in range(m):
-            e = distance[i, k0 + j] - wanted[k0 + j]
+            e = drow[j] - wrow[j]
             if np.isnan(e):
                 failed = True
                 vb[j] = False
@@ -205,7 +210,7 @@ def chunk_metrics(offset, distance, wanted, k0, k_on, T, band, h, ow, has_limits
             else:
                 vb[j] = True
                 cnt += 1
-                oz[j] = offset[i, k0 + j]
+                oz[j] = orow[j]
                 if first < 0:
                     if abs(e) <= band:
                         run += 1
