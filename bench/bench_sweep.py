@@ -3,13 +3,13 @@
 End to end: fresh ``python -m distctrl sweep examples/scenarios/tune_sheet.toml --random N --local``
 processes (the kernels loaded from numba's cache, compiled beforehand by ``make``'s warm-up), wall
 time of N = 10 (the warm fixed cost: imports, the scenario's recording, writing the table) and of
-N = 10 000, each the best of ``--repeats`` (3) processes, run in turn (this machine's speed wanders by tens
+N = 10 000, each the best of ``--repeats`` (5) processes, run in turn with the kernel alone (this machine's speed wanders by tens
 of per cent from minute to minute; the best of several is the run it did not disturb); the marginal cost of a set-cycle
 is (t(10 000) - t(10)) / (9 990 sets x cycles).
 
 The kernel's cost in the same run: the same 10 000 sets, packed, through
 :func:`distctrl.batch.closed_loop.run_batch` in this process (numba's default threads, as the sweep
-runs), best of 3; and the steps of a sweep timed one by one in this process (sampling, checking the
+runs), the best of ``--repeats`` runs taken in turn with the sweeps; and the steps of a sweep timed one by one in this process (sampling, checking the
 sets, packing, the kernel, the metrics) so the table says where the rest goes.
 
 Dask: a random sweep of ``--dask-sets`` points (make bench: 10^6; default 10^5) the way the CLI runs it
@@ -71,10 +71,36 @@ def cli_sweep(n: int, tmp: pathlib.Path) -> tuple[float, dict]:
     return dt, json.loads(res.stdout)
 
 
-def steps(n: int, repeats: int = 3) -> dict:
+class KernelTimer:
+    """The kernel alone on the sets of a sweep of n random sets (the CLI's columns, checked and packed in
+    this process, loaded from numba's cache): :meth:`run` times one :func:`run_batch` of them all on numba's
+    default threads, as the sweep runs, into arrays made once (``out``)."""
+
+    def __init__(self, n: int):
+        from distctrl.batch import closed_loop as CL
+        from distctrl.tuning.columns import check_columns, drop_inert_columns, random_columns
+
+        self._cl = CL
+        self.inputs = CL.prepare(SCENARIO)
+        T = self.inputs.cycle_time
+        pc, _ = drop_inert_columns(random_columns(n, 0, cycle_time=T))
+        kept, fc, _ = check_columns(self.inputs.params, pc, T)
+        self.packed = CL.pack_columns(self.inputs, self.inputs.params, kept.cols, kept.present, fc)
+        self.sets = kept.n
+        CL.run_batch(self.inputs, self.packed[:64])         # loaded from the cache
+        self.out = (np.empty((len(self.packed), self.inputs.n_cycles)),
+                    np.empty((len(self.packed), self.inputs.n_cycles)))
+
+    def run(self) -> float:
+        t0 = time.perf_counter()
+        self._cl.run_batch(self.inputs, self.packed, out=self.out)
+        return time.perf_counter() - t0
+
+
+def steps(n: int, repeats: int = 3, kernel_s: float | None = None) -> dict:
     """The steps of a sweep of n random sets as the CLI runs them (the sets as columns), timed one by one in
-    this process: sampling, checking the sets (with their filter designs), packing, the kernel (best of
-    ``repeats``), the metrics pass, writing the table."""
+    this process: sampling, checking the sets (with their filter designs), packing, the kernel (``kernel_s``,
+    or the best of ``repeats`` :class:`KernelTimer` runs), the metrics pass, writing the table."""
     from distctrl.batch import closed_loop as CL
     from distctrl.tuning.columns import check_columns, drop_inert_columns, random_columns
     from distctrl.tuning.metrics import compute_metrics, limits_from_packed, wanted_distance
@@ -94,15 +120,12 @@ def steps(n: int, repeats: int = 3) -> dict:
     t0 = time.perf_counter()
     packed = CL.pack_columns(inputs, inputs.params, kept.cols, kept.present, fc)
     out["pack_s"] = time.perf_counter() - t0
-    CL.run_batch(inputs, packed[:64])         # loaded from the cache
-    offset = np.empty((len(packed), inputs.n_cycles))
-    distance = np.empty_like(offset)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        CL.run_batch(inputs, packed, out=(offset, distance))
-        best = min(best, time.perf_counter() - t0)
+    timer = KernelTimer(n) if kernel_s is None else None
+    if timer is not None:
+        kernel_s = min(timer.run() for _ in range(repeats))
+    best = kernel_s
     out["kernel_s"] = best
+    offset, distance = timer.out if timer is not None else CL.run_batch(inputs, packed)
     chunk = 256
     t0 = time.perf_counter()
     wanted = wanted_distance(inputs, inputs.n_cycles)
@@ -190,7 +213,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default=str(ROOT / "bench"), help="directory of results.json / RESULTS.md")
     ap.add_argument("--sets", type=int, default=10_000)
     ap.add_argument("--small", type=int, default=10)
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=5, help="runs of each timing, the best taken [default: 5]")
     ap.add_argument("--dask-sets", type=int, default=100_000,
                     help="sets of the dask scaling measurement (the issue's 10^6: --dask-sets 1000000; 0: none)")
     ap.add_argument("--dask-chunk", type=int, default=None,
@@ -204,17 +227,22 @@ def main(argv=None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         cli_sweep(args.small, tmp)                        # kernels loaded once from the cache (not timed)
-        # in turn, small and large (a drift of the machine's speed during the runs then moves both alike)
-        smalls, bigs = [], []
+        timer = KernelTimer(args.sets)
+        # in turn, small, large and the kernel alone (a drift of the machine's speed during the runs then moves
+        # all three alike; the kernel was timed after all the sweeps, and its best of 3 moved by up to a fifth
+        # from run to run of the bench)
+        smalls, bigs, kernels = [], [], []
         for _ in range(args.repeats):
             smalls.append(cli_sweep(args.small, tmp)[0])
             bigs.append(cli_sweep(args.sets, tmp))
+            kernels.append(timer.run())
         small = min(smalls)
         big, js = min(bigs, key=lambda r: r[0])
+        del timer
     cycles = js["cycles"]
     n_big = js["sets"]
     marginal_ns = (big - small) / ((n_big - args.small) * cycles) * 1e9
-    st = steps(args.sets, args.repeats)
+    st = steps(args.sets, args.repeats, kernel_s=min(kernels))
     ratio = marginal_ns / st["kernel_ns_per_set_cycle"]
     res = {"sweep_fixed_s": small, "sweep_big_s": big, "sweep_big_sets": n_big, "sweep_cycles": cycles,
            "sweep_marginal_ns_per_set_cycle": marginal_ns, "sweep_kernel_ns_per_set_cycle": st["kernel_ns_per_set_cycle"],
