@@ -45,6 +45,8 @@ _STATS = {"designs": 0, "hits": 0}
 #: design_rows' Kalman predictions per (kind, n, alpha): (prediction variance, coefficients); they do not
 #: depend on sigma
 _KALMAN: dict = {}
+#: design_rows' (rho^n, EXPO_MEAN sums) per (n, alpha): :func:`_decay_terms`
+_DECAY: dict = {}
 
 
 def filter_config(p) -> FilterConfig:
@@ -131,6 +133,7 @@ def _store(key, value) -> None:
 def clear_cache() -> None:
     _CACHE.clear()
     _KALMAN.clear()
+    _DECAY.clear()
     _STATS.update(designs=0, hits=0)
 
 
@@ -244,18 +247,15 @@ def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> 
     fc[rows, law.FC_WSUM] = 1.0
     # rho^n (and the EXPO_MEAN sums): math per distinct (n, alpha), as design_coefficients does
     pairs, inv = unique_rows(np.stack((eff_n[rows].astype(np.float64), alpha[rows]), axis=1))
-    decay = np.empty(len(pairs))
-    wsum = np.empty(len(pairs))
-    older = np.empty(len(pairs))
-    for j, (nn, a) in enumerate(pairs.tolist()):
-        nn = int(nn)
-        log_rho = math.log1p(-a) if a < 1.0 else -math.inf
-        decay[j] = math.exp(nn * log_rho)
-        if nn >= 2 and a < 1.0:
-            wsum[j] = -math.expm1(nn * log_rho) / a
-            older[j] = a / -math.expm1((nn - 1) * log_rho)
-        else:
-            wsum[j] = older[j] = np.nan
+    if len(_DECAY) + len(pairs) > MAX_ENTRIES:
+        _DECAY.clear()
+    terms = []
+    for key in map(tuple, pairs.tolist()):      # kept from call to call: a sweep's chunks repeat the pairs
+        got = _DECAY.get(key)
+        if got is None:
+            got = _DECAY[key] = _decay_terms(int(key[0]), key[1])
+        terms.append(got)
+    decay, wsum, older = np.array(terms, dtype=np.float64).reshape(len(pairs), 3).T
     fc[rows, law.FC_DECAY_N] = decay[inv]
     expo = kind[rows] == law.EXPO_MEAN
     fc[rows[expo], law.FC_WSUM] = wsum[inv[expo]]
@@ -301,6 +301,16 @@ def design_rows(ftype, n_cycles, alpha, sigma, order, fg, cycle_time: float) -> 
         fc[sel, law.FC_SOS:law.FC_SOS + 6 * n_sec] = sos.reshape(len(sel), 6 * n_sec)
         fc[sel, law.FC_ZI:law.FC_ZI + 2 * n_sec] = zi.reshape(len(sel), 2 * n_sec)
     return fc, errors
+
+
+def _decay_terms(nn: int, a: float) -> tuple[float, float, float]:
+    """``(rho^n, the EXPO_MEAN weight sum, its weight of the older values)`` of a window ``nn`` and smoothing
+    factor ``a`` (the sums NaN where EXPO_MEAN does not use them), in math as :func:`design_coefficients`."""
+    log_rho = math.log1p(-a) if a < 1.0 else -math.inf
+    decay = math.exp(nn * log_rho)
+    if nn >= 2 and a < 1.0:
+        return decay, -math.expm1(nn * log_rho) / a, a / -math.expm1((nn - 1) * log_rho)
+    return decay, math.nan, math.nan
 
 
 def kalman_predictions(kind: int, n: int, alphas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
