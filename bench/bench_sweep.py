@@ -97,10 +97,11 @@ class KernelTimer:
         return time.perf_counter() - t0
 
 
-def steps(n: int, repeats: int = 3, kernel_s: float | None = None) -> dict:
+def steps(n: int, kernel_s: float, timer: "KernelTimer") -> dict:
     """The steps of a sweep of n random sets as the CLI runs them (the sets as columns), timed one by one in
-    this process: sampling, checking the sets (with their filter designs), packing, the kernel (``kernel_s``,
-    or the best of ``repeats`` :class:`KernelTimer` runs), the metrics pass, writing the table."""
+    this process: sampling, checking the sets (with their filter designs), packing, the metrics pass, writing
+    the table; the kernel's time ``kernel_s`` and its traces of these sets come from ``timer``, a
+    :class:`KernelTimer` of the same n sets, timed in turn with the sweeps."""
     from distctrl.batch import closed_loop as CL
     from distctrl.tuning.columns import check_columns, drop_inert_columns, random_columns
     from distctrl.tuning.metrics import compute_metrics, limits_from_packed, wanted_distance
@@ -120,12 +121,10 @@ def steps(n: int, repeats: int = 3, kernel_s: float | None = None) -> dict:
     t0 = time.perf_counter()
     packed = CL.pack_columns(inputs, inputs.params, kept.cols, kept.present, fc)
     out["pack_s"] = time.perf_counter() - t0
-    timer = KernelTimer(n) if kernel_s is None else None
-    if timer is not None:
-        kernel_s = min(timer.run() for _ in range(repeats))
-    best = kernel_s
-    out["kernel_s"] = best
-    offset, distance = timer.out if timer is not None else CL.run_batch(inputs, packed)
+    if not np.array_equal(packed, timer.packed):
+        raise RuntimeError("steps: the kernel timer ran other sets than these")
+    out["kernel_s"] = kernel_s
+    offset, distance = timer.out
     chunk = 256
     t0 = time.perf_counter()
     wanted = wanted_distance(inputs, inputs.n_cycles)
@@ -141,7 +140,7 @@ def steps(n: int, repeats: int = 3, kernel_s: float | None = None) -> dict:
         out["write_s"] = time.perf_counter() - t0
     out["sets"] = kept.n
     out["cycles"] = inputs.n_cycles
-    out["kernel_ns_per_set_cycle"] = best / (kept.n * inputs.n_cycles) * 1e9
+    out["kernel_ns_per_set_cycle"] = kernel_s / (kept.n * inputs.n_cycles) * 1e9
     return out
 
 
@@ -238,11 +237,11 @@ def main(argv=None) -> dict:
             kernels.append(timer.run())
         small = min(smalls)
         big, js = min(bigs, key=lambda r: r[0])
-        del timer
     cycles = js["cycles"]
     n_big = js["sets"]
     marginal_ns = (big - small) / ((n_big - args.small) * cycles) * 1e9
-    st = steps(args.sets, args.repeats, kernel_s=min(kernels))
+    st = steps(args.sets, min(kernels), timer)
+    del timer                                             # its traces: 0.3 GB
     ratio = marginal_ns / st["kernel_ns_per_set_cycle"]
     res = {"sweep_fixed_s": small, "sweep_big_s": big, "sweep_big_sets": n_big, "sweep_cycles": cycles,
            "sweep_marginal_ns_per_set_cycle": marginal_ns, "sweep_kernel_ns_per_set_cycle": st["kernel_ns_per_set_cycle"],
