@@ -50,6 +50,8 @@ def test_demo_output_shows_units_oscillation_and_every_collision(tmp_path, capsy
     assert plain.metrics["collisions"] > 0 and plain.metrics["oscillation_frequency_hz"] is not None
     assert f"900030×{plain.metrics['collisions']}" in out and " Hz, ±" in out
     assert both.metrics["collisions"] == 1 and "X = 250 mm" in out
+    flat = " ".join(out.split())                    # rich wraps lines at the terminal's width
+    assert "SET_POS 30 mm (%DIST_1): min true distance" in flat and "tactile probe riding on the sheet" in flat
 
 
 def test_demo_prints_the_plate_with_and_without_the_functions(capsys):
@@ -376,3 +378,25 @@ def test_demo_json_gives_the_tables_figures(tmp_path, capsys):
     assert plate["without"]["collisions"] > 0 and plate["with"]["collisions"] == 0
     for key in ("min_distance_mm", "min_cut_distance_mm", "time_below_half_s", "path_time_s", "set_distance_mm"):
         assert isinstance(plate["with"][key], float), key
+
+
+def test_demo_says_why_a_probe_below_zero_is_no_collision():
+    """new-user audit R15: the SET_POS column showed a min true distance of -0.016 mm with 0 collisions
+    without a word. The tool of %DIST_1 is a tactile probe riding on the sheet: its tip may be pressed
+    into its stroke (the scenario's sensor.collision_depth, 1 mm) before a contact counts (docs/run.md
+    "Collisions"); the demo says so in one footnote line, with the figures of the run."""
+    from distctrl.cli.demo import EXAMPLES, probe_footnote
+    from distctrl.sim import run
+    from distctrl.sim.scenario import load_scenario
+
+    sc = load_scenario(EXAMPLES / "dist_1.toml")
+    r = run(sc)
+    m = r.metrics
+    assert m["min_distance_mm"] < 0 and m["collisions"] == 0 and sc.sensor.collision_depth == 1.0
+    line = probe_footnote("SET_POS 30 mm (%DIST_1)", r, sc)
+    assert "\n" not in line and line.startswith("SET_POS 30 mm (%DIST_1)")
+    assert f"{m['min_distance_mm']:.3f} mm" in line and "tactile probe" in line
+    assert "−1 mm" in line and "collision_depth" in line and "docs/run.md" in line
+    # a nozzle (collision depth 0) or a run without a negative distance gets no footnote
+    sheet = load_scenario(EXAMPLES / "const_dist_sheet.toml")
+    assert probe_footnote("sheet", run(sheet), sheet) is None
