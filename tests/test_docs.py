@@ -86,3 +86,16 @@ def test_the_checks_find_what_they_look_for():
     assert interrupted_tables(two) == []
     fenced = "| a |\n| --- |\ntext\n```\n| not a table |\n```\n"
     assert interrupted_tables(fenced) == []
+
+
+def test_the_readme_first_screen_says_what_to_do_next():
+    """new-user audit R16: the README's first screen (40 lines) keeps the two commands at the top and
+    tells a newcomer what to do next, with links; the install is from a clone, not a package index."""
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert lines[2] == "```sh" and lines[3].startswith("make demo    #") and lines[4].startswith("make test    #")
+    first = "\n".join(lines[:40])
+    assert "## Start here" in first and "out/demo/sheet_report/index.html" in first
+    assert first.count("](docs/") >= 4
+    text = "\n".join(lines)
+    assert "pip install ." in text and "pip install '.[sim]'" in text and "pip install distctrl" not in text
+    assert "0.1 µm" in text and "P-AXIS-00422" in text                  # sensor_increments in mm
