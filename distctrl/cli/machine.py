@@ -3,8 +3,6 @@ and written over ADS through its distance-control CNC objects (docs/commissionin
 code is in :mod:`distctrl.client`; here are only the options, the tables and the exit codes."""
 from __future__ import annotations
 
-import os
-import sys
 from pathlib import Path
 
 import click
@@ -13,9 +11,10 @@ from ..client import MachineError
 from ..client.axes import Unit, describe_unit, format_list_text, probe_axes, probe_channels, read_parameters, state_name
 from ..client.recorder import make_signal
 from ..client.recorder import record as do_record
-from ..client.recorder import summary, write_trace
-from ..client.target import Target, parse_target
-from ..client.writer import default_backup_path, execute, plan_write
+from ..client.journal import WriteJournal
+from ..client.recorder import cut_message, summary, write_trace
+from ..client.target import AMS_TCP_PORT, Target, parse_target, quiet_adslib
+from ..client.writer import ORDER, default_backup_path, execute, plan_write
 from ..errors import ExitCode
 from .common import Finite, check_writable, emit_json, fail
 
@@ -23,6 +22,8 @@ from .common import Finite, check_writable, emit_json, fail
 def _target_options(f):
     f = click.option("--timeout", default=2.0, show_default=True, type=Finite(0.05, 60.0),
                      help="Seconds each ADS request may take (pyads' timeout) and the TCP connect may wait.")(f)
+    f = click.option("--port", "tcp_port", default=AMS_TCP_PORT, show_default=True, type=click.IntRange(1, 65535),
+                     help="The target's AMS/TCP port (TwinCAT's router: 48898; `distctrl serve --port N`: N).")(f)
     f = click.option("--ip", default=None, help="IP address or host name of the target (default: the NetId's "
                      "first four numbers). A route to this machine must exist on the target "
                      "(docs/commissioning.md).")(f)
@@ -50,31 +51,10 @@ def _parse_axis(text: str):
     return Unit("axis", int(ident), name or ident)
 
 
-def _quiet_adslib() -> None:
-    """pyads' AdsLib logs on the process's stderr (``Info: connection closed by remote``, ``Error: write
-    frame failed``); our own one-line message says what happened. In a real process (stderr is file
-    descriptor 2) Python's stderr moves to a copy of it and descriptor 2 to /dev/null, unless
-    DISTCTRL_ADS_LOG=1 asks for the library's lines."""
-    if os.environ.get("DISTCTRL_ADS_LOG") == "1" or getattr(_quiet_adslib, "done", False):
-        return
-    try:
-        if sys.stderr.fileno() != 2:
-            return
-        sys.stderr.flush()
-        saved = os.dup(2)
-        sys.stderr = os.fdopen(saved, "w", buffering=1, encoding=sys.stderr.encoding, errors="backslashreplace")
-        null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(null, 2)
-        os.close(null)
-    except (AttributeError, OSError, ValueError):
-        return
-    _quiet_adslib.done = True
-
-
-def _open(ads: str, ip: str | None, timeout: float):
-    _quiet_adslib()
+def _open(ads: str, ip: str | None, timeout: float, tcp_port: int = AMS_TCP_PORT):
+    quiet_adslib()
     net_id, port, host = parse_target(ads, ip)
-    return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0)).open()
+    return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0), tcp_port=tcp_port).open()
 
 
 def _fail_machine(exc) -> None:
@@ -93,27 +73,38 @@ def machine() -> None:
 @click.option("--out", type=click.Path(dir_okay=False), default=None,
               help="Also write the (first) axis's parameters as a parameter list (kernel format).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object: target, axes, channels.")
-def show(ads: str, ip: str | None, timeout: float, axes: tuple[str, ...], out: str | None, as_json: bool) -> None:
-    """The axes and 3D channels with distance control: state and every parameter the CNC objects
-    expose, in the parameter lists' units (as `distctrl params` prints them), with ranges."""
+def show(ads: str, ip: str | None, tcp_port: int, timeout: float, axes: tuple[str, ...], out: str | None,
+         as_json: bool) -> None:
+    """The axes and 3D channels whose distance-control objects answer: state and every parameter the
+    CNC objects expose, in the parameter lists' units (as `distctrl params` prints them), with ranges;
+    for kp, i_tn, d_tv, v_max, a_max the value in effect and a value distctrl wrote that is pending."""
+    journal = WriteJournal()
     try:
-        with _open(ads, ip, timeout) as target:
+        with _open(ads, ip, timeout, tcp_port) as target:
             units = [_parse_axis(a) for a in axes] if axes else probe_axes(target)
-            rows = [describe_unit(target, u) for u in units]
-            channels = [describe_unit(target, c) for c in probe_channels(target)]
+            rows = [_describe(target, u, journal) for u in units]
+            channels = [_describe(target, c, journal) for c in probe_channels(target)]
             if out:
                 if not units:
                     fail("--out: the target has no axis with distance-control objects")
-                text = format_list_text(units[0], read_parameters(target, units[0]),
-                                        f"{units[0].label} of {target.address} (distctrl machine show)")
+                values = read_parameters(target, units[0])
+                values.update({f: v["in_effect"] for f, v in rows[0]["values"].items()})
+                text = format_list_text(units[0], values,
+                                        f"{units[0].label} of {target.address} (distctrl machine show; "
+                                        f"the values in effect)")
                 Path(out).write_text(text, encoding="utf-8")
     except MachineError as exc:
         _fail_machine(exc)
-    result = {"command": "machine show", "outcome": "ok", "target": ads,
-              "axes": rows, "channels": channels, "out": out}
+    result = {"command": "machine show", "outcome": "ok", "target": ads, "port": tcp_port,
+              "axes": rows, "channels": channels, "out": out, "journal": str(journal.path),
+              "distance_control_configured": None}
     if as_json:
         emit_json(result)
         return
+    if not axes and rows:
+        click.echo("every axis_id whose distance-control objects answer is listed: the CNC objects do not say "
+                   "which axes have distance control configured (P-AXIS-00328 lr_param.distance_control_on is "
+                   "not among them, FCT-M3 §9.4)")
     for r in rows + channels:
         kind = "axis" if r["kind"] == "axis" else "channel"
         click.echo(f"{kind} {r['name']} (index {r['index']}): state {r['state']}"
@@ -121,13 +112,38 @@ def show(ads: str, ip: str | None, timeout: float, axes: tuple[str, ...], out: s
         width = max(len(d["key"]) for d in r["details"].values())
         for f, v in r["parameters"].items():
             d = r["details"][f]
+            val = r["values"].get(f)
+            if val is not None:
+                v = val["in_effect"]
             text = f"{v:.12g}" if isinstance(v, float) else str(v)
-            click.echo(f"  {d['key']:<{width}}  {text:>14} {d['unit']:<6} {d['id']:<13} {d['range']}"
-                       + ("" if d["writable"] else "  (read-only)"))
+            line = f"  {d['key']:<{width}}  {text:>14} {d['unit']:<6} {d['id']:<13} {d['range']}"
+            if not d["writable"]:
+                line += "  (read-only)"
+            elif val is not None and val["pending"] is not None:
+                line += f"  in effect; written {_text(val['pending'])}, pending (adopted at the next activation)"
+            else:
+                line += "  in effect"
+            click.echo(line)
     if not rows and not channels:
         click.echo("no axis or channel with distance-control objects answered")
+    if any(v["pending"] is not None for r in rows + channels for v in r["values"].values()):
+        click.echo("pending: written by distctrl from this PC (the journal " + str(journal.path) + "); the CNC "
+                   "takes them at the next INACTIVE→ACTIVE or FREEZE→ACTIVE (FCT-M3 §9.4)")
     if out:
         click.echo(f"written: {out}")
+
+
+def _text(v) -> str:
+    return f"{v:.12g}" if isinstance(v, float) else str(v)
+
+
+def _describe(target, unit, journal: WriteJournal) -> dict:
+    """describe_unit and, for the writable values, what is in effect and what distctrl wrote pending."""
+    row = describe_unit(target, unit)
+    readings = {f: row["parameters"][f] for f in ORDER}
+    row["values"] = journal.resolve(target, unit, readings, row["state_code"])
+    row["pending"] = {f: v["pending"] for f, v in row["values"].items() if v["pending"] is not None}
+    return row
 
 
 @machine.command()
@@ -146,10 +162,13 @@ def show(ads: str, ip: str | None, timeout: float, axes: tuple[str, ...], out: s
 @click.option("--out", required=True, type=click.Path(dir_okay=False),
               help="The trace (CSV with its .meta.json sidecar) that identify, filters, step and plot read.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object: rows, samples, lost, late.")
-def record(ads, ip, timeout, axis, seconds, signals, cycle_ms, max_delay_ms, mm_per_increment, out, as_json):
+def record(ads, ip, tcp_port, timeout, axis, seconds, signals, cycle_ms, max_delay_ms, mm_per_increment, out,
+           as_json):
     """Record CNC objects of one axis at the CNC cycle (cyclic device notifications with the target's
     timestamps) into a trace. Lost and late samples are counted and reported; a lost sample is NaN
-    in the trace, never filled in. Ctrl-C ends early and keeps what was recorded (exit code 130)."""
+    in the trace, never filled in. A target that stops sending before --seconds are up makes the
+    recording incomplete: said, counted, the trace written, exit code 4. Ctrl-C ends early and keeps
+    what was recorded (exit code 130)."""
     unit = _parse_axis(axis)
     names = [s.strip() for s in signals.split(",") if s.strip()]
     if not names:
@@ -157,21 +176,32 @@ def record(ads, ip, timeout, axis, seconds, signals, cycle_ms, max_delay_ms, mm_
     check_writable(out, "--out")
     try:
         sigs = [make_signal(n, mm_per_increment) for n in names]
-        with _open(ads, ip, timeout) as target:
+        with _open(ads, ip, timeout, tcp_port) as target:
             rec = do_record(target, unit, sigs, seconds, cycle_ms * 1e-3, max_delay_ms * 1e-3)
     except MachineError as exc:
         _fail_machine(exc)
     write_trace(rec, out, {"target": ads, "axis": unit.name, "axis_id": unit.number,
                            "actual_sampled": "start"})
     s = summary(rec)
-    result = {"command": "machine record", "outcome": "interrupted" if rec.interrupted else "ok",
-              "out": out, "columns": rec.columns, **s}
+    cut = cut_message(rec) if rec.rows else None
+    outcome = "interrupted" if rec.interrupted else "incomplete" if cut else "ok"
+    result = {"command": "machine record", "outcome": outcome, "out": out, "columns": rec.columns, **s,
+              "tracking": tracking_figures(rec)}
+    if cut:
+        result.update(exit_code=int(ExitCode.CHECK_FAILED), error=cut)
     if as_json:
         emit_json(result)
     else:
-        lost = ", ".join(f"{k} {v}" for k, v in rec.lost.items() if v) or "none"
+        lost = ", ".join(f"{k} {v}" for k, v in rec.lost.items() if v)
+        if cut:
+            lost = (lost + " and " if lost else "") + f"about {s['cut_cycles']} cycles cut off at the end"
         click.echo(f"recorded {s['rows']} cycles ({s['seconds']:.3f} s) of {', '.join(rec.columns[1:])}: "
-                   f"{s['samples']} samples, lost: {lost}, late: {rec.late}" + (" (Ctrl-C)" if rec.interrupted else ""))
+                   f"{s['samples']} samples, lost: {lost or 'none'}, late: {rec.late}" + (" (Ctrl-C)" if rec.interrupted else ""))
+        tr = result["tracking"]
+        if tr is not None:
+            click.echo(f"tracking: RMS {_fmt(tr['rms_mm'])} mm, max {_fmt(tr['max_abs_mm'])} mm of "
+                       f"DIST_CTRL::target_deviation over {tr['activations']} activation(s) that started in "
+                       f"the recording, each after its first {tr['skip_s'] * 1e3:g} ms ({tr['cycles']} cycles)")
         click.echo(f"written: {out}")
         if s["lost_total"] or rec.late:
             click.echo("warning: lost samples are NaN in the trace (a gap, not data)", err=True)
@@ -179,6 +209,49 @@ def record(ads, ip, timeout, axis, seconds, signals, cycle_ms, max_delay_ms, mm_
         raise SystemExit(int(ExitCode.INTERRUPTED))
     if rec.rows == 0:
         fail("no sample arrived: does the target send cyclic notifications on these objects?")
+    if cut:
+        fail(cut, ExitCode.CHECK_FAILED)
+
+
+def _fmt(v) -> str:
+    return "n/a" if v is None else f"{v:.4f}"
+
+
+#: a tracking figure leaves out the approach: the first cycles after each activation
+APPROACH_S = 0.3
+
+
+def tracking_figures(rec) -> dict | None:
+    """RMS and max of DIST_CTRL::target_deviation while ACTIVE (state 2), over the activations that
+    *start* inside the recording (an activation under way when it began may still run with values
+    from before a write), each without its first :data:`APPROACH_S` (the approach). None without
+    the deviation and state signals."""
+    import numpy as np
+
+    cols = rec.columns
+    dev = next((i for i, c in enumerate(cols) if c.endswith(".deviation") or c.endswith(".DIST_CTRL.target_deviation")),
+               None)
+    st = next((i for i, c in enumerate(cols) if c.endswith(".state") or c.endswith(".DIST_CTRL.state")), None)
+    if dev is None or st is None or rec.rows == 0:
+        return None
+    d, state = rec.data[:, dev], rec.data[:, st]
+    active = state == 2
+    skip = int(round(APPROACH_S / rec.cycle_s))
+    keep = np.zeros(len(d), dtype=bool)
+    starts = np.flatnonzero(active[1:] & ~active[:-1]) + 1
+    for a in starts:
+        b = a
+        while b < len(d) and active[b]:
+            b += 1
+        keep[a + skip:b] = True
+    keep &= ~np.isnan(d)
+    n = int(keep.sum())
+    if not n:
+        return {"rms_mm": None, "max_abs_mm": None, "activations": int(len(starts)), "cycles": 0,
+                "skip_s": APPROACH_S}
+    x = d[keep]
+    return {"rms_mm": float(np.sqrt(np.mean(x ** 2))), "max_abs_mm": float(np.max(np.abs(x))),
+            "activations": int(len(starts)), "cycles": n, "skip_s": APPROACH_S}
 
 
 @machine.command()
@@ -193,7 +266,7 @@ def record(ads, ip, timeout, axis, seconds, signals, cycle_ms, max_delay_ms, mm_
 @click.option("--backup", type=click.Path(dir_okay=False), default=None,
               help="Where the old values go before the first write (default: beside LIST_FILE, never overwritten).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object: changes, backup, pending.")
-def write(ads, ip, timeout, axis, channel, list_file, yes, pending, backup, as_json):
+def write(ads, ip, tcp_port, timeout, axis, channel, list_file, yes, pending, backup, as_json):
     """Write the writable parameters that LIST_FILE sets (kp, i_tn, d_tv, v_max, a_max) through the
     CNC objects: shows old -> new; with --yes writes a backup first, writes, reads back and verifies,
     and restores the backup when anything fails half way. `machine write ... BACKUP --yes` undoes it."""
@@ -206,13 +279,17 @@ def write(ads, ip, timeout, axis, channel, list_file, yes, pending, backup, as_j
         net_id, port, host = parse_target(ads, ip)
 
         def reconnect():
-            return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0)).open()
+            return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0),
+                          tcp_port=tcp_port).open()
 
-        with _open(ads, ip, timeout) as target:
-            plan = plan_write(target, unit, list_file)
-            result = {"command": "machine write", "target": ads, "unit": unit.label, "list": list_file,
-                      "state": plan.state, "active": plan.active, "ignored": plan.ignored,
-                      "unchanged": plan.unchanged}
+        journal = WriteJournal()
+        with _open(ads, ip, timeout, tcp_port) as target:
+            plan = plan_write(target, unit, list_file, journal)
+            result = {"command": "machine write", "target": ads, "port": tcp_port, "unit": unit.label,
+                      "list": list_file, "state": plan.state, "active": plan.active, "ignored": plan.ignored,
+                      "unchanged": plan.unchanged, "already_pending": plan.already_pending,
+                      "unverifiable": plan.unverifiable, "values": plan.values,
+                      "yes_refused": bool(plan.active and plan.changes and not pending)}
             if not yes:
                 result.update(outcome="planned", written=False, changes=[c.as_dict() for c in plan.changes])
                 _show_plan(plan, result, as_json, written=False)
@@ -220,7 +297,7 @@ def write(ads, ip, timeout, axis, channel, list_file, yes, pending, backup, as_j
             bpath = Path(backup) if backup else default_backup_path(list_file, unit)
             if plan.changes:
                 check_writable(str(bpath), "--backup")
-            done = execute(plan, target, bpath, pending=pending, reconnect=reconnect)
+            done = execute(plan, target, bpath, pending=pending, reconnect=reconnect, journal=journal)
             result.update(outcome="written" if plan.changes else "unchanged", written=bool(plan.changes),
                           changes=[c.as_dict() for c in plan.changes],
                           backup=done["backup"] if plan.changes else None, pending=done["pending"])
@@ -234,18 +311,35 @@ def _show_plan(plan, result: dict, as_json: bool, written: bool) -> None:
         emit_json(result)
         return
     click.echo(f"{plan.unit.label}: state {state_name(plan.state)}")
-    if not plan.changes:
-        click.echo("nothing to change: the target has these values")
+    if not plan.changes and not plan.already_pending:
+        click.echo("nothing to change: the target has these values in effect")
+    elif not plan.changes:
+        click.echo("nothing to change: the target has these values in effect or already written and pending")
     for c in plan.changes:
         status = f"  [{c.status}]" if written else ""
-        click.echo(f"  {c.key:<22} {c.old!s:>14} -> {c.new!s:<14} {c.unit:<6} ({c.object}){status}")
+        was = f" (written {_text(c.pending)} pending until now)" if c.pending is not None else ""
+        click.echo(f"  {c.key:<22} {_text(c.old):>14} -> {_text(c.new):<14} {c.unit:<6} ({c.object}){status}{was}")
+    for f in plan.already_pending:
+        v = plan.values[f]
+        click.echo(f"  {plan.unit.key(f):<22} {_text(v['in_effect']):>14} in effect; {_text(v['pending'])} already "
+                   f"written and pending (written {v['written_at']}; adopted at the next activation)")
     for i in plan.ignored:
         click.echo(f"  {i['key']:<22} ignored: {i['reason']}")
+    for u in plan.unverifiable:
+        click.echo(f"  warning: {u} cannot be read over the CNC objects: check that the CNC's parameter list "
+                   f"has this value, or the machine runs the gains with another low-pass")
     if not written:
-        if plan.changes:
+        if plan.changes and result.get("yes_refused"):
+            click.echo(f"nothing written: distance control is {state_name(plan.state)}, so --yes will be refused "
+                       f"(the running process would keep the old values); write when it is inactive, or give "
+                       f"--yes --pending to write now and have the values wait for the next activation")
+        elif plan.changes:
             click.echo("nothing written: add --yes to write these values (a backup of the old ones is written first)")
         return
     if plan.changes:
-        click.echo(f"backup of the old values: {result['backup']} (restore: the same command with it and --yes)")
-        click.echo(f"pending until the next activation of distance control (INACTIVE→ACTIVE or FREEZE→ACTIVE, "
-                   f"FCT-M3 §9.4): {', '.join(result['pending'])}")
+        click.echo(f"backup of the values in effect: {result['backup']} (restore: the same command with it "
+                   f"and --yes)")
+        if result["pending"]:
+            click.echo(f"written, pending until the next activation of distance control (INACTIVE→ACTIVE or "
+                       f"FREEZE→ACTIVE, FCT-M3 §9.4): {', '.join(result['pending'])}; the values in effect stay "
+                       f"until then (`machine show` shows both)")

@@ -6,6 +6,10 @@ cycle's timestamp, batched up to ``max_delay`` (fewer frames, the same samples).
 put together by timestamp. A cycle whose timestamp is missing for a signal is *lost* for it: its row
 is written with NaN there (a gap is never filled with data); a sample that arrives with a timestamp
 not after the last one of its signal is *late* (out of order, or repeated) and not used.
+
+A target that stops sending before the recording's time is up (the CNC or the connection went away,
+the notifications were deleted) leaves no stamps to count as lost: that *cut* is measured in wall
+time (nothing arrived for :data:`STALL_S` or more up to the end) and makes the recording incomplete.
 """
 from __future__ import annotations
 
@@ -24,6 +28,9 @@ from .target import MachineError, Target
 
 #: FILETIME ticks (100 ns) per second
 TICKS = 10_000_000
+#: seconds without a new sample at the end of a recording after which the target counts as having
+#: stopped sending (the samples come every ``max_delay`` at the latest, 50 ms by default)
+STALL_S = 1.5
 
 
 @dataclass(frozen=True)
@@ -77,6 +84,9 @@ class Recording:
     cycle_s: float
     interrupted: bool
     first_stamp: int | None
+    requested_s: float | None = None      # the recording's length asked for (wall time)
+    stopped_after_s: float | None = None  # wall time from the start to the last sample that arrived
+    cut_s: float = 0.0                    # wall time at the end in which nothing arrived (0: no cut)
 
     @property
     def rows(self) -> int:
@@ -114,6 +124,9 @@ class Recorder:
         self.handles: list = []
         self.by_handle: dict[int, int] = {}
         self.interrupted = False
+        self.requested_s = None
+        self.stopped_after_s = None
+        self.cut_s = 0.0
         self._lock = threading.Lock()
 
     def start(self) -> None:
@@ -179,7 +192,8 @@ class Recorder:
         units = ["s"] + [s.unit for s in self.signals]
         if not stamps:
             return Recording(cols, units, np.zeros((0, n + 1)), 0, {s.name: 0 for s in self.signals}, late,
-                             self.cycle_s, self.interrupted, None)
+                             self.cycle_s, self.interrupted, None, self.requested_s, self.stopped_after_s,
+                             self.cut_s)
         t0 = stamps[0]
         tick = self.cycle_s * TICKS
         k = np.rint((np.asarray(stamps, dtype=np.float64) - t0) / tick).astype(np.int64)
@@ -205,23 +219,31 @@ class Recorder:
         lost = {s.name: int(np.isnan(data[:, i + 1]).sum()) for i, s in enumerate(self.signals)}
         used = int((~np.isnan(data[:, 1:])).sum())
         first = t0 + int(round(lo * tick)) if hi >= lo else None
-        return Recording(cols, units, data, used, lost, late, self.cycle_s, self.interrupted, first)
+        return Recording(cols, units, data, used, lost, late, self.cycle_s, self.interrupted, first,
+                         self.requested_s, self.stopped_after_s, self.cut_s)
 
 
 def record(target: Target, unit: Unit, signals: list[Signal], seconds: float, cycle_s: float = 0.001,
            max_delay_s: float = 0.05, on_progress=None) -> Recording:
-    """Record for ``seconds`` (wall time); Ctrl-C ends early and keeps what arrived."""
+    """Record for ``seconds`` (wall time); Ctrl-C ends early and keeps what arrived. A target that stops
+    sending before the end is measured (``stopped_after_s``, ``cut_s``)."""
     rec = Recorder(target, unit, signals, cycle_s, max_delay_s)
+    rec.requested_s = float(seconds)
     rec.start()
+    start = time.monotonic()
+    last_growth, seen = None, 0
     try:
-        deadline = time.monotonic() + seconds
+        deadline = start + seconds
         while True:
             left = deadline - time.monotonic()
             if left <= 0:
                 break
-            time.sleep(min(0.2, left))
+            time.sleep(min(0.1, left))
+            n = len(rec.raw)
+            if n != seen:
+                seen, last_growth = n, time.monotonic()
             if on_progress is not None:
-                on_progress(len(rec.raw))
+                on_progress(n)
     except KeyboardInterrupt:
         rec.interrupted = True
     finally:
@@ -230,27 +252,54 @@ def record(target: Target, unit: Unit, signals: list[Signal], seconds: float, cy
         except KeyboardInterrupt:          # a second Ctrl-C while deleting: keep the samples anyway
             rec.interrupted = True
         time.sleep(0)
+    end = time.monotonic()
+    if last_growth is not None:
+        rec.stopped_after_s = last_growth - start
+        quiet = end - last_growth
+        if quiet >= max(STALL_S, 4 * max_delay_s) and not rec.interrupted:
+            rec.cut_s = quiet
     return rec.result()
 
 
 def write_trace(recording: Recording, path, meta: dict) -> None:
     """The recording as a distctrl trace (CSV + ``.meta.json`` sidecar, docs/trace.md)."""
     m = dict(meta)
+    s = summary(recording)
     m.update({"cycle_s": recording.cycle_s, "source": "machine record (ADS cyclic notifications)",
               "samples": recording.samples, "lost": recording.lost, "late": recording.late,
               "interrupted": recording.interrupted,
-              "first_stamp_filetime": recording.first_stamp})
+              "first_stamp_filetime": recording.first_stamp, "complete": s["complete"],
+              "requested_s": s["requested_s"], "stopped_after_s": s["stopped_after_s"], "cut_s": s["cut_s"],
+              "cut_cycles": s["cut_cycles"]})
     rec = TraceRecorder(recording.columns, dict(zip(recording.columns, recording.units)), csv_path=str(path), keep=False, meta=m)
     try:
         for row in recording.data:
             rec.append(tuple(float(v) for v in row))
     finally:
-        rec.close()
+        # the sidecar's "complete": false when the recording ended before its time (cut, Ctrl-C)
+        rec.close(complete=not (s["cut_s"] or recording.interrupted))
 
 
 def summary(recording: Recording) -> dict:
+    """The figures of a recording; ``complete`` only when nothing was lost, late, cut or interrupted.
+    ``cut_cycles``: the cycles the cut would have held at the nominal cycle (an estimate)."""
     seconds = recording.rows * recording.cycle_s
+    cut = float(recording.cut_s or 0.0)
     return {"rows": recording.rows, "seconds": seconds, "samples": recording.samples,
             "lost": recording.lost, "lost_total": recording.lost_total, "late": recording.late,
             "interrupted": recording.interrupted, "cycle_s": recording.cycle_s,
-            "complete": recording.lost_total == 0 and recording.late == 0 and not math.isnan(seconds)}
+            "requested_s": recording.requested_s, "stopped_after_s": recording.stopped_after_s,
+            "cut_s": cut, "cut_cycles": int(round(cut / recording.cycle_s)) if cut else 0,
+            "complete": (recording.lost_total == 0 and recording.late == 0 and not math.isnan(seconds)
+                         and cut == 0.0 and not recording.interrupted)}
+
+
+def cut_message(recording: Recording) -> str | None:
+    """One line for a recording the target stopped sending to before its end, else None."""
+    s = summary(recording)
+    if not s["cut_s"]:
+        return None
+    return (f"the target stopped sending after {s['stopped_after_s']:.1f} s of {s['requested_s']:g} s: nothing "
+            f"arrived in the last {s['cut_s']:.1f} s (about {s['cut_cycles']} cycles of "
+            f"{recording.cycle_s * 1e3:g} ms missing at the end); the trace holds the {s['rows']} cycles "
+            f"({s['seconds']:.3f} s) that arrived")

@@ -22,7 +22,7 @@ from ..errors import DistCtrlError, ExitCode
 CNC_PORT = 551
 #: the PLC's runtime port (HLI symbols)
 PLC_PORT = 851
-#: AMS/TCP: the port every ADS router listens on (pyads' AdsLib always connects to it)
+#: AMS/TCP: the port every ADS router listens on (TwinCAT's; ``--port`` for a target on another one)
 AMS_TCP_PORT = 48898
 #: client-side (AdsLib / router) error codes that are not device errors
 CLIENT_CODES = {
@@ -91,6 +91,36 @@ def parse_target(ads: str, ip: str | None = None) -> tuple[str, int, str]:
     return net_id, port, host
 
 
+def router_address(host: str, tcp_port: int = AMS_TCP_PORT) -> str:
+    """The address pyads's router on Linux (Beckhoff's AdsLib) connects to: HOST for the standard AMS/TCP
+    port 48898, else HOST:PORT ([v6]:PORT); AdsLib's AddRoute splits the port off (its
+    ``bhf::ads::GetListOfAddresses(host, "48898")``; tested with pyads 3.6.0 against ``serve --port``)."""
+    if tcp_port == AMS_TCP_PORT:
+        return host
+    return f"[{host}]:{tcp_port}" if ":" in host and not host.startswith("[") else f"{host}:{tcp_port}"
+
+
+def quiet_adslib() -> None:
+    """pyads' AdsLib logs on the process's stderr (``Warning: Socket(): connect failed``, ``Info:
+    connection closed by remote``, ``Error: write frame failed``); our own one-line message says what
+    happened. In a real process (stderr is file descriptor 2) Python's stderr moves to a copy of it and
+    descriptor 2 to /dev/null, unless DISTCTRL_ADS_LOG=1 asks for the library's lines."""
+    if os.environ.get("DISTCTRL_ADS_LOG") == "1" or getattr(quiet_adslib, "done", False):
+        return
+    try:
+        if sys.stderr.fileno() != 2:
+            return
+        sys.stderr.flush()
+        saved = os.dup(2)
+        sys.stderr = os.fdopen(saved, "w", buffering=1, encoding=sys.stderr.encoding, errors="backslashreplace")
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 2)
+        os.close(null)
+    except (AttributeError, OSError, ValueError):
+        return
+    quiet_adslib.done = True
+
+
 class _quiet_stderr:
     """File descriptor 2 to /dev/null for a moment (the C library's own log lines, not ours)."""
 
@@ -127,33 +157,36 @@ class Target:
     :class:`MachineError` that says ``what`` was being done."""
 
     def __init__(self, net_id: str, port: int = CNC_PORT, ip: str = "127.0.0.1", *, timeout: float = 2.0,
-                 connect_timeout: float = 3.0, local_net_id: str | None = None):
+                 connect_timeout: float = 3.0, local_net_id: str | None = None, tcp_port: int = AMS_TCP_PORT):
         self.net_id, self.port, self.ip = net_id, int(port), ip
+        self.tcp_port = int(tcp_port)
         self.timeout, self.connect_timeout = float(timeout), float(connect_timeout)
         self.local_net_id = local_net_id
         self.conn = None
 
     @property
     def address(self) -> str:
-        return f"{self.net_id}:{self.port} at {self.ip}"
+        at = self.ip if self.tcp_port == AMS_TCP_PORT else f"{self.ip} (AMS/TCP port {self.tcp_port})"
+        return f"{self.net_id}:{self.port} at {at}"
 
     def open(self) -> "Target":
         # a bounded TCP probe first: AdsLib's own connect can wait the OS's full SYN timeout
         try:
-            with socket.create_connection((self.ip, AMS_TCP_PORT), timeout=self.connect_timeout):
+            with socket.create_connection((self.ip, self.tcp_port), timeout=self.connect_timeout):
                 pass
         except socket.timeout:
-            raise MachineError(f"target {self.ip}:{AMS_TCP_PORT} not reachable (no answer within "
+            raise MachineError(f"target {self.ip}:{self.tcp_port} not reachable (no answer within "
                                f"{self.connect_timeout:g} s): check the IP, the network and the firewall "
-                               f"(TCP {AMS_TCP_PORT})") from None
+                               f"(TCP {self.tcp_port})") from None
         except OSError as exc:
-            raise MachineError(f"target {self.ip}:{AMS_TCP_PORT} not reachable ({exc.strerror or exc}): "
-                               f"is TwinCAT (or distctrl serve) running there?") from None
+            serve_port = "" if self.tcp_port == AMS_TCP_PORT else f" --port {self.tcp_port}"
+            raise MachineError(f"target {self.ip}:{self.tcp_port} not reachable ({exc.strerror or exc}): "
+                               f"is TwinCAT (or distctrl serve{serve_port}) running there?") from None
         pyads = _pyads()
         try:
             if self.local_net_id:
                 pyads.set_local_address(self.local_net_id)
-            conn = pyads.Connection(self.net_id, self.port, self.ip)
+            conn = pyads.Connection(self.net_id, self.port, router_address(self.ip, self.tcp_port))
             conn.open()
             conn.set_timeout(max(1, int(self.timeout * 1000)))
         except pyads.ADSError as exc:

@@ -7,9 +7,15 @@ The adoption rule (FCT-M3 §9.4, §12.6 remarks; TF5200 §7.5): a value written 
 v_max or a_max becomes effective only on the next INACTIVE→ACTIVE or FREEZE→ACTIVE transition; until
 then it is *pending*. While distance control is active that means the running process keeps the old
 values, so a write then is refused unless ``pending=True``. The objects DIST_CTRL_PARAM[0]::v_max /
-a_max read the pending value; DIST_CTRL::kp / i_tn / d_tv read the working value (the one in effect)
-until the activation adopts the written one: a read-back equal to the old value is reported as
-pending there, any other value than old or new fails the verification.
+a_max read the pending value (distctrl's target); DIST_CTRL::kp / i_tn / d_tv read the working value
+(the one in effect) until the activation adopts the written one: a read-back equal to the old value
+is pending there, any other value than old or new fails the verification. Every written value is
+*pending* after the write; what is in effect and what is pending later is the write journal's
+business (:mod:`.journal`), which ``machine show`` and the next plan read.
+
+The filter (type, n_cycles, smoothing factor, Kalman sigma, low-pass order and cut-off) cannot be
+written over the CNC objects: a list that would change it is refused (:func:`check_filter`), since
+the machine would run its kp / d_tv with its old filter, a set nobody evaluated.
 """
 from __future__ import annotations
 
@@ -19,13 +25,16 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..base.kinds import FilterType
 from ..control.controller import check_object_value
+from ..control.filters import FILTER_KINDS
 from ..errors import ExitCode, ParameterError
 from ..params.channel import load_channel_list
 from ..params.listfile import canonical_key, list_entries, load_list
 from .axes import (ACTIVE_STATES, PARAMETERS, WRITABLE, Unit, format_list_text, read_object, read_state, state_name,
                    write_object)
-from .target import MachineError, Target
+from .journal import WriteJournal
+from .target import AMS_TCP_PORT, MachineError, Target
 
 #: the write order: the limits first, then the gains (a restore goes the same way)
 ORDER = ("v_max", "a_max", "d_tv", "i_tn", "kp")
@@ -37,13 +46,16 @@ class Change:
     key: str
     object: str
     unit: str
-    old: object
+    old: object                  # the value in effect
     new: object
-    status: str = "planned"      # planned, verified, pending, restored, failed
+    status: str = "planned"      # planned, pending, in effect, restored, failed, not written
+    pending: object = None       # a value distctrl wrote before that is still pending (None: none)
+    read_back: str | None = None  # after the write: "written" or "in_effect" (what the object read)
 
     def as_dict(self) -> dict:
         return {"parameter": self.field, "key": self.key, "object": self.object, "unit": self.unit,
-                "old": self.old, "new": self.new, "status": self.status}
+                "old": self.old, "new": self.new, "status": self.status, "pending_before": self.pending,
+                "read_back": self.read_back}
 
 
 @dataclass
@@ -53,6 +65,9 @@ class Plan:
     changes: list[Change]
     unchanged: list[str]
     ignored: list[dict] = field(default_factory=list)   # keys in the list that are not writable over ADS
+    already_pending: list[str] = field(default_factory=list)   # written before, pending, the same value
+    values: dict = field(default_factory=dict)      # field -> {read, in_effect, pending, written_at}
+    unverifiable: list[str] = field(default_factory=list)      # filter values the objects cannot read
 
     @property
     def active(self) -> bool:
@@ -75,7 +90,8 @@ def explicit_keys(path: str | Path) -> list[str]:
 
 def wanted_values(unit: Unit, path: str | Path) -> tuple[dict, list[dict]]:
     """{field: value in the list's unit} of the writable parameters the list sets, and the other keys it
-    sets (not writable over ADS). The list is loaded and checked as ``distctrl params`` does."""
+    sets (not writable over ADS; ``value`` in the list's unit). The list is loaded and checked as
+    ``distctrl params`` does."""
     try:
         pl = load_list(path) if unit.kind == "axis" else load_channel_list(path)
     except ParameterError as exc:
@@ -117,21 +133,91 @@ def _object_value(unit: Unit, f: str, value):
     return value
 
 
-def plan_write(target: Target, unit: Unit, path: str | Path) -> Plan:
+#: the filter's values in a list: list field -> the object that reads it (None: no object does)
+FILTER_FIELDS = {"filter_type": "filter_type", "n_cycles": "n_cycles", "smoothing_factor": "smoothing_fact",
+                 "kalman_sigma": "kalman_sigma", "low_pass_filter_order": None, "low_pass_filter_fg_f0": None}
+#: FilterKind.params names -> list fields
+_KIND_PARAM_FIELD = {"n_cycles": "n_cycles", "smoothing_factor": "smoothing_factor",
+                     "kalman_sigma": "kalman_sigma", "order": "low_pass_filter_order",
+                     "fg_f0": "low_pass_filter_fg_f0"}
+
+
+def _filter_kind(name) -> tuple[FilterType, int | None]:
+    """The filter type and the n it forces: DEFAULT is MOVING_AVERAGE with n = 4 (P-AXIS-00782)."""
+    try:
+        ft = FilterType.parse(str(name))
+    except (ValueError, KeyError, ParameterError):
+        return FilterType.DEFAULT, None
+    return (FilterType.MOVING_AVERAGE, 4) if ft == FilterType.DEFAULT else (ft, None)
+
+
+def check_filter(target: Target, unit: Unit, path: str | Path, ignored: list[dict]) -> list[str]:
+    """Refuse (MachineError) a list whose filter differs from the machine's: the filter cannot be
+    written over the CNC objects, so the machine would run the list's kp / d_tv with its old filter.
+    Only the values the list sets and its filter type uses are compared. Returns the keys that
+    cannot be compared (no object reads them: the low-pass order and cut-off)."""
+    listed = {i["key"]: i["value"] for i in ignored}
+    fields = {f: listed[unit.key(f)] for f in FILTER_FIELDS if _has_key(unit, f) and unit.key(f) in listed}
+    if not fields:
+        return []
+    machine = {f: read_object(target, unit, unit.spec(obj)) for f, obj in FILTER_FIELDS.items()
+               if obj and _has_key(unit, f)}
+    m_type, m_n = _filter_kind(machine["filter_type"])
+    l_type, l_n = _filter_kind(fields["filter_type"]) if "filter_type" in fields else (m_type, m_n)
+    differ, unknown = [], []
+    if l_type != m_type:
+        differ.append(f"filter_type {machine['filter_type']} -> {fields['filter_type']}")
+    for p in FILTER_KINDS[l_type].params:
+        f = _KIND_PARAM_FIELD[p]
+        if f == "n_cycles" and l_n is not None:
+            want = l_n
+        elif f in fields:
+            want = fields[f]
+        else:
+            continue
+        if FILTER_FIELDS[f] is None:
+            unknown.append(f"{unit.key(f)} {want:g}")
+            continue
+        have = m_n if (f == "n_cycles" and m_n is not None) else machine[f]
+        if not _same(have, want):
+            differ.append(f"{f} {have:g} -> {want:g}")
+    if differ:
+        ids = ", ".join(unit.list_spec(d.split()[0]).id for d in differ)
+        raise MachineError(
+            f"{path} changes the filter, which the CNC objects cannot write: {', '.join(differ)} "
+            f"({ids}); the machine would run the list's "
+            f"gains with its old filter, a set nobody evaluated: nothing written. Put these values into the "
+            f"CNC's parameter list (adopted when the CNC starts) and write the list then, or write "
+            f"tuned/tuned-objects.lis instead (`distctrl tune --out tuned/` writes it: the best evaluated set "
+            f"that keeps the scenario's filter)")
+    return unknown
+
+
+def _has_key(unit: Unit, f: str) -> bool:
+    return any(s.field == f for s in unit.list_format.specs)
+
+
+def plan_write(target: Target, unit: Unit, path: str | Path, journal: WriteJournal | None = None) -> Plan:
+    """The changes ``path`` asks for against what the machine has in effect and what distctrl wrote
+    before and is still pending (``journal``)."""
     wanted, ignored = wanted_values(unit, path)
+    unverifiable = check_filter(target, unit, path, ignored)
     state = read_state(target, unit)
-    changes, unchanged = [], []
+    readings = {f: read_object(target, unit, unit.spec(PARAMETERS[f])) for f in ORDER}
+    values = (journal or WriteJournal()).resolve(target, unit, readings, state)
+    changes, unchanged, already = [], [], []
     for f in ORDER:
         if f not in wanted:
             continue
         new = _object_value(unit, f, wanted[f])
         spec = unit.spec(PARAMETERS[f])
-        old = read_object(target, unit, spec)
-        if _same(old, new):
-            unchanged.append(f)
+        v = values[f]
+        after_activation = v["in_effect"] if v["pending"] is None else v["pending"]
+        if _same(after_activation, new):
+            (already if v["pending"] is not None else unchanged).append(f)
         else:
-            changes.append(Change(f, unit.key(f), spec.name, spec.unit, old, new))
-    return Plan(unit, state, changes, unchanged, ignored)
+            changes.append(Change(f, unit.key(f), spec.name, spec.unit, v["in_effect"], new, pending=v["pending"]))
+    return Plan(unit, state, changes, unchanged, ignored, already, values, unverifiable)
 
 
 def default_backup_path(path: str | Path, unit: Unit) -> Path:
@@ -149,10 +235,13 @@ def default_backup_path(path: str | Path, unit: Unit) -> Path:
 def write_backup(target: Target, unit: Unit, backup: Path, plan: Plan) -> dict:
     """The current values of every writable parameter, written to ``backup`` (a parameter list that
     ``machine write BACKUP --yes`` restores)."""
-    values = {f: read_object(target, unit, unit.spec(PARAMETERS[f])) for f in ORDER}
+    values = {f: plan.values[f]["in_effect"] if f in plan.values else read_object(target, unit, unit.spec(PARAMETERS[f]))
+              for f in ORDER}
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    port = "" if target.tcp_port == AMS_TCP_PORT else f" --port {target.tcp_port}"
     header = (f"backup of {unit.label} on {target.address}, {now}, before writing {len(plan.changes)} value(s)\n"
-              f"restore: distctrl machine write --ads {target.net_id}:{target.port} --ip {target.ip} "
+              f"(the values in effect; a value written before and still pending is not in it)\n"
+              f"restore: distctrl machine write --ads {target.net_id}:{target.port} --ip {target.ip}{port} "
               f"--axis {unit.name}={unit.number} {backup} --yes")
     if unit.kind == "channel":
         header = header.replace(f"--axis {unit.name}={unit.number}", f"--channel {unit.number}")
@@ -182,10 +271,12 @@ def _verify(target: Target, unit: Unit, changes: list[Change], settle: float = S
         time.sleep(0.01)
     for c in changes:
         v = got[c.field]
+        # every written value waits for the next activation (FCT-M3 §9.4), whatever its object reads
+        c.status = "in effect" if _same(c.new, c.old) else "pending"
         if _same(v, c.new):
-            c.status = "verified"
+            c.read_back = "written"
         elif c.field in WORKING_VALUE and _same(v, c.old):
-            c.status = "pending"      # the object shows the working value until the next activation
+            c.read_back = "in_effect"  # the object shows the working value until the next activation
         else:
             raise MachineError(f"{c.object} of {unit.label} reads back {v} {c.unit} after writing {c.new} "
                                f"(waited {settle:g} s)")
@@ -195,7 +286,8 @@ def _verify(target: Target, unit: Unit, changes: list[Change], settle: float = S
 WORKING_VALUE = ("kp", "i_tn", "d_tv")
 
 
-def execute(plan: Plan, target: Target, backup: Path, *, pending: bool = False, reconnect=None) -> dict:
+def execute(plan: Plan, target: Target, backup: Path, *, pending: bool = False, reconnect=None,
+            journal: WriteJournal | None = None) -> dict:
     """Write the plan: backup, writes, read back; on failure restore and verify. Returns the result
     for the report; raises :class:`MachineError` (exit code 4 when rolled back, 1 when refused)."""
     unit = plan.unit
@@ -227,8 +319,11 @@ def execute(plan: Plan, target: Target, backup: Path, *, pending: bool = False, 
             msg = (f"{exc}; RESTORE INCOMPLETE ({restored}): restore with distctrl machine write --ads "
                    f"{target.net_id}:{target.port} --ip {target.ip} {backup} --yes")
         raise MachineError(msg, exit_code=ExitCode.CHECK_FAILED) from None
+    (journal or WriteJournal()).record(target, unit, {c.field: c.new for c in plan.changes},
+                                       {c.field: c.old for c in plan.changes},
+                                       {c.field: c.read_back for c in plan.changes}, plan.state)
     result["written"] = [c.field for c in plan.changes]
-    result["pending"] = [c.field for c in plan.changes]    # all: adopted on the next activation
+    result["pending"] = [c.field for c in plan.changes if c.status == "pending"]   # adopted on the next activation
     return result
 
 

@@ -12,6 +12,12 @@ import pytest
 pyads = pytest.importorskip("pyads")
 
 
+@pytest.fixture(autouse=True)
+def _own_write_journal(tmp_path, monkeypatch):
+    """Every test its own journal of machine writes (distctrl.client.journal), never the user's."""
+    monkeypatch.setenv("DISTCTRL_MACHINE_JOURNAL", str(tmp_path / "machine-writes.json"))
+
+
 def _sigint_default() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
@@ -35,6 +41,26 @@ def free_loopback(port: int = 48898) -> str:
                 continue
         return host
     pytest.skip(f"no free loopback address for TCP {port}")
+
+
+def serve_on_port(scenario, speed: float = 1.0):
+    """A started ServedMachine of ``scenario`` on 127.0.0.1 and a free AMS/TCP port (``sm.port``), as
+    ``distctrl serve --port N`` serves it; its NetId is 127.0.0.1.1.1."""
+    from distctrl.ads.devices import serve_over_ads
+
+    sm = serve_over_ads(scenario, host="127.0.0.1", port=0, net_id="127.0.0.1.1.1", discovery_port=None,
+                        speed=speed)
+    sm.start()
+    sm.server = sm.services["ads"].server
+    sm.net_id, sm.host, sm.port = "127.0.0.1.1.1", "127.0.0.1", sm.server.port
+    return sm
+
+
+def closed_port() -> int:
+    """A TCP port on 127.0.0.1 with nothing listening (bound, then released)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def serve(scenario, speed: float = 1.0):

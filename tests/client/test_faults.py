@@ -124,7 +124,8 @@ def test_complete_write_verifies(rig, tmp_path):
         plan = plan_write(t, Z, lis)
         done = execute(plan, t, tmp_path / "backup.lis")
     assert cnc.values["DIST_CTRL::kp"] == 0.8 and cnc.values["DIST_CTRL_PARAM[0]::v_max"] == 150000
-    assert {c.status for c in plan.changes} == {"verified"}
+    # every object of this fake reads the written value back: verified, and pending (FCT-M3 §9.4)
+    assert {(c.status, c.read_back) for c in plan.changes} == {("pending", "written")}
     assert done["written"] == ["v_max", "d_tv", "i_tn", "kp"]
     text = Path(done["backup"]).read_text()
     assert "kenngr.distc.kp                    0.5" in text

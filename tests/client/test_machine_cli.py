@@ -88,15 +88,18 @@ def test_write_shows_the_plan_writes_with_yes_and_restores_from_the_backup(idle,
     assert not list(tmp_path.glob("*.backup*"))                      # nothing written, no backup
     r, done = run("machine", "write", *ads(idle), "--axis", "Z=2", lis, "--yes", "--json")
     assert r.exit_code == 0, r.output
-    status = {c["parameter"]: c["status"] for c in done["changes"]}
-    assert status == {"v_max": "verified", "kp": "pending"}          # kp reads the working value
+    status = {c["parameter"]: (c["status"], c["read_back"]) for c in done["changes"]}
+    # both wait for the next activation; kp's object reads the working value, v_max's the pending one
+    assert status == {"v_max": ("pending", "written"), "kp": ("pending", "in_effect")}
     assert sorted(done["pending"]) == ["kp", "v_max"]
     backup = Path(done["backup"])
     assert backup.name == "tuned.backup-axis-Z.lis"
     r, again = run("machine", "write", *ads(idle), "--axis", "Z=2", backup, "--yes", "--json")
     assert r.exit_code == 0, r.output
-    assert {c["parameter"]: c["new"] for c in again["changes"]} == {"v_max": 200000}   # kp never changed
+    # kp 0.7 and v_max 150000 wait: the restore writes the values in effect again over them (issue 39)
+    assert {c["parameter"]: c["new"] for c in again["changes"]} == {"v_max": 200000, "kp": 0.5}
     assert pending_after_next_cycles(idle, "v_max") == 200.0
+    assert pending_after_next_cycles(idle, "kp") == 0.5
 
 
 def test_write_refused_while_active_unless_pending(active, tmp_path):
@@ -166,7 +169,7 @@ def test_3d_channel_shown_and_written(tmp_path):
         r, done = run("machine", "write", *ads(sm), "--channel", 1, lis, "--yes", "--pending", "--json")
         assert r.exit_code == 0, r.output
         assert [(c["parameter"], c["old"], c["new"], c["status"]) for c in done["changes"]] == \
-            [("v_max", 10000, 12000, "verified")]
+            [("v_max", 10000, 12000, "pending")]
         assert "--channel 1" in Path(done["backup"]).read_text()
     finally:
         sm.stop()
