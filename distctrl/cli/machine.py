@@ -12,7 +12,7 @@ from ..client.axes import Unit, describe_unit, format_list_text, probe_axes, pro
 from ..client.recorder import make_signal
 from ..client.recorder import record as do_record
 from ..client.journal import WriteJournal
-from ..client.recorder import cut_message, summary, write_trace
+from ..client.recorder import cut_message, summary, tracking_figures, write_trace
 from ..client.target import AMS_TCP_PORT, Target, parse_target, quiet_adslib
 from ..client.writer import ORDER, default_backup_path, execute, plan_write
 from ..errors import ExitCode
@@ -215,43 +215,6 @@ def record(ads, ip, tcp_port, timeout, axis, seconds, signals, cycle_ms, max_del
 
 def _fmt(v) -> str:
     return "n/a" if v is None else f"{v:.4f}"
-
-
-#: a tracking figure leaves out the approach: the first cycles after each activation
-APPROACH_S = 0.3
-
-
-def tracking_figures(rec) -> dict | None:
-    """RMS and max of DIST_CTRL::target_deviation while ACTIVE (state 2), over the activations that
-    *start* inside the recording (an activation under way when it began may still run with values
-    from before a write), each without its first :data:`APPROACH_S` (the approach). None without
-    the deviation and state signals."""
-    import numpy as np
-
-    cols = rec.columns
-    dev = next((i for i, c in enumerate(cols) if c.endswith(".deviation") or c.endswith(".DIST_CTRL.target_deviation")),
-               None)
-    st = next((i for i, c in enumerate(cols) if c.endswith(".state") or c.endswith(".DIST_CTRL.state")), None)
-    if dev is None or st is None or rec.rows == 0:
-        return None
-    d, state = rec.data[:, dev], rec.data[:, st]
-    active = state == 2
-    skip = int(round(APPROACH_S / rec.cycle_s))
-    keep = np.zeros(len(d), dtype=bool)
-    starts = np.flatnonzero(active[1:] & ~active[:-1]) + 1
-    for a in starts:
-        b = a
-        while b < len(d) and active[b]:
-            b += 1
-        keep[a + skip:b] = True
-    keep &= ~np.isnan(d)
-    n = int(keep.sum())
-    if not n:
-        return {"rms_mm": None, "max_abs_mm": None, "activations": int(len(starts)), "cycles": 0,
-                "skip_s": APPROACH_S}
-    x = d[keep]
-    return {"rms_mm": float(np.sqrt(np.mean(x ** 2))), "max_abs_mm": float(np.max(np.abs(x))),
-            "activations": int(len(starts)), "cycles": n, "skip_s": APPROACH_S}
 
 
 @machine.command()

@@ -74,19 +74,17 @@ def objects(scenario: str | None, axis_filter: str | None, cycles: int, as_json:
     else:
         click.echo(format_rows(rows), nl=False)
 
-def _ads_address(host: str, port: int) -> str:
-    """The address pyads's router connects to: HOST for the standard port 48898, else HOST:PORT (the
-    router of pyads, Beckhoff's ADS library on Linux, splits a port off the address; [v6]:PORT)."""
-    if port == 48898:
-        return host
-    return f"[{host}]:{port}" if ":" in host and not host.startswith("[") else f"{host}:{port}"
-
 def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval, count) -> None:
-    """``objects --watch``: the table of a served machine, refreshed every ``interval`` seconds."""
+    """``objects --watch``: the table of a served machine, refreshed every ``interval`` seconds. The
+    connection is the machine commands' (:class:`distctrl.client.target.Target`): a bounded TCP connect
+    first, one line for every failure, AdsLib's own log lines kept off the terminal."""
     try:
         import pyads  # the [ads] extra: only --watch needs it, so objects works without it
     except ImportError:
         fail("--watch needs pyads (pip install pyads), the ADS client it reads the served machine with")
+    # the machine commands' ADS connection: only --watch needs it (and its pyads)
+    from ..client.target import CNC_PORT, MachineError, Target, quiet_adslib
+
     names: dict[int, str] = {}
     resolution = 1e-4
     if scenario is not None:
@@ -96,9 +94,11 @@ def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval,
             fail(str(exc))
         names = {i + 1: n for i, n in enumerate(sc.axes)}        # the scenario keeps X Y Z A B C order
         resolution = next((a.resolution for a in sc.axes.values() if a.resolution), 1e-4)
-    conn = pyads.Connection(net_id, 551, _ads_address(host, port))
+    quiet_adslib()
+    target = Target(net_id, CNC_PORT, host, timeout=2.0, connect_timeout=2.0, tcp_port=port)
     try:
-        conn.open()
+        target.open()
+        conn = target.conn
         if not names:                        # ask the server: axis ids answer until 0x703 (no such axis)
             kp = BY_NAME["DIST_CTRL::kp"]
             for axis_id in range(1, 33):
@@ -108,9 +108,7 @@ def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval,
                     break
                 names[axis_id] = f"axis{axis_id}"
         if axis_filter:
-            names = {i: n for i, n in names.items() if n == axis_filter}
-            if not names:
-                fail(f"no axis {axis_filter!r}")
+            names = _pick_axis(names, axis_filter, scenario is not None)
         shown = 0
         while count == 0 or shown < count:
             rows = remote_rows(conn, names, resolution)
@@ -125,7 +123,22 @@ def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval,
                 click.echo(format_rows(rows), nl=False)
             if count == 0 or shown < count:
                 time.sleep(interval)
+    except MachineError as exc:
+        fail(str(exc))
     except pyads.ADSError as exc:
         fail(f"ADS {host}:{port} ({net_id}): {exc}")
     finally:
-        conn.close()
+        target.close()
+
+
+def _pick_axis(names: dict[int, str], wanted: str, named: bool) -> dict[int, str]:
+    """--axis by name, or by its axis_id (``2``); one line naming the axes there are otherwise."""
+    picked = {i: n for i, n in names.items() if n == wanted or (wanted.isdigit() and int(wanted) == i)}
+    if picked:
+        return picked
+    have = ", ".join(names.values()) or "none"
+    if named:
+        fail(f"--axis {wanted!r}: no such axis in the SCENARIO; its axes: {have}")
+    fail(f"--axis {wanted!r}: without a SCENARIO the axes are named by their axis_id ({have}): give the "
+         f"axis_id, e.g. --axis 2, or the SCENARIO the server runs to name them (objects SCENARIO --watch "
+         f"--axis {wanted})")

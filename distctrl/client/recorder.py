@@ -303,3 +303,38 @@ def cut_message(recording: Recording) -> str | None:
             f"arrived in the last {s['cut_s']:.1f} s (about {s['cut_cycles']} cycles of "
             f"{recording.cycle_s * 1e3:g} ms missing at the end); the trace holds the {s['rows']} cycles "
             f"({s['seconds']:.3f} s) that arrived")
+
+
+#: a tracking figure leaves out the approach: the first cycles after each activation
+APPROACH_S = 0.3
+
+
+def tracking_figures(rec) -> dict | None:
+    """RMS and max of DIST_CTRL::target_deviation while ACTIVE (state 2), over the activations that
+    *start* inside the recording (an activation under way when it began may still run with values
+    from before a write), each without its first :data:`APPROACH_S` (the approach). None without
+    the deviation and state signals."""
+    cols = rec.columns
+    dev = next((i for i, c in enumerate(cols) if c.endswith(".deviation") or c.endswith(".DIST_CTRL.target_deviation")),
+               None)
+    st = next((i for i, c in enumerate(cols) if c.endswith(".state") or c.endswith(".DIST_CTRL.state")), None)
+    if dev is None or st is None or rec.rows == 0:
+        return None
+    d, state = rec.data[:, dev], rec.data[:, st]
+    active = state == 2
+    skip = int(round(APPROACH_S / rec.cycle_s))
+    keep = np.zeros(len(d), dtype=bool)
+    starts = np.flatnonzero(active[1:] & ~active[:-1]) + 1
+    for a in starts:
+        b = a
+        while b < len(d) and active[b]:
+            b += 1
+        keep[a + skip:b] = True
+    keep &= ~np.isnan(d)
+    n = int(keep.sum())
+    if not n:
+        return {"rms_mm": None, "max_abs_mm": None, "activations": int(len(starts)), "cycles": 0,
+                "skip_s": APPROACH_S}
+    x = d[keep]
+    return {"rms_mm": float(np.sqrt(np.mean(x ** 2))), "max_abs_mm": float(np.max(np.abs(x))),
+            "activations": int(len(starts)), "cycles": n, "skip_s": APPROACH_S}
