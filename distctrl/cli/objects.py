@@ -20,7 +20,8 @@ from .common import Finite, emit_json, fail, json_text
 
 @click.command("objects")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
-@click.option("--axis", "axis_filter", help="Only this axis (name).")
+@click.option("--axis", "axis_filter", help="Only this axis: its name; with --watch and no SCENARIO its "
+              "axis_id (2) or axis2.")
 @click.option("--cycles", default=0, show_default=True, type=click.IntRange(min=0),
               help="Run the scenario this many cycles first, so the values are live.")
 @click.option("--json", "as_json", is_flag=True,

@@ -12,6 +12,11 @@ import pytest
 pyads = pytest.importorskip("pyads")
 
 
+def pytest_configure(config):
+    config.addinivalue_line("markers", "loop: the whole commissioning loop against distctrl serve (a minute or "
+                                       "two of CPU; -m 'not loop' leaves it out)")
+
+
 @pytest.fixture(autouse=True)
 def _own_write_journal(tmp_path, monkeypatch):
     """Every test its own journal of machine writes (distctrl.client.journal), never the user's."""
