@@ -22,8 +22,10 @@ from .common import Finite, check_writable, emit_json, fail
 def _target_options(f):
     f = click.option("--timeout", default=2.0, show_default=True, type=Finite(0.05, 60.0),
                      help="Seconds each ADS request may take (pyads' timeout) and the TCP connect may wait.")(f)
-    f = click.option("--port", "tcp_port", default=AMS_TCP_PORT, show_default=True, type=click.IntRange(1, 65535),
-                     help="The target's AMS/TCP port (TwinCAT's router: 48898; `distctrl serve --port N`: N).")(f)
+    f = click.option("--port", "tcp_port", default=AMS_TCP_PORT, show_default=True,
+                     type=click.IntRange(1, 65535),
+                     help="The target's AMS/TCP port (TwinCAT's router: 48898; `distctrl serve --port N`: "
+                          "N).")(f)
     f = click.option("--ip", default=None, help="IP address or host name of the target (default: the NetId's "
                      "first four numbers). A route to this machine must exist on the target "
                      "(docs/commissioning.md).")(f)
@@ -54,7 +56,8 @@ def _parse_axis(text: str):
 def _open(ads: str, ip: str | None, timeout: float, tcp_port: int = AMS_TCP_PORT):
     quiet_adslib()
     net_id, port, host = parse_target(ads, ip)
-    return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0), tcp_port=tcp_port).open()
+    return Target(net_id, port, host, timeout=timeout, connect_timeout=max(timeout, 1.0),
+                  tcp_port=tcp_port).open()
 
 
 def _fail_machine(exc) -> None:
@@ -102,9 +105,9 @@ def show(ads: str, ip: str | None, tcp_port: int, timeout: float, axes: tuple[st
         emit_json(result)
         return
     if not axes and rows:
-        click.echo("every axis_id whose distance-control objects answer is listed: the CNC objects do not say "
-                   "which axes have distance control configured (P-AXIS-00328 lr_param.distance_control_on is "
-                   "not among them, FCT-M3 §9.4)")
+        click.echo("every axis_id whose distance-control objects answer is listed: the CNC objects do not "
+                   "say which axes have distance control configured (P-AXIS-00328 "
+                   "lr_param.distance_control_on is not among them, FCT-M3 §9.4)")
     for r in rows + channels:
         kind = "axis" if r["kind"] == "axis" else "channel"
         click.echo(f"{kind} {r['name']} (index {r['index']}): state {r['state']}"
@@ -120,15 +123,16 @@ def show(ads: str, ip: str | None, tcp_port: int, timeout: float, axes: tuple[st
             if not d["writable"]:
                 line += "  (read-only)"
             elif val is not None and val["pending"] is not None:
-                line += f"  in effect; written {_text(val['pending'])}, pending (adopted at the next activation)"
+                line += (f"  in effect; written {_text(val['pending'])}, pending "
+                         f"(adopted at the next activation)")
             else:
                 line += "  in effect"
             click.echo(line)
     if not rows and not channels:
         click.echo("no axis or channel with distance-control objects answered")
     if any(v["pending"] is not None for r in rows + channels for v in r["values"].values()):
-        click.echo("pending: written by distctrl from this PC (the journal " + str(journal.path) + "); the CNC "
-                   "takes them at the next INACTIVE→ACTIVE or FREEZE→ACTIVE (FCT-M3 §9.4)")
+        click.echo(f"pending: written by distctrl from this PC (the journal {journal.path}); the CNC "
+                   f"takes them at the next INACTIVE→ACTIVE or FREEZE→ACTIVE (FCT-M3 §9.4)")
     if out:
         click.echo(f"written: {out}")
 
@@ -196,12 +200,14 @@ def record(ads, ip, tcp_port, timeout, axis, seconds, signals, cycle_ms, max_del
         if cut:
             lost = (lost + " and " if lost else "") + f"about {s['cut_cycles']} cycles cut off at the end"
         click.echo(f"recorded {s['rows']} cycles ({s['seconds']:.3f} s) of {', '.join(rec.columns[1:])}: "
-                   f"{s['samples']} samples, lost: {lost or 'none'}, late: {rec.late}" + (" (Ctrl-C)" if rec.interrupted else ""))
+                   f"{s['samples']} samples, lost: {lost or 'none'}, late: {rec.late}"
+                   + (" (Ctrl-C)" if rec.interrupted else ""))
         tr = result["tracking"]
         if tr is not None:
             click.echo(f"tracking: RMS {_fmt(tr['rms_mm'])} mm, max {_fmt(tr['max_abs_mm'])} mm of "
                        f"DIST_CTRL::target_deviation over {tr['activations']} activation(s) that started in "
-                       f"the recording, each after its first {tr['skip_s'] * 1e3:g} ms ({tr['cycles']} cycles)")
+                       f"the recording, each after its first {tr['skip_s'] * 1e3:g} ms "
+                       f"({tr['cycles']} cycles)")
         click.echo(f"written: {out}")
         if s["lost_total"] or rec.late:
             click.echo("warning: lost samples are NaN in the trace (a gap, not data)", err=True)
@@ -281,11 +287,12 @@ def _show_plan(plan, result: dict, as_json: bool, written: bool) -> None:
     for c in plan.changes:
         status = f"  [{c.status}]" if written else ""
         was = f" (written {_text(c.pending)} pending until now)" if c.pending is not None else ""
-        click.echo(f"  {c.key:<22} {_text(c.old):>14} -> {_text(c.new):<14} {c.unit:<6} ({c.object}){status}{was}")
+        click.echo(f"  {c.key:<22} {_text(c.old):>14} -> {_text(c.new):<14} {c.unit:<6} ({c.object})"
+                   f"{status}{was}")
     for f in plan.already_pending:
         v = plan.values[f]
-        click.echo(f"  {plan.unit.key(f):<22} {_text(v['in_effect']):>14} in effect; {_text(v['pending'])} already "
-                   f"written and pending (written {v['written_at']}; adopted at the next activation)")
+        click.echo(f"  {plan.unit.key(f):<22} {_text(v['in_effect']):>14} in effect; {_text(v['pending'])} "
+                   f"already written and pending (written {v['written_at']}; adopted at the next activation)")
     for i in plan.ignored:
         click.echo(f"  {i['key']:<22} ignored: {i['reason']}")
     for u in plan.unverifiable:
@@ -293,9 +300,10 @@ def _show_plan(plan, result: dict, as_json: bool, written: bool) -> None:
                    f"has this value, or the machine runs the gains with another low-pass")
     if not written:
         if plan.changes and result.get("yes_refused"):
-            click.echo(f"nothing written: distance control is {state_name(plan.state)}, so --yes will be refused "
-                       f"(the running process would keep the old values); write when it is inactive, or give "
-                       f"--yes --pending to write now and have the values wait for the next activation")
+            click.echo(f"nothing written: distance control is {state_name(plan.state)}, so --yes will be "
+                       f"refused (the running process would keep the old values); write when it is "
+                       f"inactive, or give --yes --pending to write now and have the values wait for the next "
+                       f"activation")
         elif plan.changes:
             click.echo("nothing written: add --yes to write these values (a backup of the old ones is written first)")
         return
@@ -303,6 +311,6 @@ def _show_plan(plan, result: dict, as_json: bool, written: bool) -> None:
         click.echo(f"backup of the values in effect: {result['backup']} (restore: the same command with it "
                    f"and --yes)")
         if result["pending"]:
-            click.echo(f"written, pending until the next activation of distance control (INACTIVE→ACTIVE or "
-                       f"FREEZE→ACTIVE, FCT-M3 §9.4): {', '.join(result['pending'])}; the values in effect stay "
-                       f"until then (`machine show` shows both)")
+            click.echo(f"written, pending until the next activation of distance control (INACTIVE→ACTIVE "
+                       f"or FREEZE→ACTIVE, FCT-M3 §9.4): {', '.join(result['pending'])}; the values in "
+                       f"effect stay until then (`machine show` shows both)")

@@ -72,7 +72,8 @@ class WriteJournal:
 
     @staticmethod
     def key(target, unit) -> str:
-        return f"{target.net_id}:{target.port}@{target.ip}:{getattr(target, 'tcp_port', 48898)}/{unit.kind}/{unit.number}"
+        tcp = getattr(target, "tcp_port", 48898)
+        return f"{target.net_id}:{target.port}@{target.ip}:{tcp}/{unit.kind}/{unit.number}"
 
     def save(self) -> None:
         try:
@@ -105,7 +106,8 @@ class WriteJournal:
         objects read now); updates the journal (adopted or stale entries go)."""
         key = self.key(target, unit)
         entry = self.data.get(key)
-        out = {f: {"read": v, "in_effect": v, "pending": None, "written_at": None} for f, v in readings.items()}
+        out = {f: {"read": v, "in_effect": v, "pending": None, "written_at": None}
+               for f, v in readings.items()}
         if not entry or not entry.get("pending"):
             return out
         pending = entry["pending"]

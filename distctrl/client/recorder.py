@@ -299,7 +299,8 @@ def cut_message(recording: Recording) -> str | None:
     s = summary(recording)
     if not s["cut_s"]:
         return None
-    return (f"the target stopped sending after {s['stopped_after_s']:.1f} s of {s['requested_s']:g} s: nothing "
+    return (f"the target stopped sending after {s['stopped_after_s']:.1f} s of {s['requested_s']:g} s: "
+            f"nothing "
             f"arrived in the last {s['cut_s']:.1f} s (about {s['cut_cycles']} cycles of "
             f"{recording.cycle_s * 1e3:g} ms missing at the end); the trace holds the {s['rows']} cycles "
             f"({s['seconds']:.3f} s) that arrived")
@@ -315,8 +316,8 @@ def tracking_figures(rec) -> dict | None:
     from before a write), each without its first :data:`APPROACH_S` (the approach). None without
     the deviation and state signals."""
     cols = rec.columns
-    dev = next((i for i, c in enumerate(cols) if c.endswith(".deviation") or c.endswith(".DIST_CTRL.target_deviation")),
-               None)
+    dev = next((i for i, c in enumerate(cols)
+                if c.endswith(".deviation") or c.endswith(".DIST_CTRL.target_deviation")), None)
     st = next((i for i, c in enumerate(cols) if c.endswith(".state") or c.endswith(".DIST_CTRL.state")), None)
     if dev is None or st is None or rec.rows == 0:
         return None

@@ -112,7 +112,8 @@ def quiet_adslib() -> None:
             return
         sys.stderr.flush()
         saved = os.dup(2)
-        sys.stderr = os.fdopen(saved, "w", buffering=1, encoding=sys.stderr.encoding, errors="backslashreplace")
+        sys.stderr = os.fdopen(saved, "w", buffering=1, encoding=sys.stderr.encoding,
+                               errors="backslashreplace")
         null = os.open(os.devnull, os.O_WRONLY)
         os.dup2(null, 2)
         os.close(null)

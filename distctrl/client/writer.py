@@ -188,8 +188,8 @@ def check_filter(target: Target, unit: Unit, path: str | Path, ignored: list[dic
             f"({ids}); the machine would run the list's "
             f"gains with its old filter, a set nobody evaluated: nothing written. Put these values into the "
             f"CNC's parameter list (adopted when the CNC starts) and write the list then, or write "
-            f"tuned/tuned-objects.lis instead (`distctrl tune --out tuned/` writes it: the best evaluated set "
-            f"that keeps the scenario's filter)")
+            f"tuned/tuned-objects.lis instead (`distctrl tune --out tuned/` writes it: the best evaluated "
+            f"set that keeps the scenario's filter)")
     return unknown
 
 
@@ -216,7 +216,8 @@ def plan_write(target: Target, unit: Unit, path: str | Path, journal: WriteJourn
         if _same(after_activation, new):
             (already if v["pending"] is not None else unchanged).append(f)
         else:
-            changes.append(Change(f, unit.key(f), spec.name, spec.unit, v["in_effect"], new, pending=v["pending"]))
+            changes.append(Change(f, unit.key(f), spec.name, spec.unit, v["in_effect"], new,
+                                  pending=v["pending"]))
     return Plan(unit, state, changes, unchanged, ignored, already, values, unverifiable)
 
 
@@ -235,8 +236,8 @@ def default_backup_path(path: str | Path, unit: Unit) -> Path:
 def write_backup(target: Target, unit: Unit, backup: Path, plan: Plan) -> dict:
     """The current values of every writable parameter, written to ``backup`` (a parameter list that
     ``machine write BACKUP --yes`` restores)."""
-    values = {f: plan.values[f]["in_effect"] if f in plan.values else read_object(target, unit, unit.spec(PARAMETERS[f]))
-              for f in ORDER}
+    values = {f: plan.values[f]["in_effect"] if f in plan.values
+              else read_object(target, unit, unit.spec(PARAMETERS[f])) for f in ORDER}
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
     port = "" if target.tcp_port == AMS_TCP_PORT else f" --port {target.tcp_port}"
     header = (f"backup of {unit.label} on {target.address}, {now}, before writing {len(plan.changes)} value(s)\n"
@@ -323,7 +324,7 @@ def execute(plan: Plan, target: Target, backup: Path, *, pending: bool = False, 
                                        {c.field: c.old for c in plan.changes},
                                        {c.field: c.read_back for c in plan.changes}, plan.state)
     result["written"] = [c.field for c in plan.changes]
-    result["pending"] = [c.field for c in plan.changes if c.status == "pending"]   # adopted on the next activation
+    result["pending"] = [c.field for c in plan.changes if c.status == "pending"]   # wait for the next ON
     return result
 
 
