@@ -6,6 +6,7 @@
 # The served CNC has the axes X Y Z: Z is axis_id 3 (--axis Z=3). tests/client/test_loop_example.py runs
 # this file as it is.
 set -e
+trap 'kill $SERVE 2> /dev/null || true' EXIT                    # a failed step leaves no server behind
 PORT=${PORT:-49150}
 A="--ads 127.0.0.1.1.1 --ip 127.0.0.1 --port $PORT"
 
