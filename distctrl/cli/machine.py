@@ -99,8 +99,7 @@ def show(ads: str, ip: str | None, tcp_port: int, timeout: float, axes: tuple[st
     except MachineError as exc:
         _fail_machine(exc)
     result = {"command": "machine show", "outcome": "ok", "target": ads, "port": tcp_port,
-              "axes": rows, "channels": channels, "out": out, "journal": str(journal.path),
-              "distance_control_configured": None}
+              "axes": rows, "channels": channels, "out": out, "journal": str(journal.path)}
     if as_json:
         emit_json(result)
         return
