@@ -18,12 +18,8 @@ import time
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
-
-from distctrl.cli import main
-
 from .conftest import serve_on_port
-from .test_machine_cli import scenario
+from .test_machine_cli import run, scenario
 
 IDLE = "N10 #TIME 3600\nN20 M30\n"
 ACTIVE = "N10 Z[DIST_CTRL ON CONST_DIST SET_DIST=1]\nN20 #TIME 3600\nN30 M30\n"
@@ -34,11 +30,6 @@ def idle():
     sm = serve_on_port(scenario(IDLE))
     yield sm
     sm.stop()
-
-
-def run(*args):
-    r = CliRunner().invoke(main, [str(a) for a in args])
-    return r, (json.loads(r.stdout) if "--json" in args and r.stdout.strip() else None)
 
 
 def ads(sm):
@@ -71,9 +62,8 @@ def test_port_with_nothing_listening_is_one_line(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------------ B2
-def test_record_cut_short_by_the_target_is_incomplete(tmp_path, monkeypatch):
-    """The audit's B2: the target stops half way through an 8 s recording; the recording said "lost:
-    none", complete, exit 0. Now: complete false, the cut said and counted, exit code 4, trace kept."""
+def target_going_away(monkeypatch):
+    """A served machine that stops (the target goes away) once the recording has 200 samples."""
     from distctrl.client import recorder as recorder_mod
 
     sm = serve_on_port(scenario(IDLE))
@@ -86,10 +76,17 @@ def test_record_cut_short_by_the_target_is_incomplete(tmp_path, monkeypatch):
             deadline = time.monotonic() + 60
             while len(self.raw) < 200 and time.monotonic() < deadline:
                 time.sleep(0.01)
-            sm.stop()                       # the target goes away while the recording runs
+            sm.stop()
         threading.Thread(target=stop_when_samples_came, daemon=True).start()
 
     monkeypatch.setattr(recorder_mod.Recorder, "start", start_then_stop_the_target)
+    return sm
+
+
+def test_record_cut_short_by_the_target_is_incomplete(tmp_path, monkeypatch):
+    """The audit's B2: the target stops half way through an 8 s recording; the recording said "lost:
+    none", complete, exit 0. Now: complete false, the cut said and counted, exit code 4, trace kept."""
+    sm = target_going_away(monkeypatch)
     out = tmp_path / "cut.csv"
     try:
         r, j = run("machine", "record", *ads(sm), "--axis", "Z=2", "--seconds", 4, "--signals", "command,state",
@@ -106,22 +103,7 @@ def test_record_cut_short_by_the_target_is_incomplete(tmp_path, monkeypatch):
 
 
 def test_record_cut_short_text_says_it(tmp_path, monkeypatch):
-    from distctrl.client import recorder as recorder_mod
-
-    sm = serve_on_port(scenario(IDLE))
-    start = recorder_mod.Recorder.start
-
-    def start_then_stop(self):
-        start(self)
-
-        def stop_later():
-            deadline = time.monotonic() + 60
-            while len(self.raw) < 200 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            sm.stop()
-        threading.Thread(target=stop_later, daemon=True).start()
-
-    monkeypatch.setattr(recorder_mod.Recorder, "start", start_then_stop)
+    sm = target_going_away(monkeypatch)
     try:
         r, _ = run("machine", "record", *ads(sm), "--axis", "Z=2", "--seconds", 3, "--signals", "command",
                    "--out", tmp_path / "c.csv")
