@@ -6,8 +6,9 @@ restore. Checked here, from the files the script leaves, with this test's own ar
 * the excitation's recording is complete (its sidecar);
 * after the write the served machine tracks no worse than before (RMS of
   ``DIST_CTRL::target_deviation`` over the passes that start inside each 8 s recording, each after its
-  first 0.3 s), or tune's --json said that its set tracks worse (``worse_than_current``, with a
-  ``worse_reason``);
+  first 0.3 s), or tune's --json said that the set written tracks worse (``worse_than_current`` with a
+  ``worse_reason`` for tuned.lis; for tuned-objects.lis its ``objects_set`` RMS above the current
+  one's; keys read with .get: a tune without them still runs this test);
 * the restore brings the old values back, and ``machine show`` says they are in effect.
 """
 from __future__ import annotations
@@ -94,8 +95,13 @@ def test_the_documented_loop_runs_against_serve(tmp_path):
     after, n_after = tracking_rms(work / "after.csv")
     assert n_before >= 1 and n_after >= 1, (n_before, n_after)
     tuned = json.loads((work / "tuned.json").read_text())
-    if tuned.get("worse_than_current"):
+    current = ((tuned.get("scenario_params") or {}).get("metrics") or {}).get("rms_error")
+    objects = ((tuned.get("objects_set") or {}).get("metrics") or {}).get("rms_error")
+    wrote_objects = (work / "tuned" / "tuned-objects.lis").exists()
+    if tuned.get("worse_than_current") and not wrote_objects:
         assert tuned.get("worse_reason"), tuned.get("worse_reason")
+    elif wrote_objects and objects is not None and current is not None and objects > current:
+        pass        # tune's JSON said the set kept with the machine's filter tracks worse on the twin
     else:
         # 5 %: the probe's noise and where the passes fall differ between the two recordings
         assert after <= 1.05 * before, (before, after, r.stdout[-3000:])
