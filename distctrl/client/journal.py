@@ -18,7 +18,8 @@ objects read with it:
   distctrl's target, or any object of a CNC that shows pending values) and reads it still: in effect
   the old value (the journal's), pending the written one, until an activation is seen;
 * an activation is also seen when the axis was in a state without active distance control (IDLE,
-  OFF, ...) after the write and is ACTIVE or FREEZE now;
+  OFF, ...) after the write and is ACTIVE or FREEZE now, or was in FREEZE and is ACTIVE now (DRYRUN
+  adopts nothing, SPEC §8);
 * any other value: the machine was changed otherwise (another tool, the NC program's DIST_CTRL
   block, a CNC restart): the entry is dropped and the object's value shown.
 
@@ -35,10 +36,21 @@ from pathlib import Path
 
 from ..base.states import InternalState
 
-#: states from which the next ACTIVE is an adopting transition (INACTIVE: IDLE, OFF, ... ; FREEZE)
-_ARMING = frozenset(s.value for s in InternalState) - {int(InternalState.ACTIVE), int(InternalState.DRYRUN)}
-#: states that show an activation happened once an arming state was seen after the write
-_ADOPTED_IN = frozenset({int(InternalState.ACTIVE), int(InternalState.FREEZE)})
+_ACTIVE, _FREEZE, _DRYRUN = int(InternalState.ACTIVE), int(InternalState.FREEZE), int(InternalState.DRYRUN)
+
+
+def _arming(state: int, armed: str | None) -> str | None:
+    """What an observed state says about the next activation: "inactive" (IDLE, OFF, ERROR ...: the next
+    ACTIVE or FREEZE comes through INACTIVE→ACTIVE), "freeze" (the next ACTIVE is FREEZE→ACTIVE)."""
+    if state not in (_ACTIVE, _FREEZE, _DRYRUN):
+        return "inactive"
+    if state == _FREEZE and armed is None:
+        return "freeze"
+    return armed
+
+
+def _adopted(state: int, armed: str | None) -> bool:
+    return (armed == "inactive" and state in (_ACTIVE, _FREEZE)) or (armed == "freeze" and state == _ACTIVE)
 
 
 def journal_path() -> Path:
@@ -96,7 +108,7 @@ class WriteJournal:
             else:
                 entry["pending"][f] = {"written": value, "in_effect": before, "written_at": now,
                                        "reads": reads.get(f, "written")}
-        entry["armed"] = int(state) in _ARMING
+        entry["armed"] = _arming(int(state), None)
         if not entry["pending"]:
             del self.data[self.key(target, unit)]
         self.save()
@@ -111,7 +123,8 @@ class WriteJournal:
         if not entry or not entry.get("pending"):
             return out
         pending = entry["pending"]
-        adopted = bool(entry.get("armed")) and int(state) in _ADOPTED_IN
+        armed = entry.get("armed") if entry.get("armed") in ("inactive", "freeze") else None
+        adopted = _adopted(int(state), armed)
         for f, e in pending.items():
             if e.get("reads") == "in_effect" and f in readings and _same(readings[f], e["written"]):
                 adopted = True            # the object reads the written value: the activation took them all
@@ -120,8 +133,9 @@ class WriteJournal:
             del self.data[key]
             changed = True
         else:
-            if int(state) in _ARMING and not entry.get("armed"):
-                entry["armed"] = changed = True
+            now_armed = _arming(int(state), armed)
+            if now_armed != armed:
+                entry["armed"], changed = now_armed, True
             for f in list(pending):
                 e = pending[f]
                 if f not in readings:
