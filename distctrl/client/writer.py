@@ -164,9 +164,11 @@ def check_filter(target: Target, unit: Unit, path: str | Path, ignored: list[dic
                if obj and _has_key(unit, f)}
     m_type, m_n = _filter_kind(machine["filter_type"])
     l_type, l_n = _filter_kind(fields["filter_type"]) if "filter_type" in fields else (m_type, m_n)
-    differ, unknown = [], []
+    differ, unknown, same = [], [], []
     if l_type != m_type:
         differ.append(f"filter_type {machine['filter_type']} -> {fields['filter_type']}")
+    elif "filter_type" in fields:
+        same.append("filter_type")
     for p in FILTER_KINDS[l_type].params:
         f = _KIND_PARAM_FIELD[p]
         if f == "n_cycles" and l_n is not None:
@@ -181,6 +183,8 @@ def check_filter(target: Target, unit: Unit, path: str | Path, ignored: list[dic
         have = m_n if (f == "n_cycles" and m_n is not None) else machine[f]
         if not _same(have, want):
             differ.append(f"{f} {have:g} -> {want:g}")
+        elif f in fields:
+            same.append(f)
     if differ:
         ids = ", ".join(unit.list_spec(d.split()[0]).id for d in differ)
         raise MachineError(
@@ -190,6 +194,9 @@ def check_filter(target: Target, unit: Unit, path: str | Path, ignored: list[dic
             f"CNC's parameter list (adopted when the CNC starts) and write the list then, or write "
             f"tuned/tuned-objects.lis instead (`distctrl tune --out tuned/` writes it: the best evaluated "
             f"set that keeps the scenario's filter)")
+    for i in ignored:
+        if i["key"] in {unit.key(f) for f in same}:
+            i["reason"] = "not writable over the CNC objects; the machine has the same (read over them)"
     return unknown
 
 

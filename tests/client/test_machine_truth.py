@@ -206,6 +206,8 @@ def test_write_accepts_a_list_with_the_machines_filter(idle, tmp_path):
     r, j = run("machine", "write", *ads(idle), "--axis", "Z=2", lis, "--json")
     assert r.exit_code == 0, r.output
     assert [c["parameter"] for c in j["changes"]] == ["kp"]
+    same = {i["key"] for i in j["ignored"] if "the machine has the same" in i["reason"]}
+    assert same == {"kenngr.distc.filter_type", "kenngr.distc.n_cycles"}
 
 
 # ------------------------------------------------------------------------------------------------ R11
