@@ -247,12 +247,12 @@ def record(target: Target, unit: Unit, signals: list[Signal], seconds: float, cy
     except KeyboardInterrupt:
         rec.interrupted = True
     finally:
+        end = time.monotonic()          # before the deletes, which wait on a target that went away
         try:
             rec.stop()
         except KeyboardInterrupt:          # a second Ctrl-C while deleting: keep the samples anyway
             rec.interrupted = True
         time.sleep(0)
-    end = time.monotonic()
     if last_growth is not None:
         rec.stopped_after_s = last_growth - start
         quiet = end - last_growth
