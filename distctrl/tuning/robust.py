@@ -11,7 +11,8 @@ The check is a frequency response on a dense logarithmic grid, evaluated block b
 filter section by section, as the core runs it, so that a high-order low cut-off is no polynomial of
 badly conditioned coefficients), for all variants at once. For every crossing of 0 dB the phase margin,
 for every crossing of -180 deg (and at the Nyquist frequency) the gain margin; the worst of all
-crossings and variants counts (not only python-control's "closest to 1"). The open loop has no poles
+crossings and variants counts (not only python-control's "closest to 1"); the phase margin is the angle
+between L and -1 at the crossing (:func:`~distctrl.workbench.margins.analysis.phase_margin_deg`). The open loop has no poles
 outside the unit circle (drive, mode, filter are stable; the offset's and the I part's integrators sit on
 it), so a loop whose every -180 deg crossing stays below 1 / (required gain margin) and whose phase does
 not start below -180 deg is stable by the Nyquist criterion; a conditionally stable loop (a -180 deg
@@ -33,7 +34,7 @@ import numpy as np
 
 from ..control import law
 from ..control.controller import AxisDistanceController
-from ..workbench.margins import filter_coefficients, resonance_polynomials
+from ..workbench.margins import filter_coefficients, phase_margin_deg, resonance_polynomials
 
 __all__ = ["PlantAllowance", "DEFAULT_ALLOWANCE", "MIN_GAIN_MARGIN", "MIN_PHASE_MARGIN_DEG", "KP_FLOOR",
            "MarginCheck", "MarginConstraint"]
@@ -222,7 +223,7 @@ class MarginConstraint:
             if k.size:
                 t = l[k] / (l[k] - l[k + 1])
                 lc = L[k] + t * (L[k + 1] - L[k])
-                p = np.remainder(np.angle(lc, deg=True), 360.0) - 180.0
+                p = phase_margin_deg(lc)      # the distance to -1 (audit M2), not (arg mod 360) - 180
                 j = int(np.argmin(p))
                 pm[i], pm_f[i] = float(p[j]), float(f[k[j]] + t[j] * (f[k[j] + 1] - f[k[j]]))
             # -180 deg crossings: gain margins

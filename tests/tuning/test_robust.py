@@ -45,7 +45,9 @@ def test_a_peak_above_0_db_is_refused_and_a_lower_kp_meets_it():
     c = MarginConstraint(model)
     assert len(c.plants) == 36 and len(PlantAllowance().variants(30.0, 0.0, 0.05)) == 6
     chk = c.check(p)
-    assert not chk.ok and chk.phase_margin_deg < 0.0                 # -19 deg at the peak on the twin itself
+    # the peak crosses 0 dB 19 deg from -1 on the twin itself (audit M2: the distance to -1, no longer
+    # "-19 deg"), and a variant's curve passes closer still
+    assert not chk.ok and 0.0 <= chk.phase_margin_deg < 30.0 and chk.nominal_phase_margin_deg < 30.0
     q = c.fit_kp(p)
     assert q is not None and KP_FLOOR <= q.kp < p.kp
     good = c.check(q)

@@ -52,7 +52,7 @@ works as before):
 from __future__ import annotations
 
 from ..plotfiles import PLOT_SUFFIXES
-from .analysis import GRID_F_MIN_HZ, GRID_POINTS_PER_DECADE, analyse, kp_limit  # noqa: F401
+from .analysis import GRID_F_MIN_HZ, GRID_POINTS_PER_DECADE, analyse, kp_limit, phase_margin_deg  # noqa: F401
 from .model import (KP_RANGE, KP_SEARCH_MAX, MAX_CROSSINGS_SHOWN, POLE_TOLERANCE, READ_DELAY_CYCLES,  # noqa: F401
                     SELECT_SEARCH_S, LoopModel, MarginsError, filter_coefficients, model_from_parts,
                     resonance_polynomials)
@@ -60,4 +60,4 @@ from .result import MarginResult, check_plot_path  # noqa: F401
 from .scenario import loop_model
 
 __all__ = ["MarginsError", "LoopModel", "MarginResult", "filter_coefficients", "loop_model", "analyse",
-           "model_from_parts", "KP_SEARCH_MAX", "PLOT_SUFFIXES"]
+           "model_from_parts", "KP_SEARCH_MAX", "PLOT_SUFFIXES", "phase_margin_deg"]

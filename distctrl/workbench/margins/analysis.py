@@ -14,6 +14,18 @@ from .model import KP_SEARCH_MAX, POLE_TOLERANCE, LoopModel
 from .result import MarginResult, _finite
 
 
+def phase_margin_deg(resp):
+    """The phase margin (deg) of the open-loop response ``resp`` (complex, scalar or array) at a gain
+    crossover: the angle between L and -1, ``180 - |arg L|`` with ``arg L`` in (-180, 180], 0 to 180 deg.
+
+    Not ``(arg L mod 360) - 180`` (python-control's stability_margins, 0.10.2): that turns a crossing in
+    the upper half-plane into a negative margin; a resonance that carries the phase round to -356 deg
+    crosses 0 dB at 1 at +4 deg, 176 deg away from -1, which it called -176 deg (new-user audit M2).
+    Whether the loop is stable is decided elsewhere (the closed-loop poles; the gain margin at every
+    -180 deg crossing)."""
+    return 180.0 - np.abs(np.angle(resp, deg=True))
+
+
 def _critical(model: LoopModel) -> tuple[float, float]:
     """(spectral radius, frequency of the pole with the largest |z| in Hz)."""
     poles = model.closed_loop_poles()
@@ -115,7 +127,7 @@ def _checked_crossings(response, phase_candidates: list[float], gain_candidates:
             continue
         resp = response(w)
         if abs(abs(resp) - 1.0) <= 1e-6 and not any(math.isclose(w, v, rel_tol=1e-6) for v in gain_x):
-            gain_x[w] = float(np.remainder(np.angle(resp, deg=True), 360.0) - 180.0)
+            gain_x[w] = float(phase_margin_deg(resp))
     return phase_x, gain_x
 
 
@@ -147,13 +159,13 @@ def analyse(model: LoopModel) -> MarginResult:
 
     grid_pcs, grid_gcs, grid_sm = _grid_crossings(response, model.response, T)
     phase_x, gain_x = _checked_crossings(response, list(wpcs) + grid_pcs + [w_nyq], list(wgcs) + grid_gcs, w_nyq)
-    # as python-control's own choice: the gain margin closest to 1, the smallest |phase margin|
+    # as python-control's own choice: the gain margin closest to 1, the smallest phase margin
     gm = wpc = pm = wgc = math.inf
     if phase_x:
         wpc = min(phase_x, key=lambda w: abs(math.log(phase_x[w])))
         gm = phase_x[wpc]
     if gain_x:
-        wgc = min(gain_x, key=lambda w: abs(gain_x[w]))
+        wgc = min(gain_x, key=lambda w: gain_x[w])
         pm = gain_x[wgc]
     # the stability margin (smallest |1 + L|) on the dense grid of the factor-by-factor response, not
     # python-control's figure from the multiplied-out loop
