@@ -18,6 +18,55 @@ def _say(message: str) -> None:
     print(f"distctrl: {message}", file=sys.stderr, flush=True)
 
 
+#: the compiling line (``python -m distctrl.batch.warm``, and the first sweep / tune when the cache is cold)
+COMPILING = "compiling the batch kernels once for this machine (30-80 s; cached in {where}) ..."
+_STATE = {"announced": False}
+
+
+def _entries() -> tuple:
+    """The kernels a sweep and a tune run (what :func:`warm` compiles)."""
+    # the batch kernels import numba: loaded only when warming or running them
+    from . import closed_loop as CL
+    from . import kernel as K
+    from . import metrics_kernel as MK
+
+    return (CL.run_blocks, CL._closed_loop_batch, K.run_setpos_loop, K.run_setpos_loop_into,
+            K.run_setpos_batch, MK.chunk_metrics)
+
+
+def is_cold() -> bool:
+    """True when one of the kernels has neither compiled code in this process nor a fresh disk-cache entry
+    (using it compiles); False without numba (nothing to compile)."""
+    # the batch kernels import numba: loaded only when warming or running them
+    from . import numba_available
+
+    if not numba_available():
+        return False
+    # numba's caching machinery: loaded only with the kernels
+    from .jitcache import is_cached
+
+    return not all(is_cached(e) for e in _entries())
+
+
+def announce_if_cold(say) -> bool:
+    """Say :data:`COMPILING` (``say``: one line on stderr) when :func:`is_cold`; remembered, so that the
+    evaluator does not say it again (:meth:`distctrl.tuning.runner.Evaluator.prepare_kernels`)."""
+    if not is_cold():
+        return False
+    # the batch kernels import numba: loaded only when warming or running them
+    from . import closed_loop as CL
+    from .jitcache import cache_dir
+
+    say(COMPILING.format(where=cache_dir(CL.run_blocks) or "memory only (no writable cache folder)"))
+    _STATE["announced"] = True
+    return True
+
+
+def announced() -> bool:
+    """True once :func:`announce_if_cold` said the compiling line in this process."""
+    return _STATE["announced"]
+
+
 def warm() -> bool:
     """Compile (or load) the kernels; False when numba is missing."""
     # the batch kernels import numba: loaded only when warming or running them
@@ -43,7 +92,7 @@ def warm() -> bool:
     if fresh:
         _say(f"the batch kernels are compiled already (cache: {where}); loading them")
     else:
-        _say(f"compiling the batch kernels once for this machine (about 30-80 s; cached in {where})")
+        _say(COMPILING.format(where=where))
     t0 = time.perf_counter()
     n = 16
     plant = np.zeros(PL_LEN)

@@ -32,6 +32,14 @@ def _say(message: str) -> None:
     click.echo(message, err=True)
 
 
+def _announce_cold_kernels() -> None:
+    """One line on stderr before anything else when the batch kernels are not compiled for this machine
+    yet (the first sweep / tune after installing the extras compiles them for 30-80 s; audit R17)."""
+    from ..batch.warm import announce_if_cold     # numba: loaded only when the kernels run
+
+    announce_if_cold(_say)
+
+
 def _mode(local: bool, scheduler: str | None) -> dict:
     if local and scheduler:
         raise click.UsageError("--local and --scheduler exclude each other")
@@ -87,6 +95,7 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
         raise click.UsageError(f"--metric {metric!r}: one of cost, {', '.join(METRIC_NAMES)}")
     opts = _mode(local, scheduler)
     weights = _weights(sat_weight, chatter_weight)
+    _announce_cold_kernels()
     try:
         expected = n_random if n_random is not None else len(drop_inert_d_tv(grid_points(parse_grid(grid)))[0])
         if opts["mode"] == "cluster" and not scheduler and expected <= (chunk or DEFAULT_CHUNK):
@@ -186,6 +195,7 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, ch
     if budget < 2:
         raise click.UsageError("--budget: at least 2")
     check_writable(out_dir, "output folder", directory=True)
+    _announce_cold_kernels()
     try:
         res = tune(scenario, budget=budget, seed=seed, cycles=cycles, osc_weight=osc_weight,
                    robustness=not no_robustness, n_workers=workers, log=_say,

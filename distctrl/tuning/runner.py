@@ -858,8 +858,10 @@ class Evaluator:
 
         packed = packed_one if packed_one is not None and len(packed_one) else pack_sets(self.inputs,
                                                                                          [self.inputs.params])
-        text = (f"compiling the batch kernels (first use on this machine or after a change of distctrl; "
-                f"about 30 s, then cached in {where})")
+        # numba (optional: [fast], [tune]) loads only when a batch runs
+        from ..batch.warm import COMPILING, announced
+
+        text = COMPILING.format(where=where)
         t0 = time.perf_counter()
         status = None
         if self.progress:
@@ -868,7 +870,7 @@ class Evaluator:
 
             status = Console(stderr=True).status(text)
             status.start()
-        else:
+        elif not announced():           # the command said it already, first thing (audit R17)
             self.log(text)
         try:
             run_batch(self.inputs, packed, cycles=min(8, self.n_cycles), threads=self.threads)
