@@ -205,6 +205,12 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, ch
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         (out / "tuned.lis").write_text(res.param_list)
+        objects_file = out / "tuned-objects.lis"
+        if res.objects_list is not None:
+            # the tuned set changes the filter: what machine write can write over the CNC objects
+            objects_file.write_text(res.objects_list)
+        elif objects_file.exists():
+            objects_file.unlink()          # a stale one from an earlier run in this folder would mislead
         (out / "tuned.nc.txt").write_text(res.nc_block + "\n")
         res.sweep.write(out / "sweep.csv")
         res.plot(out / "before_after.png")
@@ -212,10 +218,12 @@ def tune_cmd(scenario, budget, seed, cycles, out_dir, osc_weight, sat_weight, ch
         (out / "report.txt").write_text(text)
     except _errors() as exc:
         fail(str(exc))
-    files = [str(out / f) for f in ("tuned.lis", "tuned.nc.txt", "sweep.csv", "before_after.png", "report.txt")]
+    names = ("tuned.lis",) + (("tuned-objects.lis",) if res.objects_list is not None else ()) + \
+        ("tuned.nc.txt", "sweep.csv", "before_after.png", "report.txt")
+    files = [str(out / f) for f in names]
     if as_json:
         emit_json({"command": "tune", "scenario": scenario, "budget": budget, "seed": seed, **res.to_dict(),
                    "files": files})
         return
     click.echo(text, nl=False)
-    click.echo(f"written: {out}/tuned.lis, tuned.nc.txt, sweep.csv, before_after.png, report.txt")
+    click.echo(f"written: {out}/{', '.join(names)}")

@@ -44,6 +44,7 @@ from ..workbench.tables import render_table
 from .metrics import CHATTER_WEIGHT, METRIC_NAMES, METRIC_UNITS, SAT_WEIGHT, wanted_distance
 from .robust import DEFAULT_ALLOWANCE, KP_FLOOR, MIN_GAIN_MARGIN, MIN_PHASE_MARGIN_DEG, MarginConstraint, PlantAllowance
 from .runner import Evaluator, SweepResult
+from .simfallback import FINALISTS, kernel_proxy, sim_evaluate
 from .space import (D_TV_NOTE, DEFAULT_SPACE, NC_WORDS, Dim, SpaceError, build_sets, d_tv_applies, drop_inert_d_tv,
                     filter_fields, random_sample, resolution, round_point, round_value, to_params)
 
@@ -221,6 +222,18 @@ class TuneResult:
     #: result built by hand
     inputs: object = field(default=None, repr=False, compare=False)
     cycles: int | None = None
+    #: when the tuned set changes the filter: the best evaluated set that keeps the scenario's filter (only
+    #: kp, i_tn, d_tv, v_max, a_max differ: what ``machine write`` can put into a machine over the CNC
+    #: objects), its metrics, and how it was found; None / {} otherwise
+    objects: AxisParameters | None = None
+    objects_metrics: dict = field(default_factory=dict)
+    objects_note: str = ""
+    #: the best evaluated set by cost without the margin constraint (``best`` when the constraint is off)
+    unconstrained: AxisParameters | None = None
+    unconstrained_metrics: dict = field(default_factory=dict)
+    #: set when the kernel does not model the scenario's sensor exactly and the reported sets ran on the
+    #: scalar simulation (:mod:`distctrl.tuning.simfallback`): what was done
+    fallback_note: str = ""
 
     @property
     def param_list(self) -> str:
@@ -231,10 +244,52 @@ class TuneResult:
         return nc_block(self.best, self.axis)
 
     @property
-    def margin(self) -> float:
-        """The smallest margin over the perturbations (1 = the full improvement kept, <= 0 = none)."""
-        vals = [r["margin"] for r in self.robustness if math.isfinite(r["margin"])]
-        return min(vals) if vals else float("nan")
+    def margin(self) -> float | None:
+        """The smallest margin over the perturbations (1 = the full improvement kept, <= 0 = none); None
+        when there is no improvement over the scenario's set to keep (or no perturbation ran)."""
+        vals = [r["margin"] for r in self.robustness if r["margin"] is not None and math.isfinite(r["margin"])]
+        return min(vals) if vals else None
+
+    @property
+    def changes_filter(self) -> bool:
+        """True when the tuned set's filter (type and the parameters it uses) differs from the scenario's."""
+        return _filter_of(self.best) != _filter_of(self.base)
+
+    @property
+    def worse_than_current(self) -> bool:
+        """True when the recommended set tracks worse than the scenario's (current) set in the nominal run:
+        an rms_error more than :data:`WORSE_RMS_REL` larger, or a larger cost."""
+        return _worse(self.best_metrics, self.base_metrics)
+
+    @property
+    def worse_reason(self) -> str | None:
+        """Why the recommended set tracks worse than the current one, with the cost of the constraint;
+        None when it does not."""
+        if not self.worse_than_current:
+            return None
+        b, t = self.base_metrics, self.best_metrics
+        what = (f"rms_error {_num(b.get('rms_error'))} -> {_num(t.get('rms_error'))} mm, "
+                f"cost {_num(b.get('cost'))} -> {_num(t.get('cost'))} mm")
+        mc = self.margin_constraint or {}
+        sp = mc.get("scenario_params") or {}
+        if mc and "error" not in mc and not sp.get("ok", True):
+            why = (f"the current set misses the margin constraint ({mc['scenario_params_text']}), and no "
+                   "evaluated set that meets it tracks as well")
+        elif float(t.get("cost", math.nan)) <= float(b.get("cost", math.nan)):
+            why = ("the cost weighs oscillation and chatter as well as the error (cost_weights): the tuned set "
+                   "has the lower cost but the larger rms_error")
+        else:
+            why = "rounding the tuned values to what the list and the NC take made it worse than the current set"
+        u, um = self.unconstrained, self.unconstrained_metrics
+        if mc and "error" not in mc and u is not None and um:
+            if u == self.best:
+                why += "; the margin constraint cost nothing here (the best evaluated set meets it)"
+            else:
+                who = "the current set" if u == self.base else "an evaluated set that misses it"
+                why += (f"; cost of the constraint: the best set without it ({who}) has rms_error "
+                        f"{_num(um.get('rms_error'))} mm, cost {_num(um.get('cost'))} mm, against "
+                        f"{_num(t.get('rms_error'))} mm, {_num(t.get('cost'))} mm with it")
+        return f"{what}: {why}"
 
     def tuned_values(self, params: AxisParameters | None = None) -> dict:
         """The tuned parameters as plain values (internal units: s, Hz): kp, i_tn, d_tv, filter_type
@@ -269,7 +324,17 @@ class TuneResult:
                           "unrounded_metrics": metrics(self.unrounded_metrics)},
                 "robustness": [{k: _plain(v) for k, v in r.items()} for r in self.robustness],
                 "margin": _plain(self.margin), "param_list": self.param_list, "nc_block": self.nc_block,
-                "margin_constraint": dict(self.margin_constraint) or None, "notes": self.notes}
+                "margin_constraint": dict(self.margin_constraint) or None, "notes": self.notes,
+                "worse_than_current": self.worse_than_current, "worse_reason": self.worse_reason,
+                "unconstrained": None if self.unconstrained is None else {
+                    "values": self.tuned_values(self.unconstrained), "metrics": metrics(self.unconstrained_metrics)},
+                "changes_filter": self.changes_filter,
+                "objects_set": None if self.objects is None else {
+                    "values": self.tuned_values(self.objects), "metrics": metrics(self.objects_metrics),
+                    "param_list": param_list(self.objects), "note": self.objects_note},
+                "objects_note": self.objects_note or None,
+                "evaluated_by": "simulation" if self.fallback_note else "kernel",
+                "fallback_note": self.fallback_note or None}
 
     def plot(self, path=None, title: str | None = None):
         """The distance error and the offset over time with the scenario's and the tuned parameters
@@ -286,7 +351,13 @@ class TuneResult:
         names = ["cost"] + list(METRIC_NAMES)
         rows = [[n, METRIC_UNITS.get(n, "-"), _num(self.base_metrics.get(n)), _num(self.best_metrics.get(n))]
                 for n in names]
-        out = [f"evaluated {self.evaluations} parameter sets in {self.seconds:.1f} s",
+        out = []
+        if self.worse_than_current:
+            out.append(f"WARNING: the recommended set tracks WORSE than the current one ({self.worse_reason}). "
+                       "Keep the current set unless you need what the constraint buys.")
+        if self.fallback_note:
+            out.append(f"note: {self.fallback_note}")
+        out += [f"evaluated {self.evaluations} parameter sets in {self.seconds:.1f} s",
                render_table(["metric", "unit", "scenario params", "tuned"], rows, title="nominal scenario",
                             plain=plain)]
         if self.unrounded is not None:
@@ -307,12 +378,72 @@ class TuneResult:
                       "FAILED" if r["failed"] else "ok"] for r in self.robustness]
             out.append(render_table(["perturbation", "cost scen.", "cost tuned", "rms tuned", "degradation",
                                      "margin", "state"], rrows, title="robustness", plain=plain))
-            out.append(f"margin: {self.margin:.0%} of the improvement is kept in the worst perturbation "
-                       "(degradation: cost perturbed / cost nominal of the tuned set)")
+            if self.margin is None:
+                out.append("margin: none to give: the tuned set is no improvement over the scenario's set "
+                           "(degradation: cost perturbed / cost nominal of the tuned set)")
+            else:
+                out.append(f"margin: {self.margin:.0%} of the improvement is kept in the worst perturbation "
+                           "(degradation: cost perturbed / cost nominal of the tuned set)")
         out.extend(f"note: {n}" for n in self.notes)
+        out.extend(self._objects_lines())
         out.append("# axis parameter list (changed values)\n" + self.param_list)
         out.append("; NC block\n" + self.nc_block)
         return "\n".join(out) + "\n"
+
+
+    def _objects_lines(self) -> list[str]:
+        """The lines on tuned-objects.lis (when the tuned set changes the filter)."""
+        if not self.changes_filter:
+            return []
+        if self.objects is None:
+            return [f"note: the tuned set changes the filter ({_filter_text(self.base)} -> {_filter_text(self.best)}), "
+                    "which is not writable over the CNC objects; " + (self.objects_note or
+                                                                       "no set that keeps the filter was found")]
+        m, b = self.objects_metrics, self.best_metrics
+        vals = ", ".join(f"{k} {_fmt(getattr(self.objects, k))}" for k in _TUNED)
+        return [f"note: the tuned set changes the filter ({_filter_text(self.base)} -> {_filter_text(self.best)}), "
+                "which `machine write` cannot put into a machine over the CNC objects (it goes into the CNC's "
+                "parameter list). tuned-objects.lis holds the best evaluated set that keeps the scenario's filter: "
+                f"{vals}: rms_error {_num(m.get('rms_error'))} mm, cost {_num(m.get('cost'))} mm (the tuned set: "
+                f"{_num(b.get('rms_error'))} mm, {_num(b.get('cost'))} mm; the current set: "
+                f"{_num(self.base_metrics.get('rms_error'))} mm, {_num(self.base_metrics.get('cost'))} mm)"
+                + (f"; {self.objects_note}" if self.objects_note else "")]
+
+    @property
+    def objects_list(self) -> str | None:
+        """The kernel list of :attr:`objects` (tuned-objects.lis), None when there is none."""
+        return None if self.objects is None else param_list(self.objects)
+
+
+#: what ``machine write`` can write over the CNC objects (the rest of a set goes into the parameter list)
+OBJECT_FIELDS = ("kp", "i_tn", "d_tv", "v_max", "a_max")
+
+
+def _filter_of(p: AxisParameters) -> tuple:
+    return (p.filter_type,) + tuple(getattr(p, f) for f in filter_fields(p.filter_type))
+
+
+def _filter_text(p: AxisParameters) -> str:
+    used = filter_fields(p.filter_type)
+    return p.filter_type.name + ("" if not used else
+                                 " " + ", ".join(f"{f} {_fmt(getattr(p, f))}" for f in used))
+
+
+def _worse(tuned: dict, current: dict) -> bool:
+    def f(m, k):
+        v = m.get(k)
+        return None if v is None or not math.isfinite(float(v)) else float(v)
+
+    for k, rel in (("rms_error", WORSE_RMS_REL), ("cost", 1e-6)):
+        t, c = f(tuned, k), f(current, k)
+        if t is not None and c is not None and t > c * (1.0 + rel):
+            return True
+    return False
+
+
+#: the tuned set "tracks worse" when its rms_error exceeds the current set's by more than this share (or its
+#: cost exceeds it at all): a cost that weighs chatter may trade a hair of rms_error for much less chatter
+WORSE_RMS_REL = 0.005
 
 
 def stability(scenario, params: AxisParameters) -> dict:
@@ -397,7 +528,7 @@ def _plain(x):
     if isinstance(x, (np.integer,)):
         return int(x)
     if isinstance(x, (float, np.floating)):
-        return float(x)
+        return float(x) if math.isfinite(x) else None           # no NaN or inf in the JSON: null
     if isinstance(x, FilterType):
         return x.name
     return x
@@ -582,7 +713,12 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     t0 = time.perf_counter()
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    inputs = prepare(scenario, cycles)
+    # a sensor the kernel does not model (the capacitive footprint): search on a point sensor, choose and
+    # report on the scalar simulation (simfallback)
+    kernel_scenario, fallback_note = kernel_proxy(scenario)
+    if fallback_note:
+        say(f"note: {fallback_note}")
+    inputs = prepare(kernel_scenario, cycles)
     T = inputs.cycle_time
     base = inputs.params
     constraint, mc = None, {}
@@ -634,8 +770,37 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
             best, best_metrics = unrounded, unrounded_metrics      # pragma: no cover - rounding broke the set
         say(f"rounded set re-run: cost {float(best_metrics['cost']):.5g} mm "
             f"(before rounding {float(unrounded_metrics['cost']):.5g} mm)")
+        kernel_res, kernel_feasible = res, feasible
+        if fallback_note:
+            res, feasible, best, best_metrics, base_metrics = _on_the_simulation(
+                ev, scenario, inputs, res, feasible, base, best, constraint, T, say)
+            costs_all = np.asarray(res["cost"], dtype=float)
+            ib = int(np.argmin(np.where(np.asarray(feasible, dtype=bool), costs_all, np.inf)))
+        # the best evaluated set without the constraint (the cost of the constraint, when it is worse)
+        iu = res.best("cost")
+        if feasible[iu] or not np.isfinite(costs_all[iu]) or costs_all[iu] >= float(best_metrics["cost"]):
+            unconstrained, unconstrained_metrics = best, best_metrics     # the constraint cost nothing
+        else:
+            unconstrained, unconstrained_metrics = res.params[iu], _row(res, iu)
+        # a set that changes the filter cannot be written over the CNC objects: the best one that keeps it
+        objects = objects_metrics = None
+        objects_note = ""
+        if _filter_of(best) != _filter_of(base):
+            objects, objects_metrics, objects_note = _objects_set(ev, kernel_res, base, best, kernel_feasible,
+                                                                 constraint, T, say)
+            if objects is not None and fallback_note:
+                objects_metrics = _row(sim_evaluate(ev, scenario, inputs, [objects], [_point_of(objects)]), 0)
+        if fallback_note:
+            res = kernel_res             # sweep.csv: the search's table (the kernel's figures)
         # 4. robustness
-        rob = _robustness(ev, scenario, inputs, cycles, base, best, base_metrics, best_metrics) if robustness else []
+        if robustness:
+            nominal = (base_metrics, best_metrics)
+            if fallback_note:          # the perturbed runs are the kernel's: against its own nominal figures
+                kr = ev.evaluate([base, best], [_point_of(base), _point_of(best)], description="kernel nominal")
+                nominal = (_row(kr, 0), _row(kr, 1))
+            rob = _robustness(ev, kernel_scenario, inputs, cycles, base, best, *nominal)
+        else:
+            rob = []
         stats = dict(ev.stats)
     finally:
         if own:
@@ -648,7 +813,97 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
                       time.perf_counter() - t0, stats, unrounded=unrounded, unrounded_metrics=unrounded_metrics,
                       cost_weights=weights, stability=stability(scenario, best),
-                      base_stability=stability(scenario, base), margin_constraint=mc, inputs=inputs, cycles=cycles)
+                      base_stability=stability(scenario, base), margin_constraint=mc, inputs=inputs, cycles=cycles,
+                      objects=objects, objects_metrics=objects_metrics or {}, objects_note=objects_note,
+                      unconstrained=unconstrained, unconstrained_metrics=unconstrained_metrics,
+                      fallback_note=fallback_note or "")
+
+
+def _on_the_simulation(ev, scenario, inputs, res: SweepResult, feasible: list, base: AxisParameters,
+                       best: AxisParameters, constraint, T: float, say):
+    """The scenario's set, the tuned set and the search's :data:`FINALISTS` best other distinct feasible sets
+    (rounded as the tuned one) run on the scalar simulation of ``scenario``; the best feasible of them by
+    the simulation's cost is the tuned set. Returns (the simulation's table, feasible per row, tuned set,
+    its metrics, the scenario's set's metrics)."""
+    cands, keys = [best], {_key(_point_of(best))}
+    costs = np.asarray(res["cost"], dtype=float)
+    for i in res.order("cost"):
+        if len(cands) > FINALISTS or not np.isfinite(costs[i]):
+            break
+        if not feasible[i]:
+            continue
+        q = res.params[i]
+        try:
+            q = to_params(q, drop_inert_d_tv([round_point(_point_of(q))])[0][0], T)
+        except SpaceError:        # pragma: no cover - rounding left the valid range: keep the values
+            pass
+        if constraint is not None and not constraint.ok(q):
+            q = constraint.fit_kp(q)
+        if q is None or q == base or _key(_point_of(q)) in keys:
+            continue
+        keys.add(_key(_point_of(q)))
+        cands.append(q)
+    sets = [base] + cands
+    say(f"running the scenario's set and {len(cands)} tuned sets on the scalar simulation (the sensor's "
+        "footprint), about as long as distctrl run each")
+    sim = sim_evaluate(ev, scenario, inputs, sets, [_point_of(q) for q in sets])
+    ok = [constraint is None or constraint.ok(base)] + [True] * len(cands)
+    c = np.where(np.asarray(ok), np.asarray(sim["cost"], dtype=float), np.inf)
+    j = int(np.argmin(c[1:])) + 1 if np.isfinite(c[1:]).any() else 1
+    return sim, ok, sets[j], _row(sim, j), _row(sim, 0)
+
+
+#: how many of the best sets' PID parts are tried with the scenario's filter when the search evaluated none
+OBJECTS_TRIES = 6
+
+
+def _objects_set(ev, res: SweepResult, base: AxisParameters, best: AxisParameters, feasible: list, constraint,
+                 T: float, say) -> tuple[AxisParameters | None, dict | None, str]:
+    """The best evaluated set that keeps the scenario's filter and meets the margin constraint (only the
+    PID part differs from the scenario's set: what ``machine write`` can write), rounded as the tuned set
+    and run again; the scenario's own set does not count (writing it changes nothing). When the search
+    evaluated none, the PID parts of the best :data:`OBJECTS_TRIES` sets are run with the scenario's filter
+    (KP lowered to meet the constraint). Returns (set, metrics, note); (None, None, why) if there is none."""
+    keep = _filter_of(base)
+    costs = np.asarray(res["cost"], dtype=float)
+    order = [i for i in res.order("cost") if np.isfinite(costs[i])]
+    cands = [res.params[i] for i in order if feasible[i] and _filter_of(res.params[i]) == keep
+             and res.params[i] != base]
+    note = ""
+    if not cands:
+        tries, seen = [], set()
+        for i in [None] + order:
+            src = best if i is None else res.params[i]
+            q = base.replace(kp=src.kp, i_tn=src.i_tn, d_tv=src.d_tv)
+            if constraint is not None and not constraint.ok(q):
+                q = constraint.fit_kp(q)
+            if q is None or q == base or _key(_point_of(q)) in seen:
+                continue
+            seen.add(_key(_point_of(q)))
+            tries.append(q)
+            if len(tries) >= OBJECTS_TRIES:
+                break
+        if not tries:
+            return None, None, "no set with the scenario's filter meets the margin constraint"
+        note = (f"the search evaluated no other set with the scenario's filter: {len(tries)} sets made of the best "
+                "sets' PID parts and the scenario's filter were run")
+        say(f"objects set: {note}")
+        cands = tries
+    else:
+        cands = cands[:1]
+    q = cands[0] if len(cands) == 1 else None
+    if q is None:
+        r = ev.evaluate(cands, [_point_of(c) for c in cands], description="objects")
+        q = cands[int(r.best("cost"))]
+    try:                          # the PID part rounded as the tuned set's; the filter stays the scenario's
+        pid = {k: v for k, v in drop_inert_d_tv([round_point(_point_of(q))])[0][0].items() if k in _TUNED}
+        q = to_params(q, pid, T)
+    except SpaceError:            # pragma: no cover - rounding left the valid range: keep the values
+        pass
+    if constraint is not None and not constraint.ok(q):
+        q = constraint.fit_kp(q) or q
+    vr = ev.evaluate([q], [_point_of(q)], description="verify objects set")
+    return q, _row(vr, 0), note
 
 
 # ----------------------------------------------------------------------------- plot
