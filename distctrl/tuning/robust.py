@@ -12,7 +12,8 @@ filter section by section, as the core runs it, so that a high-order low cut-off
 badly conditioned coefficients), for all variants at once. For every crossing of 0 dB the phase margin,
 for every crossing of -180 deg (and at the Nyquist frequency) the gain margin; the worst of all
 crossings and variants counts (not only python-control's "closest to 1"); the phase margin is the angle
-between L and -1 at the crossing (:func:`~distctrl.workbench.margins.analysis.phase_margin_deg`). The open loop has no poles
+between L and -1 at the crossing (:func:`~distctrl.workbench.margins.analysis.phase_margin_deg`). The
+open loop has no poles
 outside the unit circle (drive, mode, filter are stable; the offset's and the I part's integrators sit on
 it), so a loop whose every -180 deg crossing stays below 1 / (required gain margin) and whose phase does
 not start below -180 deg is stable by the Nyquist criterion; a conditionally stable loop (a -180 deg

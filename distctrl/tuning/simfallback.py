@@ -30,11 +30,12 @@ def kernel_proxy(scenario) -> tuple[object, str | None]:
         return scenario, None
     proxy = dataclasses.replace(scenario, sensor=dataclasses.replace(s, footprint_radius=0.0, bursts=None))
     left = "footprint_radius" + (" and bursts" if s.bursts is not None else "")
-    note = (f"the sensor's footprint ([sensor] footprint_radius = {s.footprint_radius:g} mm, the capacitive edge "
-            "effect) is not modelled by the closed-loop kernel: the search ran on the kernel with a point sensor "
-            f"(without {left}), and the scenario's set and the search's {FINALISTS} best sets were run again on "
-            "the scalar simulation of the scenario as it is (distctrl run's engine); the figures reported and "
-            "the choice are the simulation's (sweep.csv, the robustness runs and before_after.png: the kernel's)")
+    note = (f"the sensor's footprint ([sensor] footprint_radius = {s.footprint_radius:g} mm, the capacitive "
+            "edge effect) is not modelled by the closed-loop kernel: the search ran on the kernel with a point "
+            f"sensor (without {left}), and the scenario's set and the search's {FINALISTS} best sets were run "
+            "again on the scalar simulation of the scenario as it is (distctrl run's engine); the figures "
+            "reported and the choice are the simulation's (sweep.csv, the robustness runs and "
+            "before_after.png: the kernel's)")
     return proxy, note
 
 

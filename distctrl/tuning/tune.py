@@ -247,7 +247,8 @@ class TuneResult:
     def margin(self) -> float | None:
         """The smallest margin over the perturbations (1 = the full improvement kept, <= 0 = none); None
         when there is no improvement over the scenario's set to keep (or no perturbation ran)."""
-        vals = [r["margin"] for r in self.robustness if r["margin"] is not None and math.isfinite(r["margin"])]
+        vals = [r["margin"] for r in self.robustness
+                if r["margin"] is not None and math.isfinite(r["margin"])]
         return min(vals) if vals else None
 
     @property
@@ -276,10 +277,12 @@ class TuneResult:
             why = (f"the current set misses the margin constraint ({mc['scenario_params_text']}), and no "
                    "evaluated set that meets it tracks as well")
         elif float(t.get("cost", math.nan)) <= float(b.get("cost", math.nan)):
-            why = ("the cost weighs oscillation and chatter as well as the error (cost_weights): the tuned set "
+            why = ("the cost weighs oscillation and chatter as well as the error (cost_weights): the tuned "
+                   "set "
                    "has the lower cost but the larger rms_error")
         else:
-            why = "rounding the tuned values to what the list and the NC take made it worse than the current set"
+            why = ("rounding the tuned values to what the list and the NC take made it worse than the "
+                   "current set")
         u, um = self.unconstrained, self.unconstrained_metrics
         if mc and "error" not in mc and u is not None and um:
             if u == self.best:
@@ -327,7 +330,8 @@ class TuneResult:
                 "margin_constraint": dict(self.margin_constraint) or None, "notes": self.notes,
                 "worse_than_current": self.worse_than_current, "worse_reason": self.worse_reason,
                 "unconstrained": None if self.unconstrained is None else {
-                    "values": self.tuned_values(self.unconstrained), "metrics": metrics(self.unconstrained_metrics)},
+                    "values": self.tuned_values(self.unconstrained),
+                    "metrics": metrics(self.unconstrained_metrics)},
                 "changes_filter": self.changes_filter,
                 "objects_set": None if self.objects is None else {
                     "values": self.tuned_values(self.objects), "metrics": metrics(self.objects_metrics),
@@ -353,7 +357,8 @@ class TuneResult:
                 for n in names]
         out = []
         if self.worse_than_current:
-            out.append(f"WARNING: the recommended set tracks WORSE than the current one ({self.worse_reason}). "
+            out.append("WARNING: the recommended set tracks WORSE than the current one "
+                       f"({self.worse_reason}). "
                        "Keep the current set unless you need what the constraint buys.")
         if self.fallback_note:
             out.append(f"note: {self.fallback_note}")
@@ -396,15 +401,16 @@ class TuneResult:
         if not self.changes_filter:
             return []
         if self.objects is None:
-            return [f"note: the tuned set changes the filter ({_filter_text(self.base)} -> {_filter_text(self.best)}), "
-                    "which is not writable over the CNC objects; " + (self.objects_note or
-                                                                       "no set that keeps the filter was found")]
+            return [f"note: the tuned set changes the filter ({_filter_text(self.base)} -> "
+                    f"{_filter_text(self.best)}), which is not writable over the CNC objects; "
+                    + (self.objects_note or "no set that keeps the filter was found")]
         m, b = self.objects_metrics, self.best_metrics
         vals = ", ".join(f"{k} {_fmt(getattr(self.objects, k))}" for k in _TUNED)
-        return [f"note: the tuned set changes the filter ({_filter_text(self.base)} -> {_filter_text(self.best)}), "
-                "which `machine write` cannot put into a machine over the CNC objects (it goes into the CNC's "
-                "parameter list). tuned-objects.lis holds the best evaluated set that keeps the scenario's filter: "
-                f"{vals}: rms_error {_num(m.get('rms_error'))} mm, cost {_num(m.get('cost'))} mm (the tuned set: "
+        return [f"note: the tuned set changes the filter ({_filter_text(self.base)} -> "
+                f"{_filter_text(self.best)}), which `machine write` cannot put into a machine over the CNC "
+                "objects (it goes into the CNC's parameter list). tuned-objects.lis holds the best evaluated "
+                f"set that keeps the scenario's filter: {vals}: rms_error {_num(m.get('rms_error'))} mm, "
+                f"cost {_num(m.get('cost'))} mm (the tuned set: "
                 f"{_num(b.get('rms_error'))} mm, {_num(b.get('cost'))} mm; the current set: "
                 f"{_num(self.base_metrics.get('rms_error'))} mm, {_num(self.base_metrics.get('cost'))} mm)"
                 + (f"; {self.objects_note}" if self.objects_note else "")]
@@ -796,7 +802,8 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
         if robustness:
             nominal = (base_metrics, best_metrics)
             if fallback_note:          # the perturbed runs are the kernel's: against its own nominal figures
-                kr = ev.evaluate([base, best], [_point_of(base), _point_of(best)], description="kernel nominal")
+                kr = ev.evaluate([base, best], [_point_of(base), _point_of(best)],
+                                 description="kernel nominal")
                 nominal = (_row(kr, 0), _row(kr, 1))
             rob = _robustness(ev, kernel_scenario, inputs, cycles, base, best, *nominal)
         else:
@@ -813,7 +820,8 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     return TuneResult(inputs.axis, base, best, base_metrics, best_metrics, res, rob, used,
                       time.perf_counter() - t0, stats, unrounded=unrounded, unrounded_metrics=unrounded_metrics,
                       cost_weights=weights, stability=stability(scenario, best),
-                      base_stability=stability(scenario, base), margin_constraint=mc, inputs=inputs, cycles=cycles,
+                      base_stability=stability(scenario, base), margin_constraint=mc, inputs=inputs,
+                      cycles=cycles,
                       objects=objects, objects_metrics=objects_metrics or {}, objects_note=objects_note,
                       unconstrained=unconstrained, unconstrained_metrics=unconstrained_metrics,
                       fallback_note=fallback_note or "")
@@ -832,13 +840,7 @@ def _on_the_simulation(ev, scenario, inputs, res: SweepResult, feasible: list, b
             break
         if not feasible[i]:
             continue
-        q = res.params[i]
-        try:
-            q = to_params(q, drop_inert_d_tv([round_point(_point_of(q))])[0][0], T)
-        except SpaceError:        # pragma: no cover - rounding left the valid range: keep the values
-            pass
-        if constraint is not None and not constraint.ok(q):
-            q = constraint.fit_kp(q)
+        q = _rounded(res.params[i], T, constraint)
         if q is None or q == base or _key(_point_of(q)) in keys:
             continue
         keys.add(_key(_point_of(q)))
@@ -851,6 +853,19 @@ def _on_the_simulation(ev, scenario, inputs, res: SweepResult, feasible: list, b
     c = np.where(np.asarray(ok), np.asarray(sim["cost"], dtype=float), np.inf)
     j = int(np.argmin(c[1:])) + 1 if np.isfinite(c[1:]).any() else 1
     return sim, ok, sets[j], _row(sim, j), _row(sim, 0)
+
+
+def _rounded(q: AxisParameters, T: float, constraint, pid_only: bool = False) -> AxisParameters | None:
+    """``q`` rounded as the tuned set (``pid_only``: kp, i_tn, d_tv only), its KP lowered again if rounding
+    left the margin constraint; None if not even the floor meets it."""
+    try:
+        pt = drop_inert_d_tv([round_point(_point_of(q))])[0][0]
+        q = to_params(q, {k: v for k, v in pt.items() if k in _TUNED} if pid_only else pt, T)
+    except SpaceError:            # pragma: no cover - rounding left the valid range: keep the values
+        pass
+    if constraint is not None and not constraint.ok(q):
+        return constraint.fit_kp(q)
+    return q
 
 
 #: how many of the best sets' PID parts are tried with the scenario's filter when the search evaluated none
@@ -885,8 +900,8 @@ def _objects_set(ev, res: SweepResult, base: AxisParameters, best: AxisParameter
                 break
         if not tries:
             return None, None, "no set with the scenario's filter meets the margin constraint"
-        note = (f"the search evaluated no other set with the scenario's filter: {len(tries)} sets made of the best "
-                "sets' PID parts and the scenario's filter were run")
+        note = (f"the search evaluated no other set with the scenario's filter: {len(tries)} sets made of the "
+                "best sets' PID parts and the scenario's filter were run")
         say(f"objects set: {note}")
         cands = tries
     else:
@@ -895,13 +910,7 @@ def _objects_set(ev, res: SweepResult, base: AxisParameters, best: AxisParameter
     if q is None:
         r = ev.evaluate(cands, [_point_of(c) for c in cands], description="objects")
         q = cands[int(r.best("cost"))]
-    try:                          # the PID part rounded as the tuned set's; the filter stays the scenario's
-        pid = {k: v for k, v in drop_inert_d_tv([round_point(_point_of(q))])[0][0].items() if k in _TUNED}
-        q = to_params(q, pid, T)
-    except SpaceError:            # pragma: no cover - rounding left the valid range: keep the values
-        pass
-    if constraint is not None and not constraint.ok(q):
-        q = constraint.fit_kp(q) or q
+    q = _rounded(q, T, constraint, pid_only=True) or q     # the filter stays the scenario's
     vr = ev.evaluate([q], [_point_of(q)], description="verify objects set")
     return q, _row(vr, 0), note
 

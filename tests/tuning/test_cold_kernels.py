@@ -27,7 +27,8 @@ def test_a_cold_kernel_cache_is_said_first_on_stderr_never_on_stdout(cmd, tmp_pa
     _cold(monkeypatch)
     sc = str(EXAMPLES / "tune_sheet.toml")
     if cmd == "sweep":
-        args, command = [sc, "--grid", "kp=0.3,0.5", "--local", "--out", str(tmp_path / "s.csv"), "--json"], sweep
+        args = [sc, "--grid", "kp=0.3,0.5", "--local", "--out", str(tmp_path / "s.csv"), "--json"]
+        command = sweep
     else:
         args, command = [sc, "--budget", "3", "--local", "--no-robustness", "--out", str(tmp_path / "t"),
                          "--json"], tune_cmd

@@ -39,7 +39,8 @@ def _run_figures(tmp_path: Path, scenario: Path, n: int, k_on: int, wanted: floa
     off = np.array([float(row["Z.dc.offset"]) for row in rows[:n]])[None, :]
     dist = np.array([float(row["true.distance"]) for row in rows[:n]])[None, :]
     m = compute_metrics(off, dist, wanted, 0.001, k_on)
-    m["cost_no_sat"] = cost(m, weights["osc_weight"], sat_weight=0.0, chatter_weight=weights["chatter_weight"])
+    m["cost_no_sat"] = cost(m, weights["osc_weight"], sat_weight=0.0,
+                            chatter_weight=weights["chatter_weight"])
     return {k: float(np.asarray(v)[0]) for k, v in m.items()}
 
 

@@ -44,8 +44,10 @@ def _random_loop(rng: np.random.Generator):
         use_both_encoders=bool(rng.integers(0, 2)))
     f0 = float(np.exp(rng.uniform(math.log(15.0), math.log(200.0))))
     zeta = float(np.exp(rng.uniform(math.log(0.01), math.log(0.3))))
-    model = model_from_parts(p, T, kv=float(rng.uniform(20.0, 120.0)), bus_delay_cycles=int(rng.integers(1, 4)),
-                             sensor_delay_cycles=int(rng.integers(0, 5)), sensor_gain=float(rng.uniform(0.9, 1.1)),
+    model = model_from_parts(p, T, kv=float(rng.uniform(20.0, 120.0)),
+                             bus_delay_cycles=int(rng.integers(1, 4)),
+                             sensor_delay_cycles=int(rng.integers(0, 5)),
+                             sensor_gain=float(rng.uniform(0.9, 1.1)),
                              resonance_hz=f0, damping=zeta)
     return p, model
 
@@ -141,7 +143,8 @@ def test_tune_constraint_phase_margin_is_the_distance_to_minus_one():
         assert chk.nominal_phase_margin_deg == pytest.approx(min(d for d, _ in ref), abs=0.5), (case, ref)
         upper += sum(_distance_deg(model, f)[1].imag > 0.0 for _, f in ref)
         checked += 1
-    print(f"{checked} of {N_LOOPS} random resonant loops with a crossing; {upper} crossings in the upper half-plane")
+    print(f"{checked} of {N_LOOPS} random resonant loops with a crossing; {upper} crossings in the upper "
+          "half-plane")
     assert checked >= N_LOOPS // 2 and upper >= 5
 
 
