@@ -126,4 +126,5 @@ def test_tune_json_is_one_object(tmp_path):
     assert obj["tuned"]["metrics"]["sat_share"] is not None and obj["metric_units"]["cost"] == "mm"
     assert obj["cost_weights"]["sat_weight"] > 0 and obj["cost_weights"]["chatter_weight"] > 0
     # tuned-objects.lis beside them when the tuned set changes the filter (issue 39)
-    assert len(obj["files"]) == 5 + (obj["objects_set"] is not None) and all(Path(f).exists() for f in obj["files"])
+    assert len(obj["files"]) == 5 + (obj["objects_set"] is not None)
+    assert all(Path(f).exists() for f in obj["files"])
