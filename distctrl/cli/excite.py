@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..nc.excite import Excitation, ExciteError, program
+from ..nc.excite import Excitation, ExciteError, build
 from .common import Finite, check_writable, emit_json, fail
 
 
@@ -29,17 +29,22 @@ def _range(text: str, what: str, sep: str = "-") -> tuple[float, float]:
 @click.option("--cycle-ms", default=1.0, show_default=True, type=Finite(0.05, 100.0), help="The CNC cycle [ms].")
 @click.option("--steps", "step", default=0.3, show_default=True, type=Finite(0.0, 100.0),
               help="Step size [mm] (recommended 0.2-0.5); 0: no steps.")
-@click.option("--step-count", default=10, show_default=True, type=click.IntRange(1, 1000))
+@click.option("--step-count", default=10, show_default=True, type=click.IntRange(1, 1000),
+              help="Steps up and down around the working height, every 0.5 s.")
 @click.option("--large-step", default=3.0, show_default=True, type=Finite(0.0, 1000.0),
               help="One large step at the safe height [mm]; 0: none.")
 @click.option("--chirp", default="1-150", show_default=True, help="Chirp band FROM-TO [Hz]; 'none': no chirp.")
-@click.option("--chirp-seconds", default=20.0, show_default=True, type=Finite(0.5, 600.0))
+@click.option("--chirp-seconds", default=20.0, show_default=True, type=Finite(0.5, 600.0),
+              help="Duration of the chirp [s]: the band is swept linearly in this time.")
 @click.option("--amplitude", default=0.05, show_default=True, type=Finite(0.0, 100.0),
               help="Chirp amplitude [mm] (recommended 0.02-0.05).")
 @click.option("--ramp", default=None, help="Slow ramp FROM:TO [mm, machine coordinates] over the sensor's range.")
-@click.option("--ramp-speed", default=0.3, show_default=True, type=Finite(0.0, 1000.0), help="[mm/s] (recommended 0.2-0.5).")
+@click.option("--ramp-speed", default=0.3, show_default=True, type=Finite(0.0, 1000.0),
+              help="Speed of the slow ramp [mm/s] (recommended 0.2-0.5).")
 @click.option("--surface", default=None, type=Finite(-1e6, 1e6),
-              help="The sheet's height [mm]: refuses a chirp whose resonance amplitude could reach it.")
+              help="The sheet's height [mm, machine coordinates]: refuses a program with any height at or "
+              "below it (safe height, large step, ramp, retract; the working height by 10x the chirp "
+              "amplitude, a resonance's ringing).")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="The NC program to write.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object: out, blocks, seconds, warnings.")
 def excite(axis, work, safe, min_pos, max_pos, v_max, a_max, cycle_ms, step, step_count, large_step, chirp,
@@ -53,18 +58,20 @@ def excite(axis, work, safe, min_pos, max_pos, v_max, a_max, cycle_ms, step, ste
                    chirp=chirp_band, chirp_seconds=chirp_seconds, amplitude=amplitude,
                    ramp=_range(ramp, "--ramp", ":") if ramp else None, ramp_speed=ramp_speed, surface=surface)
     try:
-        text, warnings = program(e)
+        prog = build(e)
     except ExciteError as exc:
         fail(str(exc))
+    text, warnings = prog.text, prog.warnings
     check_writable(out, "--out")
     with open(out, "w", encoding="utf-8") as f:
         f.write(text)
     blocks = sum(1 for line in text.splitlines() if line and not line.startswith((";", "%")))
     for w in warnings:
         click.echo(f"warning: {w}", err=True)
-    result = {"command": "excite", "outcome": "ok", "out": out, "blocks": blocks, "warnings": warnings}
+    result = {"command": "excite", "outcome": "ok", "out": out, "blocks": blocks,
+              "seconds": round(prog.seconds, 3), "warnings": warnings}
     if as_json:
         emit_json(result)
     else:
-        click.echo(f"written: {out} ({blocks} blocks); run it with distance control off, recording with "
+        click.echo(f"written: {out} ({blocks} blocks, about {prog.seconds:.1f} s); run it with distance control off, recording with "
                    f"distctrl machine record, then distctrl identify")

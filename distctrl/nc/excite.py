@@ -19,7 +19,7 @@ Pure: text in, text out; the checks raise :class:`ExciteError` (an edge error na
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..errors import DistCtrlError
 
@@ -66,19 +66,32 @@ class Excitation:
     surface: float | None = None    # the sheet's height (machine coordinates): distance checks
 
 
+def _bounds(lo: float, lo_open: bool, hi: float, option: str) -> str:
+    """``allowed a <= --option <= b`` (``<`` for an open end), or why nothing is allowed."""
+    if lo > hi or (lo_open and lo == hi):
+        return (f"no {option} fits ({_num(lo)} .. {_num(hi)} mm is empty): widen --min/--max, lower "
+                f"--steps/--amplitude/--large-step or move --surface")
+    return f"allowed {_num(lo)} {'<' if lo_open else '<='} {option} <= {_num(hi)}"
+
+
 def check(e: Excitation) -> list[str]:
     """Raise :class:`ExciteError` for an excitation beyond the limits; the warnings (outside the
-    recommended ranges) as a list."""
+    recommended ranges) as a list.
+
+    Every height the program commands is checked against the axis limits and, with ``surface``,
+    against the sheet: the working band (``work``, ``work + step``, ``work`` ± the chirp amplitude), the
+    safe height and its large step (approach, large step, retract), the ramp's ends. The safe height is
+    above the working band. A refusal names the option, its value and the range it may take."""
     warnings = []
     if not (e.min_pos < e.max_pos):
-        raise ExciteError(f"--min {e.min_pos} must be below --max {e.max_pos}")
+        raise ExciteError(f"--min {_num(e.min_pos)}: must be below --max {_num(e.max_pos)}")
     if e.cycle_time <= 0 or e.a_max <= 0 or e.v_max <= 0:
         raise ExciteError("the cycle time, a_max and v_max must be > 0")
-    lo, hi = e.work, e.work
+    up = down = 0.0              # the working band around --work: work - down .. work + up
     if e.step:
         if e.step <= 0:
             raise ExciteError(f"--steps {e.step}: a step must be > 0 mm")
-        hi = max(hi, e.work + e.step)
+        up = max(up, e.step)
         if not STEP_SIZE[0] <= e.step <= STEP_SIZE[1]:
             warnings.append(f"--steps {e.step} mm: docs/identify.md recommends {STEP_SIZE[0]}-{STEP_SIZE[1]} mm")
     if e.chirp:
@@ -88,7 +101,7 @@ def check(e: Excitation) -> list[str]:
                               f"(half the cycle rate)")
         if e.amplitude <= 0:
             raise ExciteError(f"--amplitude {e.amplitude}: must be > 0 mm")
-        lo, hi = min(lo, e.work - e.amplitude), max(hi, e.work + e.amplitude)
+        up, down = max(up, e.amplitude), max(down, e.amplitude)
         if not CHIRP_AMPLITUDE[0] <= e.amplitude <= CHIRP_AMPLITUDE[1]:
             warnings.append(f"--amplitude {e.amplitude} mm: docs/identify.md recommends "
                             f"{CHIRP_AMPLITUDE[0]}-{CHIRP_AMPLITUDE[1]} mm (the drive's following error stays small)")
@@ -101,29 +114,64 @@ def check(e: Excitation) -> list[str]:
         if v_peak > e.v_max:
             raise ExciteError(f"--amplitude {e.amplitude} mm at {f1:g} Hz needs {v_peak:.1f} mm/s, beyond the axis's "
                               f"v_max {e.v_max:g} mm/s: lower the amplitude or the top frequency")
-    if e.large_step:
-        lo, hi = min(lo, e.safe), max(hi, e.safe + e.large_step)
-    if e.ramp:
-        a, b = e.ramp
-        lo, hi = min(lo, a, b), max(hi, a, b)
-        if e.ramp_speed <= 0:
-            raise ExciteError(f"--ramp-speed {e.ramp_speed}: must be > 0 mm/s")
-        if not RAMP_SPEED[0] <= e.ramp_speed <= RAMP_SPEED[1]:
-            warnings.append(f"--ramp-speed {e.ramp_speed} mm/s: docs/identify.md recommends "
-                            f"{RAMP_SPEED[0]}-{RAMP_SPEED[1]} mm/s")
-    lo, hi = min(lo, e.safe), max(hi, e.safe)
-    if lo < e.min_pos or hi > e.max_pos:
-        raise ExciteError(f"the program would move {e.axis} over {lo:g}..{hi:g} mm, beyond the axis limits "
-                          f"--min {e.min_pos:g} / --max {e.max_pos:g}: lower --steps/--amplitude/--large-step "
-                          f"or change --work/--safe/--ramp")
-    if e.surface is not None:
-        low = min(e.work - (e.amplitude * RESONANCE_GAIN if e.chirp else 0.0),
-                  min(e.ramp) if e.ramp else e.work)
-        if low <= e.surface:
-            raise ExciteError(f"the nozzle could reach {low:g} mm (the chirp amplitude x {RESONANCE_GAIN:g} at a "
-                              f"resonance, docs/identify.md) at or below the surface {e.surface:g} mm: "
-                              f"raise --work or lower --amplitude")
+    if e.ramp and e.ramp_speed <= 0:
+        raise ExciteError(f"--ramp-speed {e.ramp_speed}: must be > 0 mm/s")
+    if e.ramp and not RAMP_SPEED[0] <= e.ramp_speed <= RAMP_SPEED[1]:
+        warnings.append(f"--ramp-speed {e.ramp_speed} mm/s: docs/identify.md recommends "
+                        f"{RAMP_SPEED[0]}-{RAMP_SPEED[1]} mm/s")
+    _check_heights(e, up, down)
     return warnings
+
+
+def _check_heights(e: Excitation, up: float, down: float) -> None:
+    """The heights against the limits, the surface and each other (see :func:`check`); ``up``/``down``:
+    the working band around ``work`` (steps, chirp amplitude)."""
+    lim_min, lim_max = f"--min {_num(e.min_pos)}", f"--max {_num(e.max_pos)}"
+    sheet = f"the surface --surface {_num(e.surface)}" if e.surface is not None else ""
+    # the lowest the nozzle may get: the chirp's amplitude x RESONANCE_GAIN at a resonance, else the band
+    ring = e.amplitude * RESONANCE_GAIN if e.chirp else 0.0
+    below = max(ring, down)
+    # --work: the band within the limits and above the sheet
+    w_lo, w_open = e.min_pos + down, False
+    if e.surface is not None and e.surface + below >= w_lo:
+        w_lo, w_open = e.surface + below, True
+    w_hi = e.max_pos - up
+    allowed = _bounds(w_lo, w_open, w_hi, "--work")
+    if e.work > w_hi:
+        raise ExciteError(f"--work {_num(e.work)}: the working heights reach {_num(e.work + up)} mm (+{_num(up)} mm "
+                          f"of --steps/--amplitude), beyond the axis limit {lim_max}; {allowed}")
+    if e.work - down < e.min_pos:
+        raise ExciteError(f"--work {_num(e.work)}: the chirp reaches {_num(e.work - down)} mm, beyond the axis "
+                          f"limit {lim_min}; {allowed}")
+    if e.surface is not None and e.work - below <= e.surface:
+        cause = (f"the nozzle could reach {_num(e.work - below)} mm (the chirp amplitude {_num(e.amplitude)} mm "
+                 f"x {RESONANCE_GAIN:g} at a resonance, docs/identify.md), at or below {sheet}" if ring
+                 else f"the working height is at or below {sheet}")
+        raise ExciteError(f"--work {_num(e.work)}: {cause}; {allowed}")
+    # --safe: above the working band and the sheet; with its large step within --max
+    top = e.work + up
+    s_lo = max(top, e.surface) if e.surface is not None else top
+    allowed = _bounds(s_lo, True, e.max_pos - (e.large_step or 0.0), "--safe")
+    if e.safe <= s_lo:
+        where = (f"at or below {sheet}" if e.surface is not None and e.safe <= e.surface else
+                 f"not above the working heights (--work {_num(e.work)}"
+                 + (f" + {_num(up)} mm of --steps/--amplitude = {_num(top)} mm)" if up else ")"))
+        raise ExciteError(f"--safe {_num(e.safe)}: the safe height (approach, large step, retract) is {where}; "
+                          f"{allowed}")
+    if e.safe > e.max_pos:
+        raise ExciteError(f"--safe {_num(e.safe)}: beyond the axis limit {lim_max}; {allowed}")
+    if e.large_step and e.safe + e.large_step > e.max_pos:
+        raise ExciteError(f"--large-step {_num(e.large_step)}: the large step from --safe {_num(e.safe)} reaches "
+                          f"{_num(e.safe + e.large_step)} mm, beyond the axis limit {lim_max}; "
+                          f"{_bounds(0.0, False, e.max_pos - e.safe, '--large-step')}")
+    if e.ramp:
+        r_lo, r_open = (e.surface, True) if e.surface is not None and e.surface >= e.min_pos else (e.min_pos, False)
+        for end in e.ramp:
+            if end < r_lo or (r_open and end == r_lo) or end > e.max_pos:
+                where = (f"at or below {sheet}" if r_open and end <= r_lo else
+                         f"beyond the axis limit {lim_max if end > e.max_pos else lim_min}")
+                raise ExciteError(f"--ramp {_num(e.ramp[0])}:{_num(e.ramp[1])}: {_num(end)} mm is {where}; "
+                                  f"{_bounds(r_lo, r_open, e.max_pos, 'FROM, TO')}")
 
 
 def _num(x: float) -> str:
@@ -131,10 +179,44 @@ def _num(x: float) -> str:
     return "0" if text in ("-0", "") else text
 
 
+def _as_written(e: Excitation) -> Excitation:
+    """``e`` with its heights at the 0.1 µm the program writes them with: the checks see the written Z."""
+    def r(x: float) -> float:
+        return float(_num(x))
+
+    return replace(e, work=r(e.work), safe=r(e.safe), large_step=r(e.large_step) if e.large_step else e.large_step,
+                   ramp=(r(e.ramp[0]), r(e.ramp[1])) if e.ramp else None)
+
+
+@dataclass(frozen=True)
+class ExciteProgram:
+    text: str                 # the NC program
+    warnings: list[str]       # outside docs/identify.md's recommended ranges
+    seconds: float            # its running time: dwells, chirp, ramp and the rapids at v_max (no acceleration)
+
+
 def program(e: Excitation) -> tuple[str, list[str]]:
     """The NC program text and the warnings; raises :class:`ExciteError` when the limits forbid it."""
+    p = build(e)
+    return p.text, p.warnings
+
+
+def build(e: Excitation) -> ExciteProgram:
+    """The NC program, its warnings and running time; raises :class:`ExciteError` when the limits or the
+    surface forbid it (every height it commands is checked, :func:`check`)."""
+    e = _as_written(e)
     warnings = check(e)
     ax, T = e.axis, e.cycle_time
+    # the running time: the rapids at v_max from the safe height on (where the program starts from is unknown)
+    clock = {"s": 0.0, "z": e.safe}
+
+    def move(z: float, speed: float | None = None) -> None:
+        clock["s"] += abs(z - clock["z"]) / (speed or e.v_max)
+        clock["z"] = z
+
+    def wait(seconds: float) -> None:
+        clock["s"] += seconds
+
     feed = _num(e.v_max * 60.0)
     out = [f"%EXCITE_{ax}",
            f"; distctrl excite: the excitation of axis {ax} for distctrl identify (docs/identify.md)",
@@ -148,12 +230,16 @@ def program(e: Excitation) -> tuple[str, list[str]]:
         out.append(f"N{n} {text}")
         n += 10
 
+    move(e.work)
     add("#TIME 1")
+    wait(1.0)
     if e.step:
         out.append(f"; steps of {_num(e.step)} mm every {_num(e.step_dwell)} s")
         for k in range(e.step_count):
             add(f"G0 {ax}{_num(e.work + (e.step if k % 2 == 0 else 0.0))}")
             add(f"#TIME {_num(e.step_dwell)}")
+            move(e.work + (e.step if k % 2 == 0 else 0.0))
+            wait(e.step_dwell)
     if e.chirp:
         f0, f1 = e.chirp
         steps = int(round(e.chirp_seconds / T))
@@ -183,6 +269,8 @@ def program(e: Excitation) -> tuple[str, list[str]]:
                 last, last_z, last_k = text, zk, k
         add(f"G0 {ax}{_num(e.work)}")
         add("#TIME 0.5")
+        move(e.work)
+        wait(steps * T + 0.5)
     if e.ramp:
         a, b = e.ramp
         out.append(f"; slow ramp {_num(a)} -> {_num(b)} mm at {_num(e.ramp_speed)} mm/s, then 1 s at standstill")
@@ -190,12 +278,19 @@ def program(e: Excitation) -> tuple[str, list[str]]:
         add("#TIME 0.5")
         add(f"G1 {ax}{_num(b)} F{_num(e.ramp_speed * 60)}")
         add("#TIME 1")
+        move(a)
+        move(b, e.ramp_speed)
+        wait(1.5)
     if e.large_step:
         out.append(f"; one large step of {_num(e.large_step)} mm at the safe height")
         add(f"G0 {ax}{_num(e.safe)}")
         add("#TIME 0.5")
         add(f"G0 {ax}{_num(e.safe + e.large_step)}")
         add("#TIME 0.5")
+        move(e.safe)
+        move(e.safe + e.large_step)
+        wait(1.0)
     add(f"G0 {ax}{_num(e.safe)}                 ; retract")
     add("M30")
-    return "\n".join(out) + "\n", warnings
+    move(e.safe)
+    return ExciteProgram("\n".join(out) + "\n", warnings, clock["s"])

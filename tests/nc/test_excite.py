@@ -63,11 +63,11 @@ def test_chirp_amplitude_and_band():
 
 
 @pytest.mark.parametrize("change, match", [
-    ({"max_pos": 42.0}, "beyond the axis limits"),                 # the large step at the safe height
+    ({"max_pos": 42.0}, "beyond the axis limit --max 42"),                 # the large step at the safe height
     ({"amplitude": 0.2, "surface": 31.0}, "at or below the surface"),
     ({"amplitude": 1.0, "v_max": 100.0, "surface": None}, "beyond the axis's v_max"),
     ({"chirp": (1.0, 900.0)}, "half the cycle rate"),
-    ({"ramp": (24.0, 32.0), "surface": None}, "beyond the axis limits"),
+    ({"ramp": (24.0, 32.0), "surface": None}, "beyond the axis limit --min 25"),
 ])
 def test_refuses_beyond_the_limits(change, match):
     with pytest.raises(ExciteError, match=match):
@@ -89,7 +89,7 @@ def test_cli_writes_the_program_and_refuses_with_exit_1(tmp_path):
     r = CliRunner().invoke(main, [*args[:-3], "--max", "41", "--out", str(tmp_path / "x.nc"), "--json"])
     assert r.exit_code == 1
     err = json.loads(r.stdout)
-    assert err["outcome"] == "error" and "beyond the axis limits" in err["error"]
+    assert err["outcome"] == "error" and "beyond the axis limit --max 41" in err["error"]
     assert not (tmp_path / "x.nc").exists()
 
 
