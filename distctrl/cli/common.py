@@ -16,7 +16,8 @@
   and matplotlib parts load only for the commands that need them). An ``OSError`` that reaches it (a
   full disk, a read-only place) ends with one ``error:`` line naming the path and exit code 1; so does
   an optional dependency that is not installed, naming the extra that installs it (:mod:`.extras`).
-* :func:`check_writable`: an output path is tried before a long run, not after it.
+* :func:`check_writable`: an output path is tried before a long run, not after it; :func:`check_output`
+  also checks its suffix (the one helper every command's output files go through).
 * :func:`freeze_loaded_objects`: what a command has loaded leaves the garbage collector's scans.
 """
 from __future__ import annotations
@@ -28,12 +29,14 @@ import json
 import math
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 import click
 
 from ..errors import DistCtrlError, ExitCode
+from ..errors.files import PLOT_SUFFIXES, check_suffix
 from .extras import missing_dependency
 
 #: the state of the command line in this process: the command whose ``--json`` was given (set by
@@ -145,16 +148,29 @@ def check_writable(path: str, what: str, directory: bool = False) -> None:
         fail(output_error_text(exc, path, what))
 
 
-def check_plot_output(path: str | None, check_suffix) -> None:
-    """A ``--plot`` file before the work: its suffix (``check_suffix`` raises a DistCtrlError) and
-    that it can be written; fails with one line otherwise."""
+def check_output(path: str | None, what: str, allowed: Sequence[str] = (), directory: bool = False) -> None:
+    """An output given on the command line, before the work: its suffix among ``allowed`` (lower case,
+    with the dot; :func:`distctrl.errors.files.check_suffix`) and that it can be written; fails with one
+    line (and the --json error object) otherwise. Every command checks its output files with it."""
     if not path:
         return
-    try:
-        check_suffix(path)
-    except DistCtrlError as exc:
-        fail(str(exc))
-    check_writable(path, "plot")
+    if allowed:
+        try:
+            check_suffix(path, what, allowed)
+        except DistCtrlError as exc:
+            fail(str(exc))
+    check_writable(path, what, directory=directory)
+
+
+def check_plot_output(path: str | None, check_suffix_of=None) -> None:
+    """A ``--plot`` file before the work: :func:`check_output` with the plot suffixes (.png, .svg, .pdf),
+    or the check ``check_suffix_of`` (raises a DistCtrlError) of a command that has its own."""
+    if path and check_suffix_of is not None:
+        try:
+            check_suffix_of(path)
+        except DistCtrlError as exc:
+            fail(str(exc))
+    check_output(path, "plot", PLOT_SUFFIXES if check_suffix_of is None else ())
 
 
 def os_error_reason(exc: OSError, path: str | None = None) -> str:

@@ -11,11 +11,12 @@ import warnings
 import click
 
 from ..errors import DistCtrlError
-from ..workbench.filters import (DEFAULT_SPECS, WorkbenchError, check_plot_path, compare, default_configs,
+from ..errors.files import PLOT_SUFFIXES
+from ..workbench.filters import (DEFAULT_SPECS, WorkbenchError, compare, default_configs,
                                  find_edges, format_table, load_recording, obstacle_signal,
                                  parse_filter_specs, plot_overlay, results_dicts, signal_noise_rms,
                                  write_results_csv)
-from .common import SEED, Finite, check_writable, emit_json, fail, output_error_text
+from .common import SEED, Finite, check_output, emit_json, fail, output_error_text
 
 
 def _edges_option(values: tuple[str, ...]) -> list[float] | str | None:
@@ -83,11 +84,8 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
             warnings.simplefilter("always")
             if cycle_time is not None and not (cycle_time > 0.0 and math.isfinite(cycle_time)):
                 raise WorkbenchError(f"--cycle-time {cycle_time!r}: allowed: a finite number > 0 s")
-            if plot_path:
-                check_plot_path(plot_path)
-            for path, what in ((plot_path, "plot"), (csv_path, "table")):
-                if path:
-                    check_writable(path, what)
+            check_output(plot_path, "plot", PLOT_SUFFIXES)
+            check_output(csv_path, "table", (".csv",))
             edges_opt = _edges_option(edge_values)
             if recording:
                 rec = load_recording(recording, time_column=time_column, value_column=value_column,

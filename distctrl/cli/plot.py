@@ -7,8 +7,12 @@ from pathlib import Path
 import click
 
 from ..errors import DistCtrlError
+from ..errors.files import PLOT_SUFFIXES
 from ..trace.plot_file import plot_trace_file
-from .common import Finite, emit_json, fail, output_error_text
+from .common import Finite, check_output, emit_json, fail, output_error_text
+
+#: what -o may be called (matplotlib's formats by suffix; .jpg is JPEG)
+OUTPUT_SUFFIXES = (*PLOT_SUFFIXES, ".jpg", ".jpeg")
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -44,6 +48,7 @@ def plot(trace_csv: str, signals: str | None, t_from: float | None, t_to: float 
     that cannot be written (the message names it and why).
     """
     names = _split_signals(signals)
+    check_output(out, "plot", OUTPUT_SUFFIXES)
     try:
         path = plot_trace_file(trace_csv, out, names, t_from, t_to, errors_path, title)
     except DistCtrlError as exc:

@@ -12,7 +12,8 @@ from ..errors.config import ConfigError
 from ..sim.plates import CutWatch, select_functions
 from ..sim.runner import run as run_scenario
 from ..sim.scenario import load_scenario
-from .common import check_writable, emit_json, fail, human_bytes
+from ..errors.files import PLOT_SUFFIXES, TABLE_SUFFIXES
+from .common import check_output, emit_json, fail, human_bytes
 
 
 @click.command("run")
@@ -20,7 +21,7 @@ from .common import check_writable, emit_json, fail, human_bytes
 @click.option("--trace", "trace_path", type=click.Path(dir_okay=False),
               help="Write the per-cycle trace to this CSV file (units in FILE.meta.json), or to a .parquet file.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object with the result instead of a summary.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Save a plot of the run (PNG or SVG).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Save a plot of the run (.png, .svg or .pdf).")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False),
               help="Write a self-contained HTML report (plots embedded) into this folder.")
 @click.option("--record", "record", default="",
@@ -51,10 +52,9 @@ def run(scenario: str, trace_path: str | None, as_json: bool, plot_path: str | N
     """
 
     records = tuple(record.split(",")) if record else ()
-    for path, what, is_dir in ((trace_path, "trace", False), (plot_path, "plot", False),
-                               (report_dir, "report folder", True)):
-        if path:
-            check_writable(path, what, directory=is_dir)
+    check_output(trace_path, "trace", TABLE_SUFFIXES)
+    check_output(plot_path, "plot", PLOT_SUFFIXES)
+    check_output(report_dir, "report folder", directory=True)
     try:
         sc = _select_processes(load_scenario(scenario), scenario, no_process, process_only)
         watch = _cut_watch(sc)

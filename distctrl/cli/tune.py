@@ -11,12 +11,13 @@ from pathlib import Path
 import click
 
 from ..errors import DistCtrlError
+from ..errors.files import PLOT_SUFFIXES, TABLE_SUFFIXES
 from ..tuning.metrics import METRIC_NAMES
 from ..tuning.runner import DEFAULT_CHUNK, Evaluator
 from ..tuning.columns import COLUMN_FIELDS, columns_of, drop_inert_columns, random_columns
 from ..tuning.space import build_sets, drop_inert_d_tv, grid_points, parse_grid
 from ..tuning.tune import tune
-from .common import SEED, Finite, check_writable, emit_json, fail, freeze_loaded_objects
+from .common import SEED, Finite, check_output, check_writable, emit_json, fail, freeze_loaded_objects
 
 
 def _errors() -> tuple:
@@ -71,7 +72,7 @@ _CHATTER_HELP = "Weight of offset_hf_rms, the offset's motion above 20 Hz, in th
 @click.option("--out", "out", default="sweep.csv", show_default=True, type=click.Path(dir_okay=False),
               help="Results table: .csv, or .parquet (needs pyarrow).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
-              help="Save a heatmap (two swept parameters) or parallel-coordinates plot (PNG/SVG).")
+              help="Save a heatmap (two swept parameters) or parallel-coordinates plot (.png, .svg or .pdf).")
 @click.option("--metric", default="rms_error", show_default=True, help="Metric of the plot and the ranking.")
 @click.option("--sat-weight", type=Finite(0.0, 1e6), default=None, help=_SAT_HELP)
 @click.option("--chatter-weight", type=Finite(0.0, 1e6), default=None, help=_CHATTER_HELP)
@@ -87,6 +88,8 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
           local, workers, chunk, top, as_json):
     """Evaluate a grid (--grid) or a random sample (--random N) of filter/PID settings on SCENARIO.toml
     with the closed-loop batch kernel; write the metrics table and optionally a plot."""
+    check_output(out, "table", TABLE_SUFFIXES)          # before the kernels load and the sets run
+    check_output(plot_path, "plot", PLOT_SUFFIXES)
     from ..batch.closed_loop import prepare     # numba ([batch] extra): loaded only when a sweep runs
 
     if (grid is None) == (n_random is None):
