@@ -27,6 +27,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..base.text import decode_text
 from ..errors import ParameterError
 
 #: the numeric V.E. types (a sensor value must be a number)
@@ -144,7 +145,7 @@ def load_external_variables(path: str | Path) -> dict[str, ExternalVariable]:
     """Read and validate the list file; an unreadable file is a ParameterError naming it."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = decode_text(path.read_bytes(), fallback=None)     # a BOM skipped
     except (OSError, UnicodeDecodeError) as exc:
         raise ParameterError(f"cannot read the external-variable list ({exc})", file=str(path)) from None
     return parse_external_variables(text, str(path))

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from ..base.kinds import FilterType
+from ..base.text import read_text
 from ..errors import ParameterError
 from .axis import AxisParameters, check_internal, parse_axis_type, to_internal_value, to_interface_value
 from .table import AXIS_PARAMETERS, BY_KEY, IGNORED_KEYS, ParamSpec
@@ -215,9 +216,7 @@ def load_list(path: str | Path, base: Any = None, *, fmt: ListFormat = AXIS_LIST
     """Load a parameter list file (kernel format); an axis list unless ``fmt`` says otherwise."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        text = p.read_text(encoding="latin-1")
+        text = read_text(p)                  # UTF-8 (a BOM skipped) or Latin-1
     except OSError as exc:
         raise ParameterError(f"cannot read parameter list: {exc.strerror}", file=str(p)) from None
     return parse_list_text(text, str(p), base, fmt=fmt)

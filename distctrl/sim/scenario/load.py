@@ -4,6 +4,7 @@ through its module) and the entry points :func:`load_scenario`, :func:`scenario_
 the file (and the TOML line of a syntax error)."""
 from __future__ import annotations
 
+import codecs
 import os
 import re
 from dataclasses import dataclass
@@ -14,6 +15,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from distctrl.base.text import decode_text, read_text
 from distctrl.errors import ParameterError
 from distctrl.errors.config import MISSING, ConfigError, require_int, require_mapping, require_number
 from distctrl.params.channel import ChannelParameters
@@ -118,9 +120,7 @@ def _build(data: object, base_dir: Path, path: Path | None) -> Scenario:
     if has_file:
         program_file: Path | None = _file(data["program"], "program", base_dir, "NC program file")
         try:
-            program_text = program_file.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            program_text = program_file.read_text(encoding="latin-1")
+            program_text = read_text(program_file)      # UTF-8 (a BOM skipped) or Latin-1
         except OSError as exc:
             raise ConfigError("program", data["program"], "a readable NC program file",
                               f"cannot read ({exc.strerror}):") from None
@@ -269,8 +269,9 @@ def load_scenario(path: str | os.PathLike) -> Scenario:
     except OSError as exc:
         raise ScenarioError(source, "file", source, "a readable TOML scenario file",
                             f"cannot read ({exc.strerror}):") from None
+    raw = raw.removeprefix(codecs.BOM_UTF8)         # a BOM (Windows editors) is not TOML
     try:
-        text = raw.decode("utf-8")
+        text = decode_text(raw, fallback=None)
     except UnicodeDecodeError as exc:
         line = raw[:exc.start].count(b"\n") + 1
         raise ScenarioError(source, "file", raw[exc.start:exc.start + 8], "UTF-8 text (TOML)",
