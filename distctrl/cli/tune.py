@@ -41,6 +41,15 @@ def _announce_cold_kernels() -> None:
     announce_if_cold(_say)
 
 
+def _sets_text(sets: int, requested: int, merged: int, rejected: int) -> str:
+    """``9992 of 10000 sets (8 merged: ...)``: what became of every set asked for."""
+    if sets == requested:
+        return f"{sets} sets"
+    why = [f"{merged} merged: equal to another set once d_tv is 0 at kp >= 1"] if merged else []
+    why += [f"{rejected} rejected: out of range"] if rejected else []
+    return f"{sets} of {requested} sets ({'; '.join(why)})"
+
+
 def _mode(local: bool, scheduler: str | None) -> dict:
     if local and scheduler:
         raise click.UsageError("--local and --scheduler exclude each other")
@@ -121,8 +130,9 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
                 points = pc.to_points() if pc is not None else grid_points(parse_grid(grid))
                 points, merged = drop_inert_d_tv(points)
             if merged:
-                _say(f"{merged} grid combinations differ only in d_tv at kp >= 1, where the D part has no "
-                     f"effect (docs/control-law.md): run once each, with d_tv 0")
+                what = "grid combinations" if grid is not None else f"of the {n_random} random sets"
+                _say(f"{merged} {what} differ from another only in d_tv at kp >= 1, where the D part has no "
+                     f"effect (docs/control-law.md): merged, each run once with d_tv 0")
             if columnar:
                 res = ev.evaluate_points(inputs.params, pc)
                 rejected, n_sets = res.rejected, len(res)
@@ -143,18 +153,21 @@ def sweep(scenario, grid, n_random, seed, cycles, out, plot_path, metric, sat_we
     except _errors() as exc:
         fail(str(exc))
     info = res.info
+    requested = info["sets"] + merged + len(rejected)
     rate = info["sets"] * info["cycles"] / max(info["seconds"], 1e-9)
     if as_json:
         d = res.to_dict(top, key=metric)
         emit_json({"command": "sweep", "scenario": scenario, "metric": d["metric"], "sets": d["sets"],
                    "cycles": d["cycles"], "seconds": d["seconds"], "compile_seconds": compile_s,
                    "set_cycles_per_s": d["set_cycles_per_s"], "mode": d["mode"], "workers": d["workers"],
-                   "rejected": len(rejected), "table": str(path), "plot": plot_path,
+                   "requested": requested, "merged": merged, "rejected": len(rejected),
+                   "table": str(path), "plot": plot_path,
                    "best": d["best"], "units": d["units"], "notes": d["notes"]})
         return
     click.echo(res.render(top, key=metric, plain=True,
                           title=f"best {min(top, len(res))} of {len(res)} sets by {metric}"), nl=False)
-    click.echo(f"{info['sets']} sets x {info['cycles']} cycles in {info['seconds']:.2f} s "
+    click.echo(f"{_sets_text(info['sets'], requested, merged, len(rejected))} x {info['cycles']} cycles in "
+               f"{info['seconds']:.2f} s "
                f"({_rate_text(rate)} set-cycles/s, {info['mode']}, {info['workers']} worker(s)"
                + (f"; compiling took {compile_s:.1f} s before" if compile_s else "")
                + f"); table: {path}" + (f"; plot: {plot_path}" if plot_path else ""))
