@@ -484,11 +484,35 @@ class SweepResult:
         for i in order:
             c = cmap((y[i] - ylo) / (yhi - ylo) if finite[i] and yhi > ylo else 0.0) if finite[i] else "lightgray"
             ax.plot(range(len(cols) + 1), mat[:, i], color=c, lw=0.6, alpha=0.6)
-        ax.set_xticks(range(len(cols) + 1), cols + [metric])
+        ax.set_xticks(range(len(cols) + 1), cols + [metric], fontsize=8)
         ax.set_ylabel("normalised value")
         fig.colorbar(ScalarMappable(Normalize(ylo, yhi if yhi > ylo else ylo + 1), cmap), ax=ax,
                      label=f"{metric} (dark = smaller = better)")
         ax.set_title(f"parallel coordinates, colour = {metric} ({len(self)} sets; dark = better)")
+        _separate_tick_labels(fig, ax)
+
+
+def _separate_tick_labels(fig, ax) -> None:
+    """The x tick labels (the parallel coordinates' axis names) laid out so that none overlaps another, as
+    matplotlib's renderer measures them: as they are, else every other one a row lower, else vertical
+    (new-user audit R5: a random sweep's ten names ran into one string)."""
+    renderer = fig.canvas.get_renderer()
+
+    def overlapping() -> bool:
+        fig.draw_without_rendering()                    # the constrained layout, as saved
+        boxes = [t.label1.get_window_extent(renderer) for t in ax.xaxis.get_major_ticks()]
+        return any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+    if not overlapping():
+        return
+    ticks = ax.xaxis.get_major_ticks()
+    row = max(t.label1.get_window_extent(renderer).height for t in ticks) * 72.0 / fig.dpi   # points
+    for t in ticks[1::2]:
+        t.set_pad(t.get_pad() + 1.2 * row)
+    if overlapping():
+        for t in ticks[1::2]:
+            t.set_pad(t.get_pad() - 1.2 * row)
+        ax.tick_params(axis="x", labelrotation=90)
 
 
 def _plain(x):

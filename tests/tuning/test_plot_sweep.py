@@ -64,3 +64,34 @@ def test_sweep_table_and_csv_print_the_values_used_shortest(tmp_path):
     assert "0.8999999999999999" not in text
     csv_text = res.write(tmp_path / "s.csv").read_text()
     assert "0.9," in csv_text and "0.8999999999999999" not in csv_text
+
+
+def _every_parameter_result(n: int = 60) -> SweepResult:
+    """A random sweep's table: every parameter column varies (the audit's plot of --random 1024)."""
+    from distctrl.tuning.runner import PARAM_COLUMNS
+
+    rng = np.random.default_rng(3)
+    data = {}
+    for c in PARAM_COLUMNS:
+        data[c] = (rng.choice(["MOVING_AVERAGE", "EXPO_MEAN", "LOWPASS"], n) if c == "filter_type"
+                   else rng.uniform(0.1, 1.9, n))
+    data["rms_error"] = rng.uniform(0.05, 0.2, n)
+    return SweepResult(data)
+
+
+def test_parallel_coordinates_axis_labels_do_not_overlap():
+    """New-user audit R5: the axis names ran into one string (n_cyclessmoothing_factorkalman_sigma...).
+    The labels' extents, as matplotlib's renderer lays them out, are disjoint and inside the figure."""
+    fig = plot_sweep(_every_parameter_result())
+    ax = fig.axes[0]
+    renderer = fig.canvas.get_renderer()
+    fig.draw(renderer)
+    labels = [t for t in ax.get_xticklabels() if t.get_text()]
+    assert len(labels) >= 10, [t.get_text() for t in labels]
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            assert not boxes[i].overlaps(boxes[j]), (labels[i].get_text(), labels[j].get_text())
+    whole = fig.bbox
+    for t, b in zip(labels, boxes):
+        assert b.x0 >= whole.x0 - 1 and b.x1 <= whole.x1 + 1 and b.y0 >= whole.y0 - 1, t.get_text()
