@@ -33,7 +33,7 @@ try:
 except ImportError as exc:          # pragma: no cover - exercised only without numba
     raise ImportError(
         "distctrl.batch.kernel needs numba (the compiled control law); install it with "
-        "`pip install 'distctrl[fast]'` or `pip install numba`. "
+        "`pip install 'distctrl[batch]'`. "
         "Use distctrl.batch.numba_available() to check before importing.") from exc
 
 from ..control import law

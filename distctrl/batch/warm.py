@@ -74,7 +74,7 @@ def warm() -> bool:
 
     if not numba_available():
         _say("numba is not installed: no batch kernels to compile (distctrl sweep / tune need "
-             "`pip install 'distctrl[tune]'`)")
+             "`pip install 'distctrl[batch]'`)")
         return False
     # the batch kernels import numba: loaded only when warming or running them
     import numpy as np

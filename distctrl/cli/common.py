@@ -217,11 +217,27 @@ def human_bytes(n: float) -> str:
     return f"{n:.1f} TB"  # pragma: no cover
 
 
+def _click_error(exc: click.ClickException) -> NoReturn:
+    """click's own errors (a usage error, a bad option value, a ClickException of a command) as distctrl's:
+    one ``error:`` line (click prints "Usage: ...", "Try ...", a blank line and "Error: ..."), a usage
+    error naming where the help is, the --json error object, and exit code 1 for a usage error (click's
+    2 is distctrl's "a control error aborted the program")."""
+    message = " ".join(exc.format_message().split())
+    code = int(ExitCode.INVALID_INPUT) if isinstance(exc, click.UsageError) else int(exc.exit_code)
+    if isinstance(exc, click.UsageError) and exc.ctx is not None:
+        message += f" (see {exc.ctx.command_path} --help)"
+    click.echo(f"error: {message}", err=True)
+    if _STATE["json_command"] is not None and not _STATE["emitted"]:
+        emit_json(error_object(message, code, _STATE["json_command"]))
+    raise click.exceptions.Exit(code)
+
+
 class DistctrlGroup(click.Group):
     """The ``distctrl`` group: lazy subcommands and one exit-code table for every command.
 
     click ends a usage error (unknown option, bad value of a typed option) with 2, which distctrl
-    uses for "a control error aborted the program"; here it is 1 like every other invalid input.
+    uses for "a control error aborted the program", and prints it on four lines; here it is one
+    ``error:`` line and exit code 1 like every other invalid input (:func:`_click_error`).
     Ctrl-C in a command that does not handle it itself ends with 130 instead of click's "Aborted!" 1.
     """
 
@@ -248,9 +264,8 @@ class DistctrlGroup(click.Group):
     def make_context(self, info_name, args, parent=None, **extra):
         try:
             return super().make_context(info_name, args, parent=parent, **extra)
-        except click.UsageError as exc:
-            exc.exit_code = int(ExitCode.INVALID_INPUT)
-            raise
+        except click.ClickException as exc:
+            _click_error(exc)
 
     def invoke(self, ctx: click.Context):
         args = [*getattr(ctx, "_protected_args", ()), *ctx.args]
@@ -260,11 +275,8 @@ class DistctrlGroup(click.Group):
         _STATE["emitted"] = False
         try:
             return super().invoke(ctx)
-        except click.UsageError as exc:
-            exc.exit_code = int(ExitCode.INVALID_INPUT)
-            if _STATE["json_command"] is not None and not _STATE["emitted"]:
-                emit_json(error_object(exc.format_message(), ExitCode.INVALID_INPUT, _STATE["json_command"]))
-            raise
+        except click.ClickException as exc:
+            _click_error(exc)
         except ModuleNotFoundError as exc:
             # an optional dependency the command needs is not installed: name the extra (pyproject.toml)
             message = missing_dependency(exc)

@@ -85,7 +85,7 @@ def filters(specs: tuple[str, ...], recording: str | None, time_column: str | No
             if cycle_time is not None and not (cycle_time > 0.0 and math.isfinite(cycle_time)):
                 raise WorkbenchError(f"--cycle-time {cycle_time!r}: allowed: a finite number > 0 s")
             check_output(plot_path, "plot", PLOT_SUFFIXES)
-            check_output(csv_path, "table", (".csv",))
+            check_output(csv_path, "table")                 # always CSV, whatever its name
             edges_opt = _edges_option(edge_values)
             if recording:
                 rec = load_recording(recording, time_column=time_column, value_column=value_column,

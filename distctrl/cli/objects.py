@@ -82,7 +82,8 @@ def _watch_objects(scenario, axis_filter, as_json, host, port, net_id, interval,
     try:
         import pyads  # the [ads] extra: only --watch needs it, so objects works without it
     except ImportError:
-        fail("--watch needs pyads (pip install pyads), the ADS client it reads the served machine with")
+        fail("--watch needs pyads, the ADS client it reads the served machine with, which is not installed: "
+             "pip install 'distctrl[ads]'")
     # the machine commands' ADS connection: only --watch needs it (and its pyads)
     from ..client.target import CNC_PORT, MachineError, Target, quiet_adslib
 

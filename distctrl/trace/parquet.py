@@ -7,7 +7,7 @@ field carries its unit in its own metadata (``unit``), so other tools (pandas, p
 them too. Values round-trip bit for bit (NaN, infinities and -0.0 included).
 
 pyarrow is optional and imported only when called; without it the functions raise
-:class:`~distctrl.errors.DistCtrlError` saying ``pip install pyarrow``. See docs/workbench-report.md.
+:class:`~distctrl.errors.DistCtrlError` naming the ``[parquet]`` extra that installs it. See docs/workbench-report.md.
 """
 from __future__ import annotations
 
@@ -39,12 +39,12 @@ def _pyarrow():
         import pyarrow.parquet as pq
     except ImportError as exc:
         raise ParquetError("Parquet traces need pyarrow, which is not installed: pip install "
-                           f"'distctrl[parquet]' or pip install pyarrow ({exc})") from None
+                           f"'distctrl[parquet]' ({exc})") from None
     return pa, pq
 
 
 def require_pyarrow() -> None:
-    """Raise ParquetError ("pip install pyarrow") unless Parquet traces can be written."""
+    """Raise ParquetError (naming the [parquet] extra) unless Parquet traces can be written."""
     _pyarrow()
 
 

@@ -61,7 +61,7 @@ _TOL = 1e-3
 
 def wanted_distance(inputs, n: int | None = None) -> np.ndarray:
     """The wanted distance per cycle (mm): SET_DIST in CONST_DIST, ``prog - SET_POS`` in SET_POS."""
-    # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (the [batch] extra) loads only when a batch runs
     from ..batch.closed_loop import MODE_CONST_DIST
 
     n = inputs.n_cycles if n is None else n
@@ -72,7 +72,7 @@ def wanted_distance(inputs, n: int | None = None) -> np.ndarray:
 
 def limits_from_packed(packed: np.ndarray) -> dict[str, np.ndarray]:
     """Per-set limiter data (v_max, a_base, weights, adaptive ramp) from packed rows."""
-    from ..batch import closed_loop as CL  # numba (optional: [fast], [tune]) loads only when a batch runs
+    from ..batch import closed_loop as CL  # numba (the [batch] extra) loads only when a batch runs
 
     q = packed[:, law.FC_LEN:]
     return {"v_lim": q[:, CL.Q_V_MAX], "a_lim": q[:, CL.Q_A_BASE], "w_v": q[:, CL.Q_W_V],
@@ -105,7 +105,7 @@ def compute_metrics(offset: np.ndarray, distance: np.ndarray, wanted, cycle_time
     if not numba_available():
         return reference_metrics(offset, distance, wanted, cycle_time, k_on, limits, skip=skip, band=band,
                                  hold=hold, f_osc=f_osc, overshoot_window=overshoot_window)
-    from ..batch import metrics_kernel as MK   # numba (optional: [fast], [tune]) loads only when a batch runs
+    from ..batch import metrics_kernel as MK   # numba (the [batch] extra) loads only when a batch runs
 
     offset = np.ascontiguousarray(np.atleast_2d(np.asarray(offset, dtype=np.float64)))
     distance = np.ascontiguousarray(np.atleast_2d(np.asarray(distance, dtype=np.float64)))

@@ -91,7 +91,7 @@ def slim_inputs(inputs):
 def evaluate_chunk(inputs, packed: np.ndarray, cycles: int | None, metric_options: dict,
                    threads: int | None = None) -> dict[str, np.ndarray]:
     """Run the kernel for the packed rows and return their metrics (a pure function of its arguments)."""
-    # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (the [batch] extra) loads only when a batch runs
     from ..batch.closed_loop import numba_threads, run_batch
 
     with numba_threads(threads):             # the kernel's and the metrics pass's threads
@@ -146,7 +146,7 @@ class _PointChunk:
 
 def _probe_of(inputs, base):
     """The probe's (increments per mm, reference offset) of the base set (None: the distance sensor)."""
-    # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (the [batch] extra) loads only when a batch runs
     from ..batch.closed_loop import SENSOR_PROBE, _probe_constants
     from ..batch.layout import PL_SENSOR
 
@@ -170,7 +170,7 @@ def _outputs(n_sets: int, n: int):
 def _side_by_side_cores() -> int:
     """numba's thread count, where its threading layer runs parallel kernels called from several threads at
     once (tbb, omp; not workqueue, which aborts the process); else 1."""
-    # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (the [batch] extra) loads only when a batch runs
     import numba
 
     try:
@@ -194,7 +194,7 @@ def check_points_chunk(inputs, chunk: "_PointChunk", base, probe) -> _CheckedChu
     """Check and design a chunk's points (columns: :func:`~distctrl.tuning.columns.check_columns`; what the
     columns do not cover, set by set through :func:`~distctrl.tuning.space.build_sets`): the first half of
     :func:`evaluate_points_chunk`, which a local sweep runs for the next chunk while this one runs."""
-    # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (the [batch] extra) loads only when a batch runs
     from ..batch.closed_loop import pack_columns, pack_sets
 
     pts = chunk.points
@@ -233,7 +233,7 @@ def evaluate_points_chunk(inputs, chunk: "_PointChunk", cycles: int | None, metr
     stages then share them, and it was no faster than one after the other (2.11 s against 2.06 s, the
     best of six 10 000-set sweeps each, docs/tuning.md)."""
     t_task = time.perf_counter()
-    # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (the [batch] extra) loads only when a batch runs
     from ..batch.closed_loop import numba_threads, run_batch
     from ..batch.soa import kernel_order
 
@@ -332,8 +332,8 @@ class SweepResult:
             import pyarrow as pa
             import pyarrow.parquet as pq
         except ImportError:
-            raise TuningRunError("Parquet results need pyarrow, which is not installed: pip install pyarrow "
-                                 "(or write a .csv)") from None
+            raise TuningRunError("Parquet results need pyarrow, which is not installed: pip install "
+                                 "'distctrl[parquet]' (or write a .csv)") from None
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = {c: pa.array([_plain(x) for x in v]) for c, v in self.data.items()}
@@ -767,7 +767,7 @@ class Evaluator:
     def evaluate(self, param_sets, points: list[dict] | None = None, *, description: str = "sweep") -> SweepResult:
         """Metrics of every set (a list of AxisParameters); ``points``: what each set changes (for the
         table; default: the tuning fields of the sets)."""
-        # numba (optional: [fast], [tune]) loads only when a batch runs
+        # numba (the [batch] extra) loads only when a batch runs
         from ..batch.closed_loop import pack_sets
 
         param_sets = list(param_sets)
@@ -857,7 +857,7 @@ class Evaluator:
         if self._kernels_ready:
             return
         self._kernels_ready = True
-        # numba (optional: [fast], [tune]) loads only when a batch runs
+        # numba (the [batch] extra) loads only when a batch runs
         from ..batch.closed_loop import run_blocks
         from ..batch.jitcache import cache_dir, is_cached
 
@@ -865,7 +865,7 @@ class Evaluator:
         if is_cached(entry):
             if self.mode == "local" and not entry.signatures:
                 # load the cached code now (about 0.5 s), so that the sweep's time is the sweep's
-                # numba (optional: [fast], [tune]) loads only when a batch runs
+                # numba (the [batch] extra) loads only when a batch runs
                 from ..batch.closed_loop import pack_sets, run_batch
 
                 packed = packed_one if packed_one is not None and len(packed_one) else \
@@ -877,7 +877,7 @@ class Evaluator:
             self.log("note: the workers compile the batch kernels on their first chunk if they have not "
                      "yet (about 30 s per machine, cached on disk afterwards)")
             return
-        # numba (optional: [fast], [tune]) loads only when a batch runs
+        # numba (the [batch] extra) loads only when a batch runs
         from ..batch.closed_loop import pack_sets, run_batch
 
         packed = packed_one if packed_one is not None and len(packed_one) else pack_sets(self.inputs,

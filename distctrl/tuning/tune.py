@@ -658,7 +658,7 @@ def _robustness(ev, scenario, inputs, cycles: int | None, base: AxisParameters, 
                 base_metrics: dict, best_metrics: dict) -> list[dict]:
     """The scenario's and the tuned set on each perturbed scenario (:func:`perturbed_scenarios`): their
     costs, the degradation and the share of the improvement kept (``margin``); ``ev`` is left on ``inputs``."""
-    from ..batch.closed_loop import prepare  # numba (optional: [fast], [tune]) loads only when a batch runs
+    from ..batch.closed_loop import prepare  # numba (the [batch] extra) loads only when a batch runs
 
     rob = []
     for name, sc in perturbed_scenarios(scenario, inputs.axis):
@@ -712,7 +712,7 @@ def tune(scenario, *, budget: int = 400, seed: int = 0, cycles: int | None = Non
     go to :class:`Evaluator` (``mode``, ``scheduler``, ``n_workers``, ``progress`` ...)."""
     import time
 
-    from ..batch.closed_loop import prepare  # numba (optional: [fast], [tune]) loads only when a batch runs
+    from ..batch.closed_loop import prepare  # numba (the [batch] extra) loads only when a batch runs
     from ..sim.scenario import Scenario, load_scenario
 
     say = log or (lambda msg: None)
@@ -925,7 +925,7 @@ def plot_before_after(scenario_or_inputs, base: AxisParameters, best: AxisParame
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    # numba (optional: [fast], [tune]) loads only when a batch runs
+    # numba (the [batch] extra) loads only when a batch runs
     from ..batch.closed_loop import LoopInputs, prepare, run_batch
 
     inputs = scenario_or_inputs if isinstance(scenario_or_inputs, LoopInputs) else prepare(scenario_or_inputs, cycles)

@@ -23,7 +23,6 @@ CASES = [
     (["sweep", SHEET, "--random", "4", "--local", "--out", "{d}/s.csv", "--plot", "{d}/sw.bmp"], "sw.bmp",
      ".png, .svg, .pdf"),
     (["sweep", SHEET, "--random", "4", "--local", "--out", "{d}/s.xlsx"], "s.xlsx", ".csv, .parquet"),
-    (["filters", "--csv", "{d}/m.xlsx"], "m.xlsx", ".csv"),
     (["filters", "--plot", "{d}/f.bmp"], "f.bmp", ".png, .svg, .pdf"),
     (["plot", "{d}/none.csv", "-o", "{d}/p.bmp"], "p.bmp", ".png, .svg, .pdf, .jpg, .jpeg"),
 ]

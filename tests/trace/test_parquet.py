@@ -23,7 +23,7 @@ def test_without_pyarrow_the_error_says_how_to_install(monkeypatch, tmp_path):
     trace = Trace(["t", "x"], [[0.0, 1.0]])
     for call in (lambda: to_parquet(trace, tmp_path / "a.parquet"),
                  lambda: from_parquet(tmp_path / "a.parquet")):
-        with pytest.raises(DistCtrlError, match="pip install pyarrow"):
+        with pytest.raises(DistCtrlError, match=r"pip install 'distctrl\[parquet\]'"):
             call()
 
 
