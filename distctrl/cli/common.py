@@ -126,6 +126,44 @@ PORT = click.IntRange(0, 65535)
 SEED = click.IntRange(0, 2**32 - 1)
 
 
+class Network(click.ParamType):
+    """An address or a network a client may connect from (``--allow``): IPv4 or IPv6, a CIDR
+    network with or without host bits. The value stays the text given."""
+
+    name = "address or network"
+
+    def convert(self, value, param, ctx):
+        import ipaddress
+
+        try:
+            ipaddress.ip_network(str(value), strict=False)
+        except ValueError:
+            self.fail(f"{value!r} is not an IPv4/IPv6 address or network; allowed: an address (192.168.0.7) "
+                      "or a network (127.0.0.0/8, 192.168.0.0/24, ::1)", param, ctx)
+        return value
+
+
+class AmsNetId(click.ParamType):
+    """An AMS NetId: 6 numbers 0..255 separated by dots (``127.0.0.1.1.1``). The value stays the text."""
+
+    name = "AMS NetId"
+
+    def convert(self, value, param, ctx):
+        parts = str(value).strip().split(".")
+        if len(parts) != 6 or not all(p.isdigit() for p in parts):
+            self.fail(f"{value!r} is not an AMS NetId; allowed: 6 numbers 0..255 separated by dots, "
+                      "e.g. 127.0.0.1.1.1", param, ctx)
+        if not all(0 <= int(p) <= 255 for p in parts):
+            self.fail(f"{value!r}: each of the AMS NetId's 6 numbers must be 0..255", param, ctx)
+        return value
+
+
+#: ``--allow`` of the servers
+NETWORK = Network()
+#: ``--net-id`` of the servers
+AMS_NET_ID = AmsNetId()
+
+
 def check_writable(path: str, what: str, directory: bool = False) -> None:
     """Fail at once (exit 1, one line naming the path) when ``path`` cannot be written, before a
     long run is wasted on an output that cannot be saved. Creates missing parent folders like the
@@ -225,7 +263,7 @@ def _click_error(exc: click.ClickException) -> NoReturn:
     message = " ".join(exc.format_message().split())
     code = int(ExitCode.INVALID_INPUT) if isinstance(exc, click.UsageError) else int(exc.exit_code)
     if isinstance(exc, click.UsageError) and exc.ctx is not None:
-        message += f" (see {exc.ctx.command_path} --help)"
+        message += f" (see {' '.join(['distctrl', *exc.ctx.command_path.split()[1:]])} --help)"
     click.echo(f"error: {message}", err=True)
     if _STATE["json_command"] is not None and not _STATE["emitted"]:
         emit_json(error_object(message, code, _STATE["json_command"]))

@@ -22,7 +22,7 @@ from rich.table import Table
 from ..sim import run
 from ..sim.plates import TARGET_MIN_SHARE, compare
 from ..sim.scenario import load_scenario
-from .common import emit_json
+from .common import check_writable, emit_json
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
@@ -174,10 +174,13 @@ def plate_table(console, plate: str = "plasma_plate") -> dict:
 
 
 @click.command("demo")
+@click.option("--out", "out_dir", default="out/demo", show_default=True, type=click.Path(file_okay=False),
+              help="The folder the traces, plots and reports are written to.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object with the tables' figures (per run: outcome, metrics, events, files; "
                    "the plate with and without its functions) instead of the tables.")
-def demo_cmd(as_json: bool) -> None:
+def demo_cmd(out_dir: str, as_json: bool) -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, and the plasma plate with and
-    without the cutting-process functions, with summary tables. Traces, plots and reports: out/demo/."""
-    main(as_json=as_json)
+    without the cutting-process functions, with summary tables. Traces, plots and reports: --out (out/demo/)."""
+    check_writable(out_dir, "output folder (--out)", directory=True)      # before the runs, in one line
+    main(out_dir, as_json=as_json)

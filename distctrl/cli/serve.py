@@ -14,7 +14,7 @@ from ..errors import DistCtrlError
 from ..serve.machine import ServedMachine
 from ..serve.session import catch_sigterm, restore_sigterm, run_until
 from ..sim.scenario import load_scenario
-from .common import PORT, Finite, emit_json, fail
+from .common import AMS_NET_ID, NETWORK, PORT, Finite, emit_json, fail
 
 
 def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ...], net_id: str,
@@ -94,9 +94,11 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (ADS and the --ui page).")
 @click.option("--port", default=48898, show_default=True, type=PORT, help="AMS/TCP port (0: a free port).")
 @click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
+              type=NETWORK,
               help="Client address or network allowed to connect (like an ADS route; also to the --ui page); "
                    "repeat for more.")
-@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
+@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, type=AMS_NET_ID,
+              help="AMS NetId of the served CNC.")
 @click.option("--duration", type=Finite(0.0, min_open=True), default=None,
               help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
 @click.option("--no-discovery", is_flag=True,
@@ -143,8 +145,10 @@ RT_OPTION = click.option(
               help="HTTP port of the live page (0: a free port).")
 @click.option("--port", default=48898, show_default=True, type=PORT, help="AMS/TCP port (0: a free port).")
 @click.option("--allow", "allowed", multiple=True, default=["127.0.0.0/8"], show_default=True,
+              type=NETWORK,
               help="Client address or network allowed to connect to the page and over ADS; repeat for more.")
-@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, help="AMS NetId of the served CNC.")
+@click.option("--net-id", default="127.0.0.1.1.1", show_default=True, type=AMS_NET_ID,
+              help="AMS NetId of the served CNC.")
 @click.option("--duration", type=Finite(0.0, min_open=True), default=None,
               help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
 @click.option("--no-discovery", is_flag=True, help="Do not answer route discovery on UDP 48899.")

@@ -7,6 +7,7 @@ is a message on stderr and exit code 1. docs/workbench-step.md describes the out
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import click
 
@@ -71,6 +72,9 @@ def step(scenario: str | None, kp: str, i_tn: str, d_tv: str, step_mm: str, mode
     method; a response the limiter decided is said so and never suggested.
     """
 
+    if scenario and Path(scenario).suffix.lower() in (".csv", ".parquet"):
+        fail(f"{scenario}: step takes a scenario (.toml), not a trace; it simulates the step on the scenario's "
+             "machine (a recording goes to identify, filters or plot)")
     for name, value in (("--set-dist", set_dist), ("--ramp", ramp), ("--t-step", t_step), ("--duration", duration)):
         if not math.isfinite(value):
             fail(f"{name} {value!r} is not finite")

@@ -516,7 +516,7 @@ def test_cli_specs_plot_and_csv(tmp_path):
     (["--recording", "does/not/exist.csv"], ["error:", "no such file"]),
     (["--plot", "x.jpg"], ["error:", ".png"]),
     (["--edge", "soon"], ["error:", "--edge 'soon'"]),
-    (["--cycle-time", "0"], ["Error:", "--cycle-time", "0.0<x<=10.0"]),      # the option's range (click)
+    (["--cycle-time", "0"], ["error:", "--cycle-time", "0.0<x<=10.0"]),      # the option's range (click)
 ])
 def test_cli_bad_input_exits_1_with_the_message(args, words):
     res = invoke(*args)

@@ -105,10 +105,12 @@ def _trace_columns(p: Path, time_column: str | None, value_column: str | None, t
         raise RecordingError(f"{p}: not a readable distctrl trace: {exc}") from None
     cols = list(trace.columns)
     if value_column is None:
-        sensors = [c for c in cols if c.endswith(".dc.sensor")]
+        # a run's trace has <axis>.dc.sensor, a `machine record` trace <axis>.sensor
+        sensors = [c for c in cols if c.endswith(".dc.sensor")] or [c for c in cols if c.endswith(".sensor")]
         if len(sensors) != 1:
-            raise RecordingError(f"{p}: name the value column (--value-column), e.g. "
-                                 f"{sensors[0] if sensors else 'Z.dc.sensor'}; columns: {', '.join(cols)}")
+            example = f", e.g. {sensors[0]}" if sensors else ""
+            raise RecordingError(f"{p}: name the value column (--value-column){example}; the trace's columns: "
+                                 f"{', '.join(c for c in cols if c != 't')}")
         value_column = sensors[0]
     vi = _pick_column(p, cols, value_column, "value")
     if time_column is None and "t" in trace:
