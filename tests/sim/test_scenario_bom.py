@@ -48,3 +48,19 @@ def test_a_3d_scenario_and_its_external_variable_list_with_a_bom_load_like_witho
 def test_run_of_a_scenario_with_a_bom_exits_0(tmp_path):
     r = CliRunner().invoke(main, ["run", str(_examples(tmp_path, bom=True) / "dist_1.toml"), "--json"])
     assert r.exit_code == 0, r.output
+
+
+def test_a_linearisation_table_with_a_bom_loads_like_without(tmp_path):
+    """The table `distctrl calibrate` writes, edited on Windows: [sensor] linearisation = "FILE"."""
+    table = b"linearisation = [[0.0, 0.0], [0.56, 0.5], [1.08, 1.0], [2.1, 2.0], [5.0, 5.1], [9.5, 10.0]]\n"
+    loaded = []
+    for d, bom in (("a", b""), ("b", BOM)):
+        (tmp_path / d).mkdir()
+        scn = _examples(tmp_path / d, bom=False)
+        (scn / "lin.toml").write_bytes(bom + table)
+        toml = scn / "calibrate_capacitive.toml"
+        toml.write_text(toml.read_text().replace('# linearisation = "calibrate_capacitive_linearisation.toml"',
+                                                 'linearisation = "lin.toml"'))
+        loaded.append(load_scenario(toml))
+    plain, with_bom = loaded
+    assert with_bom.sensor.linearisation == plain.sensor.linearisation and plain.sensor.linearisation

@@ -12,6 +12,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
+from distctrl.base.text import read_text
 from distctrl.errors.config import (MAX_DELAY_CYCLES, MISSING, ConfigError, require_choice, require_int,
                                     require_mapping, require_number)
 from distctrl.params.axis import AxisParameters
@@ -322,7 +323,7 @@ def _linearisation_keys(cfg: dict, key: str, variable: str, base_dir: Path) -> d
         file = _file(table, lkey, base_dir, "linearisation table (TOML with linearisation = [[reading_mm, "
                                             "distance_mm], ...], as distctrl calibrate writes it)")
         try:
-            data = tomllib.loads(file.read_text(encoding="utf-8"))
+            data = tomllib.loads(read_text(file, fallback=None))     # UTF-8, a BOM skipped
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
             raise ConfigError(lkey, table, "a TOML file with linearisation = [[reading_mm, distance_mm], ...]",
                               f"unreadable ({exc}):") from None
