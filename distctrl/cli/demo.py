@@ -181,6 +181,7 @@ def plate_table(console, plate: str = "plasma_plate") -> dict:
                    "the plate with and without its functions) instead of the tables.")
 def demo_cmd(out_dir: str, as_json: bool) -> None:
     """Run the demo job: CONST_DIST and SET_POS over an uneven sheet, and the plasma plate with and
-    without the cutting-process functions, with summary tables. Traces, plots and reports: --out (out/demo/)."""
+    without the cutting-process functions, with summary tables.
+    Traces, plots and reports: --out (out/demo/)."""
     check_writable(out_dir, "output folder (--out)", directory=True)      # before the runs, in one line
     main(out_dir, as_json=as_json)

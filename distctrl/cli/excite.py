@@ -73,5 +73,6 @@ def excite(axis, work, safe, min_pos, max_pos, v_max, a_max, cycle_ms, step, ste
     if as_json:
         emit_json(result)
     else:
-        click.echo(f"written: {out} ({blocks} blocks, about {prog.seconds:.1f} s); run it with distance control off, recording with "
+        click.echo(f"written: {out} ({blocks} blocks, about {prog.seconds:.1f} s); run it with distance "
+                   f"control off, recording with "
                    f"distctrl machine record, then distctrl identify")

@@ -21,7 +21,8 @@ from .common import check_output, emit_json, fail, human_bytes
 @click.option("--trace", "trace_path", type=click.Path(dir_okay=False),
               help="Write the per-cycle trace to this CSV file (units in FILE.meta.json), or to a .parquet file.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object with the result instead of a summary.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Save a plot of the run (.png, .svg or .pdf).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Save a plot of the run (.png, .svg or .pdf).")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False),
               help="Write a self-contained HTML report (plots embedded) into this folder.")
 @click.option("--record", "record", default="",

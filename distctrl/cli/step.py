@@ -73,8 +73,8 @@ def step(scenario: str | None, kp: str, i_tn: str, d_tv: str, step_mm: str, mode
     """
 
     if scenario and Path(scenario).suffix.lower() in (".csv", ".parquet"):
-        fail(f"{scenario}: step takes a scenario (.toml), not a trace; it simulates the step on the scenario's "
-             "machine (a recording goes to identify, filters or plot)")
+        fail(f"{scenario}: step takes a scenario (.toml), not a trace; it simulates the step on the "
+             "scenario's machine (a recording goes to identify, filters or plot)")
     for name, value in (("--set-dist", set_dist), ("--ramp", ramp), ("--t-step", t_step), ("--duration", duration)):
         if not math.isfinite(value):
             fail(f"{name} {value!r} is not finite")

@@ -138,15 +138,16 @@ def _check_heights(e: Excitation, up: float, down: float) -> None:
     w_hi = e.max_pos - up
     allowed = _bounds(w_lo, w_open, w_hi, "--work")
     if e.work > w_hi:
-        raise ExciteError(f"--work {_num(e.work)}: the working heights reach {_num(e.work + up)} mm (+{_num(up)} mm "
-                          f"of --steps/--amplitude), beyond the axis limit {lim_max}; {allowed}")
+        raise ExciteError(f"--work {_num(e.work)}: the working heights reach {_num(e.work + up)} mm "
+                          f"(+{_num(up)} mm of --steps/--amplitude), beyond the axis limit {lim_max}; "
+                          f"{allowed}")
     if e.work - down < e.min_pos:
-        raise ExciteError(f"--work {_num(e.work)}: the chirp reaches {_num(e.work - down)} mm, beyond the axis "
-                          f"limit {lim_min}; {allowed}")
+        raise ExciteError(f"--work {_num(e.work)}: the chirp reaches {_num(e.work - down)} mm, beyond the "
+                          f"axis limit {lim_min}; {allowed}")
     if e.surface is not None and e.work - below <= e.surface:
-        cause = (f"the nozzle could reach {_num(e.work - below)} mm (the chirp amplitude {_num(e.amplitude)} mm "
-                 f"x {RESONANCE_GAIN:g} at a resonance, docs/identify.md), at or below {sheet}" if ring
-                 else f"the working height is at or below {sheet}")
+        cause = (f"the nozzle could reach {_num(e.work - below)} mm (the chirp amplitude "
+                 f"{_num(e.amplitude)} mm x {RESONANCE_GAIN:g} at a resonance, docs/identify.md), at or "
+                 f"below {sheet}" if ring else f"the working height is at or below {sheet}")
         raise ExciteError(f"--work {_num(e.work)}: {cause}; {allowed}")
     # --safe: above the working band and the sheet; with its large step within --max
     top = e.work + up
@@ -156,16 +157,17 @@ def _check_heights(e: Excitation, up: float, down: float) -> None:
         where = (f"at or below {sheet}" if e.surface is not None and e.safe <= e.surface else
                  f"not above the working heights (--work {_num(e.work)}"
                  + (f" + {_num(up)} mm of --steps/--amplitude = {_num(top)} mm)" if up else ")"))
-        raise ExciteError(f"--safe {_num(e.safe)}: the safe height (approach, large step, retract) is {where}; "
-                          f"{allowed}")
+        raise ExciteError(f"--safe {_num(e.safe)}: the safe height (approach, large step, retract) is "
+                          f"{where}; {allowed}")
     if e.safe > e.max_pos:
         raise ExciteError(f"--safe {_num(e.safe)}: beyond the axis limit {lim_max}; {allowed}")
     if e.large_step and e.safe + e.large_step > e.max_pos:
-        raise ExciteError(f"--large-step {_num(e.large_step)}: the large step from --safe {_num(e.safe)} reaches "
-                          f"{_num(e.safe + e.large_step)} mm, beyond the axis limit {lim_max}; "
+        raise ExciteError(f"--large-step {_num(e.large_step)}: the large step from --safe {_num(e.safe)} "
+                          f"reaches {_num(e.safe + e.large_step)} mm, beyond the axis limit {lim_max}; "
                           f"{_bounds(0.0, False, e.max_pos - e.safe, '--large-step')}")
     if e.ramp:
-        r_lo, r_open = (e.surface, True) if e.surface is not None and e.surface >= e.min_pos else (e.min_pos, False)
+        above_sheet = e.surface is not None and e.surface >= e.min_pos
+        r_lo, r_open = (e.surface, True) if above_sheet else (e.min_pos, False)
         for end in e.ramp:
             if end < r_lo or (r_open and end == r_lo) or end > e.max_pos:
                 where = (f"at or below {sheet}" if r_open and end <= r_lo else
@@ -184,7 +186,8 @@ def _as_written(e: Excitation) -> Excitation:
     def r(x: float) -> float:
         return float(_num(x))
 
-    return replace(e, work=r(e.work), safe=r(e.safe), large_step=r(e.large_step) if e.large_step else e.large_step,
+    return replace(e, work=r(e.work), safe=r(e.safe),
+                   large_step=r(e.large_step) if e.large_step else e.large_step,
                    ramp=(r(e.ramp[0]), r(e.ramp[1])) if e.ramp else None)
 
 
@@ -192,7 +195,7 @@ def _as_written(e: Excitation) -> Excitation:
 class ExciteProgram:
     text: str                 # the NC program
     warnings: list[str]       # outside docs/identify.md's recommended ranges
-    seconds: float            # its running time: dwells, chirp, ramp and the rapids at v_max (no acceleration)
+    seconds: float            # running time: dwells, chirp, ramp and the rapids at v_max (no acceleration)
 
 
 def program(e: Excitation) -> tuple[str, list[str]]:

@@ -7,7 +7,8 @@ field carries its unit in its own metadata (``unit``), so other tools (pandas, p
 them too. Values round-trip bit for bit (NaN, infinities and -0.0 included).
 
 pyarrow is optional and imported only when called; without it the functions raise
-:class:`~distctrl.errors.DistCtrlError` naming the ``[parquet]`` extra that installs it. See docs/workbench-report.md.
+:class:`~distctrl.errors.DistCtrlError` naming the ``[parquet]`` extra that installs it. See
+docs/workbench-report.md.
 """
 from __future__ import annotations
 

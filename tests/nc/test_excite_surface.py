@@ -94,9 +94,8 @@ def _mm(lo: float, hi: float):
        large=st.sampled_from([0.0, 1.0, 3.0, 10.0]), chirp=st.sampled_from(["none", "1-150", "5-50"]),
        amplitude=st.sampled_from([0.02, 0.05, 0.3, 1.0]),
        ramp=st.one_of(st.none(), st.tuples(_mm(-2.0, 12.0), _mm(-2.0, 12.0))), with_surface=st.booleans())
-def test_no_commanded_height_at_or_below_the_surface_with_exit_0(tmp_path, surface, d_work, d_safe, d_min, d_max,
-                                                                   step, large, chirp, amplitude, ramp,
-                                                                   with_surface):
+def test_no_commanded_height_at_or_below_the_surface_with_exit_0(
+        tmp_path, surface, d_work, d_safe, d_min, d_max, step, large, chirp, amplitude, ramp, with_surface):
     work = round(surface + d_work, 2)
     safe = round(work + d_safe, 2)
     lo, hi = round(min(surface, work) - d_min, 2), round(max(safe, work) + large + d_max, 2)

@@ -19,7 +19,8 @@ def _variants(tmp_path: Path, src: Path) -> list[Path]:
     """The file as it is, with a BOM, and with a BOM and CRLF line ends."""
     data = src.read_bytes()
     out = []
-    for name, body in (("plain", data), ("bom", BOM + data), ("bom_crlf", BOM + data.replace(b"\n", b"\r\n"))):
+    crlf = data.replace(b"\n", b"\r\n")
+    for name, body in (("plain", data), ("bom", BOM + data), ("bom_crlf", BOM + crlf)):
         p = tmp_path / f"{name}{src.suffix}"
         p.write_bytes(body)
         out.append(p)
@@ -46,6 +47,7 @@ def test_a_latin1_list_with_a_bom_like_prefix_still_loads(tmp_path):
 
 
 def test_an_external_variable_list_with_a_bom_loads_like_without(tmp_path):
-    plain, *with_bom = [load_external_variables(p) for p in _variants(tmp_path, EX / "external_variables_12_8_4.lis")]
+    files = _variants(tmp_path, EX / "external_variables_12_8_4.lis")
+    plain, *with_bom = [load_external_variables(p) for p in files]
     for v in with_bom:
         assert v == plain

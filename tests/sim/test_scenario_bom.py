@@ -59,8 +59,8 @@ def test_a_linearisation_table_with_a_bom_loads_like_without(tmp_path):
         scn = _examples(tmp_path / d, bom=False)
         (scn / "lin.toml").write_bytes(bom + table)
         toml = scn / "calibrate_capacitive.toml"
-        toml.write_text(toml.read_text().replace('# linearisation = "calibrate_capacitive_linearisation.toml"',
-                                                 'linearisation = "lin.toml"'))
+        commented = '# linearisation = "calibrate_capacitive_linearisation.toml"'
+        toml.write_text(toml.read_text().replace(commented, 'linearisation = "lin.toml"'))
         loaded.append(load_scenario(toml))
     plain, with_bom = loaded
     assert with_bom.sensor.linearisation == plain.sensor.linearisation and plain.sensor.linearisation

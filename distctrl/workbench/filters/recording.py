@@ -109,8 +109,8 @@ def _trace_columns(p: Path, time_column: str | None, value_column: str | None, t
         sensors = [c for c in cols if c.endswith(".dc.sensor")] or [c for c in cols if c.endswith(".sensor")]
         if len(sensors) != 1:
             example = f", e.g. {sensors[0]}" if sensors else ""
-            raise RecordingError(f"{p}: name the value column (--value-column){example}; the trace's columns: "
-                                 f"{', '.join(c for c in cols if c != 't')}")
+            raise RecordingError(f"{p}: name the value column (--value-column){example}; the trace's "
+                                 f"columns: {', '.join(c for c in cols if c != 't')}")
         value_column = sensors[0]
     vi = _pick_column(p, cols, value_column, "value")
     if time_column is None and "t" in trace:
