@@ -882,7 +882,7 @@ class Evaluator:
 
         packed = packed_one if packed_one is not None and len(packed_one) else pack_sets(self.inputs,
                                                                                          [self.inputs.params])
-        # numba (optional: [fast], [tune]) loads only when a batch runs
+        # numba (the [batch] extra) loads only when a batch runs
         from ..batch.warm import COMPILING, announced
 
         text = COMPILING.format(where=where)
