@@ -16,7 +16,7 @@ from ..client.recorder import cut_message, summary, tracking_figures, write_trac
 from ..client.target import AMS_TCP_PORT, Target, parse_target, quiet_adslib
 from ..client.writer import ORDER, default_backup_path, execute, plan_write
 from ..errors import ExitCode
-from .common import Finite, check_writable, emit_json, fail
+from .common import Finite, check_output, check_writable, emit_json, fail
 
 
 def _target_options(f):
@@ -163,7 +163,7 @@ def _describe(target, unit, journal: WriteJournal) -> dict:
 @click.option("--mm-per-increment", default=1e-4, show_default=True, type=Finite(1e-9, 1000.0),
               help="Drive resolution incl. gear ratio, for the objects in increments (actual).")
 @click.option("--out", required=True, type=click.Path(dir_okay=False),
-              help="The trace (CSV with its .meta.json sidecar) that identify, filters, step and plot read.")
+              help="The trace (.csv, with its .meta.json sidecar) that identify, filters --recording and plot read.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object: rows, samples, lost, late.")
 def record(ads, ip, tcp_port, timeout, axis, seconds, signals, cycle_ms, max_delay_ms, mm_per_increment, out,
            as_json):
@@ -176,7 +176,7 @@ def record(ads, ip, tcp_port, timeout, axis, seconds, signals, cycle_ms, max_del
     names = [s.strip() for s in signals.split(",") if s.strip()]
     if not names:
         fail("--signals: name at least one signal")
-    check_writable(out, "--out")
+    check_output(out, "--out", (".csv",))
     try:
         sigs = [make_signal(n, mm_per_increment) for n in names]
         with _open(ads, ip, timeout, tcp_port) as target:

@@ -25,6 +25,9 @@ CASES = [
     (["sweep", SHEET, "--random", "4", "--local", "--out", "{d}/s.xlsx"], "s.xlsx", ".csv, .parquet"),
     (["filters", "--plot", "{d}/f.bmp"], "f.bmp", ".png, .svg, .pdf"),
     (["plot", "{d}/none.csv", "-o", "{d}/p.bmp"], "p.bmp", ".png, .svg, .pdf, .jpg, .jpeg"),
+    # machine record writes CSV only: a .parquet name got CSV content (nothing listens on port 1)
+    (["machine", "record", "--ads", "127.0.0.1.1.1", "--ip", "127.0.0.1", "--port", "1", "--axis", "Z=3",
+      "--seconds", "1", "--out", "{d}/rec.parquet"], "rec.parquet", ".csv"),
 ]
 
 
