@@ -148,7 +148,7 @@ def plate_table(console, plate: str = "plasma_plate") -> dict:
     table.add_column("without")
     for label, key, fmt in (("min. true distance", "min_distance_mm", "{:.3f} mm"),
                             ("… while cutting (G1)", "min_cut_distance_mm", "{:.3f} mm"),
-                            ("time below ½ SET_DIST", "time_below_half_s", "{:.3f} s"),
+                            ("time below ½ the set distance in force", "time_below_half_s", "{:.3f} s"),
                             ("collisions", "collisions", "{}"), ("path time", "path_time_s", "{:.3f} s")):
         cells = []
         for f in (w, wo):
