@@ -99,3 +99,22 @@ def test_the_readme_first_screen_says_what_to_do_next():
     text = "\n".join(lines)
     assert "pip install ." in text and "pip install '.[sim]'" in text and "pip install distctrl" not in text
     assert "0.1 µm" in text and "P-AXIS-00422" in text                  # sensor_increments in mm
+
+
+def repeated_headings(text: str) -> list[int]:
+    """Line numbers of a heading that repeats the heading just before it (nothing but blank lines
+    between), as a merge can leave it: the reader sees the same title twice."""
+    bad, last = [], None
+    for number, line in _prose_lines(text):
+        if not line.strip():
+            continue
+        if line.startswith("#") and last is not None and line.strip() == last:
+            bad.append(number)
+        last = line.strip() if line.startswith("#") else None
+    return bad
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_heading_is_repeated(page):
+    assert repeated_headings(page.read_text(encoding="utf-8")) == []
+    assert repeated_headings("## A\n## A\n") == [2] and repeated_headings("## A\ntext\n## A\n") == []
