@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import base64
+import dataclasses
 import html
 import io
 from pathlib import Path
@@ -11,7 +12,8 @@ from rich.console import Console
 
 from ..errors import DistCtrlError
 from ..linuxcnc.bench import bench as run_bench
-from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, install_component
+from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, build_component
+from ..linuxcnc.ini import external_offset_limits, read_ini
 from ..linuxcnc.thc import ThcConfig
 from ..params import load_list
 from .common import Finite, emit_json, fail
@@ -36,42 +38,76 @@ def _parse_set(values: tuple) -> dict:
     return out
 
 
-def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: float, as_json: bool) -> None:
+def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: float, ini_file: str | None,
+              cap: bool, as_json: bool) -> None:
     if list_file is None:
         fail("linuxcnc thc-setp needs an axis parameter LIST (kernel format, e.g. examples/scenarios/z_plasma_plate.lis)")
+    if not Path(list_file).is_file():
+        fail(f"linuxcnc thc-setp: the axis parameter list {list_file!r} does not exist (a .lis file, "
+             "e.g. examples/scenarios/z_plasma_plate.lis)")
+    warnings, notes = [], []
     try:
         cfg = ThcConfig.from_params(load_list(list_file).params, set_dist=set_dist, arc_v0=arc_v0, arc_k=arc_k)
-        lines = ["loadrt distctrl_thc", *cfg.setp_lines(0.001)]
+        if ini_file is None:
+            warnings.append("v-max and a-max are not checked against the machine's external-offset limits: "
+                            "give --ini YOUR.ini")
+        else:
+            lim = external_offset_limits(read_ini(ini_file))
+            pairs = (("v-max", cfg.v_max, lim.v_max), ("a-max", cfg.a_max, lim.a_max))
+            over = [(k, v, m) for k, v, m in pairs if v > m]
+            if over and not cap:
+                fail(f"{list_file}: " + ", ".join(f"{k} {v:g}" for k, v, _ in over)
+                     + f" above the external-offset limits ({lim.describe()}): lower them in the list, "
+                     "or give --cap to write the limits")
+            if over:
+                cfg = dataclasses.replace(cfg, v_max=min(cfg.v_max, lim.v_max),
+                                          a_max=min(cfg.a_max, lim.a_max))
+                warnings += [f"{k} {v:g} of {list_file} capped to {m:g} (the external-offset limit, "
+                             f"{lim.source})" for k, v, m in over]
+            notes.append("v-max, a-max within " + lim.describe())
+        lines = cfg.setp_document(0.001, list_file, notes=tuple(notes + [f"warning: {w}" for w in warnings]))
     except (LinuxCNCError, DistCtrlError) as exc:
         fail(str(exc))
     if as_json:
-        emit_json({"command": "linuxcnc thc-setp", "list": list_file, "lines": lines})
+        emit_json({"command": "linuxcnc thc-setp", "list": list_file, "ini": ini_file, "warnings": warnings,
+                   "lines": lines})
     else:
-        click.echo(f"# distctrl_thc from {list_file} (distctrl linuxcnc thc-setp; servo period 1 ms)")
+        for w in warnings:
+            click.echo(f"warning: {w}", err=True)
         click.echo("\n".join(lines))
 
 
-def _build(as_json: bool) -> None:
+def _build(force: bool, as_json: bool) -> None:
     try:
-        paths = [str(install_component(name, force=True)) for name in COMPONENTS]
+        built = [build_component(name, force=force) for name in COMPONENTS]
     except LinuxCNCError as exc:
         fail(str(exc))
     if as_json:
-        emit_json({"command": "linuxcnc build", "modules": paths})
+        emit_json({"command": "linuxcnc build", "modules": [str(p) for p, _ in built],
+                   "built": [str(p) for p, b in built if b],
+                   "up_to_date": [str(p) for p, b in built if not b]})
     else:
-        for p in paths:
-            click.echo(f"installed {p}")
+        for p, b in built:
+            click.echo(f"built and installed {p}" if b else
+                       f"up to date: {p} (built from this very source, same SHA-256; --force rebuilds it)")
 
 
 @click.command()
 @click.argument("action", type=click.Choice(["bench", "build", "thc-setp"]))
-@click.argument("plate", required=False, type=click.Path(dir_okay=False, exists=True))
+@click.argument("plate", required=False, type=click.Path(dir_okay=False))
 @click.option("--set-dist", type=Finite(0.001, 100.0), default=1.5, show_default=True,
               help="thc-setp: SET_DIST, the cut height (mm).")
 @click.option("--arc-v0", type=Finite(0.0, 400.0), default=95.0, show_default=True,
               help="thc-setp: the arc voltage's linearisation, V at zero height.")
 @click.option("--arc-k", type=Finite(0.5, 50.0), default=6.0, show_default=True,
               help="thc-setp: the arc voltage's linearisation, V per mm.")
+@click.option("--ini", "ini_file", type=click.Path(dir_okay=False), default=None,
+              help="thc-setp: the machine's INI: v-max/a-max are checked against [AXIS_Z]'s external-offset "
+                   "limits (MAX_VELOCITY, MAX_ACCELERATION x OFFSET_AV_RATIO) and refused above them.")
+@click.option("--cap", is_flag=True,
+              help="thc-setp with --ini: write the limits instead of refusing (with a warning).")
+@click.option("--force", is_flag=True,
+              help="build: rebuild even if the installed module is from the same source.")
 @click.option("--repeat", default=1, show_default=True, type=click.IntRange(1, 50),
               help="Run every contestant N times and report the spread.")
 @click.option("--set", "settings", multiple=True, metavar="PIN=VALUE",
@@ -82,23 +118,30 @@ def _build(as_json: bool) -> None:
               help="Write an HTML report with plots into this directory (index.html).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (bench: plate, runs [{controller, functions, min_distance_mm, ...}]).")
-def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc_k: float, repeat: int,
-             settings: tuple, max_time: float | None, html_dir: str | None, as_json: bool) -> None:
+def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc_k: float,
+             ini_file: str | None, cap: bool, force: bool, repeat: int, settings: tuple,
+             max_time: float | None, html_dir: str | None, as_json: bool) -> None:
     """LinuxCNC's plasmac (halrun) in closed loop on distctrl's PLATE, side by side with distctrl and its HAL component.
 
     \b
     distctrl linuxcnc bench PLATE.toml   plasmac, distctrl_thc in halrun and distctrl, locks on and off
     distctrl linuxcnc build              build and install the HAL components (halcompile)
-    distctrl linuxcnc thc-setp LIST.lis  distctrl_thc's setp lines from an axis parameter list
+    distctrl linuxcnc thc-setp LIST.lis --ini MACHINE.ini   distctrl_thc's setp lines (named, commented)
+
+    The bench refuses to run while LinuxCNC or another HAL runs on this PC: it never touches a HAL it
+    did not start. Do not run it beside a machine controller.
     """
     if action == "build":
-        _build(as_json)
+        _build(force, as_json)
         return
     if action == "thc-setp":
-        _thc_setp(plate, set_dist, arc_v0, arc_k, as_json)
+        _thc_setp(plate, set_dist, arc_v0, arc_k, ini_file, cap, as_json)
         return
     if plate is None:
         fail("linuxcnc bench needs a PLATE (a plate scenario, e.g. examples/scenarios/plasma_plate_short.toml)")
+    if not Path(plate).is_file():
+        fail(f"linuxcnc bench: the plate scenario {plate!r} does not exist (a .toml plate, "
+             "e.g. examples/scenarios/plasma_plate_short.toml)")
     _bench(plate, repeat, settings, max_time, html_dir, as_json)
 
 

@@ -26,9 +26,10 @@ import math
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
-from ..base.kinds import SensorSource
+from ..base.kinds import FilterType, SensorSource
 from ..base.states import CommandSource, HliState
 from ..control.commands import Action, Command
+from ..control import law
 from ..control.controller import AxisDistanceController
 from ..control.cycle_io import CycleInput, CycleOutput
 from ..control.filters import FilterConfig, design_coefficients
@@ -54,6 +55,85 @@ _AXIS = AxisParameters()
 def lround(x: float) -> int:
     """C's lround: to the nearest integer, halves away from zero."""
     return int(math.copysign(math.floor(abs(x) + 0.5), x))
+
+
+#: thc-setp's comment blocks: (title, [(pin, what it is)]) in the order printed
+_PIN_GROUPS = (
+    ("the law (FCT-M3 §7.2): PID on the distance", [
+        ("kp", "KP, P-AXIS-00759, 1/s"), ("i-tn", "I_TN, P-AXIS-00764, s (0: no I)"),
+        ("d-tv", "D_TV, P-AXIS-00765, s (0: no D)"),
+        ("use-both-encoders", "P-AXIS-00500: 1 feedback d + c - a (FCT-M3 §7.1)")]),
+    ("the offset's limits (keep them within the INI's external-offset limits)", [
+        ("v-max", "P-AXIS-00415, mm/s"), ("a-max", "P-AXIS-00416, mm/s²"),
+        ("max-deviation", "P-AXIS-00414, mm: the offset's bound"),
+        ("check-sw-limit-switch", "P-AXIS-00428: 1 the command kept within the software limits"),
+        ("sw-limit-max", "P-AXIS-00177, mm"), ("sw-limit-min", "P-AXIS-00178, mm"),
+        ("v-weight-down", "P-AXIS-00533, fraction of v-max when lowering (0 off)"),
+        ("a-weight-down", "P-AXIS-00534, fraction of a-max when lowering (0 off)"),
+        ("use-adaptive-acceleration", "P-AXIS-00501 (Fig. 31)"), ("a-min", "P-AXIS-00502, mm/s²"),
+        ("dist-error-a-min", "P-AXIS-00504, mm"), ("dist-error-a-max", "P-AXIS-00505, mm")]),
+    ("monitoring (ERROR and its ID on error-id)", [
+        ("max-act-value-change", "P-AXIS-00417, mm/s: a larger jump of the distance is 70329"),
+        ("max-pos", "P-AXIS-00419, mm (reading s = -distance above: 70330)"),
+        ("min-pos", "P-AXIS-00420, mm (below: 70576)"), ("tolerance", "P-AXIS-00421, mm")]),
+    ("the sensor: arc voltage to distance, V = arc-v0 + arc-k * height", [
+        ("set-dist", "SET_DIST, mm: the cut height"), ("arc-v0", "V at zero height"),
+        ("arc-k", "V per mm"), ("resolution", "mm per z-offset count")]),
+    ("the corner lock and the void lock (distctrl's corner_lock and void_lock functions)", [
+        ("cornerlock-mode", "0 distctrl's corner lock, 1 plasmac's rule"),
+        ("cornerlock-threshold", "% of feed-upm below which the height is held"),
+        ("cornerlock-hysteresis", "% above the threshold to arm and open again"),
+        ("voidlock-slope", "V/s over the window that closes the void lock"),
+        ("voidlock-window", "s"), ("voidlock-on-cycles", "periods above the slope to close"),
+        ("voidlock-off-cycles", "steady periods to open"),
+        ("voidlock-release-band", "V above the level before the void")]),
+    ("the mode (read when thc-enable selects)", [
+        ("dryrun", "1: DRYRUN, the offset stands"), ("mode", "0 CONST_DIST, 1 SET_POS"),
+        ("set-pos", "SET_POS, mm (mode 1)")]),
+)
+
+
+def _fc_name(i: int) -> str:
+    """The name of coefficient i of the law's buffer (distctrl.control.law's FC_* layout)."""
+    fixed = {law.FC_KIND: "filter type code", law.FC_N: "n (window, periods)",
+             law.FC_ALPHA: "smoothing alpha",
+             law.FC_SIGMA: "Kalman sigma", law.FC_DECAY_N: "rho^n (rho = 1 - alpha)",
+             law.FC_WSUM: "sum of the weights", law.FC_NSEC: "low-pass: number of sections",
+             law.FC_INV_N: "1/n", law.FC_GAIN: "Kalman gain K", law.FC_P_PRIOR: "Kalman prior variance P-",
+             law.FC_EXPO_OLDER: "EXPO_MEAN: beta = alpha / (1 - rho^(n-1))"}
+    if i in fixed:
+        return fixed[i]
+    if law.FC_SOS <= i < law.FC_ZI:
+        sec, k = divmod(i - law.FC_SOS, 6)
+        return f"low-pass section {sec + 1}: {('b0', 'b1', 'b2', 'a0', 'a1', 'a2')[k]}"
+    if law.FC_ZI <= i < law.FC_GAIN:
+        sec, k = divmod(i - law.FC_ZI, 2)
+        return f"low-pass section {sec + 1}: initial state zi[{k}] (unit input)"
+    return f"Kalman prediction coefficient {i - law.FC_PRED} (oldest measurement first)"
+
+
+def _coefficient_names(kind: FilterType, n: int, sections: int) -> dict[int, str]:
+    """The coefficients a filter of this kind reads (always printed), by index."""
+    idx = [law.FC_KIND, law.FC_N, law.FC_ALPHA, law.FC_SIGMA, law.FC_DECAY_N, law.FC_WSUM, law.FC_NSEC,
+           law.FC_INV_N]
+    if kind == FilterType.LOWPASS:
+        idx += [law.FC_SOS + 6 * s + k for s in range(sections) for k in range(6)]
+        idx += [law.FC_ZI + 2 * s + k for s in range(sections) for k in range(2)]
+    elif kind == FilterType.EXPO_MEAN:
+        idx.append(law.FC_EXPO_OLDER)
+    elif kind in (FilterType.KALMAN_MA, FilterType.KALMAN_EXPO):
+        idx += [law.FC_GAIN, law.FC_P_PRIOR] + [law.FC_PRED + k for k in range(n)]
+    return {i: _fc_name(i) for i in idx}
+
+
+def _ranges(idx: list[int]) -> str:
+    """fc-010..fc-020, fc-030 for a sorted list of indices."""
+    parts, start = [], idx[0]
+    for a, b in zip(idx, idx[1:] + [None]):
+        if b != a + 1:
+            parts.append(f"fc-{start:03d}" + (f"..fc-{a:03d}" if a != start else ""))
+            start = b
+    return ", ".join(parts)
 
 
 def _check(name: str, value: float, lo: float, hi: float, lo_open: bool = False, pid: str = "") -> float:
@@ -234,6 +314,43 @@ class ThcConfig:
         lines = [f"setp {name}.{k} {v!r}" for k, v in pins.items()]
         lines += [f"setp {name}.fc-{i:03d} {float(c)!r}" for i, c in enumerate(fc)]
         return lines
+
+    def setp_document(self, cycle_time: float, source: str, name: str = "distctrl-thc.0",
+                      notes: tuple[str, ...] = ()) -> list[str]:
+        """The same ``setp`` lines as :meth:`setp_lines` (the same values), grouped under comment blocks
+        that say what each group is, each pin with a comment naming its parameter and unit, the filter
+        coefficients named by what they are in the filter they implement; coefficients the filter does
+        not use and that are 0 are left at the component's default 0 (one comment says which)."""
+        values = dict(ln.split(" ", 2)[1:] for ln in self.setp_lines(cycle_time, name))
+        f = self.filter
+        kind = FilterType(f.effective_kind)
+        out = ["# distctrl_thc's parameters: GENERATED by `distctrl linuxcnc thc-setp` from " + source,
+               "# Do not edit by hand: change the list (or the options) and generate this file again;",
+               "# every value was checked against the documents' ranges when it was written.",
+               f"# Servo period {cycle_time * 1000:g} ms (the filter coefficients are designed for it).",
+               *[f"# {n}" for n in notes],
+               "loadrt distctrl_thc"]
+        for title, group in _PIN_GROUPS:
+            out += ["", f"# --- {title} ---"]
+            for pin, what in group:
+                out.append(f"setp {name}.{pin} {values[f'{name}.{pin}']}    # {what}")
+        fc = [float(v) for v in self.coefficients(cycle_time)]
+        used = _coefficient_names(kind, f.effective_n, int(fc[law.FC_NSEC]))
+        out += ["", f"# --- the distance filter: {kind.name} (P-AXIS-00782 = {int(kind)}), "
+                f"n = {f.effective_n}, smoothing {f.smoothing_factor:g}, Kalman sigma {f.kalman_sigma:g}, "
+                f"low-pass order {f.order} at fg/f0 {f.fg_f0:g} ---",
+                "# fc-000..fc-134: the law's coefficient buffer, designed by distctrl's own filter design",
+                "# (distctrl.control.filters.design_coefficients), read by the component as they are."]
+        left = []
+        for i, c in enumerate(fc):
+            if i in used or c != 0.0 or math.copysign(1.0, c) < 0:
+                out.append(f"setp {name}.fc-{i:03d} {c!r}    # {used.get(i) or _fc_name(i)}")
+            else:
+                left.append(i)
+        if left:
+            out.append(f"# not used by {kind.name} and 0: {_ranges(left)} "
+                       "(left at the component's default 0)")
+        return out
 
 
 class _Hold:
