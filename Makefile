@@ -65,12 +65,13 @@ node: $(NODE_STAMP)
 # LinuxCNC (issue 29, docs/linuxcnc.md): tests/linuxcnc run Debian's plasmac in halrun and build the bench's
 # HAL component with halcompile (linuxcnc-uspace, linuxcnc-uspace-dev); they never skip, so make test stops
 # here if the packages cannot be installed
+# (xvfb: tests/linuxcnc/test_config.py starts LinuxCNC with QtPlasmaC's GUI on a virtual display)
 linuxcnc:
-	@(command -v halrun >/dev/null 2>&1 && command -v halcompile >/dev/null 2>&1) \
-		|| (apt-get update -qq && apt-get install -y -qq linuxcnc-uspace linuxcnc-uspace-dev >/dev/null) \
-		|| (echo "make: Debian's linuxcnc-uspace and linuxcnc-uspace-dev are needed for tests/linuxcnc and could not be installed (apt-get install linuxcnc-uspace linuxcnc-uspace-dev)" >&2; exit 1)
-	@command -v halrun >/dev/null 2>&1 && command -v halcompile >/dev/null 2>&1 \
-		|| (echo "make: halrun/halcompile are still not on PATH after apt-get install linuxcnc-uspace linuxcnc-uspace-dev" >&2; exit 1)
+	@(command -v halrun >/dev/null 2>&1 && command -v halcompile >/dev/null 2>&1 && command -v Xvfb >/dev/null 2>&1) \
+		|| (apt-get update -qq && apt-get install -y -qq linuxcnc-uspace linuxcnc-uspace-dev xvfb >/dev/null) \
+		|| (echo "make: Debian's linuxcnc-uspace, linuxcnc-uspace-dev and xvfb are needed for tests/linuxcnc and could not be installed (apt-get install linuxcnc-uspace linuxcnc-uspace-dev xvfb)" >&2; exit 1)
+	@command -v halrun >/dev/null 2>&1 && command -v halcompile >/dev/null 2>&1 && command -v Xvfb >/dev/null 2>&1 \
+		|| (echo "make: halrun/halcompile/Xvfb are still not on PATH after apt-get install linuxcnc-uspace linuxcnc-uspace-dev xvfb" >&2; exit 1)
 
 test: $(STAMP) $(WARM_STAMP) chromium $(NODE_STAMP) linuxcnc
 	$(PY) -m pytest -q -p no:cacheprovider

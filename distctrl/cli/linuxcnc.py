@@ -12,7 +12,8 @@ from rich.console import Console
 
 from ..errors import DistCtrlError
 from ..linuxcnc.bench import bench as run_bench
-from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, build_component
+from ..linuxcnc.config import HAL_FILE, POSTGUI_FILE, write_config
+from ..linuxcnc.hal_env import COMPONENTS, LinuxCNCError, build_component, sudo_command
 from ..linuxcnc.ini import external_offset_limits, read_ini
 from ..linuxcnc.thc import ThcConfig
 from ..params import load_list
@@ -43,8 +44,8 @@ def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: floa
     if list_file is None:
         fail("linuxcnc thc-setp needs an axis parameter LIST (kernel format, e.g. examples/scenarios/z_plasma_plate.lis)")
     if not Path(list_file).is_file():
-        fail(f"linuxcnc thc-setp: the axis parameter list {list_file!r} does not exist (a .lis file, "
-             "e.g. examples/scenarios/z_plasma_plate.lis)")
+        fail(f"linuxcnc thc-setp: the axis parameter list {list_file!r} does not exist or is not a file "
+             "(a .lis file, e.g. examples/scenarios/z_plasma_plate.lis)")
     warnings, notes = [], []
     try:
         cfg = ThcConfig.from_params(load_list(list_file).params, set_dist=set_dist, arc_v0=arc_v0, arc_k=arc_k)
@@ -77,6 +78,28 @@ def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: floa
         click.echo("\n".join(lines))
 
 
+def _config(out: str | None, from_dir: str | None, ini_name: str | None, list_file: str | None, laser: bool,
+            as_json: bool) -> None:
+    if out is None:
+        fail("linuxcnc config needs an OUTDIR (a new directory for the configuration)")
+    try:
+        r = write_config(out, from_dir, ini_name=ini_name, list_file=list_file, laser=laser)
+    except (LinuxCNCError, DistCtrlError) as exc:
+        fail(str(exc))
+    if as_json:
+        emit_json({"command": "linuxcnc config", "out": str(r.out), "ini": str(r.ini),
+                   "source": str(r.source), "hal_section_file": str(r.hal_section_file), "sim_torch": r.sim,
+                   "warnings": r.notes, "files": [HAL_FILE, POSTGUI_FILE]})
+        return
+    for n in r.notes:
+        click.echo(f"warning: {n}", err=True)
+    click.echo(f"wrote {r.out} from {r.source}: {HAL_FILE}, {POSTGUI_FILE}, two [HAL] lines in "
+               f"{r.hal_section_file.name}"
+               + (", the sim torch and the prefs' THC switches" if r.sim else ""))
+    click.echo(f"start it: linuxcnc {r.ini}")
+    click.echo(f"needs the components: {sudo_command()} (once)")
+
+
 def _build(force: bool, as_json: bool) -> None:
     try:
         built = [build_component(name, force=force) for name in COMPONENTS]
@@ -93,8 +116,8 @@ def _build(force: bool, as_json: bool) -> None:
 
 
 @click.command()
-@click.argument("action", type=click.Choice(["bench", "build", "thc-setp"]))
-@click.argument("plate", required=False, type=click.Path(dir_okay=False))
+@click.argument("action", type=click.Choice(["bench", "build", "thc-setp", "config"]))
+@click.argument("plate", required=False, metavar="[PLATE|LIST|OUTDIR]", type=click.Path())
 @click.option("--set-dist", type=Finite(0.001, 100.0), default=1.5, show_default=True,
               help="thc-setp: SET_DIST, the cut height (mm).")
 @click.option("--arc-v0", type=Finite(0.0, 400.0), default=95.0, show_default=True,
@@ -104,6 +127,12 @@ def _build(force: bool, as_json: bool) -> None:
 @click.option("--ini", "ini_file", type=click.Path(dir_okay=False), default=None,
               help="thc-setp: the machine's INI: v-max/a-max are checked against [AXIS_Z]'s external-offset "
                    "limits (MAX_VELOCITY, MAX_ACCELERATION x OFFSET_AV_RATIO) and refused above them.")
+@click.option("--from", "from_dir", type=click.Path(file_okay=False), default=None,
+              help="config: your QtPlasmaC configuration directory (default: Debian's installed "
+                   "QtPlasmaC sim); it is read, not changed.")
+@click.option("--laser", is_flag=True, help="config: a capacitive laser height control (not built yet).")
+@click.option("--list", "list_file", type=click.Path(dir_okay=False), default=None,
+              help="config: distctrl_thc's Z parameter list (default: the QtPlasmaC template).")
 @click.option("--cap", is_flag=True,
               help="thc-setp with --ini: write the limits instead of refusing (with a warning).")
 @click.option("--force", is_flag=True,
@@ -119,14 +148,16 @@ def _build(force: bool, as_json: bool) -> None:
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (bench: plate, runs [{controller, functions, min_distance_mm, ...}]).")
 def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc_k: float,
-             ini_file: str | None, cap: bool, force: bool, repeat: int, settings: tuple,
-             max_time: float | None, html_dir: str | None, as_json: bool) -> None:
+             ini_file: str | None, from_dir: str | None, laser: bool, list_file: str | None, cap: bool,
+             force: bool, repeat: int, settings: tuple, max_time: float | None, html_dir: str | None,
+             as_json: bool) -> None:
     """LinuxCNC's plasmac (halrun) in closed loop on distctrl's PLATE, side by side with distctrl and its HAL component.
 
     \b
     distctrl linuxcnc bench PLATE.toml   plasmac, distctrl_thc in halrun and distctrl, locks on and off
     distctrl linuxcnc build              build and install the HAL components (halcompile)
     distctrl linuxcnc thc-setp LIST.lis --ini MACHINE.ini   distctrl_thc's setp lines (named, commented)
+    distctrl linuxcnc config OUTDIR [--from CONFIGDIR]  a QtPlasmaC configuration with distctrl_thc
 
     The bench refuses to run while LinuxCNC or another HAL runs on this PC: it never touches a HAL it
     did not start. Do not run it beside a machine controller.
@@ -137,10 +168,13 @@ def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc
     if action == "thc-setp":
         _thc_setp(plate, set_dist, arc_v0, arc_k, ini_file, cap, as_json)
         return
+    if action == "config":
+        _config(plate, from_dir, ini_file, list_file, laser, as_json)
+        return
     if plate is None:
         fail("linuxcnc bench needs a PLATE (a plate scenario, e.g. examples/scenarios/plasma_plate_short.toml)")
     if not Path(plate).is_file():
-        fail(f"linuxcnc bench: the plate scenario {plate!r} does not exist (a .toml plate, "
+        fail(f"linuxcnc bench: the plate scenario {plate!r} does not exist or is not a file (a .toml plate, "
              "e.g. examples/scenarios/plasma_plate_short.toml)")
     _bench(plate, repeat, settings, max_time, html_dir, as_json)
 

@@ -28,8 +28,10 @@ __all__ = ["LinuxCNCError", "HalSession", "hal_environment", "require_linuxcnc",
            "session_lock_path"]
 
 HAL_DIR = Path(__file__).resolve().parent / "hal"
-#: the components distctrl builds with halcompile (hal/<name>.comp)
-COMPONENTS = ("distctrl_lockstep", "distctrl_thc")
+#: the components distctrl builds with halcompile (hal/<name>.comp): the bench's gate, the law, the
+#: QtPlasmaC glue and the sim torch of `distctrl linuxcnc config`
+COMPONENTS = ("distctrl_lockstep", "distctrl_thc", "distctrl_qtplasmac",
+              "distctrl_simtorch")
 MODULE_DIR = Path("/usr/lib/linuxcnc/modules")
 _RUN_DIR = Path(tempfile.gettempdir()) / "distctrl-linuxcnc"
 _DIST_PACKAGES = "/usr/lib/python3/dist-packages"
@@ -277,6 +279,7 @@ class HalSession:
 
     def _release(self) -> None:
         if self._lock is not None:
+            self._lock.truncate(0)                    # no stale holder pid for the next waiter
             self._lock.close()
             self._lock = None
 

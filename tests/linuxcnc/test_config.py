@@ -1,0 +1,139 @@
+"""`distctrl linuxcnc config` (issue 40): a QtPlasmaC configuration with distctrl_thc, written from
+Debian's installed QtPlasmaC sim, started headless (Xvfb) in a real LinuxCNC - milltask, motion,
+halui, the qtvcp GUI and the sim panel - and driven through a program with a rising, warped plate, a
+hole and four corners (qtplasmac_cut.ngc) on the height-dependent sim torch (hal/distctrl_simtorch.comp).
+
+Asserted on the samples (~100 Hz, LinuxCNC's Python modules): the program completes; while distctrl_thc
+controls, the torch's height over the plate (the sim torch's own `height`) stays within its band; it is
+never below half the cut height while the arc burns; no monitoring error at all, in particular no 70329 at
+torch off; the locks follow QtPlasmaC's anti-dive switches and lock (the void lock over the hole, the corner
+lock at the corners); QtPlasmaC's arc-voltage display shows the arc voltage and its THC-active LED
+distctrl_thc's state; plasmac's own THC stays off. One LinuxCNC session (~1-2 min)."""
+from __future__ import annotations
+
+import csv
+import json
+import statistics
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from distctrl.cli.linuxcnc import linuxcnc
+from distctrl.linuxcnc.config import DEBIAN_SIM, HAL_FILE, POSTGUI_FILE, SimTorch
+from distctrl.linuxcnc.hal_env import install_component
+from distctrl.linuxcnc.sim import LinuxCNCRun
+
+HERE = Path(__file__).resolve().parent
+PROGRAM = HERE / "qtplasmac_cut.ngc"
+CUT_HEIGHT = 1.5
+PINS = ["plasmac.state-out", "plasmac.torch-on", "plasmac.arc-ok-out", "plasmac.arc-voltage-out",
+        "plasmac.thc-enabled", "distctrl-thc.0.thc-enable", "distctrl-thc.0.state", "distctrl-thc.0.error-id",
+        "distctrl-thc.0.offset", "distctrl-thc.0.set-dist", "distctrl-thc.0.cornerlock-enable",
+        "distctrl-thc.0.voidlock-enable", "distctrl-thc.0.cornerlock-is-locked",
+        "distctrl-thc.0.voidlock-is-locked", "distctrl-simtorch.0.height", "distctrl-simtorch.0.arc-ok",
+        "qtplasmac.arc_voltage", "qtplasmac.led_thc_enabled", "qtplasmac.led_thc_active"]
+
+
+def _rows(path: Path) -> list[dict]:
+    conv = {"True": 1.0, "False": 0.0}
+    with open(path, newline="") as f:
+        return [{k: conv.get(v, None) if v in conv else float(v) for k, v in r.items()}
+                for r in csv.DictReader(f, delimiter="\t")]
+
+
+def test_config_writes_beside_the_source_and_refuses_what_it_cannot(tmp_path):
+    out = tmp_path / "cfg"
+    r = CliRunner().invoke(linuxcnc, ["config", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert doc["sim_torch"] and doc["ini"] == str(out / "qtplasmac_l_metric.ini")
+    inc = (out / "qtplasmac_metric_ini.inc").read_text()
+    # the two [HAL] lines: distctrl_thc.hal right after qtplasmac_comp.hal, its post-GUI file last
+    hal = [ln.split("=", 1)[1].strip() for ln in inc.splitlines()
+           if ln.startswith(("HALFILE", "POSTGUI_HALFILE"))]
+    assert hal[hal.index("qtplasmac_comp.hal") + 1] == HAL_FILE and hal[-1] == POSTGUI_FILE
+    text = (out / HAL_FILE).read_text()
+    assert "net plasmac:arc_voltage_out plasmac.arc-voltage-out => distctrl-thc.0.arc-voltage-in" in text
+    assert "net plasmac:cornerlock-enable => distctrl-thc.0.cornerlock-enable" in text
+    assert "net plasmac:voidlock-enable => distctrl-thc.0.voidlock-enable" in text
+    assert "setp distctrl-thc.0.v-max 60.0" in text and "setp distctrl-thc.0.a-max 600.0" in text
+    # only distctrl's own modules are loaded (no module another HAL file loads: no TWOPASS needed)
+    loads = [ln.split()[1] for ln in text.splitlines() if ln.startswith("loadrt")]
+    assert all(m.startswith("distctrl_") for m in loads) and len(loads) == len(set(loads))
+    # the source is read, not changed; OUTDIR must be new
+    assert "distctrl" not in (DEBIAN_SIM / "qtplasmac_metric_ini.inc").read_text()
+    again = CliRunner().invoke(linuxcnc, ["config", str(out)])
+    assert again.exit_code == 1 and "not empty" in again.output
+    inside = CliRunner().invoke(linuxcnc, ["config", str(out / "sub"), "--from", str(out)])
+    assert inside.exit_code == 1 and "inside the source configuration" in inside.output
+    laser = CliRunner().invoke(linuxcnc, ["config", str(tmp_path / "l"), "--laser"])
+    assert laser.exit_code == 1 and "--laser is not built yet" in laser.output
+
+
+@pytest.fixture(scope="module")
+def sim_run(tmp_path_factory):
+    for name in ("distctrl_thc", "distctrl_qtplasmac", "distctrl_simtorch"):
+        install_component(name)
+    base = tmp_path_factory.mktemp("lcnc")
+    r = CliRunner().invoke(linuxcnc, ["config", str(base / "cfg")])
+    assert r.exit_code == 0, r.output
+    with LinuxCNCRun(base / "cfg" / "qtplasmac_l_metric.ini", base / "run") as run:
+        run.wait_ready()
+        summary = run.drive(PROGRAM, base / "run" / "samples.tsv", PINS, max_seconds=240)
+    return summary, _rows(base / "run" / "samples.tsv")
+
+
+def test_the_generated_config_cuts_in_linuxcnc_and_holds_the_height(sim_run):
+    summary, rows = sim_run
+    assert summary["started"] and summary["completed"], summary
+    assert not summary["errors"], summary["errors"]
+    burning = [r for r in rows if r["distctrl-simtorch.0.arc-ok"] and r["plasmac.state-out"] == 11]
+    active = [r for r in rows if r["distctrl-thc.0.state"] == 4]
+    assert len(active) > 0.5 * len(burning) > 200
+    h = [r["distctrl-simtorch.0.height"] for r in active]
+    dev = sorted(abs(x - CUT_HEIGHT) for x in h)
+    # the plate rises 2 mm and warps +-0.5 mm under the cut: held within +-0.15 mm in 95 % of the samples
+    print(f"\nLinuxCNC run: {summary['seconds']} s, {len(rows)} samples; ACTIVE_CONST_DIST {len(active)}: height "
+          f"{min(h):.3f}..{max(h):.3f} mm, median {statistics.median(h):.3f}, 95 % within "
+          f"{dev[int(0.95 * len(dev))]:.3f} mm of {CUT_HEIGHT}; while burning min "
+          f"{min(r['distctrl-simtorch.0.height'] for r in burning):.3f} mm")
+    assert dev[int(0.95 * len(dev))] < 0.15 and max(dev) < 0.5, (min(h), max(h), statistics.median(h))
+    assert min(r["distctrl-simtorch.0.height"] for r in burning) > 0.5 * CUT_HEIGHT
+    offsets = [r["distctrl-thc.0.offset"] for r in active]
+    assert max(offsets) - min(offsets) > 1.5            # it did move Z (the rise), not plasmac
+    assert all(r["plasmac.thc-enabled"] == 0.0 for r in rows)
+
+
+def test_torch_off_ends_control_without_an_error(sim_run):
+    _, rows = sim_run
+    assert {r["distctrl-thc.0.error-id"] for r in rows} == {0.0}
+    assert 5.0 not in {r["distctrl-thc.0.state"] for r in rows}          # never ERROR
+    # both cuts: ACTIVE_CONST_DIST, then TURNING_OFF / INACTIVE when the torch goes off
+    states = [r["distctrl-thc.0.state"] for r in rows]
+    starts = sum(1 for a, b in zip(states, states[1:]) if a == 0 and b == 4)
+    assert starts == 2
+    off = [r for r in rows if not r["plasmac.torch-on"]]
+    assert all(r["distctrl-thc.0.thc-enable"] == 0.0 for r in off)
+
+
+def test_the_locks_follow_qtplasmacs_switches_and_lock(sim_run):
+    _, rows = sim_run
+    assert all(r["distctrl-thc.0.cornerlock-enable"] and r["distctrl-thc.0.voidlock-enable"] for r in rows)
+    torch = SimTorch()
+    void = [r for r in rows if r["distctrl-thc.0.voidlock-is-locked"]]
+    assert void and all(torch.hole_x0 - 5 <= r["x"] <= torch.hole_x0 + torch.hole_width + 15 for r in void)
+    assert any(r["distctrl-thc.0.cornerlock-is-locked"] for r in rows)
+
+
+def test_qtplasmacs_display_and_leds_show_the_truth(sim_run):
+    _, rows = sim_run
+    cut = [r for r in rows if r["distctrl-thc.0.state"] == 4]
+    shown = [r["qtplasmac.arc_voltage"] for r in cut]
+    assert statistics.median(shown) > 95.0                       # the display shows the burning arc
+    same = sum(abs(r["qtplasmac.arc_voltage"] - r["plasmac.arc-voltage-out"]) < 3.0 for r in cut)
+    assert same > 0.9 * len(cut)
+    assert all(r["qtplasmac.led_thc_enabled"] for r in rows)
+    lit = [r["qtplasmac.led_thc_active"] for r in rows if r["distctrl-thc.0.state"] == 4]
+    assert sum(lit) > 0.95 * len(lit)
+    assert not any(r["qtplasmac.led_thc_active"] for r in rows if r["distctrl-thc.0.state"] == 0)
