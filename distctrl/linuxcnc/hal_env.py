@@ -194,6 +194,7 @@ class HalSession:
         self.lock_timeout = lock_timeout
         self.notify = notify or _stderr
         self._lock = None
+        self._locked = False
         self._rtapi: tuple[int, int] | None = None     # our rtapi_app: (pid, start time)
         self.log: list[str] = []
 
@@ -207,6 +208,7 @@ class HalSession:
             while True:
                 try:
                     fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    self._locked = True
                     break
                 except BlockingIOError:
                     if not said:
@@ -279,7 +281,9 @@ class HalSession:
 
     def _release(self) -> None:
         if self._lock is not None:
-            self._lock.truncate(0)                    # no stale holder pid for the next waiter
+            if self._locked:
+                self._lock.truncate(0)                # no stale holder pid for the next waiter
+                self._locked = False
             self._lock.close()
             self._lock = None
 

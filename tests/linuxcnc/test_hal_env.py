@@ -166,6 +166,7 @@ def test_waiting_for_the_lock_says_for_what_and_how_long(private_run_dir, capfd)
         with pytest.raises(LinuxCNCError, match="for more than 0.5 s"):
             with HalSession(lock_timeout=0.5):
                 pass
+        assert (private_run_dir / "session.lock").read_text() == f"{os.getpid()}\n"   # the holder's, kept
     err = capfd.readouterr().err
     assert "waiting for another HAL session" in err
     assert str(private_run_dir / "session.lock") in err and f"pid {os.getpid()}" in err and "0.5 s" in err
