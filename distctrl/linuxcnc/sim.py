@@ -108,10 +108,11 @@ class LinuxCNCRun:
         raise LinuxCNCError(f"LinuxCNC not ready within {timeout:g} s: {self.logdir / 'linuxcnc.log'}")
 
     def drive(self, program: str | Path, samples: str | Path, pins: list[str], max_seconds: float = 180.0,
-              actions: list | None = None) -> dict:
+              actions: list | None = None, pause_grace: float = 8.0) -> dict:
         """sim_drive.py: E-stop off, machine on, home, torch enable, run ``program``, sample ``pins``."""
         spec = {"program": str(Path(program).resolve()), "samples": str(samples), "pins": pins,
-                "max_seconds": max_seconds, "actions": actions or []}
+                "max_seconds": max_seconds, "actions": actions or [],
+                "pause_grace": pause_grace}
         p = subprocess.run([SYSTEM_PYTHON, str(DRIVER), json.dumps(spec)], env=self.env, capture_output=True,
                            text=True, stdin=subprocess.DEVNULL, timeout=max_seconds + 240)
         (self.logdir / "drive.log").write_text(p.stdout + p.stderr)

@@ -5,7 +5,8 @@ Debian's python3, whose ``linuxcnc`` and ``hal`` modules it needs; it imports no
 argv[1]: JSON {"program", "samples" (a TSV to write), "pins" [...], "max_seconds", "actions" [{"x": mm,
 "setp": [pin, value]}: set a pin once the torch passes X (a fault to inject)]}. It releases the sim's
 E-stop, switches the machine on, homes, enables the torch, opens and runs the program, samples the
-pins every ~10 ms and prints one JSON line: {"completed", "errors", "messages", "samples", "seconds"}.
+pins every ~10 ms (until the program ends, or pause_grace s after it paused) and prints one JSON line:
+{"completed", "started", "paused", "errors", "messages", "samples", "seconds"}.
 """
 import json
 import subprocess
@@ -76,19 +77,20 @@ probe.ready()
 pins = spec["pins"]
 actions = list(spec.get("actions", []))
 started = completed = False
-attempts, last_try = 0, 0.0
+attempts, last_try, paused_at = 0, 0.0, 0.0
 t0 = time.time()
 n = 0
 with open(spec["samples"], "w") as f:
     f.write("\t".join(["t", "interp", "line", "x", "y", "z"] + pins) + "\n")
     while time.time() - t0 < spec["max_seconds"]:
         poll()
-        if not started and s.interp_state != linuxcnc.INTERP_IDLE:
-            started = True
+        if not started and s.interp_state != linuxcnc.INTERP_IDLE and s.current_line > 0:
+            started = True                    # a line of the program runs (a run can end before its first)
         if not started:
             if attempts >= 5:
                 break
-            if time.time() - last_try > 3.0:   # QtPlasmaC switches back to MANUAL after a program is opened
+            if s.interp_state == linuxcnc.INTERP_IDLE and time.time() - last_try > 3.0:
+                # QtPlasmaC switches back to MANUAL after a program is opened: AUTO again, run again
                 if s.task_mode != linuxcnc.MODE_AUTO:
                     c.mode(linuxcnc.MODE_AUTO)
                     c.wait_complete()
@@ -112,8 +114,14 @@ with open(spec["samples"], "w") as f:
         if s.interp_state == linuxcnc.INTERP_IDLE and s.exec_state == linuxcnc.EXEC_DONE:
             completed = not s.paused
             break
+        if s.paused:
+            paused_at = paused_at or time.time()
+            if time.time() - paused_at > spec.get("pause_grace", 8.0):   # paused (plasmac): seen, done
+                break
+        else:
+            paused_at = 0.0
         time.sleep(0.01)
 time.sleep(1)
 poll()
-print(json.dumps({"completed": completed, "started": started, "errors": errors, "messages": messages,
+print(json.dumps({"completed": completed, "started": started, "paused": bool(s.paused), "errors": errors, "messages": messages,
                   "samples": n, "seconds": round(time.time() - t0, 2)}))

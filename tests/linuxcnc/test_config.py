@@ -32,6 +32,7 @@ PINS = ["plasmac.state-out", "plasmac.torch-on", "plasmac.arc-ok-out", "plasmac.
         "distctrl-thc.0.offset", "distctrl-thc.0.set-dist", "distctrl-thc.0.cornerlock-enable",
         "distctrl-thc.0.voidlock-enable", "distctrl-thc.0.cornerlock-is-locked",
         "distctrl-thc.0.voidlock-is-locked", "distctrl-simtorch.0.height", "distctrl-simtorch.0.arc-ok",
+        "distctrl-simtorch.0.arc-loss",
         "qtplasmac.arc_voltage", "qtplasmac.led_thc_enabled", "qtplasmac.led_thc_active"]
 
 
@@ -71,17 +72,22 @@ def test_config_writes_beside_the_source_and_refuses_what_it_cannot(tmp_path):
     assert laser.exit_code == 1 and "--laser is not built yet" in laser.output
 
 
-@pytest.fixture(scope="module")
-def sim_run(tmp_path_factory):
-    for name in ("distctrl_thc", "distctrl_qtplasmac", "distctrl_simtorch"):
-        install_component(name)
-    base = tmp_path_factory.mktemp("lcnc")
+def _cut_in_linuxcnc(tmp_path_factory, name: str, **drive) -> tuple[dict, list[dict]]:
+    """`distctrl linuxcnc config` from Debian's sim, started headless, qtplasmac_cut.ngc run and sampled."""
+    for comp in ("distctrl_thc", "distctrl_qtplasmac", "distctrl_simtorch"):
+        install_component(comp)
+    base = tmp_path_factory.mktemp(name)
     r = CliRunner().invoke(linuxcnc, ["config", str(base / "cfg")])
     assert r.exit_code == 0, r.output
     with LinuxCNCRun(base / "cfg" / "qtplasmac_l_metric.ini", base / "run") as run:
         run.wait_ready()
-        summary = run.drive(PROGRAM, base / "run" / "samples.tsv", PINS, max_seconds=240)
+        summary = run.drive(PROGRAM, base / "run" / "samples.tsv", PINS, **drive)
     return summary, _rows(base / "run" / "samples.tsv")
+
+
+@pytest.fixture(scope="module")
+def sim_run(tmp_path_factory):
+    return _cut_in_linuxcnc(tmp_path_factory, "lcnc", max_seconds=240)
 
 
 def test_the_generated_config_cuts_in_linuxcnc_and_holds_the_height(sim_run):
@@ -137,3 +143,31 @@ def test_qtplasmacs_display_and_leds_show_the_truth(sim_run):
     lit = [r["qtplasmac.led_thc_active"] for r in rows if r["distctrl-thc.0.state"] == 4]
     assert sum(lit) > 0.95 * len(lit)
     assert not any(r["qtplasmac.led_thc_active"] for r in rows if r["distctrl-thc.0.state"] == 0)
+
+
+@pytest.fixture(scope="module")
+def arc_loss_run(tmp_path_factory):
+    """The same configuration and program; the arc goes out mid-cut (the sim torch's arc-loss pin at X 300
+    on the first cut) and does not light again."""
+    return _cut_in_linuxcnc(tmp_path_factory, "lcnc-arc-loss", max_seconds=120,
+                            actions=[{"x": 300.0, "setp": ["distctrl-simtorch.0.arc-loss", 1]}])
+
+
+def test_arc_loss_mid_cut_ends_safe(arc_loss_run):
+    """No dive: the torch stays above half the cut height from the arc loss on, distctrl_thc holds (ERROR
+    70329: the distance jumped, which is what an arc loss is) and runs its offset out when plasmac drops the
+    torch; plasmac pauses the program ("valid arc lost") and raises the torch; distctrl_thc ends INACTIVE."""
+    summary, rows = arc_loss_run
+    assert summary["started"] and summary["paused"] and not summary["completed"], summary
+    assert any("arc lost" in e for e in summary["errors"]), summary["errors"]
+    lost = next(i for i, r in enumerate(rows) if r["distctrl-simtorch.0.arc-loss"])
+    before, after = rows[lost - 1], rows[lost:]
+    assert before["plasmac.torch-on"] and before["distctrl-thc.0.state"] == 4      # mid-cut, under control
+    assert min(r["distctrl-simtorch.0.height"] for r in after) > 0.5 * CUT_HEIGHT
+    assert {r["distctrl-thc.0.error-id"] for r in after} <= {0.0, 70329.0}
+    assert after[-1]["distctrl-thc.0.state"] == 0 and after[-1]["distctrl-thc.0.offset"] == 0.0
+    assert after[-1]["distctrl-simtorch.0.height"] > 10.0                          # raised
+    print(f"\narc loss at X {rows[lost]['x']:.1f}: distctrl_thc states after it "
+          f"{sorted({r['distctrl-thc.0.state'] for r in after})}, error-ids "
+          f"{sorted({r['distctrl-thc.0.error-id'] for r in after})}, min height "
+          f"{min(r['distctrl-simtorch.0.height'] for r in after):.3f} mm; {summary['errors']}")
