@@ -78,17 +78,17 @@ def _thc_setp(list_file: str | None, set_dist: float, arc_v0: float, arc_k: floa
         click.echo("\n".join(lines))
 
 
-def _config(out: str | None, from_dir: str | None, ini_name: str | None, list_file: str | None, laser: bool,
-            as_json: bool) -> None:
+def _config(out: str | None, from_dir: str | None, ini_name: str | None, list_file: str | None, thc: str,
+            laser: bool, as_json: bool) -> None:
     if out is None:
         fail("linuxcnc config needs an OUTDIR (a new directory for the configuration)")
     try:
-        r = write_config(out, from_dir, ini_name=ini_name, list_file=list_file, laser=laser)
+        r = write_config(out, from_dir, ini_name=ini_name, list_file=list_file, laser=laser, thc=thc)
     except (LinuxCNCError, DistCtrlError) as exc:
         fail(str(exc))
     if as_json:
         emit_json({"command": "linuxcnc config", "out": str(r.out), "ini": str(r.ini),
-                   "source": str(r.source), "hal_section_file": str(r.hal_section_file), "sim_torch": r.sim,
+                   "source": str(r.source), "hal_section_file": str(r.hal_section_file), "sim_torch": r.sim, "thc": thc,
                    "warnings": r.notes, "files": [HAL_FILE, POSTGUI_FILE]})
         return
     for n in r.notes:
@@ -130,6 +130,9 @@ def _build(force: bool, as_json: bool) -> None:
 @click.option("--from", "from_dir", type=click.Path(file_okay=False), default=None,
               help="config: your QtPlasmaC configuration directory (default: Debian's installed "
                    "QtPlasmaC sim); it is read, not changed.")
+@click.option("--thc", "thc", type=click.Choice(["distctrl", "plasmac"]), default="distctrl",
+              show_default=True,
+              help="config: plasmac = the sim baseline, plasmac's own THC on the height-dependent sim torch.")
 @click.option("--laser", is_flag=True, help="config: a capacitive laser height control (not built yet).")
 @click.option("--list", "list_file", type=click.Path(dir_okay=False), default=None,
               help="config: distctrl_thc's Z parameter list (default: the QtPlasmaC template).")
@@ -148,7 +151,7 @@ def _build(force: bool, as_json: bool) -> None:
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object (bench: plate, runs [{controller, functions, min_distance_mm, ...}]).")
 def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc_k: float,
-             ini_file: str | None, from_dir: str | None, laser: bool, list_file: str | None, cap: bool,
+             ini_file: str | None, from_dir: str | None, thc: str, laser: bool, list_file: str | None, cap: bool,
              force: bool, repeat: int, settings: tuple, max_time: float | None, html_dir: str | None,
              as_json: bool) -> None:
     """LinuxCNC's plasmac (halrun) in closed loop on distctrl's PLATE, side by side with distctrl and its HAL component.
@@ -169,7 +172,7 @@ def linuxcnc(action: str, plate: str | None, set_dist: float, arc_v0: float, arc
         _thc_setp(plate, set_dist, arc_v0, arc_k, ini_file, cap, as_json)
         return
     if action == "config":
-        _config(plate, from_dir, ini_file, list_file, laser, as_json)
+        _config(plate, from_dir, ini_file, list_file, thc, laser, as_json)
         return
     if plate is None:
         fail("linuxcnc bench needs a PLATE (a plate scenario, e.g. examples/scenarios/plasma_plate_short.toml)")

@@ -32,7 +32,8 @@ PINS = ["plasmac.state-out", "plasmac.torch-on", "plasmac.arc-ok-out", "plasmac.
         "distctrl-thc.0.offset", "distctrl-thc.0.set-dist", "distctrl-thc.0.cornerlock-enable",
         "distctrl-thc.0.voidlock-enable", "distctrl-thc.0.cornerlock-is-locked",
         "distctrl-thc.0.voidlock-is-locked", "distctrl-simtorch.0.height", "distctrl-simtorch.0.arc-ok",
-        "distctrl-simtorch.0.arc-loss",
+        "distctrl-simtorch.0.arc-loss", "plasmac.thc-active", "plasmac.cornerlock-is-locked",
+        "plasmac.voidlock-is-locked",
         "qtplasmac.arc_voltage", "qtplasmac.led_thc_enabled", "qtplasmac.led_thc_active"]
 
 
@@ -72,14 +73,16 @@ def test_config_writes_beside_the_source_and_refuses_what_it_cannot(tmp_path):
     assert laser.exit_code == 1 and "--laser is not built yet" in laser.output
 
 
-def _cut_in_linuxcnc(tmp_path_factory, name: str, **drive) -> tuple[dict, list[dict]]:
+def _cut_in_linuxcnc(tmp_path_factory, name: str, thc: str = "distctrl", **drive) -> tuple[dict, list[dict]]:
     """`distctrl linuxcnc config` from Debian's sim, started headless, qtplasmac_cut.ngc run and sampled."""
     for comp in ("distctrl_thc", "distctrl_qtplasmac", "distctrl_simtorch"):
         install_component(comp)
     base = tmp_path_factory.mktemp(name)
-    r = CliRunner().invoke(linuxcnc, ["config", str(base / "cfg")])
+    r = CliRunner().invoke(linuxcnc, ["config", str(base / "cfg"), "--thc", thc])
     assert r.exit_code == 0, r.output
-    with LinuxCNCRun(base / "cfg" / "qtplasmac_l_metric.ini", base / "run") as run:
+    # the sim torch's voltage net is the last POSTGUI line of both: the configuration is up
+    ini = base / "cfg" / "qtplasmac_l_metric.ini"
+    with LinuxCNCRun(ini, base / "run", ready_signal="dthc:sim-voltage") as run:
         run.wait_ready()
         summary = run.drive(PROGRAM, base / "run" / "samples.tsv", PINS, **drive)
     return summary, _rows(base / "run" / "samples.tsv")
@@ -100,7 +103,8 @@ def test_the_generated_config_cuts_in_linuxcnc_and_holds_the_height(sim_run):
     h = [r["distctrl-simtorch.0.height"] for r in active]
     dev = sorted(abs(x - CUT_HEIGHT) for x in h)
     # the plate rises 2 mm and warps +-0.5 mm under the cut: held within +-0.15 mm in 95 % of the samples
-    print(f"\nLinuxCNC run: {summary['seconds']} s, {len(rows)} samples; ACTIVE_CONST_DIST {len(active)}: height "
+    print(f"\nLinuxCNC run: {summary['seconds']} s, {len(rows)} samples; ACTIVE_CONST_DIST {len(active)}: "
+          "height "
           f"{min(h):.3f}..{max(h):.3f} mm, median {statistics.median(h):.3f}, 95 % within "
           f"{dev[int(0.95 * len(dev))]:.3f} mm of {CUT_HEIGHT}; while burning min "
           f"{min(r['distctrl-simtorch.0.height'] for r in burning):.3f} mm")
@@ -171,3 +175,23 @@ def test_arc_loss_mid_cut_ends_safe(arc_loss_run):
           f"{sorted({r['distctrl-thc.0.state'] for r in after})}, error-ids "
           f"{sorted({r['distctrl-thc.0.error-id'] for r in after})}, min height "
           f"{min(r['distctrl-simtorch.0.height'] for r in after):.3f} mm; {summary['errors']}")
+
+
+def test_plasmac_runs_on_the_same_sim_torch_as_the_baseline(tmp_path_factory):
+    """`config --thc plasmac`: plasmac's own THC (the material's 104 V, no auto volts) on the same
+    height-dependent torch, plate and program. Asserted: its THC closes the loop on the sim torch (the point
+    of the torch: Debian's sim-torch gives no height) - before the hole it holds 1.5 mm within 0.25 mm.
+    What it does at the hole is measured and printed, not asserted (docs/linuxcnc.md)."""
+    summary, rows = _cut_in_linuxcnc(tmp_path_factory, "lcnc-plasmac", thc="plasmac", max_seconds=240)
+    assert summary["started"], summary
+    first = [r for r in rows if r["plasmac.thc-active"] and r["y"] < 50]
+    before_hole = [r["distctrl-simtorch.0.height"] for r in first if r["x"] < SimTorch().hole_x0 - 5]
+    assert len(before_hole) > 50
+    steady = before_hole[len(before_hole) // 4:]                  # after its THC has settled
+    assert max(abs(h - CUT_HEIGHT) for h in steady) < 0.25, (min(steady), max(steady))
+    burning = [r["distctrl-simtorch.0.height"] for r in rows
+               if r["distctrl-simtorch.0.arc-ok"] and r["plasmac.state-out"] == 11]
+    void = sum(bool(r["plasmac.voidlock-is-locked"]) for r in rows)
+    print(f"\nplasmac's THC on the sim torch: before the hole {min(steady):.3f}..{max(steady):.3f} mm; "
+          f"lowest while burning {min(burning):.3f} mm; void lock {void} samples; run: completed "
+          f"{summary['completed']}, paused {summary['paused']}, {summary['errors']}")
