@@ -20,8 +20,8 @@ LinuxCNC is kept in this repository) with
   distctrl_thc; in the sim, the height-dependent torch (hal/distctrl_simtorch.comp) in place of
   Debian's sim-torch for the arc voltage and the float switch.
 * the [HAL] section of the file that has it (the INI or its #INCLUDE) with these two lines added, the
-  sim's relative nc_files paths made absolute, and in the sim the prefs' THC, corner lock and void lock
-  switches on.
+  relative ``../../nc_files`` paths (the sample configs') made absolute, and in the sim the prefs' THC,
+  corner lock and void lock switches on and a default material.
 """
 from __future__ import annotations
 
@@ -289,9 +289,8 @@ def write_config(out: str | Path, source: str | Path | None = None, ini_name: st
     ini = read_ini(ini_out)
     hal_file = _hal_section_file(ini)
     _add_hal_lines(hal_file)
-    if sim:
-        for f in {ini_out, hal_file}:
-            _absolute_paths(f, src)
+    for f in {ini_out, hal_file}:                   # OUTDIR is elsewhere: the relative nc_files path
+        _absolute_paths(f, src)
     doc = cfg.setp_document(0.001, str(lst), notes=("v-max, a-max within " + lim.describe(),
                                                      *[f"warning: {n}" for n in notes]))
     if thc == "plasmac":

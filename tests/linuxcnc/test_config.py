@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import statistics
 from pathlib import Path
 
@@ -71,6 +72,25 @@ def test_config_writes_beside_the_source_and_refuses_what_it_cannot(tmp_path):
     assert inside.exit_code == 1 and "inside the source configuration" in inside.output
     laser = CliRunner().invoke(linuxcnc, ["config", str(tmp_path / "l"), "--laser"])
     assert laser.exit_code == 1 and "--laser is not built yet" in laser.output
+
+
+def test_config_from_a_users_qtplasmac_config_leaves_it_as_it_was(tmp_path):
+    """--from: the user's configuration is read, the new one written beside it; no sim torch there."""
+    user = tmp_path / "my_plasma"
+    shutil.copytree(DEBIAN_SIM, user)
+    before = {p.name: p.read_bytes() for p in user.iterdir() if p.is_file()}
+    many = CliRunner().invoke(linuxcnc, ["config", str(tmp_path / "x"), "--from", str(user)])
+    assert many.exit_code == 1 and "QtPlasmaC INI files" in many.output and "--ini" in many.output
+    r = CliRunner().invoke(linuxcnc, ["config", str(tmp_path / "my_plasma_distctrl"), "--from", str(user),
+                                      "--ini", "qtplasmac_p_metric.ini", "--json"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert not doc["sim_torch"] and doc["ini"].endswith("my_plasma_distctrl/qtplasmac_p_metric.ini")
+    out = tmp_path / "my_plasma_distctrl"
+    assert "distctrl_simtorch" not in (out / HAL_FILE).read_text()
+    assert "simtorch" not in (out / POSTGUI_FILE).read_text()
+    assert "distctrl_thc.hal" in (out / "qtplasmac_metric_ini.inc").read_text()
+    assert {p.name: p.read_bytes() for p in user.iterdir() if p.is_file()} == before
 
 
 def _cut_in_linuxcnc(tmp_path_factory, name: str, thc: str = "distctrl", **drive) -> tuple[dict, list[dict]]:
