@@ -183,16 +183,18 @@ class HalSession:
 
     It never touches a HAL it did not start (docs/linuxcnc.md "What you need"): after taking the
     machine-wide lock (saying that it waits, for what and how long), it refuses with one line while
-    LinuxCNC or another HAL runs (:func:`hal_processes`). Its own rtapi_app (pid and start time) is
+    LinuxCNC or another HAL runs (:func:`hal_processes`), after ``foreign_grace`` s (a HAL whose session
+    has just released the lock may still be exiting). Its own rtapi_app (pid and start time) is
     written to ``session.json`` beside the lock; on exit it unloads the HAL (``halrun -U``) only if
     that rtapi_app is the one running. A leftover of its own killed run (the recorded rtapi_app, still
     running, its recording process gone) is unloaded at the next start, and said so."""
 
-    def __init__(self, lock_timeout: float = 600.0, notify=None):
+    def __init__(self, lock_timeout: float = 600.0, notify=None, foreign_grace: float = 15.0):
         require_linuxcnc()
         self.env = hal_environment()
         self.lock_timeout = lock_timeout
         self.notify = notify or _stderr
+        self.foreign_grace = foreign_grace
         self._lock = None
         self._locked = False
         self._rtapi: tuple[int, int] | None = None     # our rtapi_app: (pid, start time)
@@ -236,14 +238,16 @@ class HalSession:
 
     def _refuse_foreign_hal(self) -> None:
         running = hal_processes()
+        t0 = time.monotonic()
+        # a HAL whose session has just ended (its lock released) may take seconds to exit: wait for it
+        # (foreign_grace), then refuse what still runs
+        while running and time.monotonic() - t0 < self.foreign_grace and not self._leftover_of_ours(running):
+            time.sleep(0.2)
+            running = hal_processes()
         if not running:
             return
-        record = self._read_record()
         rtapi = [pid for pid, name in running if name == "rtapi_app"]
-        others = [(pid, name) for pid, name in running if name != "rtapi_app"]
-        if (not others and record is not None and len(rtapi) == 1 and rtapi[0] == record.get("rtapi_pid")
-                and _proc_starttime(rtapi[0]) == record.get("rtapi_start")
-                and _proc_starttime(int(record.get("owner_pid", 0))) != record.get("owner_start")):
+        if self._leftover_of_ours(running):
             self.notify(f"unloading the HAL a killed distctrl session left behind (rtapi_app pid {rtapi[0]}, "
                         f"recorded in {self._record_path()})")
             self._unload(rtapi[0])
@@ -252,6 +256,15 @@ class HalSession:
         what = ", ".join(f"{name} (pid {pid})" for pid, name in running)
         raise LinuxCNCError(f"a HAL that distctrl did not start is running: {what}; distctrl never stops or "
                             "unloads it: quit LinuxCNC (or halrun) first, or run this on another PC")
+
+    def _leftover_of_ours(self, running: list[tuple[int, str]]) -> bool:
+        """Only a recorded rtapi_app of ours (pid and start time), its recording process gone, runs."""
+        record = self._read_record()
+        rtapi = [pid for pid, name in running if name == "rtapi_app"]
+        return (len(running) == 1 and record is not None and len(rtapi) == 1
+                and rtapi[0] == record.get("rtapi_pid")
+                and _proc_starttime(rtapi[0]) == record.get("rtapi_start")
+                and _proc_starttime(int(record.get("owner_pid", 0))) != record.get("owner_start"))
 
     def _read_record(self) -> dict | None:
         try:

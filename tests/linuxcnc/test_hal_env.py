@@ -106,7 +106,7 @@ def test_the_bench_refuses_a_hal_it_did_not_start_and_leaves_it_running(private_
         try:
             assert _halcmd("loadrt", "and2", "names=not-distctrls-and").returncode == 0
             with pytest.raises(LinuxCNCError) as err:
-                with HalSession(lock_timeout=5.0):
+                with HalSession(lock_timeout=5.0, foreign_grace=1.0):
                     pass
             msg = str(err.value)
             assert "\n" not in msg and "did not start" in msg
@@ -127,7 +127,7 @@ def test_a_running_linuxcnc_is_refused_by_name_and_pid(private_run_dir, tmp_path
             time.sleep(0.05)
         refused = rf"milltask \(pid {proc.pid}\).*quit LinuxCNC"
         with _machine_lock(), pytest.raises(LinuxCNCError, match=refused):
-            with HalSession(lock_timeout=5.0):
+            with HalSession(lock_timeout=5.0, foreign_grace=1.0):
                 pass
     finally:
         proc.kill()
@@ -146,7 +146,7 @@ def test_a_leftover_of_its_own_killed_session_is_unloaded_and_said(private_run_d
             (private_run_dir / "session.json").write_text(json.dumps({
                 "rtapi_pid": rtapi[0], "rtapi_start": hal_env._proc_starttime(rtapi[0]),
                 "owner_pid": 2 ** 22 + 7, "owner_start": 1}))          # a recorder that no longer runs
-            with HalSession(lock_timeout=5.0, notify=said.append) as hs:
+            with HalSession(lock_timeout=5.0, notify=said.append, foreign_grace=1.0) as hs:
                 assert "left-behind" not in hs.cmd("show pin")
                 hs.cmd("loadrt and2 names=ours")
             assert any("killed distctrl session left behind" in s and str(rtapi[0]) in s for s in said)
