@@ -147,6 +147,18 @@ def test_a_command_without_its_extra_says_which_to_install():
     assert "Traceback" not in r.stderr and "pip install 'distctrl[sim]'" in r.stderr and "control" in r.stderr
 
 
+def test_the_hal_components_and_lists_are_package_data():
+    """Every file in distctrl/linuxcnc/hal/ (the components `linuxcnc build` compiles, the Z list
+    `linuxcnc config` starts from) matches a package-data pattern: a wheel without them cannot build."""
+    from fnmatch import fnmatch
+
+    root = Path(__file__).resolve().parents[1] / "distctrl" / "linuxcnc"
+    patterns = PYPROJECT["tool"]["setuptools"]["package-data"].get("distctrl.linuxcnc", [])
+    files = sorted(p.relative_to(root).as_posix() for p in (root / "hal").iterdir() if p.is_file())
+    assert files, "no HAL files found"
+    assert [f for f in files if not any(fnmatch(f, pat) for pat in patterns)] == []
+
+
 def test_the_workbench_templates_are_package_data():
     """Every file in distctrl/workbench/templates/ matches a package-data pattern (else a wheel ships
     without them and every report fails with TemplateNotFound)."""
