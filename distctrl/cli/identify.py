@@ -8,7 +8,7 @@ import warnings
 
 import click
 
-from ..errors import DistCtrlError
+from ..errors import DistCtrlError, ExitCode
 from ..workbench.identify import (IdentifyError, format_summary, identify, load_signals,
                                   write_report, write_scenario)
 from .common import COORDINATE, Finite, emit_json, fail, output_error_text
@@ -74,7 +74,8 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
     figure the recordings cannot determine is '-' (null) with a warning saying what to record.
     --out DIR writes DIR/fitted.toml for distctrl run/tune/step/margins and DIR/report.html.
     Exit code 1 with a message for missing files or columns, too short recordings, too poor
-    excitation or a non-uniform time base.
+    excitation, a non-uniform time base or a trace recorded with distance control on; exit code 4
+    (nothing written) when the sensor is not explained by the motor (the open-loop check).
     """
 
     try:
@@ -93,7 +94,10 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
             res = identify(sigs[:n], sensor_sign=sign, surface=surface, calibrated_at=calibrated_at,
                            validate=sigs[n:])
         scenario = report = None
-        if out_dir is not None:
+        open_loop = res.extra.get("open_loop", {}).get("passed", True)
+        if out_dir is not None and not open_loop:
+            res.warnings.append(f"--out {out_dir}: nothing written: the recordings failed the open-loop check")
+        elif out_dir is not None:
             path, notes = write_scenario(res, out_dir, template=template, axis=axis)
             res.warnings.extend(notes)
             scenario = str(path)
@@ -104,10 +108,12 @@ def identify_cmd(recordings, time_col, command_col, actual_col, sensor_col, time
         fail(output_error_text(exc, getattr(exc, "filename", None) or out_dir, "output"))
     if as_json:
         emit_json(res.to_dict(scenario=scenario, report=report))
-        return
-    for w in res.warnings:
-        click.echo(f"warning: {w}", err=True)
-    click.echo(format_summary(res), nl=False)
-    if scenario:
-        click.echo(f"scenario: {scenario}")
-        click.echo(f"report: {report}")
+    else:
+        for w in res.warnings:
+            click.echo(f"warning: {w}", err=True)
+        click.echo(format_summary(res), nl=False)
+        if scenario:
+            click.echo(f"scenario: {scenario}")
+            click.echo(f"report: {report}")
+    if not open_loop:
+        raise SystemExit(int(ExitCode.CHECK_FAILED))

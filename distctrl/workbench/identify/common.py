@@ -27,6 +27,7 @@ RECORD_CHIRP = ("a chirp of the set position 1-150 Hz, 0.02-0.05 mm amplitude, 2
 RECORD_RAMP = ("a slow ramp of the set position (0.2-0.5 mm/s) over the sensor's range, with the "
                "sensor over a flat sheet")
 RECORD_STANDSTILL = "1 s or more at standstill above the sheet"
+RECORD_OPEN_LOOP = "record with distance control off, above a flat sheet"
 
 #: the identified figures, the keys of ``drive`` and ``sensor`` (issue 15 pins them)
 DRIVE_KEYS = ("kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping")

@@ -21,8 +21,8 @@ QS_ACCELERATION = 20.0
 CHAR_BIN = 0.25
 #: Welch segment length (samples) of the frequency response
 NPERSEG = 2048
-from .common import (DRIVE_KEYS, RECORD_CHIRP, RECORD_RAMP, RECORD_STANDSTILL, RECORD_STEPS, SENSOR_KEYS, IdentifyError,
-                     IdentifyWarning, _mode)
+from .common import (DRIVE_KEYS, RECORD_CHIRP, RECORD_OPEN_LOOP, RECORD_RAMP, RECORD_STANDSTILL, RECORD_STEPS,
+                     SENSOR_KEYS, IdentifyError, IdentifyWarning, _mode)
 from .nozzle import _paths, fit_sensor_path, nozzle_delayed
 from .recordings import Signals
 from .result import Identification
@@ -37,6 +37,9 @@ class _Rec:
     S: np.ndarray          # command (mm)
     Y: np.ndarray          # sensor, sign-corrected (mm, grows with the distance)
     t: np.ndarray
+    #: per cycle k (the motion X[k] -> X[k+1]): the drive at a plateau of its velocity or acceleration
+    #: (:func:`_plateaus`), None: not looked at
+    limited: np.ndarray | None = None
 
 
 def _warn(res_warnings: list[str], text: str) -> None:
@@ -58,17 +61,21 @@ def _delayed(x: np.ndarray, shift: float) -> np.ndarray:
     return np.interp(idx, np.arange(x.size, dtype=float), x)
 
 
-def _drive_rows(recs: Sequence[_Rec], theta: float, T: float):
-    """Regressor z = c(theta) - X, response dX and the previous dX of every recording, concatenated."""
+def _drive_rows(recs: Sequence[_Rec], theta: float, T: float, free: bool = False):
+    """Regressor z = c(theta) - X, response dX and the previous dX of every recording, concatenated.
+    ``free``: only the cycles where the drive is at none of its limits (the linear loop's samples)."""
     zs, ys, ps = [], [], []
     skip = int(math.ceil(MAX_DELAY / T)) + 2
     for r in recs:
         c = _delayed(r.S, theta / T)
         dX = np.diff(r.X)
         z = (c - r.X)[:-1]
-        zs.append(z[skip:])
-        ys.append(dX[skip:])
-        ps.append(dX[skip - 1:-1])
+        keep = slice(skip, None)
+        if free and r.limited is not None:
+            keep = np.flatnonzero(~r.limited[skip:]) + skip
+        zs.append(z[keep])
+        ys.append(dX[keep])
+        ps.append(dX[:-1][np.asarray(keep) - 1] if free and r.limited is not None else dX[skip - 1:-1])
     return np.concatenate(zs), np.concatenate(ys), np.concatenate(ps)
 
 
@@ -92,7 +99,7 @@ def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> t
 
 def _recording_scale(recs, theta: float, T: float) -> float:
     """The largest median |residual| of the one-step equation over the recordings that move (inf: none)."""
-    meds = [_robust_alpha(*_drive_rows([r], theta, T)[:2])[2] for r in recs]
+    meds = [_robust_alpha(*_drive_rows([r], theta, T, free=True)[:2])[2] for r in recs]
     meds = [m for m in meds if math.isfinite(m)]
     return max(meds) if meds else math.inf
 
@@ -113,6 +120,182 @@ def _limits(recs, T: float, alpha: float, theta: float, scale: float):
     return v_max, a_max, int(sat_v.sum()), int(sat_a.sum())
 
 
+#: a plateau lasts at least this many cycles (velocity; acceleration)
+PLATEAU_V_CYCLES = 5
+PLATEAU_A_CYCLES = 4
+
+
+def _runs(mask: np.ndarray):
+    """(start, stop) of the runs of True in ``mask``."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))
+
+
+def _follows(S: np.ndarray, a: int, b: int, per_cycle: float, max_shift: int, order: int) -> bool:
+    """Whether the command, shifted by any dead time up to ``max_shift`` cycles, moved over the cycles
+    a..b as the motor did: its median velocity (``order`` 1) or acceleration (2) per cycle within 30 % of
+    the motor's (``per_cycle``, mm per cycle or per cycle squared). Then the motor followed the command,
+    whatever its shape (an NC's ramp or acceleration), and was not at a limit of its own; a raw jump
+    (one cycle) does not move the median."""
+    dS = np.diff(S, order)
+    for d in range(0, max_shift + 1):
+        a0, b0 = a - d, b - d
+        if a0 < 0:
+            break
+        if abs(float(np.median(dS[a0:b0])) - per_cycle) <= 0.3 * abs(per_cycle):
+            return True
+    return False
+
+
+def _velocity_noise(X: np.ndarray, T: float) -> float:
+    """The velocity's noise per cycle (mm/s): the robust scale of its cycle-to-cycle change, at least one
+    encoder increment per cycle (an encoder's grid: the smallest step seen)."""
+    d = np.diff(X)
+    nz = np.abs(d[np.abs(d) > 1e-12])
+    q = float(nz.min()) if nz.size else 0.0
+    dv = np.diff(d) / T
+    return max(1.4826 * float(np.median(np.abs(dv))) if dv.size else 0.0, q / T, 1e-9)
+
+
+def _line(v: np.ndarray, T: float) -> tuple[float, float]:
+    """Slope (per second) of a straight line through v and the RMS of the residual."""
+    k = np.arange(v.size) * T
+    p = np.polyfit(k, v, 1)
+    return float(p[0]), float(np.sqrt(np.mean((v - np.polyval(p, k)) ** 2)))
+
+
+def _plateaus(r: _Rec, T: float) -> tuple[np.ndarray, np.ndarray, list, list]:
+    """Cycles at which the drive is at its velocity or its acceleration limit, seen in the actual position
+    itself, whatever the command did (per cycle k: the motion X[k] -> X[k+1]): the masks, the velocity
+    runs (start, stop) and the acceleration runs (start, stop, slope mm/s^2, speeding up).
+
+    * velocity plateau: at least PLATEAU_V_CYCLES cycles at one velocity (within 2 % and the noise)
+      while the command does not move along (the position changes otherwise than the command's, at
+      any dead time): a P loop's velocity follows its following error, so a constant velocity with a
+      changing error is a limit;
+    * acceleration plateau: the speed rising along a straight line for at least PLATEAU_A_CYCLES
+      cycles while the command's velocity does not change so (a P loop's speed falls once its command
+      stands: rising for cycles is a limit); a fall along a straight line at that slope (within 15 %)
+      is the same limit braking."""
+    X, S = r.X, r.S
+    v = np.diff(X) / T
+    vmask = np.zeros(v.size, bool)
+    amask = np.zeros(v.size, bool)
+    runs_a: list = []
+    runs_v: list = []
+    if v.size < 20:
+        return vmask, amask, runs_v, runs_a
+    nv = _velocity_noise(X, T)
+    shift = int(math.ceil(MAX_DELAY / T))
+    dv = np.diff(v)
+    fast = np.abs(v) > 20.0 * nv
+    steady = np.zeros(v.size, bool)
+    steady[1:] = np.abs(dv) <= 0.01 * np.abs(v[1:]) + 3.0 * nv
+    for a, b in _runs(fast & steady):
+        if b - a < PLATEAU_V_CYCLES:
+            continue
+        # the run may start with a slow acceleration (below the steady threshold): its top speeds
+        sgn = 1.0 if float(np.median(v[a:b])) > 0 else -1.0
+        med = sgn * float(np.percentile(sgn * v[a:b], 75))
+        at = np.abs(v[a:b] - med) <= 0.02 * abs(med) + 1.5 * nv
+        if int(at.sum()) < PLATEAU_V_CYCLES:
+            continue
+        va = v[a:b][at]
+        if abs(float(np.mean(va[-3:]) - np.mean(va[:3]))) > 0.02 * abs(med) + 2.0 * nv:
+            continue                                    # drifting: a P loop's slow decay, not a plateau
+        if not _follows(S, a, b, med * T, shift, 1):
+            vmask[a:b] |= at
+            runs_v.append((a, b))
+    w = 5
+    vs = np.convolve(v, np.ones(w) / w, mode="same")
+    thr = 2.0 * nv / w
+    dvs = np.zeros(v.size)
+    dvs[1:] = np.diff(vs)
+    speeding = (np.sign(vs) * dvs > thr) & (np.abs(vs) > thr)
+    slowing = (np.sign(vs) * dvs < -thr) & (np.abs(vs) > thr)
+    edge = w // 2 + 1
+    found = []
+    for mask, rising in ((speeding, True), (slowing, False)):
+        for a, b in _runs(mask):
+            a, b = a + edge, b - edge
+            if b - a < PLATEAU_A_CYCLES:
+                continue
+            slope, rms = _line(v[a:b], T)
+            dV = v[b - 1] - v[a]
+            if abs(dV) < 10.0 * nv or rms > 0.02 * abs(dV) + nv:
+                continue                                    # not a straight line: a P loop's exponential
+            if abs(dV) < 0.6 * float(np.max(np.abs(v[a:b]))):
+                continue                                    # ... over a short range looks straight
+            if _follows(S, a, b, slope * T * T, shift, 2):
+                continue
+            found.append((rising, a, b, abs(slope)))
+    up = [f for f in found if f[0]]
+    if up:
+        a_up = float(np.median([f[3] for f in up]))
+        for rising, a, b, slope in found:
+            if rising or abs(slope / a_up - 1.0) <= 0.15:
+                amask[a:b] = True
+                runs_a.append((a, b, slope, rising))
+    return vmask, amask, runs_v, runs_a
+
+
+def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return float(values[order][min(int(np.searchsorted(cum, q * cum[-1])), values.size - 1)])
+
+
+def _plateau_limits(recs, T: float, res: Identification, alpha: float | None = None, theta: float = 0.0):
+    """v_max and a_max from the plateaus of the actual positions (:func:`_plateaus`; None where none).
+
+    Without ``alpha`` (the loop not fitted yet): the recordings' ``limited`` masks are set (a plateau
+    and the cycle on either side), to keep the plateaus out of kv's fit. With the loop's ``alpha`` and
+    dead time ``theta``: only the plateaus where the loop demands what the drive does not do count (a
+    velocity or a speeding up 30 % below the loop's demand, a braking 30 % above it): the motion of a P
+    loop smoothing an NC's short move can look like an acceleration plateau, but it is what the loop
+    asks for."""
+    vs, runs = [], []
+    for r in recs:
+        vmask, amask, runs_v, runs_a = _plateaus(r, T)
+        v = np.diff(r.X) / T
+        if alpha is None:
+            lim = vmask | amask
+            lim[1:] |= lim[:-1].copy()
+            lim[:-1] |= lim[1:].copy()
+            r.limited = lim
+            demand = None
+        else:
+            demand = alpha * (_delayed(r.S, theta / T) - r.X)[:-1] / T
+        for a, b in runs_v:
+            m = vmask[a:b]
+            if demand is None or np.median(np.abs(demand[a:b][m]) - 1.15 * np.abs(v[a:b][m])) > 0:
+                vs.append(np.abs(v[a:b][m]))
+        for a, b, slope, rising in runs_a:
+            if demand is not None:
+                ratio = float(np.median(demand[a:b] / np.where(v[a:b] == 0, np.nan, v[a:b])))
+                if not (ratio > 1.3 if rising else ratio < 0.7):
+                    continue
+            runs.append((abs(slope), b - a))
+    v_all = np.concatenate(vs) if vs else np.zeros(0)
+    n_a = sum(n for _, n in runs)
+    res.extra["drive_plateau_cycles_velocity"] = int(v_all.size)
+    res.extra["drive_plateau_cycles_acceleration"] = int(n_a)
+    v_max = float(np.median(v_all)) if v_all.size >= PLATEAU_V_CYCLES else None
+    a_max = None
+    if runs:
+        # the limit is the largest acceleration the drive holds: the runs near the top (from half the
+        # 90th percentile), their slopes' median weighted by their lengths
+        sl = np.array([s_ for s_, _ in runs])
+        wt = np.array([n for _, n in runs], float)
+        keep = sl >= 0.5 * _weighted_quantile(sl, wt, 0.9)
+        a_max = _weighted_quantile(sl[keep], wt[keep], 0.5)
+    return v_max, a_max
+
+
+#: a raw set-position step: the command's second difference above this (mm)
+RAW_JUMP_MM = 0.1
+#: the dead time is determined when the cost 2-3 ms away rises by this much (squared noise scales) or 5 %
+DEAD_TIME_COST_RISE = 100.0
 #: a command transient moves the drive's following error by at least this much (mm) ...
 TRANSIENT_MIN_MM = 0.02
 #: ... and by this many times the one-step equation's noise scale
@@ -168,6 +351,10 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
     moving = sum(float(np.ptp(r.S)) for r in recs)
     if moving <= 0.0:
         return out
+    # the drive's plateaus in the actual positions: its limits where the data show them, and the cycles
+    # the linear loop does not explain (left out of kv and the noise scale: a recording of large steps
+    # spends most of its moving cycles at v_max)
+    v_pl, a_pl = _plateau_limits(recs, T, res)
     # pass 1: least median of the residual over the moving samples, on a grid of dead times
     coarse = np.arange(0.0, MAX_DELAY + 1e-12, T)
     # the noise scale is the largest of the recordings' own: a noise-free recording (a slow ramp of a
@@ -179,41 +366,65 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         return out
     scale = max(1.4826 * float(np.min(med)), 1e-7)
     res.extra["drive_equation_scale_mm"] = scale
-    # pass 2: the linear loop's truncated quadratic cost: a first dead time, and the limits there
-    costs = np.array([_robust_alpha(*_drive_rows(recs, th, T)[:2], scale)[1] for th in coarse])
-    theta = float(coarse[int(np.argmin(costs))])
-    alpha = _robust_alpha(*_drive_rows(recs, theta, T)[:2], scale)[0]
-    grid = np.arange(0.0, MAX_DELAY + 1e-12, 0.25 * T)
-    v_max, a_max, _, _ = _limits(recs, T, alpha, theta, scale)
-    # pass 3: with the limits in the one-step prediction (an acceleration-limited start no longer
-    # looks like a longer dead time), on the grid near the first dead time, then refined; the
-    # smallest of equal costs (the per-cycle velocity of the model cannot tell a continuous start
-    # within the cycle: the cost can be flat over a cycle)
-    for _ in range(2):
-        win = grid[np.abs(grid - theta) <= 8 * T + 1e-12]
-        costs_w = np.array([_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in win])
-        i = int(np.flatnonzero(costs_w <= costs_w.min() * (1 + 1e-9))[0])
-        theta = float(win[i])
-        lo, hi = win[max(i - 1, 0)], win[min(i + 1, win.size - 1)]
-        if hi > lo:
-            opt = minimize_scalar(lambda th: _limited_cost(recs, T, th, scale, alpha, v_max, a_max),
-                                  bounds=(lo, hi), method="bounded", options={"xatol": 0.005 * T})
-            if opt.fun < costs_w[i] * (1 - 1e-9):
-                theta = float(opt.x)
-        alpha = _robust_alpha(*_drive_rows(recs, theta, T)[:2], scale)[0]
-        best = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
-        v_max, a_max, n_v, n_a = _limits(recs, T, alpha, theta, scale)
-    # identifiability of the dead time: the cost must rise 2-3 ms away from the optimum (a ramp
-    # alone trades dead time against kv; steps or a chirp separate them)
-    near = [_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in (theta - 0.003, theta - 0.002,
-                                                                               theta + 0.002, theta + 0.003)
-            if 0.0 <= th <= MAX_DELAY]
-    sharp = bool(near) and min(near) > 1.05 * best
-    # and command transients well above the encoder's noise (a ramp's kink is not enough)
-    jumps = _command_transients(recs, alpha, scale)
-    res.extra["drive_command_transients"] = jumps
-    sharp = sharp and jumps >= 3
+    def search(scale: float):
+        v_pl_, a_pl_ = v_pl, a_pl
+        # pass 2: the linear loop's truncated quadratic cost: a first dead time, and the limits there
+        costs = np.array([_robust_alpha(*_drive_rows(recs, th, T, free=True)[:2], scale)[1] for th in coarse])
+        theta = float(coarse[int(np.argmin(costs))])
+        alpha = _robust_alpha(*_drive_rows(recs, theta, T, free=True)[:2], scale)[0]
+        grid = np.arange(0.0, MAX_DELAY + 1e-12, 0.25 * T)
+        v_max, a_max, _, _ = _limits(recs, T, alpha, theta, scale)
+        if 0.0 < alpha < 1.0:                  # the plateaus where the loop demands more than the drive does
+            v_pl_, a_pl_ = _plateau_limits(recs, T, res, alpha, theta)
+        v_max, a_max = v_pl_ or v_max, a_pl_ or a_max
+        # pass 3: with the limits in the one-step prediction (an acceleration-limited start no longer
+        # looks like a longer dead time), on the grid near the first dead time, then refined; the
+        # smallest of equal costs (the per-cycle velocity of the model cannot tell a continuous start
+        # within the cycle: the cost can be flat over a cycle)
+        for _ in range(2):
+            win = grid[np.abs(grid - theta) <= 8 * T + 1e-12]
+            costs_w = np.array([_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in win])
+            i = int(np.flatnonzero(costs_w <= costs_w.min() * (1 + 1e-9))[0])
+            theta = float(win[i])
+            lo, hi = win[max(i - 1, 0)], win[min(i + 1, win.size - 1)]
+            if hi > lo:
+                opt = minimize_scalar(lambda th: _limited_cost(recs, T, th, scale, alpha, v_max, a_max),
+                                      bounds=(lo, hi), method="bounded", options={"xatol": 0.005 * T})
+                if opt.fun < costs_w[i] * (1 - 1e-9):
+                    theta = float(opt.x)
+            alpha = _robust_alpha(*_drive_rows(recs, theta, T, free=True)[:2], scale)[0]
+            best = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
+            v_max, a_max, n_v, n_a = _limits(recs, T, alpha, theta, scale)
+            if 0.0 < alpha < 1.0:
+                v_pl_, a_pl_ = _plateau_limits(recs, T, res, alpha, theta)
+            v_max, a_max = v_pl_ or v_max, a_pl_ or a_max
+        # identifiability of the dead time: the cost must rise 2-3 ms away from the optimum (a ramp
+        # alone trades dead time against kv; steps or a chirp separate them)
+        near = [_limited_cost(recs, T, th, scale, alpha, v_max, a_max)
+                for th in (theta - 0.003, theta - 0.002, theta + 0.002, theta + 0.003) if 0.0 <= th <= MAX_DELAY]
+        # (by 5 %, or by DEAD_TIME_COST_RISE in the cost's units of squared noise scales: a long recording of
+        # few raw steps, most of its cycles at standstill or at the limits, carries the dead time in the few
+        # cycles after each jump)
+        sharp = bool(near) and (min(near) > 1.05 * best or min(near) - best > DEAD_TIME_COST_RISE)
+        # and command transients well above the encoder's noise (a ramp's kink is not enough)
+        jumps = _command_transients(recs, alpha, scale)
+        res.extra["drive_command_transients"] = jumps
+        sharp = sharp and jumps >= 3
+        return theta, alpha, v_max, a_max, n_v, n_a, best, near, jumps, sharp
+
+    # a recording whose moving cycles the model explains to the encoder's grid (a noise-free encoder, few
+    # raw steps) makes every cycle after a jump an outlier at every dead time: the cost is flat there.
+    # Then, when the command has raw jumps (RAW_JUMP_MM within a cycle; not a ramp, not an NC's move),
+    # the band is widened (10x, 100x the scale) until the cost shows the dead time, if it does.
+    raw_jumps = sum(int(np.count_nonzero(np.abs(np.diff(r.S, 2)) > RAW_JUMP_MM)) for r in recs)
+    for widen in (1.0, 10.0, 100.0):
+        theta, alpha, v_max, a_max, n_v, n_a, best, near, jumps, sharp = search(scale * widen)
+        if sharp or not (0.0 < alpha < 1.0) or jumps < 3 or raw_jumps < 3:
+            break
+    scale *= widen
+    res.extra["drive_equation_scale_mm"] = scale
     res.extra["drive_dead_time_cost_ratio"] = (min(near) / best) if near and best > 0 else None
+    res.extra["drive_dead_time_cost_rise"] = (min(near) - best) if near else None
     if not (0.0 < alpha < 1.0) or not sharp:
         _warn(res.warnings, "kv and dead time: not identifiable from these recordings (the command has no "
                             "transients that separate them: a slow ramp trades kv against the dead time); "
@@ -266,7 +477,7 @@ def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float,
     for r in recs:
         if _command_transients([r], alpha, scale) < 3:
             continue
-        a_r = _robust_alpha(*_drive_rows([r], theta, T)[:2], scale)[0]
+        a_r = _robust_alpha(*_drive_rows([r], theta, T, free=True)[:2], scale)[0]
         if not 0.0 < a_r < 1.0:
             continue
         kvs.append(-math.log1p(-a_r) / T)
@@ -318,10 +529,11 @@ def _segment_kv_spread(recs, T: float, theta: float, scale: float, alpha: float)
     for r in recs:
         for i0 in range(0, r.X.size - n_seg + 1, n_seg):
             sl = slice(i0, i0 + n_seg)
-            sub = _Rec(sig=r.sig, X=r.X[sl], S=r.S[sl], Y=r.Y[sl], t=r.t[sl])
+            sub = _Rec(sig=r.sig, X=r.X[sl], S=r.S[sl], Y=r.Y[sl], t=r.t[sl],
+                       limited=None if r.limited is None else r.limited[i0:i0 + n_seg - 1])
             if _command_transients([sub], alpha, scale) < 3:
                 continue
-            a_r = _robust_alpha(*_drive_rows([sub], theta, T)[:2], scale)[0]
+            a_r = _robust_alpha(*_drive_rows([sub], theta, T, free=True)[:2], scale)[0]
             if 0.0 < a_r < 1.0:
                 kvs.append(-math.log1p(-a_r) / T)
     if len(kvs) < 3:
@@ -664,6 +876,11 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
         if abs(s.cycle_time - T) > 0.01 * T:
             raise IdentifyError(f"{s.path}: cycle {s.cycle_time * 1e3:.6g} ms, {signals[0].path}: {T * 1e3:.6g} ms; "
                                 "record every file at the same (interpolation) cycle")
+    for s in list(signals) + list(validate):
+        if s.closed_loop_cycles:
+            raise IdentifyError(f"{s.path}: distance control was closing the loop in {s.closed_loop_cycles} of "
+                                f"{s.t.size} cycles ({s.state_column} ACTIVE): identify needs the loop open (the "
+                                f"command must not follow the sensor); {RECORD_OPEN_LOOP} (docs/identify.md)")
     moving = [s for s in signals if np.ptp(s.command) > 0.0]
     if not moving:
         raise IdentifyError("excitation too poor: the command does not move in any recording; record "
@@ -711,6 +928,7 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
                       "quasi_static_samples": ch.get("quasi_static_samples"), "settle_s": settle,
                       "noise_samples": ch.get("noise_samples")})
     _fit_quality(recs, T, res, fr, ch)
+    _open_loop_check(res)
     if validate:
         for v in validate:
             if abs(v.cycle_time - T) > 0.01 * T:
@@ -725,6 +943,41 @@ def identify(signals: Sequence[Signals], *, sensor_sign: float | None = None, su
     res.curves["frf_fit"] = fr
     res.curves["char_points"] = ch.get("points_motor")
     return res
+
+
+#: what the sensor path's model leaves over is noise when its lag-1 autocorrelation is below this (white
+#: noise and a quantised reading: about 0; a closed loop or an uneven sheet: 0.95-1)
+OPEN_LOOP_LAG1_MAX = 0.8
+#: the figures of the path motor -> sensor, withheld when the recordings fail the open-loop check
+SENSOR_PATH_FIGURES = (("drive", "resonance_hz"), ("drive", "damping"), ("sensor", "delay"),
+                       ("sensor", "noise_std"), ("sensor", "characteristic"))
+
+
+def _open_loop_check(res: Identification) -> None:
+    """The sensor must see the nozzle's motion over a flat sheet and nothing else: what the complete model
+    of the path leaves over is then noise, white. A slow residual (lag-1 autocorrelation above
+    OPEN_LOOP_LAG1_MAX) is a signal the motor does not explain: the command following the sensor
+    (distance control on) or an uneven sheet. Then the sensor path's figures are not what they claim
+    (a noise of 867 um for a 1 um sensor, audit M5): they are withheld (null) with a warning first in the
+    list, and ``extra["open_loop"]`` says so (the command line exits 4); the drive's figures (command ->
+    motor) stand."""
+    lag1 = (res.extra.get("sensor_path") or {}).get("residual_lag1")
+    ok = lag1 is None or lag1 <= OPEN_LOOP_LAG1_MAX
+    res.extra["open_loop"] = {"passed": ok, "residual_lag1": lag1, "lag1_max": OPEN_LOOP_LAG1_MAX}
+    if ok:
+        return
+    rms = res.fit.get("sensor_path_rms_mm")
+    text = (f"open-loop check failed: the sensor is not explained by the motor's motion: what the model leaves "
+            f"over is a slow signal (lag-1 autocorrelation {lag1:.2f}, allowed <= {OPEN_LOOP_LAG1_MAX:g}"
+            + (f"; RMS {rms * 1e3:.3g} um" if rms else "") + "), not noise: distance control on (the command "
+            "follows the sensor), an uneven sheet, or a motion of the nozzle the model did not find (a low "
+            "resonance); resonance, damping, sensor delay, noise and characteristic are withheld (null); "
+            f"{RECORD_OPEN_LOOP}, and {RECORD_CHIRP}")
+    for group, key in SENSOR_PATH_FIGURES:
+        getattr(res, group)[key] = None
+        (res.uncertainty.get(group) or {}).pop(key, None)
+    res.warnings.insert(0, text)
+    warnings.warn(text, IdentifyWarning, stacklevel=3)
 
 
 #: the sensor delay is reported when its standard deviation is below this (s)
@@ -743,6 +996,7 @@ def _sensor_path(recs, T: float, res: Identification, fr: dict, frf_warnings: li
     tp = fit_sensor_path(recs, T, f_hint=fr.get("resonance_hz"))
     sd = tp["sd"]
     res.extra["sensor_path"] = {"likelihood_ratio_resonant_vs_rigid": tp["lr"], "candidate": tp.get("candidate"),
+                                "residual_lag1": tp.get("residual_lag1"),
                                 "samples": tp["n"], "sensor_quantum_mm": tp["quantum"] or None}
     band = fr.get("band_hz")
     if tp["resonance_hz"] is None:

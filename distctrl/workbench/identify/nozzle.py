@@ -199,6 +199,14 @@ def _quantum(Y: np.ndarray) -> float:
     return q
 
 
+def residual_lag1(r: np.ndarray) -> float | None:
+    """The lag-1 autocorrelation of what the model leaves over: about 0 for noise (white, also a
+    quantised reading's), near 1 for a slow signal the model does not explain."""
+    r = np.asarray(r, float) - float(np.mean(r))
+    den = float(np.dot(r, r))
+    return float(np.dot(r[1:], r[:-1]) / den) if den > 0 and r.size > 2 else None
+
+
 def fit_sensor_path(recs, T: float, f_hint: float | None = None) -> dict:
     """Resonance, damping, sensor delay, noise and their uncertainties from the motor -> sensor path.
 
@@ -309,7 +317,7 @@ def fit_sensor_path(recs, T: float, f_hint: float | None = None) -> dict:
     except np.linalg.LinAlgError:
         sd["characteristic"] = None
     out.update(resonance_hz=f0, damping=zeta, delay=max(tau, 0.0), noise_std=noise, gain=g, lr=lr,
-               quantum=q, rss=float(np.dot(r, r)))
+               quantum=q, rss=float(np.dot(r, r)), residual_lag1=residual_lag1(r))
     sd["noise_std"] = noise / math.sqrt(2.0 * N)
     out["sd"] = sd
     return out

@@ -31,6 +31,10 @@ class Signals:
     columns: tuple[str, str, str]
     source: str
     actual_at: str
+    #: a distctrl trace's ``<axis>.dc.state`` column (None: the recording has none) and the cycles in
+    #: which distance control was closing the loop in it (ACTIVE, TURNING_OFF, ACTIVE_CONST_DIST)
+    state_column: str | None = None
+    closed_loop_cycles: int = 0
 
     @property
     def duration(self) -> float:
@@ -203,6 +207,7 @@ def load_signals(path: str | os.PathLike, *, time: str | None = None, command: s
         ti = _col_index(p, cols, time, "time")
         raw = {k: trace.data[:, i] for k, i in idx.items()}
         raw_t = trace.data[:, ti]
+        state_column, closed = _closed_loop_cycles(cols, trace.data, command)
         if tf is None:
             tf = _unit_factor(p, f"time column {time!r} has a", trace.unit(time) or "s", _TIME_UNITS)
         units = {k: trace.unit(v) for k, v in wanted.items()}
@@ -213,6 +218,7 @@ def load_signals(path: str | os.PathLike, *, time: str | None = None, command: s
             sf = _unit_factor(p, f"column {sensor!r} has a", units["sensor"], _VALUE_UNITS, mm_per_increment)
         first_line = 2
     else:
+        state_column, closed = None, 0
         text = _read_text(p)
         if not text.strip():
             raise IdentifyError(f"{p}: empty file; expected a header row and one row per cycle")
@@ -288,7 +294,26 @@ def load_signals(path: str | os.PathLike, *, time: str | None = None, command: s
     at = ("end" if source == "trace" else "start") if actual_at == "auto" else actual_at
     return Signals(t=t - t[0], command=raw["command"] * vf, actual=raw["actual"] * vf, sensor=raw["sensor"] * sf,
                    cycle_time=T, path=str(p), columns=(wanted["command"], wanted["actual"], wanted["sensor"]),
-                   source=source, actual_at=at)
+                   source=source, actual_at=at, state_column=state_column, closed_loop_cycles=closed)
+
+
+#: HLI states in which distance control closes the loop (docs/trace.md: 1 ACTIVE, 3 TURNING_OFF,
+#: 4 ACTIVE_CONST_DIST); FREEZE holds the offset and the dry runs do not move the axis
+CLOSED_LOOP_STATES = (1, 3, 4)
+
+
+def _closed_loop_cycles(cols: list[str], data: np.ndarray, command: str) -> tuple[str | None, int]:
+    """The trace's distance control state column of the command's axis (``Z.cmd`` -> ``Z.dc.state``; the
+    only ``*.dc.state`` column otherwise) and the cycles in which it closed the loop."""
+    axis = command.split(".")[0]
+    name = f"{axis}.dc.state"
+    if name not in cols:
+        states = [c for c in cols if c.endswith(".dc.state")]
+        if len(states) != 1:
+            return None, 0
+        name = states[0]
+    state = data[:, cols.index(name)]
+    return name, int(np.isin(np.round(state), CLOSED_LOOP_STATES).sum())
 
 
 def _col_index(p, columns: list[str], name: str, what: str) -> int:
