@@ -74,8 +74,9 @@ def main() -> None:
             print(f"seed {seed}: {row['cpu_seconds']:.1f} s CPU, failed: {', '.join(bad) or 'none'}",
                   flush=True)
     summary = rates(rows)
-    no_ff = [r for r in rows if not r["truth"]["feed_forward"]]
-    summary["kv_without_feed_forward"] = rates(no_ff)["kv"]
+    no_ff = rates([r for r in rows if not r["truth"]["feed_forward"]])
+    for q in ("kv", "v_max", "a_max"):
+        summary[f"{q}_without_feed_forward"] = no_ff[q]
     lag1 = [abs(r["open_loop"]["residual_lag1"]) for r in rows
             if r.get("open_loop") and r["open_loop"].get("residual_lag1") is not None]
     for q, s in summary.items():
