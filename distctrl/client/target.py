@@ -80,7 +80,12 @@ def parse_target(ads: str, ip: str | None = None) -> tuple[str, int, str]:
         if not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
             raise MachineError(f"--ads {ads!r}: the AMS port after ':' must be 1-65535")
         port = int(port_text)
-    host = ip if ip else ".".join(parts[:4])
+    host = ip.strip() if ip else ".".join(parts[:4])
+    bare, colon, tcp = host.rpartition(":")
+    if colon and tcp.isdigit() and (":" not in bare or (bare.startswith("[") and bare.endswith("]"))):
+        # HOST:PORT (or [v6]:PORT): the AMS/TCP port has its own option, which the route needs too
+        raise MachineError(f"--ip {host!r}: the port does not go into --ip: give --ip {bare.strip('[]')} "
+                           f"--port {tcp} (the target's AMS/TCP port; `distctrl serve --port N`: N)")
     try:
         ipaddress.ip_address(host)
     except ValueError:
