@@ -115,15 +115,13 @@ def show(ads: str, ip: str | None, tcp_port: int, timeout: float, axes: tuple[st
         for f, v in r["parameters"].items():
             d = r["details"][f]
             val = r["values"].get(f)
-            if val is not None:
-                v = val["in_effect"]
             text = f"{v:.12g}" if isinstance(v, float) else str(v)
             line = f"  {d['key']:<{width}}  {text:>14} {d['unit']:<6} {d['id']:<13} {d['range']}"
             if not d["writable"]:
                 line += "  (read-only)"
             elif val is not None and val["pending"] is not None:
-                line += (f"  in effect; written {_text(val['pending'])}, pending "
-                         f"(adopted at the next activation)")
+                line += (f"  in effect; written {_text(val['pending'])} {val['written_at']} by distctrl; "
+                         f"pending unless the CNC restarted since")
             else:
                 line += "  in effect"
             click.echo(line)
@@ -131,7 +129,9 @@ def show(ads: str, ip: str | None, tcp_port: int, timeout: float, axes: tuple[st
         click.echo("no axis or channel with distance-control objects answered")
     if any(v["pending"] is not None for r in rows + channels for v in r["values"].values()):
         click.echo(f"pending: written by distctrl from this PC (the journal {journal.path}); the CNC "
-                   f"takes them at the next INACTIVE→ACTIVE or FREEZE→ACTIVE (FCT-M3 §9.4)")
+                   f"takes them at the next INACTIVE→ACTIVE or FREEZE→ACTIVE (FCT-M3 §9.4); the objects "
+                   f"cannot confirm that they still wait (a CNC restart drops them): `machine write` "
+                   f"writes them again")
     if out:
         click.echo(f"written: {out}")
 
@@ -145,6 +145,7 @@ def _describe(target, unit, journal: WriteJournal) -> dict:
     row = describe_unit(target, unit)
     readings = {f: row["parameters"][f] for f in ORDER}
     row["values"] = journal.resolve(target, unit, readings, row["state_code"])
+    row["parameters"].update({f: v["in_effect"] for f, v in row["values"].items()})   # what is in effect
     row["pending"] = {f: v["pending"] for f, v in row["values"].items() if v["pending"] is not None}
     return row
 
@@ -196,11 +197,12 @@ def record(ads, ip, tcp_port, timeout, axis, seconds, signals, cycle_ms, max_del
         emit_json(result)
     else:
         lost = ", ".join(f"{k} {v}" for k, v in rec.lost.items() if v)
-        if cut:
-            lost = (lost + " and " if lost else "") + f"about {s['cut_cycles']} cycles cut off at the end"
         click.echo(f"recorded {s['rows']} cycles ({s['seconds']:.3f} s) of {', '.join(rec.columns[1:])}: "
                    f"{s['samples']} samples, lost: {lost or 'none'}, late: {rec.late}"
                    + (" (Ctrl-C)" if rec.interrupted else ""))
+        if cut:
+            click.echo(f"cut off: the target stopped sending after {s['stopped_after_s']:.1f} s of "
+                       f"{s['requested_s']:g} s (about {s['cut_cycles']} cycles; not counted as lost)")
         tr = result["tracking"]
         if tr is not None:
             click.echo(f"tracking: RMS {_fmt(tr['rms_mm'])} mm, max {_fmt(tr['max_abs_mm'])} mm of "
@@ -255,7 +257,7 @@ def write(ads, ip, tcp_port, timeout, axis, channel, list_file, yes, pending, ba
             plan = plan_write(target, unit, list_file, journal)
             result = {"command": "machine write", "target": ads, "port": tcp_port, "unit": unit.label,
                       "list": list_file, "state": plan.state, "active": plan.active, "ignored": plan.ignored,
-                      "unchanged": plan.unchanged, "already_pending": plan.already_pending,
+                      "unchanged": plan.unchanged,
                       "unverifiable": plan.unverifiable, "values": plan.values,
                       "yes_refused": bool(plan.active and plan.changes and not pending)}
             if not yes:
@@ -268,7 +270,8 @@ def write(ads, ip, tcp_port, timeout, axis, channel, list_file, yes, pending, ba
             done = execute(plan, target, bpath, pending=pending, reconnect=reconnect, journal=journal)
             result.update(outcome="written" if plan.changes else "unchanged", written=bool(plan.changes),
                           changes=[c.as_dict() for c in plan.changes],
-                          backup=done["backup"] if plan.changes else None, pending=done["pending"])
+                          backup=done["backup"] if plan.changes else None, pending=done["pending"],
+                          values=done.get("values", plan.values))
             _show_plan(plan, result, as_json, written=True)
     except MachineError as exc:
         _fail_machine(exc)
@@ -279,19 +282,18 @@ def _show_plan(plan, result: dict, as_json: bool, written: bool) -> None:
         emit_json(result)
         return
     click.echo(f"{plan.unit.label}: state {state_name(plan.state)}")
-    if not plan.changes and not plan.already_pending:
+    if not plan.changes:
         click.echo("nothing to change: the target has these values in effect")
-    elif not plan.changes:
-        click.echo("nothing to change: the target has these values in effect or already written and pending")
     for c in plan.changes:
         status = f"  [{c.status}]" if written else ""
-        was = f" (written {_text(c.pending)} pending until now)" if c.pending is not None else ""
+        if c.again:
+            was = f" (written again: the journal had it pending since {c.pending_since})"
+        elif c.pending is not None:
+            was = f" (written {_text(c.pending)} by distctrl {c.pending_since}, pending until now)"
+        else:
+            was = ""
         click.echo(f"  {c.key:<22} {_text(c.old):>14} -> {_text(c.new):<14} {c.unit:<6} ({c.object})"
                    f"{status}{was}")
-    for f in plan.already_pending:
-        v = plan.values[f]
-        click.echo(f"  {plan.unit.key(f):<22} {_text(v['in_effect']):>14} in effect; {_text(v['pending'])} "
-                   f"already written and pending (written {v['written_at']}; adopted at the next activation)")
     for i in plan.ignored:
         click.echo(f"  {i['key']:<22} ignored: {i['reason']}")
     for u in plan.unverifiable:

@@ -23,6 +23,11 @@ objects read with it:
 * any other value: the machine was changed otherwise (another tool, the NC program's DIST_CTRL
   block, a CNC restart): the entry is dropped and the object's value shown.
 
+A CNC restart that leaves the objects reading as before (kp / i_tn / d_tv on distctrl's target: the
+value in effect) is not seen: the entry stays, though the CNC has dropped the pending value. So what
+the journal says pending is a claim, shown as such ("pending unless the CNC restarted since"), and
+``machine write`` never skips a value because the journal has it pending.
+
 The journal is a JSON file, ``$DISTCTRL_MACHINE_JOURNAL`` or ``$XDG_STATE_HOME/distctrl/machine-writes.json``
 (``~/.local/state/...``). It knows only the writes of this PC's distctrl.
 """

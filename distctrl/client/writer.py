@@ -49,13 +49,20 @@ class Change:
     old: object                  # the value in effect
     new: object
     status: str = "planned"      # planned, pending, in effect, restored, failed, not written
-    pending: object = None       # a value distctrl wrote before that is still pending (None: none)
+    pending: object = None       # a value the journal has pending from a write of distctrl (None: none)
     read_back: str | None = None  # after the write: "written" or "in_effect" (what the object read)
+    pending_since: str | None = None   # when distctrl wrote ``pending`` (the journal's time)
+
+    @property
+    def again(self) -> bool:
+        """The journal has this very value pending: written again, since a CNC restart (or anything
+        else the objects do not show) may have dropped it."""
+        return self.pending is not None and _same(self.pending, self.new)
 
     def as_dict(self) -> dict:
         return {"parameter": self.field, "key": self.key, "object": self.object, "unit": self.unit,
                 "old": self.old, "new": self.new, "status": self.status, "pending_before": self.pending,
-                "read_back": self.read_back}
+                "journal_pending_since": self.pending_since, "read_back": self.read_back}
 
 
 @dataclass
@@ -65,7 +72,6 @@ class Plan:
     changes: list[Change]
     unchanged: list[str]
     ignored: list[dict] = field(default_factory=list)   # keys in the list that are not writable over ADS
-    already_pending: list[str] = field(default_factory=list)   # written before, pending, the same value
     values: dict = field(default_factory=dict)      # field -> {read, in_effect, pending, written_at}
     unverifiable: list[str] = field(default_factory=list)      # filter values the objects cannot read
 
@@ -205,27 +211,35 @@ def _has_key(unit: Unit, f: str) -> bool:
 
 
 def plan_write(target: Target, unit: Unit, path: str | Path, journal: WriteJournal | None = None) -> Plan:
-    """The changes ``path`` asks for against what the machine has in effect and what distctrl wrote
-    before and is still pending (``journal``)."""
+    """The changes ``path`` asks for against what the machine has in effect. Every value that differs
+    from the one in effect is written, also when the journal has it pending: the journal's "pending" is
+    a claim the objects cannot confirm (a CNC restart drops pending values and the objects read as
+    before), so it never saves a write. A value in effect with another one pending is written too (the
+    pending one is not adopted then)."""
     wanted, ignored = wanted_values(unit, path)
     unverifiable = check_filter(target, unit, path, ignored)
-    state = read_state(target, unit)
-    readings = {f: read_object(target, unit, unit.spec(PARAMETERS[f])) for f in ORDER}
-    values = (journal or WriteJournal()).resolve(target, unit, readings, state)
-    changes, unchanged, already = [], [], []
+    state, values = current_values(target, unit, journal)
+    changes, unchanged = [], []
     for f in ORDER:
         if f not in wanted:
             continue
         new = _object_value(unit, f, wanted[f])
         spec = unit.spec(PARAMETERS[f])
         v = values[f]
-        after_activation = v["in_effect"] if v["pending"] is None else v["pending"]
-        if _same(after_activation, new):
-            (already if v["pending"] is not None else unchanged).append(f)
+        if _same(v["in_effect"], new) and v["pending"] is None:
+            unchanged.append(f)
         else:
             changes.append(Change(f, unit.key(f), spec.name, spec.unit, v["in_effect"], new,
-                                  pending=v["pending"]))
-    return Plan(unit, state, changes, unchanged, ignored, already, values, unverifiable)
+                                  pending=v["pending"], pending_since=v["written_at"]))
+    return Plan(unit, state, changes, unchanged, ignored, values, unverifiable)
+
+
+def current_values(target: Target, unit: Unit, journal: WriteJournal | None = None) -> tuple[int, dict]:
+    """The axis's state and {field: {read, in_effect, pending, written_at}}: the objects read now,
+    joined with the journal (:meth:`WriteJournal.resolve`)."""
+    state = read_state(target, unit)
+    readings = {f: read_object(target, unit, unit.spec(PARAMETERS[f])) for f in ORDER}
+    return state, (journal or WriteJournal()).resolve(target, unit, readings, state)
 
 
 def default_backup_path(path: str | Path, unit: Unit) -> Path:
@@ -332,6 +346,7 @@ def execute(plan: Plan, target: Target, backup: Path, *, pending: bool = False, 
                                        {c.field: c.read_back for c in plan.changes}, plan.state)
     result["written"] = [c.field for c in plan.changes]
     result["pending"] = [c.field for c in plan.changes if c.status == "pending"]   # wait for the next ON
+    result["values"] = current_values(target, unit, journal)[1]                     # after the write
     return result
 
 

@@ -48,12 +48,12 @@ def free_loopback(port: int = 48898) -> str:
     pytest.skip(f"no free loopback address for TCP {port}")
 
 
-def serve_on_port(scenario, speed: float = 1.0):
-    """A started ServedMachine of ``scenario`` on 127.0.0.1 and a free AMS/TCP port (``sm.port``), as
-    ``distctrl serve --port N`` serves it; its NetId is 127.0.0.1.1.1."""
+def serve_on_port(scenario, speed: float = 1.0, port: int = 0):
+    """A started ServedMachine of ``scenario`` on 127.0.0.1 and a free AMS/TCP port (``sm.port``), or
+    ``port``, as ``distctrl serve --port N`` serves it; its NetId is 127.0.0.1.1.1."""
     from distctrl.ads.devices import serve_over_ads
 
-    sm = serve_over_ads(scenario, host="127.0.0.1", port=0, net_id="127.0.0.1.1.1", discovery_port=None,
+    sm = serve_over_ads(scenario, host="127.0.0.1", port=port, net_id="127.0.0.1.1.1", discovery_port=None,
                         speed=speed)
     sm.start()
     sm.server = sm.services["ads"].server
