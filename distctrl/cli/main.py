@@ -9,6 +9,7 @@ from .common import DistctrlGroup
 
 #: command name -> "module:attribute" of its click command; the module is imported when the command is used
 LAZY_COMMANDS = {
+    "benchmark": "distctrl.cli.benchmark:benchmark",
     "calibrate": "distctrl.cli.calibrate:calibrate_cmd",
     "demo": "distctrl.cli.demo:demo_cmd",
     "diag": "distctrl.cli.diag:diag",
