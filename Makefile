@@ -86,6 +86,7 @@ bench: $(STAMP) $(WARM_STAMP)
 	$(PY) bench/bench_process.py
 	$(PY) bench/bench_ui.py
 	$(PY) bench/bench_record.py
+	$(PY) -m distctrl benchmark --quick
 
 # reliability suites (issue 8) at full length; figures go to bench/reliability.json and bench/soak.json
 # make stress (issue 30): the long suites, then the resumable campaigns; state in $(STRESS_DIR), so a

@@ -8,7 +8,8 @@ per-cycle nozzle positions the metrics read (the same for every contestant).
   their defaults (corner lock, void / kerf-crossing lock; docs/process.md).
 * ``simple_pid``: a plain PID (the ``simple-pid`` package) on the same sensor model, the same drives,
   surface and path (the simulator's models, stepped in the machine's order): the PID's output is the Z
-  velocity (mm/s), integrated into the Z setpoint; it sees only the sensor (no encoder coupling). Gains
+  velocity (mm/s), integrated into the Z setpoint (clamped to the list's ±max_deviation about the start,
+  the travel distctrl has); it sees only the sensor (no encoder coupling). Gains
   :data:`PID_GAINS`, picked once by hand for a stable loop on the 1 kHz laser sensor, not tuned on the
   suite: it is the naive baseline.
 """
@@ -97,6 +98,9 @@ def run_pid(spec: RunSpec) -> Track:
     n_max = dwell + int((length / (feed / 60.0) + 0.5 * len(path) + 1.0) / T)
     rows = np.zeros((n_max, 4))
     zset = drives["Z"].position
+    # the travel of the list's offset range (max_deviation about the programmed Z), without its error stop
+    reach = sc.axes["Z"].params.max_deviation
+    z_bottom, z_top = zset - reach, zset + reach
     previous_volts = None
     k_motion = None
     k_end = None
@@ -122,7 +126,7 @@ def run_pid(spec: RunSpec) -> Track:
             previous_volts = value
         else:
             measured = value
-        zset += pid(measured, dt=T) * T
+        zset = min(z_top, max(z_bottom, zset + pid(measured, dt=T) * T))
         drives["X"].step(prog["X"])
         drives["Y"].step(prog["Y"])
         drives["Z"].step(zset)

@@ -19,8 +19,9 @@ not apply or cannot be computed is None (JSON null).
 * ``collisions``: entries of the nozzle into the surface (``d < 0``); ``min_distance_mm`` the least
   ``d`` after the select; ``time_below_half_s`` over metal (no void under the nozzle) with
   ``d < set / 2`` after the select;
-* ``locks_at_feed``: entries into FREEZE (a process function's hold) while the path runs at the feed and
-  no void is under the nozzle: false locks (None for a contestant without such a state).
+* ``locks_at_feed``: entries into FREEZE (a process function's hold) while the path runs at the feed
+  (``settle_s`` before and after) and no void or corner is near the nozzle: false locks (None for a
+  contestant without such a state).
 """
 from __future__ import annotations
 
@@ -119,6 +120,14 @@ def measure(track: Track, spec: RunSpec, plate: Plate) -> dict:
     metal = np.abs(true - sheet) < 1e-9
     out["time_below_half_s"] = _f(np.count_nonzero(after_sel & metal & (d < set_mm / 2)) * T)
     if track.held is not None:
-        held = track.held[:end] & at_feed & moving & ~void
+        # at the feed from settle_s before to after (the X/Y drives lag the path): a block's end, where the
+        # corner lock holds, is no false lock
+        w = max(1, int(round(p.settle_s / T)))
+        slow = np.concatenate(([0], np.cumsum(~at_feed)))
+        steady_feed = slow[np.minimum(idx + w, n)] - slow[np.maximum(idx - w, 0)] == 0
+        corner = np.zeros(n, dtype=bool)
+        for zone in plate.corners:
+            corner |= zone.mask(x, y)
+        held = track.held[:end] & steady_feed & moving & ~void & ~corner
         out["locks_at_feed"] = int(np.count_nonzero(held[1:] & ~held[:-1]))
     return out

@@ -1,6 +1,7 @@
-"""The benchmark's outputs: the CSV of every run, one plot per plate (its headline figure against the feed,
-every contestant, one panel per process / sensor / drive), the HTML report (the workbench's report page
-and macros, :mod:`distctrl.workbench.pages`) and the text summary.
+"""The benchmark's outputs of a :class:`~.run.BenchmarkResult` (``result``): the CSV of every run, one plot
+per plate (its headline figure against the feed, every contestant, one panel per process / sensor /
+drive), the HTML report (the workbench's report page and macros, :mod:`distctrl.workbench.pages`) and the
+text summary.
 """
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ from pathlib import Path
 
 from ..pages import render
 from .metrics import FIGURE_UNITS, FIGURES
-from .run import BenchmarkResult
 from .suite import PLATE_NAMES
 
 __all__ = ["HEADLINE", "write_csv", "write_plots", "write_report", "text_summary", "CSV_COLUMNS"]
@@ -38,7 +38,7 @@ _STYLE = {"distctrl_examples": ("C0", "o", "-"), "distctrl_examples_pf": ("C2", 
           "simple_pid": ("C3", "^", ":")}
 
 
-def write_csv(result: BenchmarkResult, path) -> None:
+def write_csv(result, path) -> None:
     """One line per run; a figure that does not apply is empty."""
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
@@ -61,7 +61,7 @@ def _panels(rows) -> list[tuple]:
     return keys
 
 
-def plot_plate(result: BenchmarkResult, plate: str):
+def plot_plate(result, plate: str):
     """The figure of one plate (matplotlib, Agg): its headline figure against the feed, per panel."""
     # matplotlib only while a figure is drawn (a --json run without plots does not load it)
     from matplotlib.figure import Figure
@@ -96,7 +96,7 @@ def plot_plate(result: BenchmarkResult, plate: str):
     return fig
 
 
-def write_plots(result: BenchmarkResult, out_dir) -> dict:
+def write_plots(result, out_dir) -> dict:
     """``<plate>.png`` per plate of the result in ``out_dir``; returns plate -> path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -109,7 +109,7 @@ def write_plots(result: BenchmarkResult, out_dir) -> dict:
     return paths
 
 
-def _plates(result: BenchmarkResult) -> list[str]:
+def _plates(result) -> list[str]:
     present = {r["plate"] for r in result.rows}
     return [p for p in PLATE_NAMES if p in present]
 
@@ -126,7 +126,7 @@ def _met(m) -> str:
     return "not measured" if m is None else ("met" if m else "NOT met")
 
 
-def write_report(result: BenchmarkResult, out_dir) -> str:
+def write_report(result, out_dir) -> str:
     """The HTML report (``out_dir/index.html``): contestants, the reproduction check, the goals, per
     plate its plot and its table."""
     out = Path(out_dir)
@@ -161,7 +161,7 @@ def write_report(result: BenchmarkResult, out_dir) -> str:
     return str(path)
 
 
-def text_summary(result: BenchmarkResult) -> str:
+def text_summary(result) -> str:
     """The console summary: per plate the headline figure per contestant and feed, the check, the goals."""
     lines = [f"distctrl benchmark ({'quick' if result.quick else 'full'} suite): {len(result.rows)} runs, "
              f"{result.mode}, {result.workers} worker(s)"]

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from ...errors import DistCtrlError
 from .contestants import run_contestant
 from .metrics import FIGURES, measure
+from .output import plot_plate, write_csv
 from .suite import CONTESTANT_TEXT, CONTESTANTS, NOT_RUN_CONTESTANTS, RunSpec, SuiteParams, runs
 
 __all__ = ["BenchmarkResult", "run_one", "run_suite", "reproduction_check", "goals", "ISSUE_41_FIGURES",
@@ -63,6 +64,17 @@ class BenchmarkResult:
     @property
     def exit_code(self) -> int:
         return 4 if self.check.get("ok") is False else 0
+
+    def plot(self, path=None, plate: str = "ramp_2deg"):
+        """The figure of one plate (its headline figure against the feed), saved too with ``path``."""
+        fig = plot_plate(self, plate)
+        if path is not None:
+            fig.savefig(path, dpi=90)
+        return fig
+
+    def to_csv(self, path) -> None:
+        """One line per run (:data:`~.output.CSV_COLUMNS`)."""
+        write_csv(self, path)
 
     def to_dict(self) -> dict:
         return {"command": "benchmark", "outcome": "completed" if self.exit_code == 0 else "check_failed",
