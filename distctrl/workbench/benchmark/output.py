@@ -145,7 +145,7 @@ def write_report(result, out_dir) -> str:
                        "rows": rows})
     check = [(i["feedforward"], i["issue_41_mm"], _fmt(i["measured_mm"]), _fmt(i["drive_lag_mm"]),
               _met(i["ok"])) for i in result.check.get("items", [])]
-    goals = [(g["goal"], _fmt(g["value"]), g["unit"], _fmt(g["limit"]), _met(g["met"]))
+    goals = [(g["goal"], _fmt(g["value"]), g["unit"], _fmt(g["limit"]), _met(g["met"]), g["where"] or "–")
              for g in result.goal_rows]
     contestants = [(c["name"], "yes" if c["run"] else "no", c["what"] or c["why_not"])
                    for c in result.contestants()]
@@ -191,5 +191,6 @@ def text_summary(result) -> str:
     lines.append("issue 41's goals (distctrl with the examples' list; 'distctrl tuned' is not run yet):")
     for g in result.goal_rows:
         lines.append(f"  {g['goal']}: {_fmt(g['value'])} {g['unit']} "
-                     f"(limit {_fmt(g['limit'])}): {_met(g['met'])}")
+                     f"(limit {_fmt(g['limit'])}): {_met(g['met'])}"
+                     + (f" [worst: {g['where']}]" if g["where"] else ""))
     return "\n".join(lines) + "\n"
