@@ -191,3 +191,17 @@ def test_exit_codes(tmp_path, monkeypatch):
     assert res.exit_code == 4
     out = _no_nan(res.stdout)
     assert out["outcome"] == "check_failed" and out["check"]["ok"] is False
+
+
+def test_without_simple_pid_the_baseline_is_named_not_run(monkeypatch):
+    """simple-pid is a test dependency, not one of distctrl's: where it is missing the PID is left out and
+    named, with the reason, instead of a traceback."""
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "simple_pid" else real(name, *a))
+    result = bench_run.run_suite(quick=True, plates=("ramp_2deg",), processes=("laser",))
+    assert {r["contestant"] for r in result.rows} == {"distctrl_examples", "distctrl_examples_pf"}
+    pid = next(c for c in result.contestants() if c["name"] == "simple_pid")
+    assert pid["run"] is False and "simple-pid" in pid["why_not"]
