@@ -135,8 +135,9 @@ def plates(p: SuiteParams, process: str, feed_m_min: float) -> list[Plate]:
         length = rise / tan
         surf = {"base": 0.0, "features": [{"type": "ramp", "axis": "X", "start": lead, "end": lead + length,
                                            "height": rise}]}
+        # the steady zone: where the footprint sees the ramp alone, not its kinks
         out.append(Plate(name, process, surf, surf, ((lead + length + 10.0, 0.0),),
-                         steady=(Zone("x", lead, lead + length),)))
+                         steady=(Zone("x", lead + r_fp, lead + length - r_fp),)))
     amp = p.wave_pp_mm / 2
     wavy_len = max(2 * p.wavelength_mm, min(4 * p.wavelength_mm, v * 0.6))
     surf = {"base": 0.0, "features": [{"type": "sine", "axis": "X", "amplitude": amp,
@@ -175,7 +176,7 @@ def plates(p: SuiteParams, process: str, feed_m_min: float) -> list[Plate]:
                                        "wavelength": 2 * warp_len, "phase": -math.pi / 2 - 2 * math.pi * lead
                                        / (2 * warp_len)}]}
     out.append(Plate("warp", process, surf, surf, ((lead + warp_len + 10.0, 0.0),),
-                     steady=(Zone("x", lead, lead + warp_len),)))
+                     steady=(Zone("x", lead + r_fp, lead + warp_len - r_fp),)))
     return [dataclasses.replace(pl, start_height=_height(pl.surface, 0.0, 0.0)) for pl in out]
 
 
