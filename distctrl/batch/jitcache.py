@@ -80,17 +80,24 @@ def cached(dispatcher):
     return dispatcher
 
 
-def is_cached(dispatcher) -> bool:
+def is_cached(dispatcher, argtypes: tuple | None = None) -> bool:
     """True when the dispatcher has compiled code in this process, or a fresh entry in its disk cache
-    (for the current sources and numba version): using it will not compile."""
-    if dispatcher.signatures:
+    (for the current sources and numba version): using it will not compile. ``argtypes`` (numba types,
+    as the dispatcher types the arguments of a call): for exactly that signature; None: for any."""
+    if argtypes is None and dispatcher.signatures:
+        return True
+    if argtypes is not None and tuple(argtypes) in dispatcher.overloads:
         return True
     cache = getattr(dispatcher, "_cache", None)
     cache_file = getattr(cache, "_cache_file", None)
     if cache_file is None:
         return False
     try:
-        return bool(cache_file._load_index())
+        index = cache_file._load_index()
+        if argtypes is None:
+            return bool(index)
+        # numba's own key of a cached overload: the signature and this machine's code generator
+        return cache._index_key(tuple(argtypes), dispatcher.targetctx.codegen()) in index
     except Exception:              # noqa: BLE001 - an unreadable index is a miss
         return False
 

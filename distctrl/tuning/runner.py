@@ -858,11 +858,11 @@ class Evaluator:
             return
         self._kernels_ready = True
         # numba (the [batch] extra) loads only when a batch runs
-        from ..batch.closed_loop import run_blocks
         from ..batch.jitcache import cache_dir, is_cached
+        from ..batch.warm import run_signatures
 
-        entry = run_blocks
-        if is_cached(entry):
+        entry, argtypes = run_signatures()[0]          # the closed loop's kernel, as run_batch calls it
+        if is_cached(entry, argtypes):
             if self.mode == "local" and not entry.signatures:
                 # load the cached code now (about 0.5 s), so that the sweep's time is the sweep's
                 # numba (the [batch] extra) loads only when a batch runs
