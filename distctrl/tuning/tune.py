@@ -264,35 +264,64 @@ class TuneResult:
 
     @property
     def worse_reason(self) -> str | None:
-        """Why the recommended set tracks worse than the current one, with the cost of the constraint;
-        None when it does not."""
+        """Why the recommended set is reported worse than the current one: which figure is worse, what the
+        cost (the figure tune minimises) did, why the set was still recommended, and what the margin
+        constraint cost (the best evaluated set without it); None when it is not worse."""
         if not self.worse_than_current:
             return None
         b, t = self.base_metrics, self.best_metrics
-        what = (f"rms_error {_num(b.get('rms_error'))} -> {_num(t.get('rms_error'))} mm, "
-                f"cost {_num(b.get('cost'))} -> {_num(t.get('cost'))} mm")
+        rms = f"{_num(b.get('rms_error'))} -> {_num(t.get('rms_error'))} mm"
+        costs = f"{_num(b.get('cost'))} -> {_num(t.get('cost'))} mm"
+        formula = _cost_formula(self.cost_weights)
         mc = self.margin_constraint or {}
-        sp = mc.get("scenario_params") or {}
-        if mc and "error" not in mc and not sp.get("ok", True):
-            why = (f"the current set misses the margin constraint ({mc['scenario_params_text']}), and no "
-                   "evaluated set that meets it tracks as well")
-        elif float(t.get("cost", math.nan)) <= float(b.get("cost", math.nan)):
-            why = ("the cost weighs oscillation and chatter as well as the error (cost_weights): the tuned "
-                   "set "
-                   "has the lower cost but the larger rms_error")
+        applied = bool(mc) and "error" not in mc
+        misses = applied and not (mc.get("scenario_params") or {}).get("ok", True)
+        missed = (f"the current set misses the margin constraint ({mc['scenario_params_text']})"
+                  if misses else "")
+        if not _worse({"cost": t.get("cost")}, {"cost": b.get("cost")}):
+            others = ", ".join(f"{n} {_num(b.get(n))} -> {_num(t.get(n))}"
+                               + (" mm" if METRIC_UNITS.get(n) == "mm" else "")
+                               for n in _cost_terms(self.cost_weights))
+            out = (f"its rms_error is worse ({rms}), but tune minimises the cost ({formula}, "
+                   f"docs/tuning.md), and that improved ({costs}): the cost's other terms ({others}), "
+                   "weighted, fell by more than rms_error rose")
+            if missed:
+                out += f"; besides, {missed}"
         else:
-            why = ("rounding the tuned values to what the list and the NC take made it worse than the "
-                   "current set")
-        u, um = self.unconstrained, self.unconstrained_metrics
-        if mc and "error" not in mc and u is not None and um:
-            if u == self.best:
-                why += "; the margin constraint cost nothing here (the best evaluated set meets it)"
+            rms_worse = _worse({"rms_error": t.get("rms_error")}, {"rms_error": b.get("rms_error")})
+            out = (f"its rms_error is worse ({rms}) and so is its cost"
+                   if rms_worse else "its cost is worse")
+            out += f", the figure tune minimises ({formula}, docs/tuning.md): {costs}; "
+            if missed and mc.get("met"):
+                out += (f"{missed}, so it is not recommended, and the best evaluated set that meets it costs "
+                        "more than the current set")
             else:
-                who = "the current set" if u == self.base else "an evaluated set that misses it"
-                why += (f"; cost of the constraint: the best set without it ({who}) has rms_error "
-                        f"{_num(um.get('rms_error'))} mm, cost {_num(um.get('cost'))} mm, against "
-                        f"{_num(t.get('rms_error'))} mm, {_num(t.get('cost'))} mm with it")
-        return f"{what}: {why}"
+                out += ("rounding the tuned values to what the list and the NC take made it worse than the "
+                        f"current set (cost before rounding {_num(self.unrounded_metrics.get('cost'))} mm)")
+                out += f"; besides, {missed}" if missed else ""
+        u, um = self.unconstrained, self.unconstrained_metrics
+        if not applied:
+            out += "; no margin constraint was applied"
+        elif u is None or not um or u == self.best:
+            out += ("; the margin constraint cost nothing: the best evaluated set by cost, with it or "
+                    f"without it, is the recommended set (rms_error {_num(t.get('rms_error'))} mm, cost "
+                    f"{_num(t.get('cost'))} mm)")
+        else:
+            who = "the current set" if u == self.base else "an evaluated set that misses it"
+            out += (f"; cost of the constraint: the best set without it ({who}) has rms_error "
+                    f"{_num(um.get('rms_error'))} mm, cost {_num(um.get('cost'))} mm, against "
+                    f"{_num(t.get('rms_error'))} mm, {_num(t.get('cost'))} mm with it")
+        return out
+
+    @property
+    def _worse_advice(self) -> str:
+        """The report's advice after :attr:`worse_reason`."""
+        if not _worse({"cost": self.best_metrics.get("cost")}, {"cost": self.base_metrics.get("cost")}):
+            return "It is recommended for its lower cost; keep the current set if rms_error alone matters."
+        u = self.unconstrained
+        if u is not None and u != self.best:
+            return "Keep the current set unless you need what the constraint buys."
+        return "Keep the current set."
 
     def tuned_values(self, params: AxisParameters | None = None) -> dict:
         """The tuned parameters as plain values (internal units: s, Hz): kp, i_tn, d_tv, filter_type
@@ -358,8 +387,7 @@ class TuneResult:
         out = []
         if self.worse_than_current:
             out.append("WARNING: the recommended set tracks WORSE than the current one "
-                       f"({self.worse_reason}). "
-                       "Keep the current set unless you need what the constraint buys.")
+                       f"({self.worse_reason}). " + self._worse_advice)
         if self.fallback_note:
             out.append(f"note: {self.fallback_note}")
         out += [f"evaluated {self.evaluations} parameter sets in {self.seconds:.1f} s",
@@ -433,6 +461,22 @@ def _filter_text(p: AxisParameters) -> str:
     used = filter_fields(p.filter_type)
     return p.filter_type.name + ("" if not used else
                                  " " + ", ".join(f"{f} {_fmt(getattr(p, f))}" for f in used))
+
+
+#: the cost's terms after rms_error: (weight's key in cost_weights, metric); docs/tuning.md "cost ="
+_COST_TERMS = (("osc_weight", "hf_rms"), ("overshoot_weight", "overshoot"), ("sat_weight", "sat_share"),
+               ("chatter_weight", "offset_hf_rms"))
+
+
+def _cost_terms(weights: dict) -> list[str]:
+    """The metrics the cost adds to rms_error with a weight other than 0."""
+    return [m for k, m in _COST_TERMS if weights.get(k)]
+
+
+def _cost_formula(weights: dict) -> str:
+    """``cost = rms_error + 1 * hf_rms + 0.05 * sat_share + ...`` with the weights of this tune."""
+    return "cost = " + " + ".join(["rms_error"] + [f"{weights[k]:g} * {m}" for k, m in _COST_TERMS
+                                                    if weights.get(k)])
 
 
 def _worse(tuned: dict, current: dict) -> bool:

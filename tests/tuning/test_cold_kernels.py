@@ -30,15 +30,15 @@ def _cold(monkeypatch, which=None):
     import distctrl.batch.jitcache as jc
 
     real = jc.is_cached
-    monkeypatch.setattr(jc, "is_cached", lambda dispatcher, *args: False if which is None or dispatcher in which
-                        else real(dispatcher, *args))
+    monkeypatch.setattr(jc, "is_cached", lambda dispatcher, *args: False if which is None or dispatcher in
+                        which else real(dispatcher, *args))
 
 
 def _run(cmd, tmp_path):
     sc = str(EXAMPLES / "tune_sheet.toml")
     if cmd == "sweep":
-        return CliRunner().invoke(sweep, [sc, "--grid", "kp=0.3,0.5", "--local", "--out", str(tmp_path / "s.csv"),
-                                          "--json"])
+        return CliRunner().invoke(sweep, [sc, "--grid", "kp=0.3,0.5", "--local", "--out",
+                                          str(tmp_path / "s.csv"), "--json"])
     return CliRunner().invoke(tune_cmd, [sc, "--budget", "3", "--local", "--no-robustness", "--out",
                                          str(tmp_path / "t"), "--json"])
 
@@ -96,7 +96,8 @@ from click.testing import CliRunner
 from distctrl.cli.tune import sweep, tune_cmd
 from distctrl.batch import warm
 sc, out = sys.argv[1], sys.argv[2]
-assert CliRunner().invoke(sweep, [sc, "--grid", "kp=0.3,0.5", "--local", "--out", out + "/s.csv"]).exit_code == 0
+res = CliRunner().invoke(sweep, [sc, "--grid", "kp=0.3,0.5", "--local", "--out", out + "/s.csv"])
+assert res.exit_code == 0
 assert CliRunner().invoke(tune_cmd, [sc, "--budget", "3", "--local", "--out", out + "/t"]).exit_code == 0
 print(json.dumps({"dispatched": sorted([d.__name__, str(s)] for d in warm._entries() for s in d.signatures),
                   "asked": sorted([d.__name__, str(s)] for d, s in warm.run_signatures())}))
@@ -110,8 +111,8 @@ def test_the_cold_check_asks_for_exactly_the_kernels_and_types_a_sweep_and_a_tun
 
     warm()
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.run([sys.executable, "-c", _DISPATCHED, str(EXAMPLES / "tune_sheet.toml"), str(tmp_path)],
-                          capture_output=True, text=True, env=env, timeout=600)
+    proc = subprocess.run([sys.executable, "-c", _DISPATCHED, str(EXAMPLES / "tune_sheet.toml"),
+                           str(tmp_path)], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr
     got = json.loads(proc.stdout.splitlines()[-1])
     assert got["dispatched"] == got["asked"]
@@ -128,9 +129,10 @@ def test_with_a_real_empty_cache_only_the_first_sweep_says_compiling(tmp_path):
     script = "import sys; from distctrl.cli.main import main; sys.exit(main())"
     errs = []
     for k in range(2):
-        proc = subprocess.run([sys.executable, "-c", script, "sweep", str(EXAMPLES / "tune_sheet.toml"), "--random",
-                               "4", "--local", "--out", str(tmp_path / f"s{k}.csv")], capture_output=True, text=True,
-                              env=env, cwd=tmp_path, timeout=900)
+        args = ["sweep", str(EXAMPLES / "tune_sheet.toml"), "--random", "4", "--local", "--out",
+                str(tmp_path / f"s{k}.csv")]
+        proc = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, env=env,
+                              cwd=tmp_path, timeout=900)
         assert proc.returncode == 0, proc.stderr
         errs.append(proc.stderr)
     assert LINE in errs[0], errs[0]
