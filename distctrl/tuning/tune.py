@@ -289,9 +289,9 @@ class TuneResult:
                 out += f"; besides, {missed}"
         else:
             rms_worse = _worse({"rms_error": t.get("rms_error")}, {"rms_error": b.get("rms_error")})
-            out = (f"its rms_error is worse ({rms}) and so is its cost"
-                   if rms_worse else "its cost is worse")
-            out += f", the figure tune minimises ({formula}, docs/tuning.md): {costs}; "
+            minimised = f"the figure tune minimises ({formula}, docs/tuning.md)"
+            out = (f"its rms_error is worse ({rms}) and so is its cost, {minimised}: {costs}; " if rms_worse
+                   else f"its cost, {minimised}, is worse: {costs}; ")
             if missed and mc.get("met"):
                 out += (f"{missed}, so it is not recommended, and the best evaluated set that meets it costs "
                         "more than the current set")
