@@ -838,10 +838,28 @@ def summarize(st: dict) -> dict:
             "threads_baseline_end": [[s.get("threads_baseline"), s.get("threads_end")] for s in segs],
             "threads_left": max([0] + [s["threads_end"] - s["threads_baseline"] for s in segs
                                        if s.get("threads_end") is not None and s.get("threads_baseline") is not None]),
+            "pages_not_drawn": sum(1 for s in segs if str(s.get("page", "")).startswith("not drawn")),
             "serve_stops": [{k: s.get("stop", {}).get(k) for k in ("returncode", "traceback", "refused_logged")}
                             for s in segs if s.get("stop")],
             "cycle_lateness": [s.get("stop", {}).get("lateness") for s in segs if s.get("stop")],
             "seed": st["seed"], "rechecked": {k: v["count"] for k, v in st.get("rechecked", {}).items()}}
+
+
+def open_page(url: str, seg: dict, log=print) -> Browser | None:
+    """The live page open in Chromium for the segment, or None with the reason in ``seg["page"]``: on a
+    starved machine Chromium may not draw it within the allowance (300 s), which is no fault of the
+    server; the segment then goes on without it (health checks by ADS and ``GET /``) instead of
+    ending with a traceback (the resumed page campaign of 2026-11-28 did, after 0 inputs)."""
+    from playwright.sync_api import Error as PlaywrightError
+
+    try:
+        browser = Browser(url)
+    except PlaywrightError as exc:
+        seg["page"] = f"not drawn: {str(exc).splitlines()[0][:160]}"
+        log(f"the live page was not drawn ({seg['page']}); the campaign goes on without it")
+        return None
+    seg["page"] = "open"
+    return browser
 
 
 def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, seed: int = SEED, log=print,
@@ -867,7 +885,7 @@ def run_campaign(suite: str, target: int, budget_s: float | None, sdir: Path, se
     served = Served()
     browser = None
     try:
-        browser = Browser(served.ui_url) if page_open else None
+        browser = open_page(served.ui_url, seg, log) if page_open else None
         health_ads(served.ads_port)
         time.sleep(1.0)
         seg["threads_baseline"] = proc_stats(served.pid)["threads"]
