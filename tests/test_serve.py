@@ -308,13 +308,18 @@ def test_sigterm_ends_serve_like_ctrl_c_with_its_report(as_json):
         assert "cycle jitter:" in out and "stopped by SIGTERM" in out
 
 
-def test_serve_ends_at_its_duration_saying_so():
+@pytest.mark.parametrize("as_json", [True, False])
+def test_serve_ends_at_its_duration_saying_so(as_json):
+    """R18: the text report said "stopped by SIGINT/SIGTERM" but nothing for --duration."""
     import json
 
-    proc = _serve_process("--json", "--duration", "0.5")
+    proc = _serve_process(*(["--json"] if as_json else []), "--duration", "0.5")
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
-    assert json.loads(out)["stopped_by"] == "duration"
+    if as_json:
+        assert json.loads(out)["stopped_by"] == "duration"
+    else:
+        assert "stopped after --duration 0.5 s" in out and "cycle jitter:" in out
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "1000"])

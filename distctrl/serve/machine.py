@@ -18,7 +18,7 @@ import threading
 import time
 
 from ..base.states import HLI_STATE_NAMES
-from ..objects.registry import AxisObjectContext
+from ..objects.registry import SERVED_OBJECTS, AxisObjectContext
 from ..sim.machine import Machine
 from ..sim.runner import load_program
 from .realtime import RealTimeLoop
@@ -28,12 +28,29 @@ __all__ = ["ServedMachine", "SessionLog", "log"]
 log = logging.getLogger("distctrl.serve")
 
 
+#: the CNC object of each writable value (the first of its aliases: DIST_CTRL_PARAM[0]::v_max, ...)
+_WRITABLE = {}
+for _spec in SERVED_OBJECTS:
+    if _spec.writable:
+        _WRITABLE.setdefault(_spec.write_name, _spec)
+
+
+def _show(internal: float, spec) -> str:
+    """A value in the object's unit, as the object browser shows it (``0.3``, ``250000 0.01 nm/s``)."""
+    text = f"{internal / spec.write_scale:.10g}"
+    return text if spec.unit in ("", "-") else f"{text} {spec.unit}"
+
+
 class SessionLog:
     """What a served session tells its console (logger ``distctrl.serve``): per axis the HLI commands
     the CNC took from the PLC and the distance-control state changes, every error and warning with its
-    ID (e.g. 70336 for a command to an axis without distance control, P-AXIS-00328 = 0), and the end of
-    the NC program. Checked after every cycle from the machine's event cursor and its activity, the
-    status snapshot taken when the activity changed (:mod:`distctrl.sim.status`)."""
+    ID (e.g. 70336 for a command to an axis without distance control, P-AXIS-00328 = 0), the end of
+    the NC program, every CNC-object write the controller took (over ADS or from the page: the object,
+    the value in effect -> the written one, pending; then adopted) and every process function switched
+    on or off (R18 of the new-user audit). Checked after every cycle from the machine's event cursor
+    and its activity, the status snapshot taken when the activity changed (:mod:`distctrl.sim.status`);
+    the writes and switches by a comparison of the controllers' pending writes and the functions'
+    switches (empty and unchanged: a few attribute reads)."""
 
     def __init__(self, machine, logger: logging.Logger = log):
         self.machine, self.log, self.names = machine, logger, HLI_STATE_NAMES
@@ -44,6 +61,12 @@ class SessionLog:
         self.events = machine.event_cursor(from_now=True)
         self.activity = machine.activity()
         self.program_ended = False
+        self.pending = {n: dict(c.state.pending) for n, c in machine.controllers.items()}
+        #: the values in effect when the pending writes were taken (the "was" of an adoption)
+        self.in_effect = {n: {} for n in machine.controllers}
+        proc = machine.process_program
+        self.functions = list(proc.functions) if proc is not None else []
+        self.switched = [f.switched_on for f in self.functions]
 
     def axis_lines(self) -> list[str]:
         """``axis 1 = X (no distance control, P-AXIS-00328 = 0)`` ...: the gpAx index of every axis."""
@@ -64,10 +87,46 @@ class SessionLog:
             level = logging.ERROR if ev.severity == "error" else logging.WARNING
             line = f", NC line {ev.line}" if ev.line not in (None, -1) else ""
             log_.log(level, "t=%.3f s %s %d%s: %s", when, ev.severity, ev.id, line, ev.message)
+        for n, c in m.controllers.items():
+            pending = c.state.pending
+            if pending or self.pending[n]:
+                if pending != self.pending[n]:
+                    self._report_writes(n, c, t)
+        if self.functions:
+            switched = [f.switched_on for f in self.functions]
+            if switched != self.switched:
+                for f, was, now in zip(self.functions, self.switched, switched):
+                    if was != now:
+                        log_.info("t=%.3f s process function %s on %s switched %s", t, f.name, f.axis,
+                                  "on" if now else "off")
+                self.switched = switched
         nc_state = activity[0]
         if not self.program_ended and nc_state in ("ended", "aborted"):
             self.program_ended = True
             log_.info("t=%.3f s NC program %s", t, "aborted" if nc_state == "aborted" else "ended (M30)")
+
+    def _report_writes(self, axis: str, controller, t: float) -> None:
+        """CNC-object writes the controller took since the last cycle (pending) and the ones it adopted
+        or dropped, in the objects' units (docs/objects.md)."""
+        before, now = self.pending[axis], dict(controller.state.pending)
+        for name, value in now.items():
+            if before.get(name) != value:
+                spec = _WRITABLE[name]
+                self.log.info("t=%.3f s axis %s: %s %s -> %s pending (adopted on the next INACTIVE->active or "
+                              "FREEZE->active)", t, axis, spec.name,
+                              _show(getattr(controller.tuning, name), spec), _show(value, spec))
+        for name, value in before.items():
+            if name not in now:
+                spec = _WRITABLE[name]
+                in_effect = getattr(controller.tuning, name)
+                if in_effect == value:
+                    self.log.info("t=%.3f s axis %s: %s %s adopted (was %s)", t, axis, spec.name,
+                                  _show(value, spec), _show(self.in_effect[axis].get(name, value), spec))
+                else:
+                    self.log.info("t=%.3f s axis %s: %s pending %s dropped, %s in effect", t, axis, spec.name,
+                                  _show(value, spec), _show(in_effect, spec))
+        self.pending[axis] = now
+        self.in_effect[axis] = {name: getattr(controller.tuning, name) for name in now}
 
     def _report_axes(self, axes: dict, t: float) -> None:
         """The PLC commands taken and refused and the state changes since the last report."""
@@ -145,6 +204,11 @@ class ServedMachine:
         self.session.after_cycle()
         for observer in self.observers:
             observer()
+
+    def note(self, what: str) -> None:
+        """One console line with the machine time: what a client did to the machine (the live page's
+        sensor faults, Reset, Feed hold, ...; R18)."""
+        log.info("t=%.3f s %s", self.machine.cycle * self.machine.T, what)
 
     def set_paused(self, paused: bool) -> None:
         if paused != self.paused:

@@ -13,7 +13,9 @@ lock at a time the cycle is due):
 
 Actions of a page (PLC commands, override, feed hold, reset, sensor faults, object writes, process
 functions) take the lock for the few microseconds of the write, as an ADS write does. Every action
-returns ``(ok, message)``; nothing a page sends raises into the server.
+returns ``(ok, message)``; nothing a page sends raises into the server. The override, feed hold, reset
+and sensor faults are logged on serve's console (``t=12.340 s page: ...``); PLC commands, object writes
+and process-function switches by the session log when the machine takes them (R18).
 """
 from __future__ import annotations
 
@@ -185,18 +187,23 @@ class MachineHub:
         with self.lock:
             if not self.feed_hold:
                 self.machine.channel_override = self.override
+        self.served.note(f"page: path override {value * 100:.0f} %")
         return True, f"override {value * 100:.0f} %"
 
     def set_feed_hold(self, on: bool) -> tuple[bool, str]:
         self.feed_hold = bool(on)
         with self.lock:
             self.machine.channel_override = 0.0 if on else self.override
-        return True, "feed hold ON (path override 0 %)" if on else f"feed hold OFF (override {self.override * 100:.0f} %)"
+        message = "feed hold ON (path override 0 %)" if on else f"feed hold OFF (override {self.override * 100:.0f} %)"
+        self.served.note(f"page: {message}")
+        return True, message
 
     def reset(self) -> tuple[bool, str]:
         with self.lock:
             self.machine.reset()
-        return True, "CNC reset: the program stops, distance control is deselected"
+        message = "CNC reset: the program stops, distance control is deselected"
+        self.served.note(f"page: {message}")
+        return True, message
 
     def sensor_fault(self, kind: str, value: float, duration_s: float | None) -> tuple[bool, str]:
 
@@ -213,13 +220,16 @@ class MachineHub:
         except DistCtrlError as exc:
             return False, str(exc)
         until = "until cleared" if duration_s is None else f"for {duration_s:g} s"
-        return True, f"sensor fault {kind} {value:g} mm {until}"
+        message = f"sensor fault {kind} {value:g} mm {until}"
+        self.served.note(f"page: {message}")
+        return True, message
 
     def clear_faults(self) -> tuple[bool, str]:
         if self.machine.sensor is None:
             return False, "this scenario has no [sensor]"
         with self.lock:
             self.machine.sensor.clear_faults()
+        self.served.note("page: sensor faults cleared")
         return True, "sensor faults cleared"
 
     def write_object(self, axis_id: int, name: str, value: float) -> tuple[bool, str]:

@@ -41,3 +41,41 @@ def test_state_changes_of_the_distance_controlled_axis_are_logged(caplog):
         for _ in range(20):
             s.step()
     assert "axis Z: distance control INACTIVE -> ACTIVE_CONST_DIST" in caplog.text
+
+
+# R18 (new-user audit): the console said nothing about CNC-object writes, the page's sensor faults,
+# Reset, Feed hold and process-function switches; each is one line with the machine time now.
+
+def test_cnc_object_writes_over_ads_are_logged_pending_then_adopted(caplog):
+    import struct
+
+    from distctrl.ads.devices import serve_over_ads
+
+    s = serve_over_ads(load_scenario(SCN / "serve_z.toml"), port=0, discovery_port=None)   # not started
+    old = s.machine.controllers["Z"].tuning.kp
+    with caplog.at_level(logging.INFO, logger="distctrl.serve"):
+        s.services["ads"].cnc.write(0x120300, (2 << 16) | 0x3106, struct.pack("<d", 0.3))    # DIST_CTRL::kp of Z
+        for _ in range(3):
+            s.step()
+        written = [r.getMessage() for r in caplog.records if "DIST_CTRL::kp" in r.getMessage()]
+        assert written == [f"t=0.001 s axis Z: DIST_CTRL::kp {old:g} -> 0.3 pending "
+                           "(adopted on the next INACTIVE->active or FREEZE->active)"], written
+        s.machine.hli["Z"].plc_command("ON_CONST_DIST", 1.0)
+        for _ in range(5):
+            s.step()
+    lines = [r.getMessage() for r in caplog.records if "DIST_CTRL::kp" in r.getMessage()]
+    assert len(lines) == 2 and lines[1].startswith("t=0.00") and lines[1].endswith(
+        f"axis Z: DIST_CTRL::kp 0.3 adopted (was {old:g})"), lines
+
+
+def test_a_process_function_switched_over_ads_or_the_page_is_logged(caplog):
+    s = ServedMachine(load_scenario(SCN / "process_corner.toml"))
+    with caplog.at_level(logging.INFO, logger="distctrl.serve"):
+        s.step()
+        s.machine.process_program.set_enabled("corner_lock", "Z", False)
+        s.step()
+        s.machine.process_program.set_enabled("corner_lock", "Z", True)
+        s.step()
+    lines = [r.getMessage() for r in caplog.records if "corner_lock" in r.getMessage()]
+    assert lines == ["t=0.002 s process function corner_lock on Z switched off",
+                     "t=0.003 s process function corner_lock on Z switched on"], lines
