@@ -38,6 +38,9 @@ CSP = ("default-src 'none'; script-src 'self' 'unsafe-inline'; style-src 'self' 
 SWITCH_INTERVAL = 0.00003
 #: frames per second of every page (the scope's stream, the panels' values)
 FRAME_MS = 50
+#: the status line's check of every page (ms): it changes seldom, and then should show at once (a
+#: state change, the override, an error, the answer to a click)
+STATUS_MS = 20
 
 
 class _ClosedPageFilter(logging.Filter):
@@ -177,6 +180,7 @@ class UiServer:
             return
         self._server, self._io_loop = server, io
         PeriodicCallback(self.hub.pump, FRAME_MS // 2).start()
+        PeriodicCallback(self.hub.check_pages, STATUS_MS).start()
         self._ready.set()
         io.start()
 

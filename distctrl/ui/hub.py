@@ -83,6 +83,8 @@ class MachineHub:
         self.exports: dict[str, Path] = {}              # file name -> path, served by the page's download route
         self._export_lock = threading.Lock()
         self.program_lines = program_lines(served.scenario)
+        #: every open page's status check (:meth:`check_pages`), by document
+        self._status_checks: dict = {}
         served.observers.append(self._after_cycle)
         with self.lock:
             self._take_snapshot()
@@ -144,6 +146,16 @@ class MachineHub:
             items = [q2.popleft() for _ in range(n2)]
             block = np.array([[t, *v] for _, t, v in items], dtype=np.float64)
             self.obj_rows = ring_put(self.obj_data, self.obj_capacity, items[0][0], block)
+
+    def watch_page(self, doc, check) -> None:
+        """Run ``check()`` of the page ``doc`` with :meth:`check_pages` until its session ends."""
+        self._status_checks[doc] = check
+        doc.on_session_destroyed(lambda _context: self._status_checks.pop(doc, None))
+
+    def check_pages(self) -> None:
+        """The status check of every open page (the page thread, every 20 ms: one timer for all)."""
+        for check in list(self._status_checks.values()):
+            check()
 
     def rows_since(self, cursor: int, step: int = 1) -> tuple[int, np.ndarray]:
         """``(new cursor, rows)``: the trace rows written since ``cursor`` (every ``step``-th row by its

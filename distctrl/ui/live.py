@@ -25,13 +25,21 @@ from __future__ import annotations
 import html
 import time
 
-from bokeh.core.properties import Any, Dict, Int, String
+import json
+
+from bokeh.core.properties import Int, String
 from bokeh.model import DataModel
 
-#: frames the server sends ahead of the last one the page has drawn; a change of the status line or
-#: a message (the answer to a click) may go this many more (they are small and should show at once)
-MAX_IN_FLIGHT = 2
+#: frames the server sends ahead of the last one the page has acknowledged; a change of the status
+#: line or a message (the answer to a click) may go this many more (they are small and should show at
+#: once)
+MAX_IN_FLIGHT = 3
 URGENT_EXTRA = 2
+#: the page acknowledges every ACK_EVERY-th frame it has drawn, or a drawn frame ACK_MS after it has
+#: drawn it: each acknowledgement is a message into the page's thread (and Bokeh's answer to it), which
+#: beside the 1 ms cycle cost as much as a frame; MAX_IN_FLIGHT leaves room for the frames in between
+ACK_EVERY = 2
+ACK_MS = 100
 #: the page says "behind" from this lateness (s) and "stalled" after this long without a message (s)
 BEHIND_S = 1.0
 STALL_S = 2.5
@@ -47,10 +55,14 @@ STYLE = """
 
 
 class LiveValues(DataModel):
-    """One page's changing texts: ``values`` is the last delta (key -> text, or [text, state]), with
-    ``__seq`` (frame number) and ``__sent`` (server wall clock, s); ``ack`` is set by the page."""
+    """One page's changing texts: ``values`` is the last delta as JSON text (key -> text, or [text,
+    state]), with ``__seq`` (frame number), ``__sent`` (server wall clock, s) and ``__rows`` (the scope's
+    new rows); ``ack`` is set by the page.
 
-    values = Dict(String, Any, help="the keys that changed in this frame")
+    Text, not a Bokeh dict: Bokeh walks a changed property's old and new value for models they might
+    hold, every element of them, which cost about 1 ms a frame with the scope's rows (issue 39)."""
+
+    values = String("", help="the keys that changed in this frame (JSON)")
     ack = Int(0, help="the last frame number the page has drawn")
 
 
@@ -72,6 +84,8 @@ class Live:
         self.shown: dict[str, object] = {}
         self.staged: dict[str, object] = {}
         self.skipped = 0
+        #: the last message sent (what ``values`` holds as JSON text)
+        self.last: dict = {}
 
     @property
     def in_flight(self) -> int:
@@ -88,9 +102,10 @@ class Live:
         """Values to send with the next frame (a message after a click)."""
         self.staged.update(values)
 
-    def push(self, values: dict | None = None) -> None:
+    def push(self, values: dict | None = None, rows: list | None = None) -> None:
         """Send the keys of ``values`` (and the staged ones) whose text changed, with the frame number
-        and the time: one message, always (it is also the page's heartbeat)."""
+        and the time: one message, always (it is also the page's heartbeat). ``rows``: the scope's new
+        rows (:meth:`distctrl.ui.scope.Scope.update`), streamed by the page's script into the plot."""
         if values:
             self.staged.update(values)
         delta = {k: v for k, v in self.staged.items() if self.shown.get(k) != v}
@@ -103,7 +118,10 @@ class Live:
         self.seq += 1
         delta["__seq"] = self.seq
         delta["__sent"] = round(self.clock(), 3)
-        self.model.values = delta
+        if rows:
+            delta["__rows"] = rows
+        self.last = delta
+        self.model.values = json.dumps(delta, separators=(",", ":"), allow_nan=False)
 
 
 #: the name of the object browser's table: the page script redraws its grid after a change of its source
@@ -117,9 +135,9 @@ TABLE_NAME = "dc-objects"
 #: indices change (CDSView sets equal indices silently), so patched values stood still on the page.
 PAGE_JS = """
 (function () {
-  const BEHIND = %(behind)s, STALL = %(stall)s;
+  const BEHIND = %(behind)s, STALL = %(stall)s, ACK_EVERY = %(ack_every)s, ACK_MS = %(ack_ms)s;
   let live = null, els = {}, state = {}, lastScan = 0, lastArrival = 0, base = Infinity, behind = 0;
-  let lastSeq = 0, ackQueued = false;
+  let lastSeq = 0, ackQueued = false, acked = 0, ackTimer = null;
   const scan = () => {
     const found = {};
     const walk = (root) => {
@@ -146,19 +164,32 @@ PAGE_JS = """
     }
     if (list) for (const e of list) put(e, v);
   };
-  const ack = () => {
+  const sendAck = () => {
+    ackTimer = null;
+    if (live && acked !== lastSeq) { acked = lastSeq; live.ack = lastSeq; }
+  };
+  const ack = () => {                  // after the browser has drawn the frames up to lastSeq
     ackQueued = false;
-    if (live && live.ack !== lastSeq) live.ack = lastSeq;
+    if (lastSeq - acked >= ACK_EVERY) sendAck();
+    else if (ackTimer === null && acked !== lastSeq) ackTimer = setTimeout(sendAck, ACK_MS);
   };
   const apply = () => {
-    const d = live.values;
-    if (!d || d.__seq === undefined) return;
+    if (!live.values) return;
+    const d = JSON.parse(live.values);
+    if (d.__seq === undefined) return;
     const now = Date.now() / 1000, off = now - d.__sent;
     if (off < base || off - base > 600) base = off;
     behind = off - base;
     lastArrival = now;
     lastSeq = d.__seq;
     for (const k in d) if (!k.startsWith('__')) set(k, d[k]);
+    // the scope's new rows, into its sources here (sync false: the server keeps its ring buffer)
+    if (d.__rows && live.document) for (const [id, data, n] of d.__rows) {
+      const src = live.document.get_model_by_id(id);
+      if (!src) continue;
+      for (const c in data) data[c] = Float64Array.from(data[c], (v) => (v === null ? NaN : v));
+      src.stream(data, n, {sync: false});
+    }
     if (!ackQueued) {
       ackQueued = true;
       requestAnimationFrame(ack);
@@ -179,6 +210,17 @@ PAGE_JS = """
     for (const doc of Bokeh.documents) { live = doc.get_model_by_name('dc-live'); if (live) break; }
     if (!live) return setTimeout(find, 100);
     scan();
+    // the plots' automatic ranges (DataRange1d: the scope's time axis follows the data) stay in the
+    // browser: Bokeh would send every change of their start and end to the server, a message into
+    // the page's thread for every frame drawn, which the server never reads
+    for (const doc of Bokeh.documents) for (const m of doc.all_models) {
+      const proto = Object.getPrototypeOf(m);
+      if ((m.constructor.__qualified__ || m.constructor.__name__) === 'DataRange1d' && !proto.__dcLocal) {
+        const setv = proto.setv;
+        proto.setv = function (attrs, options) { return setv.call(this, attrs, {...(options || {}), sync: false}); };
+        proto.__dcLocal = true;
+      }
+    }
     live.properties.values.change.connect(apply);
     apply();
     let table = null;
@@ -198,4 +240,4 @@ PAGE_JS = """
   };
   find();
 })();
-""" % {"behind": BEHIND_S, "stall": STALL_S, "table": TABLE_NAME}
+""" % {"behind": BEHIND_S, "stall": STALL_S, "table": TABLE_NAME, "ack_every": ACK_EVERY, "ack_ms": ACK_MS}

@@ -23,9 +23,6 @@ from .scope import Scope
 
 TAB_SCOPE, TAB_OBJECTS, TAB_PLC, TAB_MACHINE = range(4)
 
-#: the status line's check (ms): it changes seldom, and then should show at once (a state change,
-#: the override, an error)
-STATUS_MS = 20
 #: frames between two updates of the machine view (its surface and path: 10 per second)
 MACHINE_EVERY = 2
 
@@ -78,13 +75,34 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
                 sizing_mode="stretch_width", css_classes=["dc-tabs"])
     frames = [0]
 
-    def status_line() -> None:
+    def status_due() -> dict | None:
+        """The status line's values (on the PLC panel also its discrete ones: a click's effect is as
+        urgent) when they or a staged message changed and the page may get them now; else None."""
         values = status_values(hub)
-        if tabs.active == TAB_PLC:               # a click's effect on the panel, as urgent as the status
+        if tabs.active == TAB_PLC:
             values.update(plc.discrete())
         if live.staged or any(live.shown.get(k) != v for k, v in values.items()):
             if live.can_send(urgent=True):
+                return values
+        return None
+
+    scheduled = [False]
+
+    def status_line() -> None:
+        """The 20 ms check (:meth:`MachineHub.check_pages`, one timer for all pages, outside the
+        document's lock): a push only when something changed, in the next tick under the lock. A
+        Bokeh periodic callback per page cost its locking and task machinery 50 times a second for
+        a check that finds nothing most of the time (issue 39)."""
+        if scheduled[0]:
+            return
+        values = status_due()
+        if values is not None:
+            scheduled[0] = True
+
+            def push() -> None:
+                scheduled[0] = False
                 live.push(values)
+            doc.add_next_tick_callback(push)
 
     def frame() -> None:
         frames[0] += 1
@@ -94,13 +112,13 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
             return
         values = clock_values(hub)
         values.update(status_values(hub))
-        scope.update(active == TAB_SCOPE)
+        rows = scope.update(active == TAB_SCOPE)
         values.update(objects.update(active == TAB_OBJECTS))
         if active == TAB_PLC:
             values.update(plc.update())
         if active == TAB_MACHINE:
             values.update(machine.update(frames[0] % MACHINE_EVERY == 0))
-        live.push(values)
+        live.push(values, rows)
 
     values = clock_values(hub)
     values.update(plc.update())
@@ -110,5 +128,7 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
     doc.add_root(root)
     doc.title = f"distctrl — {hub.served.scenario.name}"
     doc.add_periodic_callback(frame, frame_ms)
-    doc.add_periodic_callback(status_line, STATUS_MS)
+    hub.watch_page(doc, status_line)
     doc.live = live                                # for the tests
+    doc.status_due = status_due
+    doc.scope = scope

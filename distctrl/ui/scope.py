@@ -236,25 +236,31 @@ class Scope:
             self._stale = True
             self._pending = []
 
-    def update(self, visible: bool = True) -> None:
-        """A frame the page will draw: the rows kept since the last one, streamed."""
+    def update(self, visible: bool = True) -> list:
+        """A frame the page will draw: the rows kept since the last one, as ``[source id, columns,
+        rollover]`` for each of the plot's sources (trace rows, CNC-object samples) that has new rows.
+        They go with the frame's live values, one message (:meth:`distctrl.ui.live.Live.push`), and the
+        page's script streams them into the plot's sources in the browser: a Bokeh ``stream`` of its
+        own cost the page's thread about 1 ms and a second message per frame (issue 39)."""
         if not visible or self.pause.active:
-            return
+            return []
         hub = self.hub
         if self._stale:                          # shown again: the window anew from the ring buffer
             self._stale = False
             self._pending = []
             self._fill()
-            return
+            return []
+        out = []
         if self._pending:
             rows = np.concatenate(self._pending)[-self.rollover:]
             self._pending = []
-            self.source.stream(self._fast_data(rows), rollover=self.rollover)
+            out.append([self.source.id, _columns(self._fast_data(rows)), self.rollover])
         ocursor, orows = hub.object_rows_since(self.obj_cursor)
         self.obj_cursor = ocursor
         if len(orows) and self.slow_cols:
-            self.obj_source.stream(self._slow_data(orows),
-                                   rollover=int(float(self.window.value) / (hub.T * hub.snapshot_every)) + 1)
+            out.append([self.obj_source.id, _columns(self._slow_data(orows)),
+                        int(float(self.window.value) / (hub.T * hub.snapshot_every)) + 1])
+        return out
 
     def _markers(self) -> None:
         events = self.hub.events
@@ -306,3 +312,9 @@ class Scope:
                               + (f" through {level:g} {hub.signal_unit(name)}" if mode != "state change" else "")
                               + "); the display stops half a window later")
 
+
+def _columns(data: dict) -> dict:
+    """Columns as lists (a frame's few rows), NaN and inf as None: JSON has no NaN; the page's script
+    turns None back into NaN (a gap in the line)."""
+    return {k: np.where(np.isfinite(v), v, None).tolist() if not np.isfinite(v).all() else v.tolist()
+            for k, v in data.items()}

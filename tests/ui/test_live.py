@@ -2,6 +2,7 @@
 flow control, and the PLC panel's rough edges (R8), on a served machine stepped by hand."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -24,11 +25,17 @@ class Page:
         self.doc = Document()
         build_page(self.doc, hub, Path("."), 50)
         self.live = getattr(self.doc, "live", None)
-        callbacks = sorted(self.doc.session_callbacks, key=lambda c: -c.period)
-        self.frame, self.status = (c.callback for c in callbacks)        # every 50 ms, every 20 ms
+        [callback] = self.doc.session_callbacks                          # the frame, every 50 ms
+        self.frame = callback.callback
         self.tabs = self.doc.roots[0].children[1]
         self.changes: list = []
         self.doc.on_change(lambda event: self.changes.append(event))
+
+    def status(self) -> None:
+        """The 20 ms status check (MachineHub.check_pages schedules the push in the page's next tick)."""
+        values = self.doc.status_due()
+        if values is not None:
+            self.live.push(values)
 
     def run(self, cycles: int, frames: int = 1, ack: bool = True) -> None:
         for _ in range(frames):
@@ -90,10 +97,14 @@ def test_a_page_that_has_not_drawn_its_frames_gets_no_more_until_it_has(hub):
     scope = page.doc.roots[0].children[1].tabs[0].child.children[2]
     source = next(r.data_source for r in scope.renderers if isinstance(r.data_source, ColumnDataSource)
                   and "c0" in r.data_source.data)
-    before = source.data["t"][-1]
+    before = page.live.last["__rows"][0][1]["t"][-1]
     page.run(10)
-    # the rows it missed come in one go: the scope's time goes on where it was
-    assert source.data["t"][-1] == pytest.approx(hub.snapshot["t"], abs=0.011) and source.data["t"][-1] > before + 0.1
+    # the rows it missed come in one go (into the scope's source, by the page's script): the scope's
+    # time goes on where it was
+    [[source_id, rows, rollover]] = page.live.last["__rows"]
+    assert source_id == source.id and rollover == page.doc.scope.rollover and set(rows) == set(source.data)
+    assert rows["t"][0] == pytest.approx(before + 0.01)            # none lost, none twice
+    assert rows["t"][-1] == pytest.approx(hub.snapshot["t"], abs=0.011) and rows["t"][-1] > before + 0.1
     assert page.live.seq == sent + MAX_IN_FLIGHT + 1
 
 
@@ -188,10 +199,10 @@ def test_a_page_gets_every_value_until_it_has_drawn_one_frame(hub):
     page = Page(hub)
     page.tabs.active = TAB_PLC
     page.run(5, frames=1, ack=False)
-    assert {"Z.state", "Z.sem", "state.Z", "t", "plc.events"} <= set(page.live.model.values)
+    assert {"Z.state", "Z.sem", "state.Z", "t", "plc.events"} <= set(json.loads(page.live.model.values))
     page.live.model.ack = page.live.seq
     page.run(20, frames=1)
-    assert "Z.state" not in page.live.model.values and "t" in page.live.model.values
+    assert "Z.state" not in page.live.last and "t" in page.live.last
 
 
 def test_a_state_change_on_the_plc_panel_goes_out_with_the_status_check(hub):
@@ -207,5 +218,37 @@ def test_a_state_change_on_the_plc_panel_goes_out_with_the_status_check(hub):
     for _ in range(20):
         hub.served.step()
     page.status()
-    values = page.live.model.values
+    values = page.live.last
     assert values.get("Z.state") == "ACTIVE" and values.get("Z.taken") == "1" and "Z.apos" not in values
+
+
+def test_a_frame_is_one_message_with_the_scopes_rows(hub):
+    """Issue 39: a frame on the scope was two messages (Bokeh's stream of the scope's source, then the
+    live values), each costing the page's thread Bokeh's whole serialisation beside the 1 ms cycle. The
+    scope's rows now go with the live values, one message, and the page's script streams them."""
+    page = Page(hub)
+    page.tabs.active = TAB_SCOPE
+    page.run(10, frames=3)
+    page.changes.clear()
+    page.run(10, frames=5)
+    sent = [e for e in page.changes if getattr(e, "attr", None) != "ack"]      # (the page's own acks)
+    assert [type(e).__name__ for e in sent] == ["ModelChangedEvent"] * 5, [type(e).__name__ for e in sent]
+    assert all(e.model is page.live.model and e.attr == "values" for e in sent)
+    assert page.live.last["__rows"][0][1]["t"][-1] == pytest.approx(hub.snapshot["t"], abs=0.011)
+
+
+def test_the_status_check_is_no_periodic_callback_of_each_page(hub):
+    """Issue 39: every page had a Bokeh periodic callback every 20 ms for its status check (Bokeh's
+    locking and task machinery 50 times a second per page); one timer of the page server checks every
+    page now, and only a change is pushed (in the page's next tick)."""
+    page = Page(hub)
+    assert [c.period for c in page.doc.session_callbacks] == [50]
+    assert page.doc in hub._status_checks
+    hub.check_pages()
+    assert not page.doc.session_callbacks[1:]                      # nothing changed: nothing scheduled
+    page.run(5)
+    assert hub.plc_command("Z", "ON", 40.0)[0]
+    for _ in range(20):                                            # the hub's snapshot: every 10 cycles
+        hub.served.step()
+    hub.check_pages()
+    assert len(page.doc.session_callbacks) == 2                     # the push, in the next tick
