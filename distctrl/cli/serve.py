@@ -83,7 +83,8 @@ def serve_session(scenario: str, *, host: str, port: int, allowed: tuple[str, ..
                    "speed": served.speed, "cycle_period_ms": served.loop.cycle_time * 1e3,
                    "machine_seconds": served.machine.cycle * served.machine.T, "cycle_lateness": stats})
         return
-    click.echo(f"stopped by {stopped_by}" if stopped_by != "duration" else f"stopped after --duration {duration:g} s")
+    end = f"after --duration {duration:g} s" if stopped_by == "duration" else f"by {stopped_by}"
+    click.echo(f"stopped {end}")
     click.echo("cycle jitter: " + ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
                                            for k, v in stats.items()))
 

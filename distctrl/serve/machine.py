@@ -112,8 +112,8 @@ class SessionLog:
         for name, value in now.items():
             if before.get(name) != value:
                 spec = _WRITABLE[name]
-                self.log.info("t=%.3f s axis %s: %s %s -> %s pending (adopted on the next INACTIVE->active or "
-                              "FREEZE->active)", t, axis, spec.name,
+                self.log.info("t=%.3f s axis %s: %s %s -> %s pending (adopted on the next "
+                              "INACTIVE->active or FREEZE->active)", t, axis, spec.name,
                               _show(getattr(controller.tuning, name), spec), _show(value, spec))
         for name, value in before.items():
             if name not in now:

@@ -206,7 +206,8 @@ class MachineHub:
         self.feed_hold = bool(on)
         with self.lock:
             self.machine.channel_override = 0.0 if on else self.override
-        message = "feed hold ON (path override 0 %)" if on else f"feed hold OFF (override {self.override * 100:.0f} %)"
+        message = ("feed hold ON (path override 0 %)" if on
+                   else f"feed hold OFF (override {self.override * 100:.0f} %)")
         self.served.note(f"page: {message}")
         return True, message
 

@@ -217,7 +217,9 @@ PAGE_JS = """
       const proto = Object.getPrototypeOf(m);
       if ((m.constructor.__qualified__ || m.constructor.__name__) === 'DataRange1d' && !proto.__dcLocal) {
         const setv = proto.setv;
-        proto.setv = function (attrs, options) { return setv.call(this, attrs, {...(options || {}), sync: false}); };
+        proto.setv = function (attrs, options) {
+          return setv.call(this, attrs, {...(options || {}), sync: false});
+        };
         proto.__dcLocal = true;
       }
     }

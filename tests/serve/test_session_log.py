@@ -54,7 +54,8 @@ def test_cnc_object_writes_over_ads_are_logged_pending_then_adopted(caplog):
     s = serve_over_ads(load_scenario(SCN / "serve_z.toml"), port=0, discovery_port=None)   # not started
     old = s.machine.controllers["Z"].tuning.kp
     with caplog.at_level(logging.INFO, logger="distctrl.serve"):
-        s.services["ads"].cnc.write(0x120300, (2 << 16) | 0x3106, struct.pack("<d", 0.3))    # DIST_CTRL::kp of Z
+        # DIST_CTRL::kp of Z, as an ADS client writes it
+        s.services["ads"].cnc.write(0x120300, (2 << 16) | 0x3106, struct.pack("<d", 0.3))
         for _ in range(3):
             s.step()
         written = [r.getMessage() for r in caplog.records if "DIST_CTRL::kp" in r.getMessage()]

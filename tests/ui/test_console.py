@@ -35,7 +35,8 @@ def test_the_pages_actions_are_logged_with_the_machine_time(caplog):
                          "t=0.010 s page: feed hold ON (path override 0 %)",
                          "t=0.010 s page: feed hold OFF (override 100 %)",
                          "t=0.010 s page: path override 80 %",
-                         "t=0.010 s page: CNC reset: the program stops, distance control is deselected"], lines
+                         "t=0.010 s page: CNC reset: the program stops, distance control is deselected"], \
+        lines
     assert any(line.startswith("t=0.011 s axis Z: DIST_CTRL::kp ") and line.endswith(
         "-> 0.4 pending (adopted on the next INACTIVE->active or FREEZE->active)") for line in lines), lines
 
