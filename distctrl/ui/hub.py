@@ -150,7 +150,11 @@ class MachineHub:
     def watch_page(self, doc, check) -> None:
         """Run ``check()`` of the page ``doc`` with :meth:`check_pages` until its session ends."""
         self._status_checks[doc] = check
-        doc.on_session_destroyed(lambda _context: self._status_checks.pop(doc, None))
+        doc.on_session_destroyed(lambda _context: self.forget_page(doc))
+
+    def forget_page(self, doc) -> None:
+        """No more status checks of the page ``doc`` (its session has ended)."""
+        self._status_checks.pop(doc, None)
 
     def check_pages(self) -> None:
         """The status check of every open page (the page thread, every 20 ms: one timer for all)."""

@@ -87,12 +87,18 @@ def build_page(doc, hub: MachineHub, export_dir: Path, frame_ms: int) -> None:
         return None
 
     scheduled = [False]
+    served_page = doc.session_context is not None          # built for a session of the page server
 
     def status_line() -> None:
         """The 20 ms check (:meth:`MachineHub.check_pages`, one timer for all pages, outside the
         document's lock): a push only when something changed, in the next tick under the lock. A
         Bokeh periodic callback per page cost its locking and task machinery 50 times a second for
         a check that finds nothing most of the time (issue 39)."""
+        if served_page and doc.session_context is None:
+            # Bokeh has destroyed the session's document; its on_session_destroyed hook (which
+            # forgets the page too) runs only after an await, and a push now would raise
+            hub.forget_page(doc)
+            return
         if scheduled[0]:
             return
         values = status_due()

@@ -252,3 +252,31 @@ def test_the_status_check_is_no_periodic_callback_of_each_page(hub):
         hub.served.step()
     hub.check_pages()
     assert len(page.doc.session_callbacks) == 2                     # the push, in the next tick
+
+
+def test_the_status_check_leaves_a_page_whose_session_bokeh_has_just_destroyed(hub):
+    """Bokeh destroys an unused session's document first and runs its on_session_destroyed hooks
+    later (after an await); the page server's 20 ms status check in between scheduled a push on the
+    destroyed document and Tornado logged an AttributeError traceback (found by bench/stress_serve.py
+    page, issue 39). The check now forgets a page whose session has ended."""
+    import asyncio
+    import weakref
+
+    from bokeh.server.contexts import BokehSessionContext
+    from bokeh.server.session import ServerSession
+    from tornado.ioloop import IOLoop
+
+    async def main():
+        doc = Document()
+        context = BokehSessionContext("s1", None, doc)
+        doc._session_context = weakref.ref(context)               # as Bokeh's server sets up a page
+        build_page(doc, hub, Path("."), 50)
+        session = ServerSession("s1", doc, io_loop=IOLoop.current())
+        context._set_session(session)
+        assert hub.plc_command("Z", "ON", 40.0)[0]                # the status line changes
+        for _ in range(20):
+            hub.served.step()
+        session.destroy()                                        # Bokeh's discard, before the hooks
+        hub.check_pages()
+        assert doc not in hub._status_checks
+    asyncio.run(main())
