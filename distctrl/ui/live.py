@@ -165,6 +165,7 @@ PAGE_JS = """
     if (list) for (const e of list) put(e, v);
   };
   const sendAck = () => {
+    if (ackTimer !== null) clearTimeout(ackTimer);
     ackTimer = null;
     if (live && acked !== lastSeq) { acked = lastSeq; live.ack = lastSeq; }
   };
