@@ -155,7 +155,23 @@ class Served:
         except ValueError:
             doc = None
         return {"returncode": rc, "json": doc, "traceback": "Traceback" in err,
-                "refused_logged": err.count("refused "), "stderr_tail": err[-1500:]}
+                "refused_logged": err.count("refused "), "stderr_tail": err[-1500:],
+                "tracebacks": tracebacks(self.err_lines)}
+
+
+def tracebacks(lines: list[str], most: int = 3) -> list[str]:
+    """The first ``most`` tracebacks in serve's log, each with the log line before it (what raised)."""
+    found, i = [], 0
+    while i < len(lines) and len(found) < most:
+        if lines[i].startswith("Traceback"):
+            j = i + 1
+            while j < len(lines) and not re.match(r"\d{4}-\d\d-\d\d ", lines[j]):
+                j += 1
+            found.append("".join(lines[max(0, i - 1):j])[-4000:])
+            i = j
+        else:
+            i += 1
+    return found
 
 
 class Browser:
