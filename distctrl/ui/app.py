@@ -216,6 +216,10 @@ class UiServer:
         doc.template = _template()
 
 
+class _ClientMessageError(Exception):
+    """A websocket message of a client that Bokeh's handler could not take."""
+
+
 def _client_error(exc: BaseException | None) -> bool:
     """An exception Bokeh raises for a request it cannot use (a malformed session id or token, a
     websocket without the "bokeh, <token>" subprotocol): the client's fault, not the server's."""
@@ -281,6 +285,25 @@ def _harden(app) -> None:
                 return
             await super().get(*args, **kwargs)
 
+        def _refuse(self, what: str) -> None:
+            log.warning("refused a malformed request from %s (UI): websocket message %s", self.request.remote_ip,
+                        what)
+            self.close()
+
+        async def _handle(self, message):
+            # a message a page of this server never sends: without a message id (Bokeh's answer to it
+            # raised KeyError), or whose handling raises (a patch without events, of a model that is
+            # not in the page): Bokeh logged each with a traceback; refused in one line, closed
+            header = message.header if isinstance(getattr(message, "header", None), dict) else {}
+            if not isinstance(header.get("msgid"), str):
+                self._refuse(f"{header.get('msgtype', '?')!s:.40} without a message id")
+                return None
+            try:
+                return await self.handler.handle_checked(message, self.connection)
+            except _ClientMessageError as exc:
+                self._refuse(f"{message.msgtype}: {exc}")
+                return None
+
         async def on_message(self, fragment):
             # Bokeh sets up the session's receiver in a callback after the upgrade; a page waits for
             # its ACK before it sends, a client that does not is closed (Bokeh's own reaction to a
@@ -291,6 +314,21 @@ def _harden(app) -> None:
                 self.close()
                 return None
             return await super().on_message(fragment)
+
+    from bokeh.server.protocol_handler import ProtocolHandler
+
+    if not hasattr(ProtocolHandler, "handle_checked"):
+        async def handle_checked(self, message, connection):
+            """:meth:`handle` with the handler's exception raised as a client error instead of logged
+            with a traceback and answered (the messages of a page of this server never raise)."""
+            handler = self._handlers.get(message.msgtype)
+            if handler is None:
+                return await self.handle(message, connection)       # Bokeh's ProtocolError
+            try:
+                return await handler(message, connection)
+            except Exception as exc:  # noqa: BLE001 - the client's message, see HardenedWs._handle
+                raise _ClientMessageError(f"{type(exc).__name__}: {str(exc)[:120]}") from None
+        ProtocolHandler.handle_checked = handle_checked
 
     for rule in app.wildcard_router.rules:
         target = rule.target

@@ -84,3 +84,50 @@ def test_a_message_before_the_session_opened_closes_without_a_traceback(caplog):
     assert all(a.startswith(b"HTTP/1.1 101 ") for a in answers), [a[:100] for a in answers]
     tracebacks = [r for r in caplog.records if r.exc_info or "Traceback" in r.getMessage()]
     assert not tracebacks, [r.getMessage()[:300] for r in tracebacks]
+
+
+def _session_socket(port: int) -> socket.socket:
+    """A real page session's websocket, open (Bokeh's ACK received)."""
+    host = f"Host: 127.0.0.1:{port}\r\nConnection: close\r\n".encode()
+    page = exchange(port, b"GET / HTTP/1.1\r\n" + host + b"\r\n")
+    token = re.search(rb'"token":"([^"]+)"', page).group(1)
+    s = socket.create_connection(("127.0.0.1", port), timeout=60)
+    s.sendall(b"GET /ws HTTP/1.1\r\n" + f"Host: 127.0.0.1:{port}\r\n".encode()
+              + b"Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+              b"Sec-WebSocket-Version: 13\r\nOrigin: http://127.0.0.1:" + str(port).encode() + b"\r\n"
+              b"Sec-WebSocket-Protocol: bokeh, " + token + b"\r\n\r\n")
+    buf = bytearray()
+    while b'"ACK"' not in buf:
+        chunk = s.recv(65536)
+        assert chunk, bytes(buf)[:200]
+        buf += chunk
+    return s
+
+
+def test_a_malformed_bokeh_message_on_a_session_is_refused_without_a_traceback(caplog):
+    """A PATCH-DOC without events and a request without a message id, on an open session's
+    websocket: Bokeh logged "error handling message" with a KeyError traceback ('events'; 'msgid' in
+    its own error answer). Found by bench/stress_serve.py page (issue 39)."""
+    caplog.set_level(logging.INFO)
+    messages = [(b'{"msgid":"2","msgtype":"PATCH-DOC"}', b"{}", b"{}"),
+                (b'{"msgtype":"SERVER-INFO-REQ"}', b"{}", b"{}"),
+                (b'{"msgid":"3","msgtype":"PATCH-DOC"}', b"{}",
+                 b'{"events":[{"kind":"ModelChanged","model":{"id":"p1"},"attr":"value","new":1}]}')]
+    with serve_with_page_server(SCN) as (_served, ui):
+        for header, metadata, content in messages:
+            with _session_socket(ui.port) as s:
+                s.sendall(masked_text_frame(header) + masked_text_frame(metadata) + masked_text_frame(content))
+                buf = bytearray()
+                s.settimeout(10)
+                while b"\x88" not in buf:              # the server closes the connection
+                    try:
+                        chunk = s.recv(65536)
+                    except TimeoutError:
+                        break
+                    if not chunk:
+                        break
+                    buf += chunk
+    tracebacks = [r for r in caplog.records if r.exc_info or "Traceback" in r.getMessage()]
+    assert not tracebacks, [r.getMessage()[:300] for r in tracebacks]
+    refused = [r.getMessage() for r in caplog.records if "refused a malformed request" in r.getMessage()]
+    assert len(refused) == 3 and all("websocket message" in m for m in refused), refused

@@ -257,8 +257,9 @@ def test_the_status_check_is_no_periodic_callback_of_each_page(hub):
 def test_the_status_check_leaves_a_page_whose_session_bokeh_has_just_destroyed(hub):
     """Bokeh destroys an unused session's document first and runs its on_session_destroyed hooks
     later (after an await); the page server's 20 ms status check in between scheduled a push on the
-    destroyed document and Tornado logged an AttributeError traceback (found by bench/stress_serve.py
-    page, issue 39). The check now forgets a page whose session has ended."""
+    destroyed document and raised AttributeError in Tornado's callback, a traceback on serve's console
+    (seen while looking for the page campaign's traceback, issue 39). The check now forgets a page whose
+    session has ended."""
     import asyncio
     import weakref
 
