@@ -286,8 +286,8 @@ def _harden(app) -> None:
             await super().get(*args, **kwargs)
 
         def _refuse(self, what: str) -> None:
-            log.warning("refused a malformed request from %s (UI): websocket message %s", self.request.remote_ip,
-                        what)
+            log.warning("refused a malformed request from %s (UI): websocket message %s",
+                        self.request.remote_ip, what)
             self.close()
 
         async def _handle(self, message):

@@ -93,7 +93,8 @@ def _session_socket(port: int) -> socket.socket:
     token = re.search(rb'"token":"([^"]+)"', page).group(1)
     s = socket.create_connection(("127.0.0.1", port), timeout=60)
     s.sendall(b"GET /ws HTTP/1.1\r\n" + f"Host: 127.0.0.1:{port}\r\n".encode()
-              + b"Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+              + b"Upgrade: websocket\r\nConnection: Upgrade\r\n"
+              b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
               b"Sec-WebSocket-Version: 13\r\nOrigin: http://127.0.0.1:" + str(port).encode() + b"\r\n"
               b"Sec-WebSocket-Protocol: bokeh, " + token + b"\r\n\r\n")
     buf = bytearray()
@@ -116,7 +117,7 @@ def test_a_malformed_bokeh_message_on_a_session_is_refused_without_a_traceback(c
     with serve_with_page_server(SCN) as (_served, ui):
         for header, metadata, content in messages:
             with _session_socket(ui.port) as s:
-                s.sendall(masked_text_frame(header) + masked_text_frame(metadata) + masked_text_frame(content))
+                s.sendall(b"".join(masked_text_frame(m) for m in (header, metadata, content)))
                 buf = bytearray()
                 s.settimeout(10)
                 while b"\x88" not in buf:              # the server closes the connection
