@@ -315,7 +315,7 @@ def _harden(app) -> None:
                 return None
             return await super().on_message(fragment)
 
-    from bokeh.server.protocol_handler import ProtocolHandler
+    from bokeh.server.protocol_handler import ProtocolHandler  # Bokeh: loaded in the page thread, as in _run
 
     if not hasattr(ProtocolHandler, "handle_checked"):
         async def handle_checked(self, message, connection):
