@@ -74,7 +74,7 @@ linuxcnc:
 		|| (echo "make: halrun/halcompile/Xvfb are still not on PATH after apt-get install linuxcnc-uspace linuxcnc-uspace-dev xvfb" >&2; exit 1)
 
 test: $(STAMP) $(WARM_STAMP) chromium $(NODE_STAMP) linuxcnc
-	$(PY) -m pytest -q -p no:cacheprovider
+	$(PY) -m pytest -q -p no:cacheprovider --durations=30
 
 bench: $(STAMP) $(WARM_STAMP)
 	$(PY) bench/bench_core.py
