@@ -39,7 +39,7 @@ def test_json_keys_exactly_and_out_files(files, tmp_path):
              "--out", out])
     assert r.exit_code == 0, r.output
     j = json.loads(r.stdout)
-    assert set(j["drive"]) == {"kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping"}
+    assert set(j["drive"]) == {"kv", "dead_time", "feedforward", "v_max", "a_max", "resonance_hz", "damping"}
     assert set(j["sensor"]) == {"delay", "noise_std", "characteristic"}
     assert abs(j["drive"]["kv"] / PLANT.kv - 1) <= 0.1
     assert j["drive"]["resonance_hz"] is None and any("no resonance" in w for w in j["warnings"])

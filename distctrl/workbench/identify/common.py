@@ -30,7 +30,7 @@ RECORD_STANDSTILL = "1 s or more at standstill above the sheet"
 RECORD_OPEN_LOOP = "record with distance control off, above a flat sheet"
 
 #: the identified figures, the keys of ``drive`` and ``sensor`` (issue 15 pins them)
-DRIVE_KEYS = ("kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping")
+DRIVE_KEYS = ("kv", "dead_time", "feedforward", "v_max", "a_max", "resonance_hz", "damping")
 SENSOR_KEYS = ("delay", "noise_std", "characteristic")
 
 

@@ -62,21 +62,59 @@ def _delayed(x: np.ndarray, shift: float) -> np.ndarray:
 
 
 def _drive_rows(recs: Sequence[_Rec], theta: float, T: float, free: bool = False):
-    """Regressor z = c(theta) - X, response dX and the previous dX of every recording, concatenated.
-    ``free``: only the cycles where the drive is at none of its limits (the linear loop's samples)."""
-    zs, ys, ps = [], [], []
+    """Regressor z = c(theta) - X, response dX, the previous dX and the feed-forward regressor
+    w = c(theta)[k] - c(theta)[k-1] (the delayed command's step this cycle, as the simulator's drive
+    feeds it forward) of every recording, concatenated. ``free``: only the cycles where the drive is at
+    none of its limits (the linear loop's samples)."""
+    zs, ys, ps, ws = [], [], [], []
     skip = int(math.ceil(MAX_DELAY / T)) + 2
     for r in recs:
         c = _delayed(r.S, theta / T)
         dX = np.diff(r.X)
         z = (c - r.X)[:-1]
+        w = np.diff(c, prepend=c[0])[:-1]
         keep = slice(skip, None)
         if free and r.limited is not None:
             keep = np.flatnonzero(~r.limited[skip:]) + skip
         zs.append(z[keep])
         ys.append(dX[keep])
+        ws.append(w[keep])
         ps.append(dX[:-1][np.asarray(keep) - 1] if free and r.limited is not None else dX[skip - 1:-1])
-    return np.concatenate(zs), np.concatenate(ys), np.concatenate(ps)
+    return np.concatenate(zs), np.concatenate(ys), np.concatenate(ps), np.concatenate(ws)
+
+
+def _loop_rows(recs: Sequence[_Rec], theta: float, T: float, beta: float = 0.0):
+    """z and the response the P loop must explain (dX less the feed-forward ``beta`` w) on the free
+    cycles (:func:`_drive_rows`)."""
+    z, y, _, w = _drive_rows(recs, theta, T, free=True)
+    return z, (y - beta * w if beta else y)
+
+
+#: feed-forward gains tried as the start of the joint fit (the simulator's ff, 0..1)
+FF_GRID = np.linspace(0.0, 1.0, 5)
+
+
+def _robust_alpha_ff(z: np.ndarray, w: np.ndarray, y: np.ndarray, scale: float):
+    """y = alpha z + beta w (a P loop with velocity feed-forward beta in [0, 1]): beta first on FF_GRID
+    by the truncated cost of :func:`_robust_alpha`, then alpha and beta by least squares on the samples
+    within 4 scales. Returns alpha, beta, the truncated-quadratic cost."""
+    fits = [(_robust_alpha(z, y - b * w, scale), float(b)) for b in FF_GRID]
+    (alpha, cost, _), beta = min(fits, key=lambda f: f[0][1])
+    if not math.isfinite(cost):
+        return alpha, beta, cost
+    for _ in range(4):                 # the inliers of the last fit, until they settle
+        inl = np.abs(y - alpha * z - beta * w) <= 4.0 * scale
+        A = np.column_stack([z[inl], w[inl]])
+        if inl.sum() < 10 or np.linalg.matrix_rank(A) < 2:
+            break
+        b_ = float(min(max(np.linalg.lstsq(A, y[inl], rcond=None)[0][1], 0.0), 1.0))
+        a_ = _robust_alpha(z, y - b_ * w, scale)
+        if a_[1] > cost or abs(b_ - beta) < 1e-4:
+            if a_[1] <= cost:
+                alpha, beta, cost = a_[0], b_, a_[1]
+            break
+        alpha, beta, cost = a_[0], b_, a_[1]
+    return alpha, beta, cost
 
 
 def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> tuple[float, float, float]:
@@ -99,16 +137,16 @@ def _robust_alpha(z: np.ndarray, y: np.ndarray, scale: float | None = None) -> t
 
 def _recording_scale(recs, theta: float, T: float) -> float:
     """The largest median |residual| of the one-step equation over the recordings that move (inf: none)."""
-    meds = [_robust_alpha(*_drive_rows([r], theta, T, free=True)[:2])[2] for r in recs]
+    meds = [_robust_alpha(*_loop_rows([r], theta, T))[2] for r in recs]
     meds = [m for m in meds if math.isfinite(m)]
     return max(meds) if meds else math.inf
 
 
-def _limits(recs, T: float, alpha: float, theta: float, scale: float):
-    """v_max and a_max (None if never reached) from the samples where the P loop demands more than
-    the motor does, and the number of such samples."""
-    z, y, yp = _drive_rows(recs, theta, T)
-    v, vp, vd = y / T, yp / T, alpha * z / T
+def _limits(recs, T: float, alpha: float, theta: float, scale: float, beta: float = 0.0):
+    """v_max and a_max (None if never reached) from the samples where the P loop (with its feed-forward
+    ``beta``) demands more than the motor does, and the number of such samples."""
+    z, y, yp, w = _drive_rows(recs, theta, T)
+    v, vp, vd = y / T, yp / T, (alpha * z + beta * w) / T
     dv, dvd = v - vp, vd - vp
     sv = 3.0 * scale / T + 1e-9                     # velocity noise
     sat_v = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.sign(vd) == np.sign(v)) & \
@@ -245,7 +283,8 @@ def _weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> flo
     return float(values[order][min(int(np.searchsorted(cum, q * cum[-1])), values.size - 1)])
 
 
-def _plateau_limits(recs, T: float, res: Identification, alpha: float | None = None, theta: float = 0.0):
+def _plateau_limits(recs, T: float, res: Identification, alpha: float | None = None, theta: float = 0.0,
+                    beta: float = 0.0):
     """v_max and a_max from the plateaus of the actual positions (:func:`_plateaus`; None where none).
 
     Without ``alpha`` (the loop not fitted yet): the recordings' ``limited`` masks are set (a plateau
@@ -265,7 +304,8 @@ def _plateau_limits(recs, T: float, res: Identification, alpha: float | None = N
             r.limited = lim
             demand = None
         else:
-            demand = alpha * (_delayed(r.S, theta / T) - r.X)[:-1] / T
+            c = _delayed(r.S, theta / T)
+            demand = (alpha * (c - r.X) + beta * np.diff(c, prepend=c[0]))[:-1] / T
         for a, b in runs_v:
             m = vmask[a:b]
             if demand is None or np.median(np.abs(demand[a:b][m]) - 1.15 * np.abs(v[a:b][m])) > 0:
@@ -329,11 +369,13 @@ def _command_transients(recs, alpha: float, scale: float) -> int:
     return n
 
 
-def _limited_cost(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max) -> float:
+def _limited_cost(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max,
+                  beta: float = 0.0) -> float:
     """The truncated quadratic cost of the one-step prediction with the limits (the measured previous
-    velocity bounds the change): a limited start is explained, a motion before the command is not."""
-    z, y, yp = _drive_rows(recs, theta, T)
-    vhat = alpha * z / T
+    velocity bounds the change): a limited start is explained, a motion before the command is not.
+    ``beta``: the velocity feed-forward (the simulator's ff)."""
+    z, y, yp, w = _drive_rows(recs, theta, T)
+    vhat = (alpha * z + beta * w) / T
     if v_max is not None:
         vhat = np.clip(vhat, -v_max, v_max)
     if a_max is not None:
@@ -347,7 +389,7 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
     # scipy's optimize/signal/ndimage (0.2-0.5 s of import each): only on the path that needs it
     from scipy.optimize import minimize_scalar
 
-    out = {"kv": None, "dead_time": None, "v_max": None, "a_max": None}
+    out = {"kv": None, "dead_time": None, "v_max": None, "a_max": None, "feedforward": None}
     moving = sum(float(np.ptp(r.S)) for r in recs)
     if moving <= 0.0:
         return out
@@ -366,16 +408,25 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         return out
     scale = max(1.4826 * float(np.min(med)), 1e-7)
     res.extra["drive_equation_scale_mm"] = scale
-    def search(scale: float):
+    def loop_fit(theta: float, scale: float, ff: bool):
+        """(alpha, beta, cost) of the linear loop at the dead time theta; beta = 0 without ``ff``."""
+        if ff:
+            z, y, _, w = _drive_rows(recs, theta, T, free=True)
+            return _robust_alpha_ff(z, w, y, scale)
+        alpha, cost, _ = _robust_alpha(*_loop_rows(recs, theta, T), scale)
+        return alpha, 0.0, cost
+
+    def search(scale: float, ff: bool = False):
         v_pl_, a_pl_ = v_pl, a_pl
         # pass 2: the linear loop's truncated quadratic cost: a first dead time, and the limits there
-        costs = np.array([_robust_alpha(*_drive_rows(recs, th, T, free=True)[:2], scale)[1] for th in coarse])
-        theta = float(coarse[int(np.argmin(costs))])
-        alpha = _robust_alpha(*_drive_rows(recs, theta, T, free=True)[:2], scale)[0]
+        fits = [loop_fit(th, scale, ff) for th in coarse]
+        i0 = int(np.argmin([f[2] for f in fits]))
+        theta = float(coarse[i0])
+        alpha, beta = fits[i0][0], fits[i0][1]
         grid = np.arange(0.0, MAX_DELAY + 1e-12, 0.25 * T)
-        v_max, a_max, _, _ = _limits(recs, T, alpha, theta, scale)
+        v_max, a_max, _, _ = _limits(recs, T, alpha, theta, scale, beta)
         if 0.0 < alpha < 1.0:                  # the plateaus where the loop demands more than the drive does
-            v_pl_, a_pl_ = _plateau_limits(recs, T, res, alpha, theta)
+            v_pl_, a_pl_ = _plateau_limits(recs, T, res, alpha, theta, beta)
         v_max, a_max = v_pl_ or v_max, a_pl_ or a_max
         # pass 3: with the limits in the one-step prediction (an acceleration-limited start no longer
         # looks like a longer dead time), on the grid near the first dead time, then refined; the
@@ -383,24 +434,24 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         # within the cycle: the cost can be flat over a cycle)
         for _ in range(2):
             win = grid[np.abs(grid - theta) <= 8 * T + 1e-12]
-            costs_w = np.array([_limited_cost(recs, T, th, scale, alpha, v_max, a_max) for th in win])
+            costs_w = np.array([_limited_cost(recs, T, th, scale, alpha, v_max, a_max, beta) for th in win])
             i = int(np.flatnonzero(costs_w <= costs_w.min() * (1 + 1e-9))[0])
             theta = float(win[i])
             lo, hi = win[max(i - 1, 0)], win[min(i + 1, win.size - 1)]
             if hi > lo:
-                opt = minimize_scalar(lambda th: _limited_cost(recs, T, th, scale, alpha, v_max, a_max),
+                opt = minimize_scalar(lambda th: _limited_cost(recs, T, th, scale, alpha, v_max, a_max, beta),
                                       bounds=(lo, hi), method="bounded", options={"xatol": 0.005 * T})
                 if opt.fun < costs_w[i] * (1 - 1e-9):
                     theta = float(opt.x)
-            alpha = _robust_alpha(*_drive_rows(recs, theta, T, free=True)[:2], scale)[0]
-            best = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
-            v_max, a_max, n_v, n_a = _limits(recs, T, alpha, theta, scale)
+            alpha, beta, _ = loop_fit(theta, scale, ff)
+            best = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max, beta)
+            v_max, a_max, n_v, n_a = _limits(recs, T, alpha, theta, scale, beta)
             if 0.0 < alpha < 1.0:
-                v_pl_, a_pl_ = _plateau_limits(recs, T, res, alpha, theta)
+                v_pl_, a_pl_ = _plateau_limits(recs, T, res, alpha, theta, beta)
             v_max, a_max = v_pl_ or v_max, a_pl_ or a_max
         # identifiability of the dead time: the cost must rise 2-3 ms away from the optimum (a ramp
         # alone trades dead time against kv; steps or a chirp separate them)
-        near = [_limited_cost(recs, T, th, scale, alpha, v_max, a_max)
+        near = [_limited_cost(recs, T, th, scale, alpha, v_max, a_max, beta)
                 for th in (theta - 0.003, theta - 0.002, theta + 0.002, theta + 0.003) if 0.0 <= th <= MAX_DELAY]
         # (by 5 %, or by DEAD_TIME_COST_RISE in the cost's units of squared noise scales: a long recording of
         # few raw steps, most of its cycles at standstill or at the limits, carries the dead time in the few
@@ -410,17 +461,33 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         jumps = _command_transients(recs, alpha, scale)
         res.extra["drive_command_transients"] = jumps
         sharp = sharp and jumps >= 3
-        return theta, alpha, v_max, a_max, n_v, n_a, best, near, jumps, sharp
+        return theta, alpha, v_max, a_max, n_v, n_a, best, near, jumps, sharp, beta
 
     # a recording whose moving cycles the model explains to the encoder's grid (a noise-free encoder, few
     # raw steps) makes every cycle after a jump an outlier at every dead time: the cost is flat there.
     # Then, when the command has raw jumps (RAW_JUMP_MM within a cycle; not a ramp, not an NC's move),
     # the band is widened (10x, 100x the scale) until the cost shows the dead time, if it does.
     raw_jumps = sum(int(np.count_nonzero(np.abs(np.diff(r.S, 2)) > RAW_JUMP_MM)) for r in recs)
-    for widen in (1.0, 10.0, 100.0):
-        theta, alpha, v_max, a_max, n_v, n_a, best, near, jumps, sharp = search(scale * widen)
-        if sharp or not (0.0 < alpha < 1.0) or jumps < 3 or raw_jumps < 3:
-            break
+
+    def widened(ff: bool):
+        for widen in (1.0, 10.0, 100.0):
+            found = search(scale * widen, ff)
+            alpha, sharp = found[1], found[9]
+            if sharp or not (0.0 < alpha < 1.0) or found[8] < 3 or raw_jumps < 3:
+                break
+        return widen, found, {k: res.extra.get(k) for k in FF_EXTRA_KEYS}
+
+    # the P loop alone, and the P loop with velocity feed-forward (a drive that follows the interpolated
+    # set point's slope: with it the motor follows a chirp almost without lag, and the P loop alone reads
+    # kv many times too high); the feed-forward model is taken when it explains the motion clearly better
+    widen, found, extra = widened(False)
+    widen_ff, found_ff, extra_ff = widened(True)
+    choice = _choose_feedforward(recs, T, scale * max(widen, widen_ff), found, found_ff)
+    res.extra["drive_feedforward_cost_ratio"] = choice["cost_ratio"]
+    if choice["feedforward"]:
+        widen, found, extra = widen_ff, found_ff, extra_ff
+    res.extra.update(extra)
+    theta, alpha, v_max, a_max, n_v, n_a, best, near, jumps, sharp, beta = found
     scale *= widen
     res.extra["drive_equation_scale_mm"] = scale
     res.extra["drive_dead_time_cost_ratio"] = (min(near) / best) if near and best > 0 else None
@@ -432,8 +499,14 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
         return out
     out["kv"], out["dead_time"] = -math.log1p(-alpha) / T, theta
     out["v_max"], out["a_max"] = v_max, a_max
+    out["feedforward"] = beta
+    if not choice["feedforward"] and _feedforward_cycles(recs, T, theta, scale, alpha) < FF_MIN_CYCLES:
+        out["feedforward"] = None
+        _warn(res.warnings, "feedforward: not identifiable from these recordings (the set point moves within "
+                            "the cycles the drive follows linearly too rarely: raw steps saturate the drive); "
+                            f"record {RECORD_CHIRP}")
     res.uncertainty.setdefault("drive", {}).update(
-        _drive_uncertainty(recs, T, theta, scale, alpha, v_max, a_max))
+        _drive_uncertainty(recs, T, theta, scale, alpha, v_max, a_max, beta))
     if v_max is None or a_max is None:
         _limit_bounds(recs, T, res, v_max is None, a_max is None)
     res.extra["drive_samples_velocity_limited"] = n_v
@@ -441,21 +514,68 @@ def _fit_drive(recs: Sequence[_Rec], T: float, res: Identification) -> dict:
     return out
 
 
-def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max) -> dict:
+#: what a search of the drive leaves in ``res.extra`` (kept from the model chosen)
+FF_EXTRA_KEYS = ("drive_plateau_cycles_velocity", "drive_plateau_cycles_acceleration",
+                 "drive_command_transients")
+#: the feed-forward model is taken when its cost is below this fraction of the P loop's ...
+FF_COST_RATIO = 0.8
+#: ... and its feed-forward is at least this
+FF_MIN = 0.1
+
+
+#: the feed-forward is judged absent only from this many cycles where the set point moves and the P loop
+#: explains the motion (a recording of raw steps has a few: each jump saturates the drive)
+FF_MIN_CYCLES = 200
+
+
+def _feedforward_cycles(recs, T: float, theta: float, scale: float, alpha: float) -> int:
+    """Cycles on which velocity feed-forward would show: the delayed set point moves by more than 10 noise
+    scales and the P loop alone explains the motion within 4 (free of the limits)."""
+    z, y, _, w = _drive_rows(recs, theta, T, free=True)
+    return int(np.count_nonzero((np.abs(w) > 10.0 * scale) & (np.abs(y - alpha * z) <= 4.0 * scale)))
+
+
+def _choose_feedforward(recs, T: float, scale: float, found: tuple, found_ff: tuple) -> dict:
+    """Whether the drive has velocity feed-forward: the joint fit (``found_ff``) identified (alpha in
+    (0, 1), the dead time determined), its feed-forward at least FF_MIN, and its limited cost at a common
+    noise scale below FF_COST_RATIO of the P loop's (or the P loop not identified at all)."""
+    th1, a1, vm1, am1 = found_ff[:4]
+    ok_ff = 0.0 < a1 < 1.0 and found_ff[9] and found_ff[10] >= FF_MIN
+    th0, a0, vm0, am0 = found[:4]
+    ok0 = 0.0 < a0 < 1.0 and found[9]
+    c1 = _limited_cost(recs, T, th1, scale, a1, vm1, am1, found_ff[10]) if 0.0 < a1 < 1.0 else math.inf
+    c0 = _limited_cost(recs, T, th0, scale, a0, vm0, am0) if 0.0 < a0 < 1.0 else math.inf
+    ratio = c1 / c0 if c0 > 0 and math.isfinite(c0) and math.isfinite(c1) else None
+    take = bool(ok_ff and (not ok0 or (ratio is not None and ratio < FF_COST_RATIO)))
+    return {"feedforward": take, "cost_ratio": ratio}
+
+
+def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float, v_max, a_max,
+                       beta: float = 0.0) -> dict:
     """Standard deviations of kv, the dead time and the limits (statistical: the one-step equation's
     residuals taken as white noise of the robust scale). kv from the least squares on the inliers; the
     dead time from the curvature of the cost (which counts squared residuals in units of the scale, so
     it rises by 1 at one standard deviation ... by 2 of the half-curvature); the limits from the spread
     of the saturated samples."""
-    z, y, yp = _drive_rows(recs, theta, T)
-    r = y - alpha * z
+    z, y, yp, w = _drive_rows(recs, theta, T)
+    r = y - alpha * z - beta * w
     inl = np.abs(r) <= 4.0 * scale
     szz = float(np.dot(z[inl], z[inl]))
     kv_sd = (scale / math.sqrt(szz)) / (T * (1.0 - alpha)) if szz > 0 else None
+    ff_sd = None
+    # the feed-forward's (also of a P loop fitted without it: how well the data exclude one) from the joint
+    # least squares' covariance; kv's too when the drive has feed-forward (z and w are correlated)
+    A = np.column_stack([z[inl], w[inl]])
+    ata = A.T @ A
+    if np.linalg.matrix_rank(ata) == 2:
+        cov = scale * scale * np.linalg.inv(ata)
+        ff_sd = math.sqrt(cov[1, 1])
+        if beta:
+            kv_sd = math.sqrt(cov[0, 0]) / (T * (1.0 - alpha))
     h = 0.25 * T
-    c0 = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max)
-    cm = _limited_cost(recs, T, max(theta - h, 0.0), scale, alpha, v_max, a_max)
-    cp = _limited_cost(recs, T, theta + h, scale, alpha, v_max, a_max)
+    c0 = _limited_cost(recs, T, theta, scale, alpha, v_max, a_max, beta)
+    cm = _limited_cost(recs, T, max(theta - h, 0.0), scale, alpha, v_max, a_max, beta)
+    cp = _limited_cost(recs, T, theta + h, scale, alpha, v_max, a_max, beta)
     curv = (cp - 2.0 * c0 + cm) / (h * h)
     # the residuals are not white where the model misses something (the mode, the limits within a
     # cycle): N / (1 + 2 sum rho_k) independent samples (lags up to 50 cycles)
@@ -467,7 +587,8 @@ def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float,
         rho = [float(np.dot(rc[:-k], rc[k:])) / den for k in range(1, 51)]
         infl = max(1.0, 1.0 + 2.0 * sum(rho))
     out = {"kv": kv_sd * math.sqrt(infl) if kv_sd is not None else None,
-           "dead_time": (math.sqrt(2.0 / curv) if curv > 0 else h) * math.sqrt(infl)}
+           "dead_time": (math.sqrt(2.0 / curv) if curv > 0 else h) * math.sqrt(infl),
+           "feedforward": ff_sd * math.sqrt(infl) if ff_sd is not None else None}
     # the model's own error (a drive that is not exactly the sampled P loop) is not noise: the spread of
     # kv and the dead time fitted to each recording with command transients alone says more; the larger
     # of the two is reported
@@ -477,14 +598,14 @@ def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float,
     for r in recs:
         if _command_transients([r], alpha, scale) < 3:
             continue
-        a_r = _robust_alpha(*_drive_rows([r], theta, T, free=True)[:2], scale)[0]
+        a_r = _robust_alpha(*_loop_rows([r], theta, T, beta), scale)[0]
         if not 0.0 < a_r < 1.0:
             continue
         kvs.append(-math.log1p(-a_r) / T)
-        costs = [_limited_cost([r], T, th, scale, a_r, v_max, a_max) for th in win]
+        costs = [_limited_cost([r], T, th, scale, a_r, v_max, a_max, beta) for th in win]
         thetas.append(float(win[int(np.argmin(costs))]))
     if out["kv"] is not None:
-        seg = _segment_kv_spread(recs, T, theta, scale, alpha)
+        seg = _segment_kv_spread(recs, T, theta, scale, alpha, beta)
         if seg is not None:
             out["kv"] = max(out["kv"], seg)
     if len(kvs) >= 2:
@@ -492,7 +613,7 @@ def _drive_uncertainty(recs, T: float, theta: float, scale: float, alpha: float,
             out["kv"] = max(out["kv"], float(np.std(kvs, ddof=1)) / math.sqrt(len(kvs)))
         out["dead_time"] = max(out["dead_time"], float(np.std(thetas, ddof=1)) / math.sqrt(len(thetas)))
     out["dead_time"] = max(out["dead_time"], h / math.sqrt(12.0))      # the search grid's resolution
-    v, vp, vd = y / T, yp / T, alpha * z / T
+    v, vp, vd = y / T, yp / T, (alpha * z + beta * w) / T
     sv = 3.0 * scale / T + 1e-9
     if v_max is not None:
         sat = (np.abs(vd) > 1.15 * np.abs(v) + 5 * sv) & (np.abs(v - vp) < 0.05 * np.abs(v) + 3 * sv) & \
@@ -513,7 +634,8 @@ KV_SEGMENT_S = 1.0
 KV_SEGMENT_TRIM = 6.0
 
 
-def _segment_kv_spread(recs, T: float, theta: float, scale: float, alpha: float) -> float | None:
+def _segment_kv_spread(recs, T: float, theta: float, scale: float, alpha: float,
+                       beta: float = 0.0) -> float | None:
     """The standard deviation of kv fitted to each 1 s segment with command transients (at the common
     dead time), those farther than KV_SEGMENT_TRIM robust scales from the median left out (a segment
     that is mostly at the drive's limits); None with fewer than 3 segments.
@@ -533,7 +655,7 @@ def _segment_kv_spread(recs, T: float, theta: float, scale: float, alpha: float)
                        limited=None if r.limited is None else r.limited[i0:i0 + n_seg - 1])
             if _command_transients([sub], alpha, scale) < 3:
                 continue
-            a_r = _robust_alpha(*_drive_rows([sub], theta, T, free=True)[:2], scale)[0]
+            a_r = _robust_alpha(*_loop_rows([sub], theta, T, beta), scale)[0]
             if 0.0 < a_r < 1.0:
                 kvs.append(-math.log1p(-a_r) / T)
     if len(kvs) < 3:
@@ -599,20 +721,22 @@ def _limit_bounds(recs, T: float, res: Identification, want_v: bool, want_a: boo
 
 
 def simulate_drive(S: np.ndarray, x0: float, T: float, kv: float, dead_time: float, v_max: float | None,
-                   a_max: float | None) -> np.ndarray:
+                   a_max: float | None, feedforward: float | None = None) -> np.ndarray:
     """The fitted drive on a command (the model of :func:`identify`, sampled): motor positions at the
-    rows' times."""
+    rows' times. ``feedforward``: the velocity feed-forward (the simulator's ff, 0..1)."""
     alpha = -math.expm1(-kv * T)
     kv_d = alpha / T
     c = _delayed(S, dead_time / T).tolist()
     vm = math.inf if v_max is None else v_max
     dvm = math.inf if a_max is None else a_max * T
+    ff = (feedforward or 0.0) / T
     out = [0.0] * len(c)
     x = x0
     v = 0.0
     for k in range(len(c)):
         out[k] = x
-        v = limit_velocity(kv_d * (c[k] - x), vm, v, dvm)     # the simulator's drive limits
+        vc = kv_d * (c[k] - x) + (ff * (c[k] - c[k - 1]) if k else 0.0)
+        v = limit_velocity(vc, vm, v, dvm)     # the simulator's drive limits
         x += v * T
     return np.array(out)
 
@@ -1058,7 +1182,8 @@ def _validate(recs: Sequence[_Rec], T: float, res: Identification, fr: dict, ch:
     for r in recs:
         row = {"path": r.sig.path, "samples": int(r.X.size)}
         if d.get("kv") is not None:
-            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"])
+            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"],
+                                d.get("feedforward"))
             e = r.X - xh
             den = float(np.linalg.norm(r.X - r.X.mean()))
             row["drive_rms_mm"] = float(np.sqrt(np.mean(e * e)))
@@ -1083,7 +1208,8 @@ def _fit_quality(recs, T, res: Identification, fr: dict, ch: dict) -> None:
     if d["kv"] is not None:
         errs, fits = [], []
         for r in recs:
-            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"])
+            xh = simulate_drive(r.S, float(r.X[0]), T, d["kv"], d["dead_time"], d["v_max"], d["a_max"],
+                                d.get("feedforward"))
             e = r.X - xh
             errs.append(float(np.sqrt(np.mean(e * e))))
             den = float(np.linalg.norm(r.X - r.X.mean()))

@@ -38,6 +38,8 @@ def format_summary(res: Identification) -> str:
              "drive:",
              f"  kv            {_fmt(d['kv'], unit='1/s')}{_pm(res, 'drive', 'kv', 1, '.2g', '1/s')}",
              f"  dead time     {_fmt(d['dead_time'], 1e3, '.3g', 'ms')}{_pm(res, 'drive', 'dead_time', 1e3, '.2g', 'ms')}",
+             f"  feed-forward  {_fmt(d.get('feedforward'), spec='.3g')}"
+             f"{_pm(res, 'drive', 'feedforward', 1, '.2g', '')}",
              f"  v_max         {_fmt(d['v_max'], unit='mm/s')}{_bound(res, 'v_max', 'mm/s')}",
              f"  a_max         {_fmt(d['a_max'], unit='mm/s^2')}{_bound(res, 'a_max', 'mm/s^2')}",
              f"  resonance     {_fmt(d['resonance_hz'], unit='Hz')}{_pm(res, 'drive', 'resonance_hz', 1, '.2g', 'Hz')}",
@@ -161,6 +163,9 @@ def fitted_axis(res: Identification) -> tuple[dict, list[str]]:
         # the simulator's drive integrates x += kv (c - x) T: the same pole as the continuous kv
         keys["kv"] = float(-math.expm1(-d["kv"] * T) / T)
         keys["bus_delay_cycles"] = int(round(d["dead_time"] / T))
+        if d.get("feedforward") is not None:
+            # the fit's feed-forward is the simulator's own (v = kv (c_k - x) + ff (c_k - c_k-1) / T)
+            keys["feedforward"] = float(min(max(d["feedforward"], 0.0), 1.0))
     if d["v_max"] is not None:
         keys["v_max"] = float(d["v_max"])
     if d["a_max"] is not None:

@@ -15,7 +15,8 @@ from .common import DRIVE_KEYS, SENSOR_KEYS, _mode
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-UNITS = {"kv": "1/s", "dead_time": "s", "v_max": "mm/s", "a_max": "mm/s^2", "resonance_hz": "Hz", "damping": "-",
+UNITS = {"kv": "1/s", "dead_time": "s", "feedforward": "- (velocity feed-forward 0..1)", "v_max": "mm/s",
+         "a_max": "mm/s^2", "resonance_hz": "Hz", "damping": "-",
          "delay": "s", "noise_std": "mm", "characteristic": "[[true mm, reported mm], ...]"}
 
 
