@@ -40,8 +40,11 @@ def run_one(seed: int, tmp: pathlib.Path, seconds: float = 12.0, only: tuple = (
         warnings.simplefilter("ignore")
         sigs = [load_signals(p, command="set_pos", actual="act_pos", sensor="sensor") for p in paths]
         res = identify(sigs)
-    est = {k: res.drive.get(k) for k in ("kv", "dead_time", "v_max", "a_max", "resonance_hz", "damping")}
+    est = {k: res.drive.get(k) for k in ("kv", "dead_time", "feedforward", "v_max", "a_max", "resonance_hz",
+                                         "damping")}
     est.update({k: res.sensor.get(k) for k in ("delay", "noise_std")})
+    est["feedforward_sd"] = (res.uncertainty.get("drive") or {}).get("feedforward")
+    est["kv_sd"] = (res.uncertainty.get("drive") or {}).get("kv")
     return {"seed": seed, "pass": score(plant, seen, res.drive, res.sensor),
             "cpu_seconds": round(time.process_time() - t0, 3), "truth": plant.describe(), "seen": seen,
             "estimate": est, "open_loop": res.extra.get("open_loop"), "warnings": list(res.warnings)}
@@ -77,6 +80,11 @@ def main() -> None:
     no_ff = rates([r for r in rows if not r["truth"]["feed_forward"]])
     for q in ("kv", "v_max", "a_max"):
         summary[f"{q}_without_feed_forward"] = no_ff[q]
+    # the drive's feed-forward told apart: found (ff >= 0.5) on the drives with it, 0 on those without
+    marks = [(r["estimate"]["feedforward"] or 0.0) >= 0.5 if r["truth"]["feed_forward"]
+             else r["estimate"]["feedforward"] == 0.0 for r in rows if r["estimate"]["kv"] is not None]
+    summary["feed_forward_told_apart"] = {"passed": sum(marks), "plants": len(marks),
+                                          "rate": round(sum(marks) / len(marks), 4) if marks else None}
     lag1 = [abs(r["open_loop"]["residual_lag1"]) for r in rows
             if r.get("open_loop") and r["open_loop"].get("residual_lag1") is not None]
     for q, s in summary.items():
