@@ -34,14 +34,11 @@ def _entries() -> tuple:
             K.run_setpos_batch, MK.chunk_metrics)
 
 
-def _example_inputs(n: int = 16):
-    """A closed loop of ``n`` cycles without a scenario and two packed sets (MOVING_AVERAGE for the
-    vector blocks, EXPO_MEAN for the scalar loop): the arguments :func:`warm` compiles with."""
+def _example_loop(n: int = 16):
+    """A closed loop of ``n`` cycles without a scenario (no sets packed)."""
     # the batch kernels import numba: loaded only when warming or running them
     import numpy as np
 
-    from ..base.kinds import FilterType
-    from ..params.axis import AxisParameters
     from . import closed_loop as CL
     from .layout import PL_LEN, PL_RES, PL_SENSOR, SENSOR_DISTANCE
 
@@ -51,6 +48,17 @@ def _example_inputs(n: int = 16):
     inputs = CL.LoopInputs(scenario=None, axis="Z", cycle_time=1e-3, n_cycles=n, k_on=0, mode=CL.MODE_SET_POS,
                            set_value=0.0, prog=np.zeros(n), surface=np.zeros(n), noise=np.zeros(n), plant=plant,
                            params=None)
+    return inputs
+
+
+def _example_inputs(n: int = 16):
+    """:func:`_example_loop` and two packed sets (MOVING_AVERAGE for the vector blocks, EXPO_MEAN for the
+    scalar loop): the arguments :func:`warm` compiles with."""
+    from ..base.kinds import FilterType
+    from ..params.axis import AxisParameters
+    from . import closed_loop as CL
+
+    inputs = _example_loop(n)
     base = AxisParameters(enabled=True)
     sets = [base.replace(filter_type=FilterType.MOVING_AVERAGE), base.replace(filter_type=FilterType.EXPO_MEAN)]
     return inputs, CL.pack_sets(inputs, sets)
@@ -78,11 +86,16 @@ def run_signatures() -> tuple:
 
     from . import closed_loop as CL
     from . import metrics_kernel as MK
-    from . import soa
+    from .layout import PACKED_LEN
+    from .soa import BLOCK
 
-    inputs, packed = _example_inputs()
-    k, n = packed.shape[0], inputs.n_cycles
-    lanes, counts, rest = soa.plan_blocks(packed)
+    # the types alone matter here, not the values: arrays of the sweep's dtypes and layouts (packed rows
+    # float64, block plan int64, as soa.plan_blocks makes them), no set packed (a sweep's sets go through
+    # the columns, never through pack_sets: tests/tuning/test_sweep_golden.py)
+    inputs, k = _example_loop(), 2
+    n = inputs.n_cycles
+    packed = np.zeros((k, PACKED_LEN))
+    lanes, counts, rest = np.zeros((1, BLOCK), dtype=np.int64), np.ones(1, dtype=np.int64), np.zeros(1, dtype=np.int64)
     blocks = (packed, lanes, counts, rest, inputs.plant, inputs.prog, inputs.surface, inputs.noise,
               np.empty((k, n)), np.empty((k, n)), np.empty((k, 2), dtype=np.int64))
     return tuple((d, tuple(d.typeof_pyval(a) for a in args))

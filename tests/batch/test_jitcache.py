@@ -89,15 +89,20 @@ def test_a_second_process_loads_the_kernel_and_a_changed_law_recompiles_it(tmp_p
 def test_the_evaluator_says_compiling_only_when_it_compiles(monkeypatch):
     from distctrl.tuning.runner import Evaluator
 
+    from distctrl.batch import warm
+
+    # a command announces the compile once per process (warm.announce_if_cold): an earlier test's
+    # command in this process must not count as this evaluator's
+    monkeypatch.setitem(warm._STATE, "announced", False)
     inputs = closed_loop.prepare(ROOT / "examples" / "scenarios" / "tune_sheet.toml", 300)
     said: list[str] = []
     with Evaluator(inputs, mode="local", progress=False, log=said.append, cycles=300) as ev:
-        monkeypatch.setattr(jitcache, "is_cached", lambda d: False)
+        monkeypatch.setattr(jitcache, "is_cached", lambda d, argtypes=None: False)
         ev.evaluate([inputs.params])
     assert any(m.startswith("compiling the batch kernels") for m in said), said
     assert any(m.startswith("compiled in") for m in said)
     said.clear()
-    monkeypatch.setattr(jitcache, "is_cached", lambda d: True)
+    monkeypatch.setattr(jitcache, "is_cached", lambda d, argtypes=None: True)
     with Evaluator(inputs, mode="local", progress=False, log=said.append, cycles=300) as ev:
         ev.evaluate([inputs.params])
     assert not any("compiling" in m for m in said), said
