@@ -54,6 +54,7 @@ def _example_loop(n: int = 16):
 def _example_inputs(n: int = 16):
     """:func:`_example_loop` and two packed sets (MOVING_AVERAGE for the vector blocks, EXPO_MEAN for the
     scalar loop): the arguments :func:`warm` compiles with."""
+    # the batch kernels import numba: loaded only when warming or running them
     from ..base.kinds import FilterType
     from ..params.axis import AxisParameters
     from . import closed_loop as CL
